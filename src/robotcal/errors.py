@@ -1,0 +1,53 @@
+"""One exception hierarchy and the warning classes of robotcal.
+
+Library functions raise these and never print or exit; the CLI turns them into one-line messages.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "RobotcalError",
+    "InputError",
+    "DegenerateGeometryError",
+    "IdentifiabilityError",
+    "RobotcalWarning",
+    "JointLimitWarning",
+    "RigidTransformWarning",
+    "IdentifiabilityWarning",
+]
+
+
+class RobotcalError(Exception):
+    """Base class of every error robotcal raises on purpose."""
+
+
+class InputError(RobotcalError, ValueError):
+    """Input that robotcal cannot use: wrong shape, NaN, missing key, unknown name, bad file."""
+
+
+class DegenerateGeometryError(InputError):
+    """Points that do not define the geometry asked for (collinear circle, zero sweep, ...)."""
+
+
+class IdentifiabilityError(RobotcalError):
+    """The data cannot determine some parameters; ``parameters`` lists their names."""
+
+    def __init__(self, message: str, parameters: list[str] | tuple[str, ...] = ()):
+        super().__init__(message)
+        self.parameters = tuple(parameters)
+
+
+class RobotcalWarning(UserWarning):
+    """Base class of robotcal's warnings."""
+
+
+class JointLimitWarning(RobotcalWarning):
+    """A joint reading lies outside the robot file's software limits."""
+
+
+class RigidTransformWarning(RobotcalWarning):
+    """A nearly rigid 4x4 matrix was replaced by its nearest rigid transform."""
+
+
+class IdentifiabilityWarning(RobotcalWarning):
+    """A parameter was held at its nominal value because the data cannot determine it."""

@@ -1,0 +1,212 @@
+"""Robot model (hybrid Denavit-Hartenberg / Hayati-Mirmirani) and parameter sets (thesis ch. 3.4-3.5).
+
+Per joint i the parameters are ``d, theta, a, alpha, beta`` (columns of a ``(n_joints, 5)`` array,
+in this order). A DH joint is ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha)`` (eq. 3-72) with beta = 0 fixed;
+a Hayati joint is ``Rz(theta + q) Tx(a) Rx(alpha) Ry(beta)`` (eq. 3-82 as a factor product) with
+d = 0 fixed. The model's structure (which parameters exist and which are fixed) never depends on
+the values. Lengths in mm, angles in radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from robotcal.errors import InputError
+
+__all__ = [
+    "PARAMETER_KINDS",
+    "LENGTH_KINDS",
+    "RobotModel",
+    "ParameterSet",
+    "ReflectorMount",
+    "check_parameter_array",
+]
+
+#: Column order of parameter arrays ``(..., n_joints, 5)``.
+PARAMETER_KINDS = ("d", "theta", "a", "alpha", "beta")
+#: Kinds measured in mm (the others are angles).
+LENGTH_KINDS = ("d", "a")
+_D, _BETA = 0, 4
+
+
+def _frozen(array, dtype=float) -> np.ndarray:
+    array = np.array(array, dtype=dtype)
+    array.setflags(write=False)
+    return array
+
+
+def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np.ndarray:
+    """Coerce ``values`` to float ``(..., n_joints, 5)``, finite, or raise :class:`InputError`."""
+    try:
+        values = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"`{name}` must be numeric") from exc
+    if values.ndim < 2 or values.shape[-2:] != (n_joints, 5):
+        raise InputError(f"`{name}` must have shape (..., {n_joints}, 5) (d, theta, a, alpha, beta); got {values.shape}")
+    if not np.all(np.isfinite(values)):
+        raise InputError(f"`{name}` contains NaN or infinite values")
+    return values
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RobotModel:
+    """A serial revolute robot: nominal parameters, joint types and the controller reading map.
+
+    Attributes
+    ----------
+    name : str
+    nominal : ndarray, shape (n_joints, 5)
+        Nominal ``d, theta, a, alpha, beta`` [mm, rad]; theta is the offset added to the joint
+        variable (Table 3.1).
+    hayati : ndarray of bool, shape (n_joints,)
+        True where the joint uses the Hayati-Mirmirani form (d fixed at 0, beta free).
+    reading_sign, reading_offset : ndarray, shape (n_joints,)
+        Map from controller readings to model joint variables:
+        ``q_model = reading_sign * reading + reading_offset`` [rad]. Identity by default.
+    limits : ndarray, shape (n_joints, 2)
+        Software limits of the controller readings [rad] (lower, upper).
+    description : str
+    """
+
+    name: str
+    nominal: np.ndarray
+    hayati: np.ndarray
+    reading_sign: np.ndarray = field(default=None)
+    reading_offset: np.ndarray = field(default=None)
+    limits: np.ndarray = field(default=None)
+    description: str = ""
+
+    def __post_init__(self):
+        nominal = np.asarray(self.nominal, dtype=float)
+        if nominal.ndim != 2 or nominal.shape[1] != 5 or nominal.shape[0] < 1:
+            raise InputError(f"robot {self.name!r}: `nominal` must have shape (n_joints, 5); got {nominal.shape}")
+        n = nominal.shape[0]
+        check_parameter_array(nominal, n, f"robot {self.name!r} nominal parameters")
+        hayati = np.asarray(self.hayati, dtype=bool)
+        if hayati.shape != (n,):
+            raise InputError(f"robot {self.name!r}: `hayati` must have {n} entries; got {hayati.shape}")
+        nominal = nominal.copy()
+        if np.any(nominal[hayati, _D] != 0.0):
+            bad = [f"J{i + 1}" for i in np.flatnonzero(hayati & (nominal[:, _D] != 0.0))]
+            raise InputError(f"robot {self.name!r}: Hayati joints have d = 0 by definition; {', '.join(bad)} give d != 0")
+        if np.any(nominal[~hayati, _BETA] != 0.0):
+            bad = [f"J{i + 1}" for i in np.flatnonzero(~hayati & (nominal[:, _BETA] != 0.0))]
+            raise InputError(f"robot {self.name!r}: DH joints have beta = 0; {', '.join(bad)} give beta != 0")
+        sign = np.ones(n) if self.reading_sign is None else np.asarray(self.reading_sign, dtype=float)
+        if sign.shape != (n,) or not np.all(np.isin(sign, (-1.0, 1.0))):
+            raise InputError(f"robot {self.name!r}: `reading_sign` must be {n} values of +1 or -1; got {sign.tolist()}")
+        offset = np.zeros(n) if self.reading_offset is None else np.asarray(self.reading_offset, dtype=float)
+        if offset.shape != (n,) or not np.all(np.isfinite(offset)):
+            raise InputError(f"robot {self.name!r}: `reading_offset` must be {n} finite values")
+        limits = np.tile([-np.inf, np.inf], (n, 1)) if self.limits is None else np.asarray(self.limits, dtype=float)
+        if limits.shape != (n, 2) or np.any(limits[:, 0] >= limits[:, 1]):
+            raise InputError(f"robot {self.name!r}: `limits` must be {n} pairs (lower < upper)")
+        object.__setattr__(self, "nominal", _frozen(nominal))
+        object.__setattr__(self, "hayati", _frozen(hayati, bool))
+        object.__setattr__(self, "reading_sign", _frozen(sign))
+        object.__setattr__(self, "reading_offset", _frozen(offset))
+        object.__setattr__(self, "limits", _frozen(limits))
+
+    @property
+    def n_joints(self) -> int:
+        return self.nominal.shape[0]
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """``("J1.d", "J1.theta", ..., "Jn.beta")``, joint-major, matching ``values.reshape(-1)``."""
+        return tuple(f"J{i + 1}.{kind}" for i in range(self.n_joints) for kind in PARAMETER_KINDS)
+
+    @property
+    def structurally_fixed(self) -> np.ndarray:
+        """``(n_joints, 5)`` bool: d of Hayati joints and beta of DH joints, fixed by the model."""
+        fixed = np.zeros((self.n_joints, 5), dtype=bool)
+        fixed[:, _D] = self.hayati
+        fixed[:, _BETA] = ~self.hayati
+        return fixed
+
+    def model_joint_variables(self, readings) -> np.ndarray:
+        """Model joint variables ``q = sign * reading + offset`` [rad] from readings ``(..., n_joints)`` [rad]."""
+        return np.asarray(readings, dtype=float) * self.reading_sign + self.reading_offset
+
+    def readings_from_model(self, q) -> np.ndarray:
+        """Controller readings [rad] from model joint variables ``(..., n_joints)`` [rad]."""
+        return (np.asarray(q, dtype=float) - self.reading_offset) * self.reading_sign
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ParameterSet:
+    """Values of every parameter of a robot, with the record of which were determined by data.
+
+    Attributes
+    ----------
+    robot : RobotModel
+    values : ndarray, shape (n_joints, 5)
+        ``d, theta, a, alpha, beta`` [mm, rad].
+    identified : ndarray of bool, shape (n_joints, 5)
+        True where the value was determined by data; False where it is nominal or fixed.
+    """
+
+    robot: RobotModel
+    values: np.ndarray
+    identified: np.ndarray = field(default=None)
+
+    def __post_init__(self):
+        values = check_parameter_array(self.values, self.robot.n_joints)
+        if values.ndim != 2:
+            raise InputError(f"a ParameterSet holds one set of shape ({self.robot.n_joints}, 5); got {values.shape}")
+        fixed = self.robot.structurally_fixed
+        if np.any(values[fixed] != 0.0):
+            names = [n for n, f, v in zip(self.robot.parameter_names, fixed.ravel(), values.ravel()) if f and v != 0.0]
+            raise InputError(f"parameters fixed at 0 by the model have other values: {', '.join(names)}")
+        identified = (
+            np.zeros(values.shape, dtype=bool) if self.identified is None else np.asarray(self.identified, dtype=bool)
+        )
+        if identified.shape != values.shape:
+            raise InputError(f"`identified` must have shape {values.shape}; got {identified.shape}")
+        object.__setattr__(self, "values", _frozen(values))
+        object.__setattr__(self, "identified", _frozen(identified, bool))
+
+    @classmethod
+    def nominal(cls, robot: RobotModel) -> ParameterSet:
+        """The robot's nominal parameters, none identified."""
+        return cls(robot=robot, values=robot.nominal)
+
+    def difference(self, other: ParameterSet) -> np.ndarray:
+        """``self.values - other.values`` with angles wrapped to (-pi, pi] [mm, rad]."""
+        diff = self.values - other.values
+        angles = [PARAMETER_KINDS.index(k) for k in ("theta", "alpha", "beta")]
+        diff[:, angles] = np.angle(np.exp(1j * diff[:, angles]))
+        return diff
+
+    def replace(self, **changes) -> ParameterSet:
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ReflectorMount:
+    """Where the measured target sits on the robot.
+
+    ``frame="joint"``: one position per circle, circle i's target given in DH frame {i-1} turned by
+    joint i's variable (without the theta_i offset): ``base_p = F_{i-1} Rz(q_i) r_i`` (eq. 5-1, the
+    thesis generator's way). ``positions`` has shape ``(n_joints, 3)``.
+
+    ``frame="flange"``: one target on the flange (DH frame {n}) for every circle, the thesis's
+    active target on the end effector: ``base_p = F_n r``. ``positions`` has shape ``(1, 3)``.
+    """
+
+    frame: str
+    positions: np.ndarray
+
+    def __post_init__(self):
+        if self.frame not in ("joint", "flange"):
+            raise InputError(f"reflector frame must be 'joint' or 'flange'; got {self.frame!r}")
+        positions = np.asarray(self.positions, dtype=float)
+        if positions.ndim == 1:
+            positions = positions[None, :]
+        if positions.ndim != 2 or positions.shape[1] != 3 or not np.all(np.isfinite(positions)):
+            raise InputError(f"reflector positions must be finite (n, 3) [mm]; got shape {positions.shape}")
+        if self.frame == "flange" and positions.shape[0] != 1:
+            raise InputError(f"a flange reflector is one position (3,); got {positions.shape[0]}")
+        object.__setattr__(self, "positions", _frozen(positions))

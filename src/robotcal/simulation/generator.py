@@ -1,0 +1,175 @@
+"""Synthetic Circle Point capture generator (thesis ch. 5.2.1.1, eqs 5-1..5-4).
+
+A target point of circle i is ``tracker_from_base . F_{i-1} . G_Zi(q_i) . r_i`` (eq. 5-1), where
+``F_{i-1}`` chains the links of the earlier joints at their current readings and
+``G_Zi = RT_err = T(dx, dy, dz) Rx(ex) Ry(ey) Rz(q_i)`` (eqs 5-3, 5-4) carries the joint error model.
+Instrument noise ``U(L) = A + B L`` is added last, from one seeded generator.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from robotcal.capture import Capture
+from robotcal.errors import InputError, JointLimitWarning
+from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rot_x, rot_y, translation
+from robotcal.instruments import Instrument
+from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.model import ParameterSet, RobotModel
+from robotcal.simulation.plan import CapturePlan
+
+__all__ = ["JointErrorModel", "simulate_capture", "ERROR_TERMS"]
+
+#: Error terms of a joint, in the order of the thesis's Err matrix rows (eq. 5-2).
+ERROR_TERMS = ("dx", "dy", "dz", "ex", "ey")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class JointErrorModel:
+    """Per-joint error model of eq. 5-2: ``e = A sin(2 pi / T * q + phi) + N(0, R)`` per term.
+
+    Terms (columns): ``dx, dy, dz`` translations [mm] and ``ex, ey`` rotations [rad] about the x and
+    y axes of frame {i-1}; the joint's own rotation about z is the joint variable. ``q`` is the
+    model joint variable [rad]. A joint that does not move keeps its error: the random part is drawn
+    once each time the joint reaches a new reading (so a joint resting after its circle keeps the
+    error of its last point, as the thesis's generator keeps its last ``G_Zi``).
+
+    Attributes
+    ----------
+    amplitude, period, phase, noise_sd : ndarray, shape (n_joints, 5)
+        A [mm | rad], T [rad of joint angle, > 0], phi [rad], R (standard deviation) [mm | rad].
+    """
+
+    amplitude: np.ndarray
+    period: np.ndarray
+    phase: np.ndarray
+    noise_sd: np.ndarray
+
+    def __post_init__(self):
+        shape = np.shape(self.amplitude)
+        for name in ("amplitude", "period", "phase", "noise_sd"):
+            value = np.array(getattr(self, name), dtype=float)
+            if value.shape != shape or value.ndim != 2 or value.shape[1] != 5:
+                raise InputError(f"joint error model: `{name}` must have shape (n_joints, 5); got {value.shape}")
+            if not np.all(np.isfinite(value)):
+                raise InputError(f"joint error model: `{name}` contains NaN or infinite values")
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        if np.any(self.period <= 0):
+            raise InputError("joint error model: every `period` must be > 0")
+        if np.any(self.noise_sd < 0):
+            raise InputError("joint error model: `noise_sd` must be >= 0")
+
+    @classmethod
+    def zeros(cls, n_joints: int) -> JointErrorModel:
+        zeros = np.zeros((n_joints, 5))
+        return cls(amplitude=zeros, period=np.full((n_joints, 5), 2 * np.pi), phase=zeros, noise_sd=zeros)
+
+    @property
+    def n_joints(self) -> int:
+        return self.amplitude.shape[0]
+
+    def values(self, q, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """Error terms ``(n_points, n_joints, 5)`` at model joint variables ``q (n_points, n_joints)``."""
+        rng = np.random.default_rng(rng)
+        q = np.asarray(q, dtype=float)
+        values = self.amplitude * np.sin(2 * np.pi / self.period * q[..., None] + self.phase)
+        if np.any(self.noise_sd > 0):
+            raw = rng.standard_normal(values.shape) * self.noise_sd
+            for joint in range(q.shape[1]):
+                new_reading = np.r_[True, np.diff(q[:, joint]) != 0.0]
+                first = np.flatnonzero(new_reading)[np.cumsum(new_reading) - 1]
+                raw[:, joint] = raw[first, joint]
+            values = values + raw
+        return values
+
+    def transforms(self, q, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """Error transforms ``E = T(dx, dy, dz) Rx(ex) Ry(ey)``, shape ``(n_points, n_joints, 4, 4)``."""
+        values = self.values(q, rng=rng)
+        return translation(values[..., :3]) @ rot_x(values[..., 3]) @ rot_y(values[..., 4])
+
+
+def _check_limits(robot: RobotModel, readings: np.ndarray, circle: np.ndarray, policy: str) -> None:
+    if policy == "ignore":
+        return
+    outside = (readings < robot.limits[:, 0] - 1e-12) | (readings > robot.limits[:, 1] + 1e-12)
+    if not np.any(outside):
+        return
+    messages = []
+    for joint in np.flatnonzero(outside.any(axis=0)):
+        rows = np.flatnonzero(outside[:, joint])
+        worst = readings[rows, joint][np.argmax(np.abs(readings[rows, joint]))]
+        lo, hi = np.rad2deg(robot.limits[joint])
+        messages.append(
+            f"J{joint + 1} reaches {np.rad2deg(worst):.6g} deg (circle {circle[rows[0]]}), outside its limits [{lo:g}, {hi:g}] deg"
+        )
+    text = "capture plan leaves the joint limits of robot " + repr(robot.name) + ": " + "; ".join(messages)
+    if policy == "error":
+        raise InputError(text)
+    warnings.warn(text, JointLimitWarning, stacklevel=3)
+
+
+def simulate_capture(
+    robot: RobotModel,
+    plan: CapturePlan,
+    instrument: Instrument,
+    tracker_from_base,
+    *,
+    true_parameters: ParameterSet | None = None,
+    joint_errors: JointErrorModel | None = None,
+    joint_limits: str = "warn",
+    rng: np.random.Generator | int | None = None,
+) -> tuple[Capture, np.ndarray]:
+    """Simulate a Circle Point capture (algorithm 5.2.1.1).
+
+    Parameters
+    ----------
+    robot : RobotModel
+        Gives the reading map (controller readings -> model joint variables) and limits.
+    plan : CapturePlan
+        Readings to visit and where the target sits.
+    instrument : Instrument
+        Noise model; a noise-free instrument gives exact points.
+    tracker_from_base : array_like, shape (4, 4)
+        Rigid transform from the robot base frame to the instrument frame [mm].
+    true_parameters : ParameterSet, optional
+        The "real" robot; nominal parameters by default.
+    joint_errors : JointErrorModel, optional
+        Joint error model of eq. 5-2 (none by default).
+    joint_limits : {"warn", "error", "ignore"}
+        What to do when the plan leaves the robot's software limits.
+    rng : numpy.random.Generator or int or None
+        Source of all random draws (joint error noise first, then instrument noise).
+
+    Returns
+    -------
+    capture : Capture
+        Noisy points in the tracker frame; readings as the controller reports them.
+    exact_points : ndarray, shape (n_points, 3)
+        The same points without instrument noise [mm].
+    """
+    rng = np.random.default_rng(rng)
+    if joint_limits not in ("warn", "error", "ignore"):
+        raise InputError(f"`joint_limits` must be 'warn', 'error' or 'ignore'; got {joint_limits!r}")
+    if plan.n_joints != robot.n_joints:
+        raise InputError(f"capture plan has {plan.n_joints} circles but robot {robot.name!r} has {robot.n_joints} joints")
+    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
+    if parameters.robot.n_joints != robot.n_joints:
+        raise InputError(f"true parameters have {parameters.robot.n_joints} joints; robot {robot.name!r} has {robot.n_joints}")
+    circle, direction, readings = plan.readings()
+    _check_limits(robot, readings, circle, joint_limits)
+    q = robot.model_joint_variables(readings)
+    errors = None
+    if joint_errors is not None:
+        if joint_errors.n_joints != robot.n_joints:
+            raise InputError(f"joint error model has {joint_errors.n_joints} joints; robot has {robot.n_joints}")
+        errors = joint_errors.transforms(q, rng=rng)
+    base_points = target_positions(parameters.values, q, circle - 1, plan.reflector, joint_errors=errors)
+    exact = apply_transform(tracker_from_base, base_points)
+    noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
+    capture = Capture(circle=circle, direction=direction, readings=readings, points=noisy, source="simulated capture")
+    return capture, exact
