@@ -1,0 +1,99 @@
+"""Robot TOML files: ``name``, ``joints = [{d, theta, a, alpha, beta, hayati, limits_deg, ...}]``.
+
+Lengths in mm and angles in degrees (DESIGN.md "Files"). Optional per joint: ``reading_sign`` (+1 or
+-1) and ``reading_offset_deg``, mapping controller readings to model joint variables
+(``q = reading_sign * reading + reading_offset``); both default to the identity map.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from robotcal.errors import InputError
+from robotcal.io._validation import validate_model
+from robotcal.io.builtins import builtin_names, data_path, read_toml
+from robotcal.kinematics.model import RobotModel
+
+__all__ = ["RobotFile", "JointEntry", "load_robot", "robot_from_dict", "list_robots"]
+
+
+class JointEntry(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    d: float = 0.0
+    theta: float = 0.0
+    a: float = 0.0
+    alpha: float = 0.0
+    beta: float = 0.0
+    hayati: bool = False
+    limits_deg: tuple[float, float] = (-360.0, 360.0)
+    reading_sign: int = 1
+    reading_offset_deg: float = 0.0
+
+    @field_validator("reading_sign")
+    @classmethod
+    def _sign(cls, value: int) -> int:
+        if value not in (-1, 1):
+            raise ValueError("must be +1 or -1")
+        return value
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        values = (self.d, self.theta, self.a, self.alpha, self.beta, self.reading_offset_deg, *self.limits_deg)
+        if not all(np.isfinite(values)):
+            raise ValueError("values must be finite")
+        if self.hayati and self.d != 0.0:
+            raise ValueError("a Hayati joint has d = 0 by definition")
+        if not self.hayati and self.beta != 0.0:
+            raise ValueError("beta must be 0 on a DH joint (set hayati = true to use beta)")
+        if self.limits_deg[0] >= self.limits_deg[1]:
+            raise ValueError("limits_deg must be [lower, upper] with lower < upper")
+        return self
+
+
+class RobotFile(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    name: str
+    description: str = ""
+    source: str = ""
+    joints: list[JointEntry] = Field(min_length=1)
+
+
+def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
+    """Build a :class:`RobotModel` from a parsed robot TOML (degrees -> radians)."""
+    spec: RobotFile = validate_model(RobotFile, data, source)
+    nominal = np.array([[j.d, np.deg2rad(j.theta), j.a, np.deg2rad(j.alpha), np.deg2rad(j.beta)] for j in spec.joints])
+    return RobotModel(
+        name=spec.name,
+        nominal=nominal,
+        hayati=[j.hayati for j in spec.joints],
+        reading_sign=[j.reading_sign for j in spec.joints],
+        reading_offset=np.deg2rad([j.reading_offset_deg for j in spec.joints]),
+        limits=np.deg2rad([j.limits_deg for j in spec.joints]),
+        description=spec.description,
+    )
+
+
+def load_robot(name_or_path, *, relative_to: Path | None = None) -> RobotModel:
+    """A built-in robot by name, or a robot TOML file by path (relative paths from ``relative_to``)."""
+    text = str(name_or_path)
+    if text in builtin_names("robots"):
+        path = data_path("robots", f"{text}.toml")
+    else:
+        path = Path(text)
+        if not path.is_absolute() and relative_to is not None and not path.exists():
+            path = relative_to / path
+        if not path.exists():
+            raise InputError(
+                f"unknown robot {text!r}: not a built-in robot ({', '.join(builtin_names('robots'))}) nor an existing file"
+            )
+    return robot_from_dict(read_toml(path), str(path))
+
+
+def list_robots() -> list[RobotModel]:
+    """Every built-in robot."""
+    return [load_robot(name) for name in builtin_names("robots")]

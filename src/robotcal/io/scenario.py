@@ -1,0 +1,235 @@
+"""Scenario TOML: robot, instrument, capture plan and identification options (DESIGN.md "Files").
+
+Every key is documented in ``docs/scenario.md``. Lengths in mm, angles in degrees, instrument terms
+in micrometres (``a_um``, ``b_um_per_m``); unknown keys are errors, so a typo never goes unnoticed.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from robotcal.errors import InputError, RigidTransformWarning
+from robotcal.geometry.transforms import check_rigid_transform, nearest_rotation
+from robotcal.identification.cpa import CPAOptions
+from robotcal.instruments import Instrument
+from robotcal.io._validation import validate_model
+from robotcal.io.builtins import builtin_names, data_path, read_toml
+from robotcal.io.instruments import make_instrument
+from robotcal.io.robots import load_robot
+from robotcal.kinematics.model import ReflectorMount, RobotModel
+from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel
+from robotcal.simulation.plan import CapturePlan
+
+__all__ = ["Scenario", "load_scenario", "list_scenarios", "scenario_from_dict"]
+
+#: Largest deviation from orthonormal that is repaired (with a warning) instead of refused: a
+#: matrix printed to 5 significant digits, like the thesis's Table 5.4, deviates by ~1e-5.
+REPAIRABLE_DEVIATION = 1e-3
+_IDENTITY = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class InstrumentTable(_Strict):
+    preset: str | None = None
+    a_um: float | None = Field(default=None, ge=0)
+    b_um_per_m: float | None = Field(default=None, ge=0)
+    noise: Literal["uniform", "normal"] = "uniform"
+    coverage_factor: float = Field(default=2.0, gt=0)
+
+
+class ErrorTerm(_Strict):
+    amplitude: float = 0.0
+    period_deg: float = Field(default=360.0, gt=0)
+    phase_deg: float = 0.0
+    noise_sd: float = Field(default=0.0, ge=0)
+
+
+class JointErrorTable(_Strict):
+    joint: int = Field(ge=1)
+    dx: ErrorTerm = ErrorTerm()
+    dy: ErrorTerm = ErrorTerm()
+    dz: ErrorTerm = ErrorTerm()
+    ex: ErrorTerm = ErrorTerm()
+    ey: ErrorTerm = ErrorTerm()
+
+
+class CaptureTable(_Strict):
+    start_deg: list[float] | list[list[float]]
+    sweep_deg: list[float]
+    points: list[int]
+    reflector_mm: list[list[float]] | None = None
+    flange_reflector_mm: list[float] | None = None
+    bidirectional: bool = False
+    joint_limits: Literal["warn", "error", "ignore"] = "warn"
+    seed: int | None = Field(default=None, ge=0)
+    joint_errors: list[JointErrorTable] = []
+
+    @model_validator(mode="after")
+    def _one_reflector(self):
+        if (self.reflector_mm is None) == (self.flange_reflector_mm is None):
+            raise ValueError("give exactly one of `reflector_mm` (per circle) and `flange_reflector_mm`")
+        return self
+
+
+class IdentificationTable(_Strict):
+    circle_fit: Literal["geometric", "algebraic"] = "geometric"
+    base_frame: Literal["given", "registered"] = "given"
+    base_axis: Literal["registration", "circle1"] = "registration"
+    near_parallel_deg: float = Field(default=5.0, ge=0, le=45)
+    still_tolerance_deg: float = Field(default=1e-6, ge=0)
+
+
+class MonteCarloTable(_Strict):
+    iterations: int = Field(default=100_000, ge=1)
+    seed: int | None = Field(default=None, ge=0)
+    coverage: float = Field(default=0.95, gt=0, lt=1)
+
+
+class ScenarioFile(_Strict):
+    description: str = ""
+    robot: str
+    tracker_from_base: list[list[float]] = _IDENTITY
+    instrument: InstrumentTable
+    capture: CaptureTable
+    identification: IdentificationTable = IdentificationTable()
+    montecarlo: MonteCarloTable = MonteCarloTable()
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Scenario:
+    """A loaded, validated scenario: core objects in core units (mm, rad)."""
+
+    name: str
+    source: str
+    description: str
+    robot: RobotModel
+    instrument: Instrument
+    plan: CapturePlan
+    tracker_from_base: np.ndarray
+    joint_errors: JointErrorModel | None
+    joint_limits: str
+    identification: CPAOptions
+    seed: int | None
+    montecarlo: dict
+    settings: dict = field(default_factory=dict)
+
+
+def _rigid(matrix, source: str) -> np.ndarray:
+    array = np.asarray(matrix, dtype=float) if np.shape(matrix) == (4, 4) else None
+    if array is None:
+        raise InputError(f"{source}: key `tracker_from_base` must be a 4x4 matrix; got shape {np.shape(matrix)}")
+    rotation = array[:3, :3]
+    deviation = float(np.max(np.abs(rotation.T @ rotation - np.eye(3)))) if np.all(np.isfinite(array)) else np.inf
+    if 1e-9 < deviation <= REPAIRABLE_DEVIATION and np.linalg.det(rotation) > 0:
+        array = array.copy()
+        array[:3, :3] = nearest_rotation(rotation)
+        warnings.warn(
+            f"{source}: `tracker_from_base` deviates from a rotation by {deviation:.2g}; using its nearest rotation",
+            RigidTransformWarning,
+            stacklevel=4,
+        )
+    try:
+        return check_rigid_transform(array, "tracker_from_base")
+    except InputError as exc:
+        raise InputError(f"{source}: key {exc}") from None
+
+
+def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> JointErrorModel | None:
+    if not tables:
+        return None
+    model = JointErrorModel.zeros(n_joints)
+    amplitude, period, phase, noise = (np.array(a) for a in (model.amplitude, model.period, model.phase, model.noise_sd))
+    seen = set()
+    for table in tables:
+        if table.joint > n_joints or table.joint in seen:
+            raise InputError(f"{source}: key `capture.joint_errors`: joint {table.joint} is out of range 1..{n_joints} or repeated")
+        seen.add(table.joint)
+        for column, term_name in enumerate(ERROR_TERMS):
+            term: ErrorTerm = getattr(table, term_name)
+            to_core = 1.0 if term_name.startswith("d") else np.pi / 180.0  # mm stay mm, deg -> rad
+            amplitude[table.joint - 1, column] = term.amplitude * to_core
+            noise[table.joint - 1, column] = term.noise_sd * to_core
+            period[table.joint - 1, column] = np.deg2rad(term.period_deg)
+            phase[table.joint - 1, column] = np.deg2rad(term.phase_deg)
+    return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=noise)
+
+
+def scenario_from_dict(data: dict, *, name: str = "scenario", source: str = "scenario", base_dir: Path | None = None) -> Scenario:
+    """Validate a parsed scenario and build its core objects; errors name ``source`` and the key."""
+    spec: ScenarioFile = validate_model(ScenarioFile, data, source)
+    robot = load_robot(spec.robot, relative_to=base_dir)
+    n = robot.n_joints
+    capture = spec.capture
+    for key in ("sweep_deg", "points"):
+        if len(getattr(capture, key)) != n:
+            raise InputError(f"{source}: key `capture.{key}` has {len(getattr(capture, key))} values; robot {robot.name!r} has {n} joints")
+    start = np.asarray(capture.start_deg, dtype=float)
+    if start.shape not in ((n,), (n, n)):
+        raise InputError(f"{source}: key `capture.start_deg` must have {n} values or {n} rows of {n}; got shape {start.shape}")
+    if capture.reflector_mm is not None:
+        reflector_array = np.asarray(capture.reflector_mm, dtype=float)
+        if reflector_array.shape != (n, 3):
+            raise InputError(f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}")
+        reflector = ReflectorMount(frame="joint", positions=reflector_array)
+    else:
+        flange = np.asarray(capture.flange_reflector_mm, dtype=float)
+        if flange.shape != (3,):
+            raise InputError(f"{source}: key `capture.flange_reflector_mm` must be [x, y, z]; got shape {flange.shape}")
+        reflector = ReflectorMount(frame="flange", positions=flange)
+    try:
+        plan = CapturePlan(
+            start=np.deg2rad(start),
+            sweep=np.deg2rad(capture.sweep_deg),
+            points=capture.points,
+            reflector=reflector,
+            bidirectional=capture.bidirectional,
+        )
+        instrument = make_instrument(**spec.instrument.model_dump())
+    except InputError as exc:
+        raise InputError(f"{source}: {exc}") from None
+    ident = spec.identification
+    return Scenario(
+        name=name,
+        source=source,
+        description=spec.description,
+        robot=robot,
+        instrument=instrument,
+        plan=plan,
+        tracker_from_base=_rigid(spec.tracker_from_base, source),
+        joint_errors=_joint_errors(capture.joint_errors, n, source),
+        joint_limits=capture.joint_limits,
+        identification=CPAOptions(**ident.model_dump()),
+        seed=capture.seed,
+        montecarlo=spec.montecarlo.model_dump(),
+        settings=spec.model_dump(),
+    )
+
+
+def load_scenario(name_or_path) -> Scenario:
+    """A built-in scenario by name (``robotcal scenarios`` lists them) or a scenario TOML by path."""
+    text = str(name_or_path)
+    if text in builtin_names("scenarios"):
+        path = data_path("scenarios", f"{text}.toml")
+        name = text
+    else:
+        path = Path(text)
+        if not path.exists():
+            raise InputError(
+                f"unknown scenario {text!r}: not a built-in scenario ({', '.join(builtin_names('scenarios'))}) nor an existing file"
+            )
+        name = path.stem
+    return scenario_from_dict(read_toml(path), name=name, source=str(path), base_dir=path.parent)
+
+
+def list_scenarios() -> list[Scenario]:
+    """Every built-in scenario."""
+    return [load_scenario(name) for name in builtin_names("scenarios")]
