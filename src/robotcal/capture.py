@@ -55,7 +55,13 @@ class Capture:
         points = np.asarray(self.points, dtype=float)
         direction = np.asarray(self.direction)
         n = circle.shape[0] if circle.ndim == 1 else -1
-        if circle.ndim != 1 or readings.ndim != 2 or readings.shape[0] != n or points.shape != (n, 3) or direction.shape != (n,):
+        if (
+            circle.ndim != 1
+            or readings.ndim != 2
+            or readings.shape[0] != n
+            or points.shape != (n, 3)
+            or direction.shape != (n,)
+        ):
             raise InputError(
                 f"{self.source}: inconsistent capture shapes: circle {circle.shape}, direction {direction.shape}, "
                 f"readings {readings.shape}, points {points.shape} (expected (n,), (n,), (n, n_joints), (n, 3))"
@@ -83,4 +89,11 @@ class Capture:
 
     def with_points(self, points) -> Capture:
         """The same capture with other target positions (e.g. noisy copies)."""
-        return Capture(circle=self.circle, direction=self.direction, readings=self.readings, points=points, source=self.source, seed=self.seed)
+        return Capture(
+            circle=self.circle,
+            direction=self.direction,
+            readings=self.readings,
+            points=points,
+            source=self.source,
+            seed=self.seed,
+        )

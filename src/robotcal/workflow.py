@@ -38,7 +38,9 @@ def resolve_seed(*candidates: int | None) -> int:
     return int(np.random.SeedSequence().entropy % (2**63))
 
 
-def simulate_scenario(scenario: Scenario, *, seed: int | None = None, true_parameters: ParameterSet | None = None) -> SimulationRun:
+def simulate_scenario(
+    scenario: Scenario, *, seed: int | None = None, true_parameters: ParameterSet | None = None
+) -> SimulationRun:
     """Simulate the scenario's capture (noise and joint errors from one generator seeded by ``seed``,
     else the scenario's ``capture.seed``, else fresh entropy)."""
     seed = resolve_seed(seed, scenario.seed)
@@ -79,7 +81,12 @@ def versions() -> dict[str, str]:
     """Versions of robotcal and of the numeric stack, for provenance records."""
     import scipy
 
-    return {"robotcal": robotcal.__version__, "numpy": np.__version__, "scipy": scipy.__version__, "python": platform.python_version()}
+    return {
+        "robotcal": robotcal.__version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def cpa_provenance(result: CPAResult, capture: Capture, scenario: Scenario) -> dict:

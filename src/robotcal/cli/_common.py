@@ -63,7 +63,10 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
                 continue
             unit = "deg" if kind in ("theta", "alpha", "beta") else "mm"
             if identified.identified[i, k]:
-                shown, diff = f"{_display(kind, identified.values[i, k]):.6f}", f"{_display(kind, difference[i, k]):+.3e}"
+                shown, diff = (
+                    f"{_display(kind, identified.values[i, k]):.6f}",
+                    f"{_display(kind, difference[i, k]):+.3e}",
+                )
             else:
                 shown, diff = "[dim]nominal[/dim]", ""
             table.add_row(f"J{i + 1}.{kind}", unit, f"{_display(kind, nominal.values[i, k]):.6f}", shown, diff)

@@ -15,9 +15,11 @@ from robotcal.io import instrument_presets, list_robots, list_scenarios
 def robots() -> None:
     """List the built-in robots (usable by name in a scenario's `robot` key)."""
     table = Table(title="Built-in robots", title_justify="left")
-    for column in ("name", "joints", "Hayati joints", "reading signs", "description"):
+    models = list_robots()
+    table.add_column("name", no_wrap=True, min_width=max(len(r.name) for r in models))
+    for column in ("joints", "Hayati joints", "reading signs", "description"):
         table.add_column(column)
-    for robot in list_robots():
+    for robot in models:
         hayati = ", ".join(f"J{i + 1}" for i in np.flatnonzero(robot.hayati)) or "-"
         signs = " ".join("+" if s > 0 else "-" for s in robot.reading_sign)
         table.add_row(robot.name, str(robot.n_joints), hayati, signs, robot.description)
@@ -29,9 +31,11 @@ def robots() -> None:
 def instruments() -> None:
     """List the instrument presets, U(L) = A + B*L (L in m)."""
     table = Table(title="Instrument presets", title_justify="left")
-    for column in ("preset", "A [um]", "B [um/m]", "description"):
+    presets = instrument_presets()
+    table.add_column("preset", no_wrap=True, min_width=max(len(name) for name in presets))
+    for column in ("A (um)", "B (um/m)", "description"):
         table.add_column(column)
-    for name, entry in sorted(instrument_presets().items()):
+    for name, entry in sorted(presets.items()):
         table.add_row(name, f"{entry['a_um']:g}", f"{entry['b_um_per_m']:g}", entry.get("description", ""))
     console.print(table)
 
@@ -41,12 +45,19 @@ def instruments() -> None:
 def scenarios() -> None:
     """List the built-in scenarios (the thesis's Tables 5.1, 5.2/5.4 and 5.5)."""
     table = Table(title="Built-in scenarios", title_justify="left")
-    for column in ("scenario", "robot", "instrument", "noise", "points", "description"):
+    loaded = list_scenarios()
+    table.add_column("scenario", no_wrap=True, min_width=max(len(s.name) for s in loaded))
+    for column in ("robot", "instrument", "noise", "points", "description"):
         table.add_column(column)
-    for scenario in list_scenarios():
+    for scenario in loaded:
         instrument = scenario.instrument
         terms = f"{instrument.name} ({instrument.a_mm * 1e3:g} um + {instrument.b_mm_per_m * 1e3:g} um/m)"
         table.add_row(
-            scenario.name, scenario.robot.name, terms, instrument.noise, str(int(scenario.plan.points.sum())), scenario.description
+            scenario.name,
+            scenario.robot.name,
+            terms,
+            instrument.noise,
+            str(int(scenario.plan.points.sum())),
+            scenario.description,
         )
     console.print(table)

@@ -31,9 +31,13 @@ def demo(
     run = simulate_scenario(scenario, seed=seed)
     capture_path = write_capture(out / "capture.csv", run.capture)
     result = identify_scenario(run.capture, scenario)
-    params_path = write_parameters(out / "parameters.json", result.parameters, cpa_provenance(result, run.capture, scenario))
+    params_path = write_parameters(
+        out / "parameters.json", result.parameters, cpa_provenance(result, run.capture, scenario)
+    )
     nominal = ParameterSet.nominal(scenario.robot)
-    console.print(parameter_table(nominal, result.parameters, "Nominal (Table 3.1) vs identified by CPA from the noisy capture"))
+    console.print(
+        parameter_table(nominal, result.parameters, "Nominal (Table 3.1) vs identified by CPA from the noisy capture")
+    )
     console.print(circle_table(result))
     difference = np.abs(result.parameters.difference(nominal))
     identified = result.parameters.identified

@@ -18,7 +18,9 @@ from robotcal.workflow import cpa_provenance, identify_scenario
 @handle_errors
 def identify(
     capture: Annotated[Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z).")],
-    scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot, reflector, base frame, options.")],
+    scenario: Annotated[
+        str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot, reflector, base frame, options.")
+    ],
     out: Annotated[Path, typer.Option("--out", "-o", help="Parameter JSON to write.")],
 ) -> None:
     """Identify the kinematic parameters by Circle Point Analysis and print nominal / identified / difference."""
@@ -26,7 +28,9 @@ def identify(
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     result = identify_scenario(measured, loaded)
     write_parameters(out, result.parameters, cpa_provenance(result, measured, loaded))
-    console.print(parameter_table(ParameterSet.nominal(loaded.robot), result.parameters, f"CPA parameters of {loaded.robot.name}"))
+    console.print(
+        parameter_table(ParameterSet.nominal(loaded.robot), result.parameters, f"CPA parameters of {loaded.robot.name}")
+    )
     console.print(circle_table(result))
     if result.registration_rms is not None:
         console.print(f"base frame registered: RMS residual {result.registration_rms:.4f} mm", highlight=False)

@@ -27,9 +27,7 @@ def check_points(points, name: str = "points", *, min_points: int = 3) -> np.nda
     except (TypeError, ValueError) as exc:
         raise InputError(f"`{name}` must be numeric; got {type(points).__name__}") from exc
     if points.ndim < 2 or points.shape[-1] != 3 or points.shape[-2] < min_points:
-        raise InputError(
-            f"`{name}` must have shape (n_points, 3) with n_points >= {min_points}; got {points.shape}"
-        )
+        raise InputError(f"`{name}` must have shape (n_points, 3) with n_points >= {min_points}; got {points.shape}")
     if not np.all(np.isfinite(points)):
         raise InputError(f"`{name}` contains NaN or infinite coordinates")
     return points
@@ -170,7 +168,8 @@ def _refine_circle_2d_geometric(
     cost = np.sum(res**2, axis=-1)
     active = np.ones(params.shape[:-1], dtype=bool)
     iterations = 0
-    for iterations in range(1, max_iterations + 1):
+    for iteration in range(1, max_iterations + 1):
+        iterations = iteration
         jtj = np.einsum("...ki,...kj->...ij", jac, jac)
         jtr = np.einsum("...ki,...k->...i", jac, res)
         diag = np.einsum("...ii->...i", jtj)

@@ -130,7 +130,10 @@ def signed_angle_about(from_vector, to_vector, axis) -> np.ndarray:
     Both vectors are projected on the plane normal to ``axis`` first, so they need not be
     perpendicular to it (eqs 4-92, 4-93 with the dot product, see THESIS_NOTES).
     """
-    return np.arctan2(_dot(np.cross(from_vector, to_vector), axis), _dot(from_vector, to_vector) - _dot(from_vector, axis) * _dot(to_vector, axis))
+    return np.arctan2(
+        _dot(np.cross(from_vector, to_vector), axis),
+        _dot(from_vector, to_vector) - _dot(from_vector, axis) * _dot(to_vector, axis),
+    )
 
 
 def _orient(vector, hint):
@@ -186,16 +189,18 @@ def analyse_dh_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint, po
     offset_norm = np.linalg.norm(offset, axis=-1, keepdims=True)
     hint_perp = hint - _dot(hint, s_j)[..., None] * s_j
     normal_parallel = _orient(
-        np.where(offset_norm > INTERSECTION_TOLERANCE_MM, offset / np.where(offset_norm > 0, offset_norm, 1.0), _unit(hint_perp)),
+        np.where(
+            offset_norm > INTERSECTION_TOLERANCE_MM,
+            offset / np.where(offset_norm > 0, offset_norm, 1.0),
+            _unit(hint_perp),
+        ),
         hint,
     )
     start_parallel = np.broadcast_to(np.asarray(point_j_if_parallel, dtype=float), s_j.shape)
 
     normal = np.where(parallel[..., None], normal_parallel, normal_skew)
     point_j = np.where(parallel[..., None], start_parallel, np.where(intersecting[..., None], common, foot_j))
-    point_k = np.where(
-        parallel[..., None], start_parallel + offset, np.where(intersecting[..., None], common, foot_k)
-    )
+    point_k = np.where(parallel[..., None], start_parallel + offset, np.where(intersecting[..., None], common, foot_k))
     length = _dot(point_k - point_j, normal)
     twist = np.arctan2(_dot(cross, normal), cos_angle)
     case = np.where(parallel, "parallel", np.where(intersecting, "intersecting", "skew"))
@@ -235,7 +240,12 @@ def analyse_hayati_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint
     link = point_k - point_j
     link_norm = np.linalg.norm(link, axis=-1, keepdims=True)
     hint_perp = hint - _dot(hint, s_j)[..., None] * s_j
-    normal = _orient(np.where(link_norm > INTERSECTION_TOLERANCE_MM, link / np.where(link_norm > 0, link_norm, 1.0), _unit(hint_perp)), hint)
+    normal = _orient(
+        np.where(
+            link_norm > INTERSECTION_TOLERANCE_MM, link / np.where(link_norm > 0, link_norm, 1.0), _unit(hint_perp)
+        ),
+        hint,
+    )
     sin_beta = np.clip(_dot(s_k, normal), -1.0, 1.0)
     beta = np.arctan2(sin_beta, np.sqrt(1.0 - sin_beta**2))
     projected = s_k - sin_beta[..., None] * normal

@@ -83,10 +83,16 @@ class CPAOptions:
     still_tolerance_deg: float = 1e-6
 
     def __post_init__(self):
-        choices = {"circle_fit": ("geometric", "algebraic"), "base_frame": ("given", "registered"), "base_axis": ("registration", "circle1")}
+        choices = {
+            "circle_fit": ("geometric", "algebraic"),
+            "base_frame": ("given", "registered"),
+            "base_axis": ("registration", "circle1"),
+        }
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
-                raise InputError(f"identification option `{name}` must be one of {allowed}; got {getattr(self, name)!r}")
+                raise InputError(
+                    f"identification option `{name}` must be one of {allowed}; got {getattr(self, name)!r}"
+                )
         for name in ("near_parallel_deg", "still_tolerance_deg"):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
@@ -178,13 +184,17 @@ class CPAResult:
     message: str = field(default="")
 
 
-def prepare_cpa(capture: Capture, robot: RobotModel, reflector: ReflectorMount, options: CPAOptions | None = None) -> _Structure:
+def prepare_cpa(
+    capture: Capture, robot: RobotModel, reflector: ReflectorMount, options: CPAOptions | None = None
+) -> _Structure:
     """Validate a capture against the robot and precompute what every batch item shares."""
     options = CPAOptions() if options is None else options
     n = robot.n_joints
     src = capture.source
     if capture.n_joints != n:
-        raise InputError(f"{src}: the capture has {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints")
+        raise InputError(
+            f"{src}: the capture has {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints"
+        )
     if reflector.frame == "joint" and reflector.positions.shape[0] != n:
         raise InputError(f"{src}: {reflector.positions.shape[0]} per-circle reflector positions for {n} joints")
     model_q = robot.model_joint_variables(capture.readings)
@@ -195,7 +205,9 @@ def prepare_cpa(capture: Capture, robot: RobotModel, reflector: ReflectorMount, 
     for joint in range(n):
         rows = np.flatnonzero(capture.circle == joint + 1)
         if rows.size == 0:
-            raise InputError(f"{src}: no circle for J{joint + 1}; CPA needs one circle per joint (circle = {joint + 1})")
+            raise InputError(
+                f"{src}: no circle for J{joint + 1}; CPA needs one circle per joint (circle = {joint + 1})"
+            )
         if rows.size < 3:
             raise InputError(f"{src}: circle {joint + 1} has {rows.size} points; a circle needs at least 3")
         readings = capture.readings[rows]
@@ -288,7 +300,9 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
     elif tracker_from_base is None:
         raise InputError("base_frame='given' needs `tracker_from_base`")
     else:
-        tracker_from_base = np.broadcast_to(check_rigid_transform(tracker_from_base, "tracker_from_base"), batch_shape + (4, 4))
+        tracker_from_base = np.broadcast_to(
+            check_rigid_transform(tracker_from_base, "tracker_from_base"), batch_shape + (4, 4)
+        )
     origin = tracker_from_base[..., :3, 3]
     nominal_frames = tracker_from_base[..., None, :, :] @ joint_frames(robot.nominal, structure.reference_q[None, :])[0]
     s1 = axes.direction[..., 0, :]
@@ -409,7 +423,9 @@ def identify_cpa(
         elif not robot.hayati[joint]:
             cos = abs(_dot(batch.axes.direction[joint], batch.axes.direction[joint + 1]))
             if np.rad2deg(np.arccos(min(cos, 1.0))) < options.near_parallel_deg:
-                messages.append(f"axes {joint + 1} and {joint + 2} nearly parallel: J{joint + 1} DH parameters ill-conditioned")
+                messages.append(
+                    f"axes {joint + 1} and {joint + 2} nearly parallel: J{joint + 1} DH parameters ill-conditioned"
+                )
                 warnings.warn(
                     f"axes {joint + 1} and {joint + 2} are nearly parallel; the DH parameters of J{joint + 1} are "
                     f"ill-conditioned (consider a Hayati joint)",
@@ -433,4 +449,3 @@ def identify_cpa(
         success=converged,
         message="; ".join(messages) if messages else "identified",
     )
-

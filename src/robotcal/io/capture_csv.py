@@ -81,7 +81,9 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
             try:
                 value = float(cell)
             except ValueError:
-                raise InputError(f"{path}: line {line}, column `{expected[column]}`: {cell!r} is not a number") from None
+                raise InputError(
+                    f"{path}: line {line}, column `{expected[column]}`: {cell!r} is not a number"
+                ) from None
             if not np.isfinite(value):
                 raise InputError(f"{path}: line {line}, column `{expected[column]}`: {cell!r} is not a finite number")
             data[line - 2, column] = value
@@ -94,7 +96,9 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
             raise InputError(f"{path}: line {bad[0] + 2}, column `{name}`: must be a whole number")
     bad = np.flatnonzero((circle < 1) | (circle > count))
     if bad.size:
-        raise InputError(f"{path}: line {bad[0] + 2}, column `circle`: {circle[bad[0]]:g} is not a joint number 1..{count}")
+        raise InputError(
+            f"{path}: line {bad[0] + 2}, column `circle`: {circle[bad[0]]:g} is not a joint number 1..{count}"
+        )
     bad = np.flatnonzero(~np.isin(direction, (-1.0, 1.0)))
     if bad.size:
         raise InputError(f"{path}: line {bad[0] + 2}, column `direction`: must be +1 or -1")

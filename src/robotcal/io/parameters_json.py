@@ -70,7 +70,9 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         if not isinstance(entry, dict):
             raise InputError(f"{path}: key `joints[{i}]` must be an object")
         if "hayati" in entry and bool(entry["hayati"]) != bool(robot.hayati[i]):
-            raise InputError(f"{path}: key `joints[{i}].hayati` is {entry['hayati']} but J{i + 1} of robot {robot.name!r} is not")
+            raise InputError(
+                f"{path}: key `joints[{i}].hayati` is {entry['hayati']} but J{i + 1} of robot {robot.name!r} is not"
+            )
         for k, kind in enumerate(PARAMETER_KINDS):
             raw = entry.get(kind, 0.0 if kind in ("beta", "d") else None)
             if isinstance(raw, bool) or not isinstance(raw, (int, float)) or not math.isfinite(raw):

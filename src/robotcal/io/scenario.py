@@ -147,11 +147,15 @@ def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> 
     if not tables:
         return None
     model = JointErrorModel.zeros(n_joints)
-    amplitude, period, phase, noise = (np.array(a) for a in (model.amplitude, model.period, model.phase, model.noise_sd))
+    amplitude, period, phase, noise = (
+        np.array(a) for a in (model.amplitude, model.period, model.phase, model.noise_sd)
+    )
     seen = set()
     for table in tables:
         if table.joint > n_joints or table.joint in seen:
-            raise InputError(f"{source}: key `capture.joint_errors`: joint {table.joint} is out of range 1..{n_joints} or repeated")
+            raise InputError(
+                f"{source}: key `capture.joint_errors`: joint {table.joint} is out of range 1..{n_joints} or repeated"
+            )
         seen.add(table.joint)
         for column, term_name in enumerate(ERROR_TERMS):
             term: ErrorTerm = getattr(table, term_name)
@@ -163,7 +167,9 @@ def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> 
     return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=noise)
 
 
-def scenario_from_dict(data: dict, *, name: str = "scenario", source: str = "scenario", base_dir: Path | None = None) -> Scenario:
+def scenario_from_dict(
+    data: dict, *, name: str = "scenario", source: str = "scenario", base_dir: Path | None = None
+) -> Scenario:
     """Validate a parsed scenario and build its core objects; errors name ``source`` and the key."""
     spec: ScenarioFile = validate_model(ScenarioFile, data, source)
     robot = load_robot(spec.robot, relative_to=base_dir)
@@ -171,14 +177,20 @@ def scenario_from_dict(data: dict, *, name: str = "scenario", source: str = "sce
     capture = spec.capture
     for key in ("sweep_deg", "points"):
         if len(getattr(capture, key)) != n:
-            raise InputError(f"{source}: key `capture.{key}` has {len(getattr(capture, key))} values; robot {robot.name!r} has {n} joints")
+            raise InputError(
+                f"{source}: key `capture.{key}` has {len(getattr(capture, key))} values; robot {robot.name!r} has {n} joints"
+            )
     start = np.asarray(capture.start_deg, dtype=float)
     if start.shape not in ((n,), (n, n)):
-        raise InputError(f"{source}: key `capture.start_deg` must have {n} values or {n} rows of {n}; got shape {start.shape}")
+        raise InputError(
+            f"{source}: key `capture.start_deg` must have {n} values or {n} rows of {n}; got shape {start.shape}"
+        )
     if capture.reflector_mm is not None:
         reflector_array = np.asarray(capture.reflector_mm, dtype=float)
         if reflector_array.shape != (n, 3):
-            raise InputError(f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}")
+            raise InputError(
+                f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}"
+            )
         reflector = ReflectorMount(frame="joint", positions=reflector_array)
     else:
         flange = np.asarray(capture.flange_reflector_mm, dtype=float)

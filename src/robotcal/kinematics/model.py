@@ -44,7 +44,9 @@ def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np
     except (TypeError, ValueError) as exc:
         raise InputError(f"`{name}` must be numeric") from exc
     if values.ndim < 2 or values.shape[-2:] != (n_joints, 5):
-        raise InputError(f"`{name}` must have shape (..., {n_joints}, 5) (d, theta, a, alpha, beta); got {values.shape}")
+        raise InputError(
+            f"`{name}` must have shape (..., {n_joints}, 5) (d, theta, a, alpha, beta); got {values.shape}"
+        )
     if not np.all(np.isfinite(values)):
         raise InputError(f"`{name}` contains NaN or infinite values")
     return values
@@ -90,7 +92,9 @@ class RobotModel:
         nominal = nominal.copy()
         if np.any(nominal[hayati, _D] != 0.0):
             bad = [f"J{i + 1}" for i in np.flatnonzero(hayati & (nominal[:, _D] != 0.0))]
-            raise InputError(f"robot {self.name!r}: Hayati joints have d = 0 by definition; {', '.join(bad)} give d != 0")
+            raise InputError(
+                f"robot {self.name!r}: Hayati joints have d = 0 by definition; {', '.join(bad)} give d != 0"
+            )
         if np.any(nominal[~hayati, _BETA] != 0.0):
             bad = [f"J{i + 1}" for i in np.flatnonzero(~hayati & (nominal[:, _BETA] != 0.0))]
             raise InputError(f"robot {self.name!r}: DH joints have beta = 0; {', '.join(bad)} give beta != 0")
@@ -158,7 +162,11 @@ class ParameterSet:
             raise InputError(f"a ParameterSet holds one set of shape ({self.robot.n_joints}, 5); got {values.shape}")
         fixed = self.robot.structurally_fixed
         if np.any(values[fixed] != 0.0):
-            names = [n for n, f, v in zip(self.robot.parameter_names, fixed.ravel(), values.ravel()) if f and v != 0.0]
+            names = [
+                n
+                for n, f, v in zip(self.robot.parameter_names, fixed.ravel(), values.ravel(), strict=True)
+                if f and v != 0.0
+            ]
             raise InputError(f"parameters fixed at 0 by the model have other values: {', '.join(names)}")
         identified = (
             np.zeros(values.shape, dtype=bool) if self.identified is None else np.asarray(self.identified, dtype=bool)

@@ -155,11 +155,15 @@ def simulate_capture(
     if joint_limits not in ("warn", "error", "ignore"):
         raise InputError(f"`joint_limits` must be 'warn', 'error' or 'ignore'; got {joint_limits!r}")
     if plan.n_joints != robot.n_joints:
-        raise InputError(f"capture plan has {plan.n_joints} circles but robot {robot.name!r} has {robot.n_joints} joints")
+        raise InputError(
+            f"capture plan has {plan.n_joints} circles but robot {robot.name!r} has {robot.n_joints} joints"
+        )
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
     if parameters.robot.n_joints != robot.n_joints:
-        raise InputError(f"true parameters have {parameters.robot.n_joints} joints; robot {robot.name!r} has {robot.n_joints}")
+        raise InputError(
+            f"true parameters have {parameters.robot.n_joints} joints; robot {robot.name!r} has {robot.n_joints}"
+        )
     circle, direction, readings = plan.readings()
     _check_limits(robot, readings, circle, joint_limits)
     q = robot.model_joint_variables(readings)

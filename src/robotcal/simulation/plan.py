@@ -61,7 +61,9 @@ class CapturePlan:
                 raise InputError(f"capture plan: `{name}` contains NaN or infinite values")
         small = np.flatnonzero(points < 3)
         if small.size:
-            raise InputError(f"capture plan: circle {small[0] + 1} has {int(points[small[0]])} points; a circle needs at least 3")
+            raise InputError(
+                f"capture plan: circle {small[0] + 1} has {int(points[small[0]])} points; a circle needs at least 3"
+            )
         zero = np.flatnonzero(sweep == 0.0)
         if zero.size:
             raise InputError(f"capture plan: circle {zero[0] + 1} has a zero sweep; joint J{zero[0] + 1} must turn")

@@ -1,0 +1,217 @@
+"""Plane and circle fits (thesis 4.4.1 step 3) against exact circles, rigid motions and SciPy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from robotcal.errors import DegenerateGeometryError, InputError
+from robotcal.geometry import fit_circle_3d, fit_plane
+
+
+def _orthonormal_frame(normal):
+    """Two unit vectors completing ``normal`` to a right-handed frame (built without robotcal)."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(normal, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(normal, e1)
+
+
+def _random_circle(rng, n_points=12, arc_deg=None):
+    """Exact points of a random circle: centre within 1 m, radius 50..500 mm, arc 20..300 deg."""
+    centre = rng.uniform(-1000.0, 1000.0, 3)
+    normal = Rotation.random(random_state=rng).apply([0.0, 0.0, 1.0])
+    radius = rng.uniform(50.0, 500.0)
+    arc = np.deg2rad(rng.uniform(20.0, 300.0) if arc_deg is None else arc_deg)
+    start = rng.uniform(-np.pi, np.pi)
+    t = start + np.linspace(0.0, arc, n_points)
+    e1, e2 = _orthonormal_frame(normal)
+    points = centre + radius * (np.cos(t)[:, None] * e1 + np.sin(t)[:, None] * e2)
+    return points, centre, normal, radius
+
+
+def _same_axis_direction(actual, desired, atol):
+    """Unit normals are only defined up to sign: compare after aligning the sign."""
+    sign = np.sign(np.dot(actual, desired))
+    np.testing.assert_allclose(sign * np.asarray(actual), desired, rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_exact_circle_is_recovered(seed):
+    rng = np.random.default_rng(seed)
+    points, centre, normal, radius = _random_circle(rng)
+    fit = fit_circle_3d(points)
+    # exact points: only rounding of ~1e3 mm coordinates (1e-13) amplified by the arc's conditioning
+    np.testing.assert_allclose(fit.centre, centre, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fit.radius, radius, rtol=0, atol=1e-9)
+    _same_axis_direction(fit.normal, normal, atol=1e-9)
+    # residuals of exact data are rounding-level (mm)
+    np.testing.assert_allclose(fit.plane_residuals, 0.0, atol=1e-9)
+    np.testing.assert_allclose(fit.radial_residuals, 0.0, atol=1e-9)
+    assert fit.converged and fit.method == "geometric"
+
+
+@pytest.mark.parametrize("method", ["geometric", "algebraic"])
+@pytest.mark.parametrize("arc_deg", [20.0, 300.0])
+def test_exact_circle_extreme_arcs_both_methods(method, arc_deg):
+    rng = np.random.default_rng(42)
+    points, centre, normal, radius = _random_circle(rng, n_points=7, arc_deg=arc_deg)
+    fit = fit_circle_3d(points, method=method)
+    # both objectives vanish at the true circle for exact data, so both must find it (rounding only)
+    np.testing.assert_allclose(fit.centre, centre, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fit.radius, radius, rtol=0, atol=1e-9)
+    _same_axis_direction(fit.normal, normal, atol=1e-9)
+
+
+def test_fit_plane_against_covariance_eigenvector():
+    rng = np.random.default_rng(3)
+    points, *_ = _random_circle(rng, n_points=20)
+    points = points + rng.normal(0.0, 0.05, points.shape)
+    plane = fit_plane(points)
+    centroid = points.mean(axis=0)
+    # independent truth: total least squares normal = eigenvector of the scatter matrix with the smallest eigenvalue
+    _, vectors = np.linalg.eigh((points - centroid).T @ (points - centroid))
+    np.testing.assert_allclose(plane.centroid, centroid, rtol=0, atol=1e-12)  # same mean, rounding only
+    _same_axis_direction(plane.normal, vectors[:, 0], atol=1e-9)  # well separated eigenvalues: ~eps/gap
+    expected = (points - centroid) @ plane.normal
+    np.testing.assert_allclose(plane.residuals, expected, rtol=0, atol=1e-12)  # definition, rounding only
+    np.testing.assert_allclose(plane.rms, np.sqrt(np.mean(expected**2)), rtol=1e-12)
+    u, v = plane.basis
+    # the basis is orthonormal and right-handed with the normal (rounding only)
+    np.testing.assert_allclose([u @ u, v @ v, u @ v, u @ plane.normal], [1.0, 1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(np.cross(u, v), plane.normal, atol=1e-12)
+
+
+def _noisy_circle(seed, arc_deg=90.0, sigma=0.05, n_points=15):
+    rng = np.random.default_rng(seed)
+    points, centre, normal, radius = _random_circle(rng, n_points=n_points, arc_deg=arc_deg)
+    return points + rng.normal(0.0, sigma, points.shape), rng
+
+
+@pytest.mark.parametrize("method", ["geometric", "algebraic"])
+def test_fit_commutes_with_rigid_motion(method):
+    points, rng = _noisy_circle(5)
+    rotation = Rotation.random(random_state=rng)
+    shift = rng.uniform(-2000.0, 2000.0, 3)
+    fit = fit_circle_3d(points, method=method)
+    moved = fit_circle_3d(rotation.apply(points) + shift, method=method)
+    # noisy data: the fit is a function of the point geometry only; differences are rounding (1e-12 of 2 m)
+    np.testing.assert_allclose(moved.centre, rotation.apply(fit.centre) + shift, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(moved.radius, fit.radius, rtol=0, atol=1e-9)
+    _same_axis_direction(moved.normal, rotation.apply(fit.normal), atol=1e-12)
+    np.testing.assert_allclose(np.abs(moved.plane_residuals), np.abs(fit.plane_residuals), atol=1e-9)
+    np.testing.assert_allclose(moved.radial_residuals, fit.radial_residuals, atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["geometric", "algebraic"])
+def test_fit_ignores_point_order(method):
+    points, rng = _noisy_circle(6)
+    order = rng.permutation(points.shape[0])
+    fit = fit_circle_3d(points, method=method)
+    permuted = fit_circle_3d(points[order], method=method)
+    # a least-squares fit is a symmetric function of its points: rounding only
+    np.testing.assert_allclose(permuted.centre, fit.centre, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(permuted.radius, fit.radius, rtol=0, atol=1e-9)
+    _same_axis_direction(permuted.normal, fit.normal, atol=1e-12)
+    np.testing.assert_allclose(permuted.radial_residuals, fit.radial_residuals[order], atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_geometric_fit_equals_scipy_least_squares(seed):
+    points, _ = _noisy_circle(seed + 10, arc_deg=[30.0, 90.0, 180.0, 300.0][seed])
+    fit = fit_circle_3d(points)
+    # independent plane (SVD written here) and independent 2-D geometric fit (scipy Levenberg-Marquardt)
+    centroid = points.mean(axis=0)
+    normal = np.linalg.svd(points - centroid)[2][2]
+    e1, e2 = _orthonormal_frame(normal)
+    uv = np.stack([(points - centroid) @ e1, (points - centroid) @ e2], axis=1)
+    start = np.r_[uv.mean(axis=0), np.mean(np.linalg.norm(uv - uv.mean(axis=0), axis=1))]
+
+    def residuals(p):
+        return np.linalg.norm(uv - p[:2], axis=1) - p[2]
+
+    reference = least_squares(residuals, start, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    centre = centroid + reference.x[0] * e1 + reference.x[1] * e2
+    # same objective, both solved to their step tolerance: agreement to ~1e-8 mm (the brief's bound)
+    np.testing.assert_allclose(fit.centre, centre, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fit.radius, reference.x[2], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fit.circle_rms, np.sqrt(np.mean(reference.fun**2)), rtol=0, atol=1e-10)
+    assert fit.converged
+
+
+@pytest.mark.parametrize("method", ["geometric", "algebraic"])
+def test_batched_fit_equals_item_by_item(method):
+    rng = np.random.default_rng(8)
+    batch = np.stack([_random_circle(rng, n_points=9)[0] for _ in range(7)])
+    batch = batch + rng.normal(0.0, 0.02, batch.shape)
+    fit = fit_circle_3d(batch, method=method)
+    assert fit.centre.shape == (7, 3) and fit.radius.shape == (7,) and fit.radial_residuals.shape == (7, 9)
+    for k in range(7):
+        single = fit_circle_3d(batch[k], method=method)
+        # one code path with a leading axis: identical up to the batched LAPACK rounding
+        np.testing.assert_allclose(fit.centre[k], single.centre, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fit.radius[k], single.radius, rtol=0, atol=1e-9)
+        _same_axis_direction(fit.normal[k], single.normal, atol=1e-12)
+        np.testing.assert_allclose(fit.circle_rms[k], single.circle_rms, rtol=0, atol=1e-10)
+
+
+def test_algebraic_and_geometric_differ_on_noisy_short_arc():
+    points, _ = _noisy_circle(21, arc_deg=25.0, sigma=0.2, n_points=12)
+    geometric = fit_circle_3d(points, method="geometric")
+    algebraic = fit_circle_3d(points, method="algebraic")
+    # same plane for both, so the in-plane radial RMS can be recomputed here for either fit
+    normal = geometric.normal
+
+    def radial_rms(fit):
+        projected = points - np.outer((points - fit.centre) @ normal, normal)
+        return np.sqrt(np.mean((np.linalg.norm(projected - fit.centre, axis=1) - fit.radius) ** 2))
+
+    # the Kasa fit is biased on a short noisy arc: the two centres differ by far more than rounding
+    assert np.linalg.norm(geometric.centre - algebraic.centre) > 1e-3
+    # the geometric fit minimises exactly this quantity, so it cannot be larger
+    assert radial_rms(geometric) < radial_rms(algebraic)
+    np.testing.assert_allclose(geometric.circle_rms, radial_rms(geometric), rtol=1e-9)  # reported = recomputed
+    np.testing.assert_allclose(algebraic.circle_rms, radial_rms(algebraic), rtol=1e-9)
+    assert algebraic.iterations == 0 and geometric.iterations > 0
+
+
+@pytest.mark.parametrize("function", [fit_plane, fit_circle_3d])
+def test_too_few_points(function):
+    with pytest.raises(InputError, match=r"n_points >= 3; got \(2, 3\)"):
+        function(np.zeros((2, 3)))
+
+
+@pytest.mark.parametrize("function", [fit_plane, fit_circle_3d])
+def test_wrong_last_axis(function):
+    with pytest.raises(InputError, match=r"shape \(n_points, 3\)"):
+        function(np.zeros((5, 2)))
+
+
+@pytest.mark.parametrize("function", [fit_plane, fit_circle_3d])
+def test_nan_points(function):
+    points = _random_circle(np.random.default_rng(1))[0]
+    points[3, 1] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        function(points)
+
+
+@pytest.mark.parametrize("function", [fit_plane, fit_circle_3d])
+def test_collinear_points(function):
+    points = np.array([10.0, -5.0, 3.0]) + np.linspace(0.0, 100.0, 6)[:, None] * np.array([0.3, 0.5, -0.8])
+    with pytest.raises(DegenerateGeometryError, match="collinear"):
+        function(points)
+
+
+def test_collinear_item_in_batch_is_named():
+    rng = np.random.default_rng(2)
+    batch = np.stack([_random_circle(rng, n_points=6)[0] for _ in range(3)])
+    batch[1] = np.linspace(0.0, 1.0, 6)[:, None] * np.array([1.0, 2.0, 3.0])
+    with pytest.raises(DegenerateGeometryError, match=r"batch item \[1\]"):
+        fit_circle_3d(batch)
+
+
+def test_unknown_method():
+    with pytest.raises(InputError, match="`method` must be 'geometric' or 'algebraic'"):
+        fit_circle_3d(_random_circle(np.random.default_rng(0))[0], method="kasa")
