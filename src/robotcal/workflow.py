@@ -102,6 +102,7 @@ def cpa_provenance(result: CPAResult, capture: Capture, scenario: Scenario) -> d
             "base_frame": result.options.base_frame,
             "base_axis": result.options.base_axis,
             "near_parallel_deg": result.options.near_parallel_deg,
+            "still_tolerance_deg": result.options.still_tolerance_deg,
         },
         "reference_readings_deg": np.rad2deg(result.reference_readings).tolist(),
         "circles": [

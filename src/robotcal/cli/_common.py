@@ -15,7 +15,7 @@ from robotcal.errors import RobotcalError
 from robotcal.kinematics.model import PARAMETER_KINDS, ParameterSet
 
 console = Console()
-error_console = Console(stderr=True)
+error_console = Console(stderr=True, soft_wrap=True)  # messages stay on one line
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

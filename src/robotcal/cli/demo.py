@@ -22,7 +22,7 @@ DEMO_SCENARIO = "thesis-laser-tracker"
 @handle_errors
 def demo(
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the demo's files.")] = Path("robotcal-demo"),
-    seed: Annotated[int | None, typer.Option(help="Seed of the simulated measurement noise.")] = None,
+    seed: Annotated[int | None, typer.Option(min=0, help="Seed of the simulated measurement noise.")] = None,
 ) -> None:
     """Simulate the thesis laser-tracker capture of the KUKA KR 5 sixx R650 and identify it by CPA."""
     started = time.perf_counter()

@@ -19,7 +19,7 @@ def simulate(
     scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write.")],
     seed: Annotated[
-        int | None, typer.Option(help="Seed of the noise generator (default: the scenario's capture.seed).")
+        int | None, typer.Option(min=0, help="Seed of the noise generator (default: the scenario's capture.seed).")
     ] = None,
     true_params: Annotated[
         Path | None, typer.Option("--true-params", help="Parameter JSON of the 'real' robot (default: nominal).")

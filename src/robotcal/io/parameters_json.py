@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from robotcal.errors import InputError
+from robotcal.errors import InputError, RobotcalWarning
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import PARAMETER_KINDS, ParameterSet, RobotModel
 
@@ -59,6 +60,12 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         raise InputError(f"{path}: not a readable JSON file: {exc}") from None
     if not isinstance(data, dict) or not isinstance(data.get("joints"), list):
         raise InputError(f"{path}: missing key `joints` (a list with one object per joint)")
+    if data.get("robot") not in (None, robot.name):
+        warnings.warn(
+            f"{path}: parameters written for robot {data['robot']!r} are read for robot {robot.name!r}",
+            RobotcalWarning,
+            stacklevel=2,
+        )
     units = data.get("units", {"length": "mm", "angle": "deg"})
     if units != {"length": "mm", "angle": "deg"}:
         raise InputError(f"{path}: key `units` must be {{'length': 'mm', 'angle': 'deg'}}; got {units}")

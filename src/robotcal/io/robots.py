@@ -85,8 +85,8 @@ def load_robot(name_or_path, *, relative_to: Path | None = None) -> RobotModel:
         path = data_path("robots", f"{text}.toml")
     else:
         path = Path(text)
-        if not path.is_absolute() and relative_to is not None and not path.exists():
-            path = relative_to / path
+        if not path.is_absolute() and relative_to is not None and (relative_to / path).exists():
+            path = relative_to / path  # a scenario's relative robot path is relative to the scenario
         if not path.exists():
             raise InputError(
                 f"unknown robot {text!r}: not a built-in robot ({', '.join(builtin_names('robots'))}) nor an existing file"

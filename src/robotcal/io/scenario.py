@@ -129,7 +129,7 @@ def _rigid(matrix, source: str) -> np.ndarray:
         raise InputError(f"{source}: key `tracker_from_base` must be a 4x4 matrix; got shape {np.shape(matrix)}")
     rotation = array[:3, :3]
     deviation = float(np.max(np.abs(rotation.T @ rotation - np.eye(3)))) if np.all(np.isfinite(array)) else np.inf
-    if 1e-9 < deviation <= REPAIRABLE_DEVIATION and np.linalg.det(rotation) > 0:
+    if 1e-6 < deviation <= REPAIRABLE_DEVIATION and np.linalg.det(rotation) > 0:
         array = array.copy()
         array[:3, :3] = nearest_rotation(rotation)
         warnings.warn(

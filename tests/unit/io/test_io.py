@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robotcal.capture import Capture
-from robotcal.errors import InputError, RigidTransformWarning
+from robotcal.errors import InputError, RigidTransformWarning, RobotcalWarning
 from robotcal.io import (
     atomic_write_text,
     load_robot,
@@ -20,7 +20,7 @@ from robotcal.io import (
     write_parameters,
 )
 from robotcal.io.builtins import read_toml
-from robotcal.kinematics import ParameterSet
+from robotcal.kinematics import ParameterSet, RobotModel
 
 
 def test_capture_csv_round_trip(tmp_path):
@@ -66,9 +66,9 @@ def test_parameters_json_round_trip_and_checks(tmp_path):
     np.testing.assert_allclose(back.values, values, rtol=0, atol=1e-15)  # deg <-> rad conversion only
     np.testing.assert_array_equal(back.identified, identified)
     with pytest.raises(InputError, match="6 joints but robot"):
-        read_parameters(
-            path, load_robot("kuka-kr5-sixx-r650").__class__(name="two", nominal=np.zeros((2, 5)), hayati=[0, 0])
-        )
+        read_parameters(path, RobotModel(name=robot.name, nominal=np.zeros((2, 5)), hayati=[0, 0]))
+    with pytest.warns(RobotcalWarning, match="written for robot 'kuka-kr5-sixx-r650'"):
+        read_parameters(path, load_robot("kuka-kr5-sixx-r650-krc"))
     text = path.read_text().replace('"d": 335.25', '"d": "x"')
     path.write_text(text)
     with pytest.raises(InputError, match=r"joints\[0\].d"):
@@ -137,7 +137,16 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(os, "replace", failing_replace)
-    with pytest.raises(OSError):
+    with pytest.raises(InputError, match="cannot write .*disk full"):
         atomic_write_text(target, "new")
     assert target.read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]
+
+
+def test_atomic_write_refuses_a_folder_and_keeps_the_umask_mode(tmp_path):
+    with pytest.raises(InputError, match="it is a folder"):
+        atomic_write_text(tmp_path, "x")
+    written = atomic_write_text(tmp_path / "f.txt", "x")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert written.stat().st_mode & 0o777 == 0o666 & ~mask
