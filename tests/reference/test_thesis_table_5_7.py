@@ -29,7 +29,9 @@ def test_igps_standard_uncertainties_match_table_5_7():
     structure = prepare_cpa(run.capture, scenario.robot, scenario.plan.reflector, scenario.identification)
     rng = np.random.default_rng(20261122)
     exact = np.broadcast_to(run.exact_points, (DRAWS,) + run.exact_points.shape)
-    batch = identify_cpa_batch(exact + scenario.instrument.sample_noise(exact, rng=rng), structure, scenario.tracker_from_base)
+    batch = identify_cpa_batch(
+        exact + scenario.instrument.sample_noise(exact, rng=rng), structure, scenario.tracker_from_base
+    )
     values = batch.values.copy()
     values[..., [1, 3, 4]] = np.rad2deg(values[..., [1, 3, 4]])
     std = values.std(axis=0, ddof=1)

@@ -68,7 +68,10 @@ class CPAOptions:
         method from all measured points and the nominal model's predictions.
     base_axis : {"registration", "circle1"}
         Reference for theta1: the x axis of ``tracker_from_base``, or the circle-1 data (fitted
-        centre to the first point, turned back by that point's known angle; THESIS_NOTES).
+        centre to the first point, turned back by that point's known angle; THESIS_NOTES). With a
+        per-circle reflector that angle is exact (reading plus the target's azimuth in frame {0});
+        with a flange reflector it is predicted by the nominal model, so theta1 then absorbs the
+        deviations of the later joints (about 1e-3 rad for 0.5 mm / 0.2 deg deviations).
     near_parallel_deg : float
         Largest angle between the axes of a Hayati joint (Solution 3); DH pairs closer than this
         are analysed exactly but flagged as ill-conditioned.
