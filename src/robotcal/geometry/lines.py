@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotcal.errors import DegenerateGeometryError, InputError
+from robotcal.geometry._vectors import dot as _dot
+from robotcal.geometry._vectors import unit as _unit
 
 __all__ = [
     "PluckerLine",
@@ -27,14 +29,6 @@ __all__ = [
 PARALLEL_TOLERANCE_RAD = 1e-9
 #: Common-normal length [mm] below which two non-parallel lines intersect (case 4.4.3.2).
 INTERSECTION_TOLERANCE_MM = 1e-9
-
-
-def _dot(a, b):
-    return np.sum(a * b, axis=-1)
-
-
-def _unit(v):
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

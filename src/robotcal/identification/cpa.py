@@ -35,6 +35,8 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import DegenerateGeometryError, IdentifiabilityWarning, InputError
+from robotcal.geometry._vectors import dot as _dot
+from robotcal.geometry._vectors import unit as _unit
 from robotcal.geometry.fits import CircleFit, fit_circle_3d
 from robotcal.geometry.lines import PluckerLine, analyse_dh_pair, analyse_hayati_pair, signed_angle_about
 from robotcal.geometry.registration import register_points
@@ -45,14 +47,6 @@ from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
 __all__ = ["CPAOptions", "CPAResult", "CPABatch", "identify_cpa", "identify_cpa_batch", "prepare_cpa"]
 
 _D, _THETA, _A, _ALPHA, _BETA = range(5)
-
-
-def _dot(a, b):
-    return np.sum(a * b, axis=-1)
-
-
-def _unit(v):
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
