@@ -15,24 +15,16 @@ from scipy.spatial.transform import Rotation
 
 from robotcal.identification import CPAOptions, identify_cpa
 from robotcal.instruments import Instrument
-from robotcal.kinematics import ParameterSet, ReflectorMount, RobotModel
+from robotcal.kinematics import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
+from thesis_data import TABLE_4_2_DEG, kr5_robot
 
 D, THETA, A, ALPHA, BETA = range(5)
 IDENTIFIABLE = np.zeros((6, 5), dtype=bool)
 IDENTIFIABLE[[0, 2, 3, 4], D] = True
 IDENTIFIABLE[:5, [THETA, A, ALPHA]] = True
 IDENTIFIABLE[1, BETA] = True
-TABLE_4_2 = np.deg2rad(
-    [
-        [0.0, -90.0, 90.0, 0.0, -90.0, 0.0],
-        [0.0, -90.0, 45.0, -90.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, -90.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, 0.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, 0.0, 0.0],
-    ]
-)
+TABLE_4_2 = np.deg2rad(TABLE_4_2_DEG)
 
 
 def _floats(low, high):
@@ -40,14 +32,7 @@ def _floats(low, high):
 
 
 def _kr5(reading_sign):
-    nominal = np.zeros((6, 5))
-    nominal[:, D] = [335.0, 0.0, 0.0, 295.0, 0.0, 80.0]
-    nominal[:, THETA] = np.deg2rad([0.0, 0.0, 90.0, 0.0, 180.0, 0.0])
-    nominal[:, A] = [75.0, 270.0, 90.0, 0.0, 0.0, 0.0]
-    nominal[:, ALPHA] = np.deg2rad([90.0, 0.0, 90.0, 90.0, 90.0, 0.0])
-    return RobotModel(
-        name="kr5", nominal=nominal, hayati=[False, True, False, False, False, False], reading_sign=reading_sign
-    )
+    return kr5_robot(reading_sign=reading_sign)
 
 
 @st.composite

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from robotcal.kinematics import RobotModel, forward_kinematics
+from robotcal.kinematics import forward_kinematics
+from thesis_data import KUKA_SIGN, kr5_robot
 
 TABLES = Path(__file__).parent / "../../../shared/data/thesis_tables.json"
 
@@ -27,14 +28,8 @@ def tables():
 
 
 def _kr5():
-    """Thesis Table 3.1 typed in here (mm, deg -> rad), J2 Hayati, KUKA reading signs."""
-    nominal = np.zeros((6, 5))
-    nominal[:, 0] = [335.0, 0.0, 0.0, 295.0, 0.0, 80.0]
-    nominal[:, 1] = np.deg2rad([0.0, 0.0, 90.0, 0.0, 180.0, 0.0])
-    nominal[:, 2] = [75.0, 270.0, 90.0, 0.0, 0.0, 0.0]
-    nominal[:, 3] = np.deg2rad([90.0, 0.0, 90.0, 90.0, 90.0, 0.0])
-    hayati = [False, True, False, False, False, False]
-    return RobotModel(name="kr5", nominal=nominal, hayati=hayati, reading_sign=[-1, -1, -1, -1, 1, -1])
+    """Thesis Table 3.1 (typed in tests/thesis_data.py), J2 Hayati, KUKA reading signs."""
+    return kr5_robot(reading_sign=KUKA_SIGN)
 
 
 def _flange(tables):

@@ -8,14 +8,9 @@ from scipy.spatial.transform import Rotation
 
 from robotcal.errors import DegenerateGeometryError, InputError
 from robotcal.geometry import register_points
+from thesis_data import random_rigid
 
-
-def _rigid(rng, max_shift=3000.0):
-    """A random rigid transform (scipy rotation, translation within +-max_shift mm) as a 4x4 matrix."""
-    matrix = np.eye(4)
-    matrix[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    matrix[:3, 3] = rng.uniform(-max_shift, max_shift, 3)
-    return matrix
+_rigid = random_rigid
 
 
 def _apply(matrix, points):

@@ -12,15 +12,26 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+import thesis_data
 from robotcal.capture import Capture
 from robotcal.errors import DegenerateGeometryError, IdentifiabilityWarning, InputError
 from robotcal.identification import CPAOptions, identify_cpa, identify_cpa_batch, prepare_cpa
 from robotcal.instruments import Instrument
 from robotcal.kinematics import ParameterSet, ReflectorMount, RobotModel
 from robotcal.simulation import CapturePlan, simulate_capture
+from thesis_data import (
+    KR5_HAYATI,
+    OFF_AXIS_REFLECTORS_MM,
+    TABLE_4_2_DEG,
+    TABLE_5_1_POINTS,
+    TABLE_5_1_START_DEG,
+    TABLE_5_1_SWEEP_DEG,
+    kr5_robot,
+    random_rigid,
+)
 
 NOISE_FREE = Instrument(a_mm=0.0, b_mm_per_m=0.0)
-KUKA_SIGN = np.array([-1, -1, -1, -1, 1, -1])
+KUKA_SIGN = np.array(thesis_data.KUKA_SIGN)
 D, THETA, A, ALPHA, BETA = range(5)
 
 #: The 20 parameters CPA identifies on the KR5 (THESIS_NOTES): d1, d3..d5, theta1..5, a1..5, alpha1..5, beta2
@@ -35,48 +46,20 @@ IDENTIFIABLE[1, BETA] = True
 ROUND_TRIP_TOL = 1e-8
 
 TABLE_5_1 = {
-    "start": np.deg2rad([15.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-    "sweep": np.deg2rad([45.0, 80.0, 100.0, 50.0, 200.0, 300.0]),
-    "points": np.array([15, 20, 30, 15, 25, 30]),
+    "start": np.deg2rad(TABLE_5_1_START_DEG),
+    "sweep": np.deg2rad(TABLE_5_1_SWEEP_DEG),
+    "points": TABLE_5_1_POINTS,
 }
-TABLE_4_2 = np.deg2rad(
-    [
-        [0.0, -90.0, 90.0, 0.0, -90.0, 0.0],
-        [0.0, -90.0, 45.0, -90.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, -90.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, 0.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, 0.0, 0.0],
-    ]
-)
-FIXED_REFLECTORS = ReflectorMount(
-    frame="joint",
-    positions=[
-        [250.0, 0.0, 120.0],
-        [180.0, 60.0, 40.0],
-        [150.0, -50.0, -30.0],
-        [0.0, 120.0, 90.0],
-        [0.0, 80.0, 0.0],
-        [60.0, 40.0, 30.0],
-    ],
-)
+TABLE_4_2 = np.deg2rad(TABLE_4_2_DEG)
+FIXED_REFLECTORS = ReflectorMount(frame="joint", positions=OFF_AXIS_REFLECTORS_MM)
 
 
-def _kr5(reading_sign=None, hayati=(False, True, False, False, False, False)):
+def _kr5(reading_sign=None, hayati=tuple(KR5_HAYATI)):
     """Thesis Table 3.1 [mm, rad]."""
-    nominal = np.zeros((6, 5))
-    nominal[:, D] = [335.0, 0.0, 0.0, 295.0, 0.0, 80.0]
-    nominal[:, THETA] = np.deg2rad([0.0, 0.0, 90.0, 0.0, 180.0, 0.0])
-    nominal[:, A] = [75.0, 270.0, 90.0, 0.0, 0.0, 0.0]
-    nominal[:, ALPHA] = np.deg2rad([90.0, 0.0, 90.0, 90.0, 90.0, 0.0])
-    return RobotModel(name="kr5", nominal=nominal, hayati=list(hayati), reading_sign=reading_sign)
+    return kr5_robot(hayati=list(hayati), reading_sign=reading_sign)
 
 
-def _rigid(rng, max_shift=3000.0):
-    matrix = np.eye(4)
-    matrix[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    matrix[:3, 3] = rng.uniform(-max_shift, max_shift, 3)
-    return matrix
+_rigid = random_rigid
 
 
 def _perturbed_truth(robot, rng):
@@ -169,39 +152,24 @@ def test_table_5_1_nominal_is_identified_exactly(circle_fit, base_frame, base_ax
 # ------------------------------------------------------------------------------------- (b) round trips
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_perturbed_robot_round_trip(seed):
-    robot, truth, reflector, tracker_from_base, capture = _scenario(seed)
-    result = identify_cpa(capture, robot, reflector, tracker_from_base=tracker_from_base)
-    _assert_round_trip(result, truth, robot)
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_round_trip_with_flange_reflector(seed):
-    robot, truth, reflector, tracker_from_base, capture = _scenario(100 + seed, flange=True)
-    result = identify_cpa(capture, robot, reflector, tracker_from_base=tracker_from_base)
-    _assert_round_trip(result, truth, robot)
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_round_trip_with_table_4_2_start_matrix(seed):
+#: Capture layouts, each run with 3 seeds (block offset keeps the random scenarios distinct).
+LAYOUTS = {
+    "per-circle targets": (0, {}),
+    "flange target": (100, {"flange": True}),
     # circles start from their own configurations: axes are transported to the reference configuration
-    robot, truth, reflector, tracker_from_base, capture = _scenario(200 + seed, start_matrix=True)
-    result = identify_cpa(capture, robot, reflector, tracker_from_base=tracker_from_base)
-    _assert_round_trip(result, truth, robot)
+    "table 4.2 start matrix": (200, {"start_matrix": True}),
+    "bidirectional": (300, {"bidirectional": True}),
+    "kuka reading signs": (400, {"reading_sign": KUKA_SIGN}),
+}
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_round_trip_bidirectional(seed):
-    robot, truth, reflector, tracker_from_base, capture = _scenario(300 + seed, bidirectional=True)
-    assert set(np.unique(capture.direction)) == {-1, 1}
-    result = identify_cpa(capture, robot, reflector, tracker_from_base=tracker_from_base)
-    _assert_round_trip(result, truth, robot)
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_round_trip_with_kuka_reading_signs(seed):
-    robot, truth, reflector, tracker_from_base, capture = _scenario(400 + seed, reading_sign=KUKA_SIGN)
+@pytest.mark.parametrize("layout", list(LAYOUTS))
+def test_perturbed_robot_round_trip(layout, seed):
+    offset, options = LAYOUTS[layout]
+    robot, truth, reflector, tracker_from_base, capture = _scenario(offset + seed, **options)
+    if options.get("bidirectional"):
+        assert set(np.unique(capture.direction)) == {-1, 1}
     result = identify_cpa(capture, robot, reflector, tracker_from_base=tracker_from_base)
     _assert_round_trip(result, truth, robot)
 

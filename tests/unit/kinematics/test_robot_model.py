@@ -7,19 +7,13 @@ import pytest
 
 from robotcal.errors import InputError
 from robotcal.kinematics import ParameterSet, ReflectorMount, RobotModel
+from thesis_data import KR5_HAYATI, kr5_nominal
 
 DEG = np.pi / 180.0
-HAYATI_J2 = [False, True, False, False, False, False]
+HAYATI_J2 = KR5_HAYATI
 
 
-def _kr5_nominal():
-    """Thesis Table 3.1 [mm, rad]: columns d, theta, a, alpha, beta."""
-    nominal = np.zeros((6, 5))
-    nominal[:, 0] = [335.0, 0.0, 0.0, 295.0, 0.0, 80.0]
-    nominal[:, 1] = np.deg2rad([0.0, 0.0, 90.0, 0.0, 180.0, 0.0])
-    nominal[:, 2] = [75.0, 270.0, 90.0, 0.0, 0.0, 0.0]
-    nominal[:, 3] = np.deg2rad([90.0, 0.0, 90.0, 90.0, 90.0, 0.0])
-    return nominal
+_kr5_nominal = kr5_nominal
 
 
 def _robot(**changes):

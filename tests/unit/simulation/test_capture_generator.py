@@ -10,47 +10,32 @@ from robotcal.errors import InputError, JointLimitWarning
 from robotcal.instruments import Instrument
 from robotcal.kinematics import ParameterSet, ReflectorMount, RobotModel
 from robotcal.simulation import CapturePlan, JointErrorModel, simulate_capture
-
-NOISE_FREE = Instrument(a_mm=0.0, b_mm_per_m=0.0)
-REFLECTORS = np.array(
-    [
-        [250.0, 0.0, 120.0],
-        [180.0, 60.0, 40.0],
-        [150.0, -50.0, -30.0],
-        [0.0, 120.0, 90.0],
-        [0.0, 80.0, 0.0],
-        [60.0, 40.0, 30.0],
-    ]
+from thesis_data import (
+    OFF_AXIS_REFLECTORS_MM,
+    TABLE_5_1_POINTS,
+    TABLE_5_1_START_DEG,
+    TABLE_5_1_SWEEP_DEG,
+    kr5_robot,
+    random_rigid,
 )
 
-
-def _kr5(**changes):
-    """Thesis Table 3.1 [mm, rad], J2 Hayati."""
-    nominal = np.zeros((6, 5))
-    nominal[:, 0] = [335.0, 0.0, 0.0, 295.0, 0.0, 80.0]
-    nominal[:, 1] = np.deg2rad([0.0, 0.0, 90.0, 0.0, 180.0, 0.0])
-    nominal[:, 2] = [75.0, 270.0, 90.0, 0.0, 0.0, 0.0]
-    nominal[:, 3] = np.deg2rad([90.0, 0.0, 90.0, 90.0, 90.0, 0.0])
-    arguments = {"name": "kr5", "nominal": nominal, "hayati": [False, True, False, False, False, False]} | changes
-    return RobotModel(**arguments)
+NOISE_FREE = Instrument(a_mm=0.0, b_mm_per_m=0.0)
+REFLECTORS = OFF_AXIS_REFLECTORS_MM
+_kr5 = kr5_robot
 
 
 def _table_5_1_plan(**changes):
     arguments = {
-        "start": np.deg2rad([15.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
-        "sweep": np.deg2rad([45.0, 80.0, 100.0, 50.0, 200.0, 300.0]),
-        "points": [15, 20, 30, 15, 25, 30],
+        "start": np.deg2rad(TABLE_5_1_START_DEG),
+        "sweep": np.deg2rad(TABLE_5_1_SWEEP_DEG),
+        "points": TABLE_5_1_POINTS,
         "reflector": ReflectorMount(frame="joint", positions=REFLECTORS),
     } | changes
     return CapturePlan(**arguments)
 
 
 def _tracker_from_base(seed=0):
-    rng = np.random.default_rng(seed)
-    matrix = np.eye(4)
-    matrix[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    matrix[:3, 3] = rng.uniform(-3000.0, 3000.0, 3)
-    return matrix
+    return random_rigid(np.random.default_rng(seed))
 
 
 def _homogeneous(rotation=np.eye(3), shift=np.zeros(3)):  # noqa: B008 - read-only defaults

@@ -8,22 +8,12 @@ import pytest
 from robotcal.errors import InputError
 from robotcal.kinematics import ReflectorMount
 from robotcal.simulation import CapturePlan
+from thesis_data import TABLE_4_2_DEG, TABLE_5_1_POINTS, TABLE_5_1_START_DEG, TABLE_5_1_SWEEP_DEG
 
-#: Thesis Table 5.1 [deg, points]
-START_DEG = np.array([15.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-SWEEP_DEG = np.array([45.0, 80.0, 100.0, 50.0, 200.0, 300.0])
-POINTS = np.array([15, 20, 30, 15, 25, 30])
-#: Thesis Table 4.2: row i is the configuration where circle i starts [deg]
-TABLE_4_2_DEG = np.array(
-    [
-        [0.0, -90.0, 90.0, 0.0, -90.0, 0.0],
-        [0.0, -90.0, 45.0, -90.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, -90.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, -90.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, 0.0, 0.0],
-        [0.0, -90.0, 90.0, 0.0, 0.0, 0.0],
-    ]
-)
+#: Thesis Table 5.1 [deg, points] and Table 4.2 (tests/thesis_data.py)
+START_DEG = TABLE_5_1_START_DEG
+SWEEP_DEG = TABLE_5_1_SWEEP_DEG
+POINTS = TABLE_5_1_POINTS
 REFLECTOR = ReflectorMount(frame="joint", positions=np.full((6, 3), 100.0))
 
 
