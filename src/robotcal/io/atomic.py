@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from robotcal.errors import InputError
 
-__all__ = ["atomic_write_text", "atomic_write_bytes"]
+__all__ = ["atomic_write_text", "atomic_write_bytes", "atomic_directory"]
 
 
 def atomic_write_bytes(path, data: bytes) -> Path:
@@ -52,3 +55,37 @@ def _umask() -> int:
 def atomic_write_text(path, text: str) -> Path:
     """Atomic UTF-8 text write (see :func:`atomic_write_bytes`)."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+@contextmanager
+def atomic_directory(path, *, overwrite: bool = True) -> Iterator[Path]:
+    """Build an output folder in a hidden sibling and rename it into place only on success.
+
+    Yields the temporary folder to write into. If the block raises (an error, Ctrl-C), the temporary
+    folder is removed and ``path`` is left exactly as it was: no half-written result directory.
+    An existing ``path`` is replaced only after the new one is complete (``overwrite=False`` refuses).
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"cannot write results to {path}: it is a file, not a folder")
+    if path.exists() and not overwrite:
+        raise InputError(f"{path} already exists; choose another --out or remove it")
+    parent = path.parent if str(path.parent) else Path(".")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        temp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=parent))
+    except OSError as exc:
+        raise InputError(f"cannot create folder {path}: {exc.strerror or exc}") from None
+    try:
+        yield temp
+        os.chmod(temp, 0o777 & ~_umask())
+        if path.exists():
+            backup = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old", dir=parent))
+            os.replace(path, backup / path.name)
+            os.replace(temp, path)
+            shutil.rmtree(backup, ignore_errors=True)
+        else:
+            os.replace(temp, path)
+    except BaseException:
+        shutil.rmtree(temp, ignore_errors=True)
+        raise

@@ -17,7 +17,7 @@ from robotcal.io._validation import validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
 from robotcal.kinematics.model import RobotModel
 
-__all__ = ["RobotFile", "JointEntry", "load_robot", "robot_from_dict", "list_robots"]
+__all__ = ["robot_to_dict", "RobotFile", "JointEntry", "load_robot", "robot_from_dict", "list_robots"]
 
 
 class JointEntry(BaseModel):
@@ -76,6 +76,29 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
         limits=np.deg2rad([j.limits_deg for j in spec.joints]),
         description=spec.description,
     )
+
+
+def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
+    """The robot TOML content of ``robot`` (radians -> degrees); ``robot_from_dict`` inverts it."""
+    nominal_deg = robot.nominal.copy()
+    nominal_deg[:, 1:] = np.rad2deg(nominal_deg[:, 1:])
+    joints = []
+    for index in range(robot.n_joints):
+        d, theta, a, alpha, beta = (float(value) for value in nominal_deg[index])
+        joints.append(
+            {
+                "d": d,
+                "theta": theta,
+                "a": a,
+                "alpha": alpha,
+                "beta": beta,
+                "hayati": bool(robot.hayati[index]),
+                "limits_deg": [float(v) for v in np.rad2deg(robot.limits[index])],
+                "reading_sign": int(robot.reading_sign[index]),
+                "reading_offset_deg": float(np.rad2deg(robot.reading_offset[index])),
+            }
+        )
+    return {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
 
 
 def load_robot(name_or_path, *, relative_to: Path | None = None) -> RobotModel:

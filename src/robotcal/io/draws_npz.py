@@ -1,0 +1,128 @@
+"""Monte Carlo parameter draws as ``draws.npz`` (numpy arrays only, loaded with ``allow_pickle=False``).
+
+Keys (format ``robotcal-draws/1``):
+
+``values``       (n_draws, n_params) float64, every parameter ``J1.d .. Jn.beta`` in mm / deg
+``names``        (n_params,) str, ``"J1.d"`` ...
+``units``        (n_params,) str, ``"mm"`` or ``"deg"``
+``nominal``      (n_params,) float64, the robot's nominal values [mm, deg]
+``identified``   (n_params,) bool, True where CPA determines the parameter (others stay nominal)
+``robot_json``   0-d str, the robot file (``robot_to_dict``) as JSON, so the file is self-contained
+``seed``         0-d int64, the Monte Carlo seed
+``format``       0-d str
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.errors import InputError
+from robotcal.io.atomic import atomic_write_bytes
+from robotcal.io.robots import robot_from_dict, robot_to_dict
+from robotcal.kinematics.model import PARAMETER_KINDS, RobotModel
+
+__all__ = ["FORMAT", "ParameterDraws", "write_draws", "read_draws", "parameter_units"]
+
+FORMAT = "robotcal-draws/1"
+_ANGLE_COLUMNS = [PARAMETER_KINDS.index(kind) for kind in ("theta", "alpha", "beta")]
+
+
+def parameter_units(robot: RobotModel) -> list[str]:
+    """``"mm"`` or ``"deg"`` for each of ``robot.parameter_names``."""
+    return ["deg" if name.split(".")[1] in ("theta", "alpha", "beta") else "mm" for name in robot.parameter_names]
+
+
+def _to_file_units(values: np.ndarray) -> np.ndarray:
+    converted = np.array(values, dtype=float)
+    converted[..., _ANGLE_COLUMNS] = np.rad2deg(converted[..., _ANGLE_COLUMNS])
+    return converted
+
+
+def _to_core_units(values: np.ndarray) -> np.ndarray:
+    converted = np.array(values, dtype=float)
+    converted[..., _ANGLE_COLUMNS] = np.deg2rad(converted[..., _ANGLE_COLUMNS])
+    return converted
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ParameterDraws:
+    """Parameter draws read back from a file.
+
+    Attributes
+    ----------
+    robot : RobotModel
+    values : ndarray, shape (n_draws, n_joints, 5)
+        ``d, theta, a, alpha, beta`` of every draw [mm, rad].
+    identified : ndarray of bool, shape (n_joints, 5)
+    seed : int
+    source : str
+    """
+
+    robot: RobotModel
+    values: np.ndarray
+    identified: np.ndarray
+    seed: int
+    source: str = field(default="")
+
+    @property
+    def n_draws(self) -> int:
+        return self.values.shape[0]
+
+
+def write_draws(path, robot: RobotModel, values, identified, *, seed: int) -> Path:
+    """Write draws ``values (n_draws, n_joints, 5)`` [mm, rad] to ``path`` atomically."""
+    values = np.asarray(values, dtype=float)
+    n = robot.n_joints
+    if values.ndim != 3 or values.shape[1:] != (n, 5):
+        raise InputError(f"draws must have shape (n_draws, {n}, 5); got {values.shape}")
+    buffer = io.BytesIO()
+    np.savez_compressed(
+        buffer,
+        values=_to_file_units(values).reshape(values.shape[0], n * 5),
+        names=np.array(robot.parameter_names),
+        units=np.array(parameter_units(robot)),
+        nominal=_to_file_units(robot.nominal).reshape(-1),
+        identified=np.asarray(identified, dtype=bool).reshape(-1),
+        robot_json=np.array(json.dumps(robot_to_dict(robot))),
+        seed=np.array(int(seed), dtype=np.int64),
+        format=np.array(FORMAT),
+    )
+    return atomic_write_bytes(path, buffer.getvalue())
+
+
+def read_draws(path) -> ParameterDraws:
+    """Read a ``draws.npz`` written by :func:`write_draws` (errors name the file and the key)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such draws file (write one with `robotcal uncertainty --save-draws`)")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            contents = {key: archive[key] for key in archive.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise InputError(f"{path}: not a readable .npz file ({exc})") from None
+    missing = [key for key in ("values", "names", "identified", "robot_json", "seed", "format") if key not in contents]
+    if missing:
+        raise InputError(f"{path}: missing key(s) {', '.join(missing)}; is this a robotcal draws file?")
+    if str(contents["format"]) != FORMAT:
+        raise InputError(f"{path}: format {str(contents['format'])!r} is not {FORMAT!r}")
+    robot = robot_from_dict(json.loads(str(contents["robot_json"])), f"{path}:robot_json")
+    names = [str(name) for name in contents["names"]]
+    if names != list(robot.parameter_names):
+        raise InputError(f"{path}: `names` do not match the robot's parameters {robot.parameter_names[:2]}...")
+    flat = np.asarray(contents["values"], dtype=float)
+    if flat.ndim != 2 or flat.shape[1] != robot.n_joints * 5 or flat.shape[0] < 1:
+        raise InputError(f"{path}: `values` must have shape (n_draws, {robot.n_joints * 5}); got {flat.shape}")
+    if not np.all(np.isfinite(flat)):
+        row = int(np.nonzero(~np.isfinite(flat))[0][0])
+        raise InputError(f"{path}: `values` holds a non-finite number in draw {row}")
+    values = _to_core_units(flat.reshape(-1, robot.n_joints, 5))
+    identified = np.asarray(contents["identified"], dtype=bool).reshape(robot.n_joints, 5)
+    return ParameterDraws(
+        robot=robot, values=values, identified=identified, seed=int(contents["seed"]), source=str(path)
+    )

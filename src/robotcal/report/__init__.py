@@ -1,0 +1,1 @@
+"""Report layer: matplotlib figures and the self-contained HTML report. Only ``cli`` imports it."""
