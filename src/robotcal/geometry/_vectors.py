@@ -1,4 +1,8 @@
-"""Row-wise vector helpers over the last axis, shared by the geometry and identification code."""
+"""Row-wise vector helpers over the last axis, shared by the geometry and identification code.
+
+Written out by components: for ``(..., 3)`` stacks this is several times faster than ``np.cross``
+and ``np.sum(a * b, axis=-1)``, which matters in the Monte Carlo loop (one call per draw batch).
+"""
 
 from __future__ import annotations
 
@@ -7,9 +11,19 @@ import numpy as np
 
 def dot(a, b) -> np.ndarray:
     """Dot products of ``(..., 3)`` vectors along the last axis."""
-    return np.sum(a * b, axis=-1)
+    a, b = np.asarray(a), np.asarray(b)
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def cross(a, b) -> np.ndarray:
+    """Cross products of ``(..., 3)`` vectors (broadcast) along the last axis."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def unit(v) -> np.ndarray:
     """``v`` normalised along the last axis."""
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+    v = np.asarray(v, dtype=float)
+    return v / np.sqrt(dot(v, v))[..., None]

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotcal.errors import DegenerateGeometryError, InputError
+from robotcal.geometry._vectors import cross as _cross
 from robotcal.geometry._vectors import dot as _dot
 from robotcal.geometry._vectors import unit as _unit
 
@@ -60,12 +61,12 @@ class PluckerLine:
         if np.any(norm == 0.0) or not np.all(np.isfinite(direction)):
             raise InputError("a line direction must be a finite non-zero vector")
         direction = direction / norm
-        return cls(direction=direction, moment=np.cross(np.asarray(point, dtype=float), direction))
+        return cls(direction=direction, moment=_cross(np.asarray(point, dtype=float), direction))
 
     @property
     def point(self) -> np.ndarray:
         """Point of the line closest to the origin, ``S x S0`` [mm]."""
-        return np.cross(self.direction, self.moment)
+        return _cross(self.direction, self.moment)
 
     def transformed(self, transform) -> PluckerLine:
         """The line moved by rigid transforms ``(..., 4, 4)``."""
@@ -73,7 +74,7 @@ class PluckerLine:
         rotation = transform[..., :3, :3]
         direction = np.einsum("...ij,...j->...i", rotation, self.direction)
         point = np.einsum("...ij,...j->...i", rotation, self.point) + transform[..., :3, 3]
-        return PluckerLine(direction=direction, moment=np.cross(point, direction))
+        return PluckerLine(direction=direction, moment=_cross(point, direction))
 
     def flipped(self, mask) -> PluckerLine:
         """Reverse direction (and moment) where ``mask (...)`` is true."""
@@ -125,7 +126,7 @@ def signed_angle_about(from_vector, to_vector, axis) -> np.ndarray:
     perpendicular to it (eqs 4-92, 4-93 with the dot product, see THESIS_NOTES).
     """
     return np.arctan2(
-        _dot(np.cross(from_vector, to_vector), axis),
+        _dot(_cross(from_vector, to_vector), axis),
         _dot(from_vector, to_vector) - _dot(from_vector, axis) * _dot(to_vector, axis),
     )
 
@@ -159,7 +160,7 @@ def analyse_dh_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint, po
     """
     s_j, s0_j, s_k, s0_k = line_j.direction, line_j.moment, line_k.direction, line_k.moment
     hint = np.broadcast_to(np.asarray(normal_hint, dtype=float), s_j.shape)
-    cross = np.cross(s_j, s_k)
+    cross = _cross(s_j, s_k)
     sin_angle = np.linalg.norm(cross, axis=-1)
     cos_angle = _dot(s_j, s_k)
     mutual_moment = _dot(s_j, s0_k) + _dot(s_k, s0_j)
@@ -169,17 +170,17 @@ def analyse_dh_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint, po
         intersecting = ~parallel & (common_length < INTERSECTION_TOLERANCE_MM)
         normal_skew = _orient(cross / sin_angle[..., None], hint)
         # skew: eqs 4-35, 4-36 (both invariant to the sign of a_jk)
-        n_k = np.cross(normal_skew, s_k)
-        foot_j = (np.cross(n_k, s0_j) - _dot(s0_k, normal_skew)[..., None] * s_j) / _dot(n_k, s_j)[..., None]
-        n_j = np.cross(normal_skew, s_j)
-        foot_k = (np.cross(n_j, s0_k) - _dot(s0_j, normal_skew)[..., None] * s_k) / _dot(n_j, s_k)[..., None]
+        n_k = _cross(normal_skew, s_k)
+        foot_j = (_cross(n_k, s0_j) - _dot(s0_k, normal_skew)[..., None] * s_j) / _dot(n_k, s_j)[..., None]
+        n_j = _cross(normal_skew, s_j)
+        foot_k = (_cross(n_j, s0_k) - _dot(s0_j, normal_skew)[..., None] * s_k) / _dot(n_j, s_k)[..., None]
         # intersecting: eq. 4-44
-        common = np.cross(s0_j, s0_k) / _dot(s0_j, s_k)[..., None]
+        common = _cross(s0_j, s0_k) / _dot(s0_j, s_k)[..., None]
         # degenerate 4-44 (a line through the origin): fall back on the skew feet, which coincide
         common = np.where(np.isfinite(common), common, 0.5 * (foot_j + foot_k))
     # parallel: eq. 4-52, a'_jk = S_j x (cos(alpha) S0_k - S0_j)
     sign = np.sign(cos_angle)[..., None]
-    offset = np.cross(s_j, sign * s0_k - s0_j)
+    offset = _cross(s_j, sign * s0_k - s0_j)
     offset_norm = np.linalg.norm(offset, axis=-1, keepdims=True)
     hint_perp = hint - _dot(hint, s_j)[..., None] * s_j
     normal_parallel = _orient(
@@ -230,7 +231,7 @@ def analyse_hayati_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint
             "Hayati (Solution 3) pair: the later axis is perpendicular to the earlier one; "
             "a Hayati joint needs nearly parallel axes"
         )
-    point_k = (np.cross(s_j, s0_k) + _dot(point_j, s_j)[..., None] * s_k) / denominator[..., None]
+    point_k = (_cross(s_j, s0_k) + _dot(point_j, s_j)[..., None] * s_k) / denominator[..., None]
     link = point_k - point_j
     link_norm = np.linalg.norm(link, axis=-1, keepdims=True)
     hint_perp = hint - _dot(hint, s_j)[..., None] * s_j
@@ -243,7 +244,7 @@ def analyse_hayati_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint
     sin_beta = np.clip(_dot(s_k, normal), -1.0, 1.0)
     beta = np.arctan2(sin_beta, np.sqrt(1.0 - sin_beta**2))
     projected = s_k - sin_beta[..., None] * normal
-    twist = np.arctan2(_dot(np.cross(s_j, projected), normal), _dot(s_j, projected))
+    twist = np.arctan2(_dot(_cross(s_j, projected), normal), _dot(s_j, projected))
     mutual_moment = _dot(s_j, s0_k) + _dot(s_k, line_j.moment)
     return LinePair(
         case=np.full(denominator.shape, "nearly-parallel"),

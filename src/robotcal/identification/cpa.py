@@ -35,6 +35,7 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import DegenerateGeometryError, IdentifiabilityWarning, InputError
+from robotcal.geometry._vectors import cross as _cross
 from robotcal.geometry._vectors import dot as _dot
 from robotcal.geometry._vectors import unit as _unit
 from robotcal.geometry.fits import CircleFit, fit_circle_3d
@@ -194,6 +195,13 @@ def prepare_cpa(
         )
     if reflector.frame == "joint" and reflector.positions.shape[0] != n:
         raise InputError(f"{src}: {reflector.positions.shape[0]} per-circle reflector positions for {n} joints")
+    free_poses = np.flatnonzero(capture.circle == 0)
+    if free_poses.size:
+        raise InputError(
+            f"{src}: {free_poses.size} points have circle = 0 (free poses, first on point {free_poses[0] + 1}); "
+            "CPA needs circle points only: identify from the calibration capture, use free poses for refinement "
+            "or evaluation"
+        )
     model_q = robot.model_joint_variables(capture.readings)
     still_tol = np.deg2rad(options.still_tolerance_deg) + 1e-12
     indices = []
@@ -251,7 +259,7 @@ def prepare_cpa(
 def _oriented_axis(fit: CircleFit, points: np.ndarray, q_turn: np.ndarray) -> np.ndarray:
     """Flip the fitted normal where the target does not turn right-handed as q grows."""
     radial = points - fit.centre[..., None, :]
-    turn = _dot(np.cross(radial[..., :-1, :], radial[..., 1:, :]), fit.normal[..., None, :])
+    turn = _dot(_cross(radial[..., :-1, :], radial[..., 1:, :]), fit.normal[..., None, :])
     sense = np.sum(turn * np.diff(q_turn), axis=-1)
     return np.where((sense < 0.0)[..., None], -fit.normal, fit.normal)
 

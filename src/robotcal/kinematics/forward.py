@@ -126,8 +126,9 @@ def target_positions(parameters, q, turning_joint, reflector: ReflectorMount, *,
         0-based index of the joint whose circle the point belongs to.
     reflector : ReflectorMount
         ``"joint"``: ``F_{i-1} E_i Rz(q_i) r_i`` (eq. 5-1); ``"flange"``: ``F_n r``.
-    joint_errors : array_like, shape (n_points, n_joints, 4, 4), optional
-        Error transforms ``E_i`` (see :func:`joint_frames`).
+    joint_errors : array_like, shape (..., n_points, n_joints, 4, 4), optional
+        Error transforms ``E_i`` (see :func:`joint_frames`); leading axes (e.g. Monte Carlo draws)
+        broadcast against those of ``parameters``.
 
     Returns
     -------
@@ -146,5 +147,5 @@ def target_positions(parameters, q, turning_joint, reflector: ReflectorMount, *,
     before = frames[..., points, turning_joint, :, :]
     turn = rot_z(q[points, turning_joint])
     if joint_errors is not None:
-        turn = np.asarray(joint_errors, dtype=float)[points, turning_joint] @ turn
+        turn = np.asarray(joint_errors, dtype=float)[..., points, turning_joint, :, :] @ turn
     return apply_transform(before @ turn, reflector.positions[turning_joint])

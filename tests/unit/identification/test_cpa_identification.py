@@ -272,7 +272,7 @@ def test_moving_the_tracker_changes_nothing(base_frame):
     after = identify_cpa(moved, robot, reflector, tracker_from_base=motion @ tracker_from_base, options=options)
     # the 18 parameters between axes are invariant to the instrument frame: rounding and the geometric
     # fit's cost resolution (~1e-9 mm, see test_circle_fits) on noisy data, so 1e-8
-    np.testing.assert_allclose(after.parameters.values[OTHER_18], before.parameters.values[OTHER_18], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(after.parameters.values[OTHER_18], before.parameters.values[OTHER_18], rtol=0, atol=1e-9)
     # with the moved base frame (given, or registered, which is equivariant) d1 and theta1 stay too
     np.testing.assert_allclose(
         after.parameters.values[0, [D, THETA]], before.parameters.values[0, [D, THETA]], atol=1e-8
@@ -466,6 +466,8 @@ def test_batch_equals_separate_calls(base_frame, circle_fit, base_axis):
         single = identify_cpa(
             capture.with_points(stack[k]), robot, reflector, tracker_from_base=tracker_from_base, options=options
         )
-        # one code path with a leading axis: the same numbers up to batched-LAPACK rounding
-        np.testing.assert_allclose(batch.values[k], single.parameters.values, rtol=0, atol=1e-10)
+        # One code path with a leading axis: the same numbers up to rounding. Batched and single
+        # reductions differ by ~1e-15 in a plane normal; CPA amplifies that (short arcs, nearly
+        # intersecting axes) to ~1e-11 mm; 1e-9 is the agreement the Monte Carlo engine promises.
+        np.testing.assert_allclose(batch.values[k], single.parameters.values, rtol=0, atol=1e-9)
         np.testing.assert_allclose(batch.tracker_from_base[k], single.tracker_from_base, rtol=0, atol=1e-10)
