@@ -29,7 +29,8 @@ class Capture:
     Attributes
     ----------
     circle : ndarray of int, shape (n_points,)
-        1-based joint turned for the point's circle (the CSV's ``circle``).
+        1-based joint turned for the point's circle (the CSV's ``circle``); 0 for a point on no
+        circle (a free pose, e.g. of a validation capture; then ``direction`` is +1).
     direction : ndarray of int, shape (n_points,)
         +1 for the forward sweep, -1 for the return sweep.
     readings : ndarray, shape (n_points, n_joints)
@@ -66,8 +67,10 @@ class Capture:
                 f"{self.source}: inconsistent capture shapes: circle {circle.shape}, direction {direction.shape}, "
                 f"readings {readings.shape}, points {points.shape} (expected (n,), (n,), (n, n_joints), (n, 3))"
             )
-        if not np.all(circle == np.round(circle)) or np.any(circle < 1) or np.any(circle > readings.shape[1]):
-            raise InputError(f"{self.source}: `circle` values must be joint numbers 1..{readings.shape[1]}")
+        if not np.all(circle == np.round(circle)) or np.any(circle < 0) or np.any(circle > readings.shape[1]):
+            raise InputError(
+                f"{self.source}: `circle` values must be joint numbers 1..{readings.shape[1]} (0: a point on no circle)"
+            )
         if not np.all(np.isin(direction, (-1, 1))):
             raise InputError(f"{self.source}: `direction` values must be +1 or -1")
         for name, array in (("readings", readings), ("points", points)):

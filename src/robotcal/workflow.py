@@ -17,7 +17,18 @@ from robotcal.io.scenario import Scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_capture
 
-__all__ = ["SimulationRun", "resolve_seed", "simulate_scenario", "identify_scenario", "versions"]
+__all__ = [
+    "SimulationRun",
+    "resolve_seed",
+    "simulate_scenario",
+    "identify_scenario",
+    "versions",
+    "scenario_truth",
+    "simulate_validation",
+    "refine_scenario",
+    "refine_provenance",
+    "evaluate_scenario",
+]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -122,3 +133,161 @@ def cpa_provenance(result: CPAResult, capture: Capture, scenario: Scenario) -> d
         "message": result.message,
         "versions": versions(),
     }
+
+
+# --- refinement and evaluation (thesis ch. 4.5.7) -------------------------------------------------
+
+
+def scenario_truth(scenario: Scenario, *, seed: int | None = None) -> tuple[ParameterSet, int]:
+    """A perturbed "true" robot from the scenario's ``[truth]`` table (defaults when absent).
+
+    Returns the parameters and the seed used (``seed``, else ``truth.seed``, else fresh entropy).
+    """
+    from robotcal.simulation.perturb import perturb_parameters
+
+    table = scenario.truth or {"length_sd_mm": 0.2, "angle_sd_deg": 0.05, "include_base": False, "seed": None}
+    seed = resolve_seed(seed, table.get("seed"))
+    truth = perturb_parameters(
+        scenario.robot,
+        length_sd_mm=table["length_sd_mm"],
+        angle_sd_deg=table["angle_sd_deg"],
+        include_base=table["include_base"],
+        rng=np.random.default_rng(seed),
+    )
+    return truth, seed
+
+
+def validation_reflector(scenario: Scenario):
+    """The flange target of validation captures: ``[validation].flange_reflector_mm``, else the
+    plan's reflector when it is a flange one."""
+    from robotcal.errors import InputError
+    from robotcal.kinematics.model import ReflectorMount
+
+    if scenario.validation is not None:
+        return ReflectorMount(frame="flange", positions=scenario.validation["flange_reflector_mm"])
+    if scenario.plan.reflector.frame == "flange":
+        return scenario.plan.reflector
+    raise InputError(
+        f"{scenario.source}: a capture at free poses (circle = 0) needs a flange target: add a [validation] table "
+        "with `flange_reflector_mm`, or use a scenario with `capture.flange_reflector_mm`"
+    )
+
+
+def capture_reflector(scenario: Scenario, capture: Capture):
+    """The target of ``capture``: the validation flange target when it has free poses, else the plan's."""
+    if np.any(capture.circle == 0):
+        return validation_reflector(scenario)
+    return scenario.plan.reflector
+
+
+def simulate_validation(
+    scenario: Scenario, *, seed: int | None = None, true_parameters: ParameterSet | None = None
+) -> SimulationRun:
+    """A validation capture at seeded random reachable poses (``[validation]`` table, defaults when
+    absent); one generator seeded by ``seed`` (else ``validation.seed``) draws the poses, then the noise."""
+    from robotcal.simulation.poses import random_poses, simulate_poses
+
+    table = scenario.validation or {"poses": 100, "seed": None, "margin_deg": 5.0, "min_height_mm": None}
+    seed = resolve_seed(seed, table.get("seed"))
+    rng = np.random.default_rng(seed)
+    reflector = validation_reflector(scenario)
+    readings = random_poses(
+        scenario.robot,
+        int(table["poses"]),
+        margin_deg=table["margin_deg"],
+        min_height_mm=table["min_height_mm"],
+        reflector=reflector,
+        rng=rng,
+    )
+    true_parameters = ParameterSet.nominal(scenario.robot) if true_parameters is None else true_parameters
+    capture, exact = simulate_poses(
+        scenario.robot,
+        readings,
+        reflector,
+        scenario.instrument,
+        scenario.tracker_from_base,
+        true_parameters=true_parameters,
+        rng=rng,
+    )
+    capture = Capture(
+        circle=capture.circle,
+        direction=capture.direction,
+        readings=capture.readings,
+        points=capture.points,
+        source=f"validation capture simulated from {scenario.name}",
+        seed=seed,
+    )
+    return SimulationRun(capture=capture, exact_points=exact, seed=seed, true_parameters=true_parameters)
+
+
+def refine_scenario(capture: Capture, scenario: Scenario, start: ParameterSet, *, criterion: str = "points", **options):
+    """Refine ``start`` on ``capture`` with the scenario's robot and target (thesis ch. 4.5.7).
+
+    The points criterion starts from the scenario's ``tracker_from_base`` when
+    ``[identification].base_frame = "given"``, else from a Horn registration. ``options`` go to
+    :func:`robotcal.identification.refine.refine_parameters`.
+    """
+    from robotcal.identification.refine import refine_parameters
+
+    base = scenario.tracker_from_base if scenario.identification.base_frame == "given" else None
+    return refine_parameters(
+        capture,
+        start,
+        capture_reflector(scenario, capture),
+        criterion=criterion,
+        tracker_from_base=base,
+        **options,
+    )
+
+
+def refine_provenance(result, capture: Capture, scenario: Scenario, start_source: str) -> dict:
+    """What a parameter JSON records about a refinement (mm, deg), convergence history included."""
+    names = scenario.robot.parameter_names
+    angles = ("theta", "alpha", "beta")
+    sd = {}
+    for name, value in zip(names, result.standard_uncertainty.ravel(), strict=True):
+        if np.isfinite(value):
+            sd[name] = float(np.rad2deg(value)) if name.split(".")[1] in angles else float(value)
+    return {
+        "method": f"least-squares refinement, {result.criterion} criterion (thesis ch. 4.5.7, "
+        + ("eq. 4-101)" if result.criterion == "points" else "eq. 4-102)"),
+        "criterion": result.criterion,
+        "solver": f"scipy.optimize.least_squares method={result.method!r}",
+        "start": start_source,
+        "capture": capture.source,
+        "capture_seed": capture.seed,
+        "points": int(capture.n_points),
+        "residuals": result.n_residuals,
+        "scenario": {"name": scenario.name, "source": scenario.source},
+        "free": list(result.free_names),
+        "gauge": list(result.gauge),
+        "held": list(result.held),
+        "still_joints": list(result.still_joints),
+        "success": result.success,
+        "message": result.message,
+        "nfev": result.nfev,
+        "njev": result.njev,
+        "wall_time_s": result.wall_time_s,
+        "convergence": {
+            "criterion": result.criterion,
+            "cost_mm2": result.cost_history.tolist(),
+            "rms_mm": result.rms_history.tolist(),
+        },
+        "residual_rms_mm": result.residual_rms,
+        "residual_mean_mm": result.residual_mean,
+        "residual_max_mm": result.residual_max,
+        "sigma_mm": result.sigma,
+        "condition_number": result.condition_number,
+        "singular_values": result.singular_values.tolist(),
+        "standard_uncertainty": sd,
+        "tracker_from_base": None if result.tracker_from_base is None else result.tracker_from_base.tolist(),
+        "versions": versions(),
+    }
+
+
+def evaluate_scenario(scenario: Scenario, captures: dict, parameter_sets: dict):
+    """Evaluation rows (thesis Tables 4.10/4.11) of named parameter sets on named captures."""
+    from robotcal.identification.evaluation import evaluate_parameters
+
+    reflectors = {name: capture_reflector(scenario, capture) for name, capture in captures.items()}
+    return evaluate_parameters(captures, parameter_sets, reflectors)

@@ -1,4 +1,4 @@
-"""``robotcal simulate SCENARIO --out CAPTURE.csv``: a synthetic Circle Point capture."""
+"""``robotcal simulate SCENARIO --out CAPTURE.csv``: a synthetic Circle Point (or validation) capture."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import typer
 
 from robotcal.cli import app
 from robotcal.cli._common import console, handle_errors
-from robotcal.io import load_scenario, read_parameters, write_capture
-from robotcal.workflow import simulate_scenario
+from robotcal.errors import InputError
+from robotcal.io import load_scenario, read_parameters, write_capture, write_parameters
+from robotcal.workflow import scenario_truth, simulate_scenario, simulate_validation, versions
 
 
 @app.command()
@@ -19,19 +20,56 @@ def simulate(
     scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write.")],
     seed: Annotated[
-        int | None, typer.Option(min=0, help="Seed of the noise generator (default: the scenario's capture.seed).")
+        int | None,
+        typer.Option(
+            min=0, help="Seed of the random draws (default: the scenario's capture.seed, or validation.seed)."
+        ),
     ] = None,
     true_params: Annotated[
         Path | None, typer.Option("--true-params", help="Parameter JSON of the 'real' robot (default: nominal).")
     ] = None,
+    truth_out: Annotated[
+        Path | None,
+        typer.Option(
+            "--truth-out",
+            help="Perturb the nominal robot per the scenario's [truth] table, simulate that robot and write it here.",
+        ),
+    ] = None,
+    validation: Annotated[
+        bool,
+        typer.Option(
+            "--validation", help="Simulate a validation capture at random poses ([validation] table) instead."
+        ),
+    ] = False,
 ) -> None:
     """Simulate the scenario's capture and write it as a capture CSV."""
     loaded = load_scenario(scenario)
+    if true_params is not None and truth_out is not None:
+        raise InputError("give either --true-params (an existing truth) or --truth-out (a new perturbed truth)")
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
-    run = simulate_scenario(loaded, seed=seed, true_parameters=truth)
+    if truth_out is not None:
+        truth, truth_seed = scenario_truth(loaded)
+        write_parameters(
+            truth_out,
+            truth,
+            {
+                "method": "nominal plus normal deviations of the CPA-identifiable parameters (simulation.perturb)",
+                "scenario": {"name": loaded.name, "source": loaded.source},
+                "truth": loaded.truth,
+                "seed": truth_seed,
+                "versions": versions(),
+            },
+        )
+        console.print(f"wrote {truth_out}: perturbed 'true' robot (seed {truth_seed})", highlight=False)
+    if validation:
+        run = simulate_validation(loaded, seed=seed, true_parameters=truth)
+        kind = f"{run.capture.n_points} random poses, flange target"
+    else:
+        run = simulate_scenario(loaded, seed=seed, true_parameters=truth)
+        kind = f"{run.capture.n_points} points in {loaded.robot.n_joints} circles"
     write_capture(out, run.capture)
     console.print(
-        f"wrote {out}: {run.capture.n_points} points in {loaded.robot.n_joints} circles "
+        f"wrote {out}: {kind} "
         f"(scenario {loaded.name}, instrument {loaded.instrument.name}, noise {loaded.instrument.noise}, seed {run.seed})",
         highlight=False,
     )

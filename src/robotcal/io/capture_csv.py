@@ -1,6 +1,7 @@
 """Capture CSV: ``circle,direction,q1..qN,x,y,z`` (DESIGN.md "Files").
 
-One row per measured point; ``circle`` = joint turned (1-based), ``direction`` = +1/-1, joint
+One row per measured point; ``circle`` = joint turned (1-based; 0 for a free pose on no circle, such
+as a validation capture), ``direction`` = +1/-1, joint
 readings ``q1..qN`` in degrees, target position ``x, y, z`` in the tracker frame in mm.
 """
 
@@ -94,10 +95,11 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
         bad = np.flatnonzero(values != np.round(values))
         if bad.size:
             raise InputError(f"{path}: line {bad[0] + 2}, column `{name}`: must be a whole number")
-    bad = np.flatnonzero((circle < 1) | (circle > count))
+    bad = np.flatnonzero((circle < 0) | (circle > count))
     if bad.size:
         raise InputError(
-            f"{path}: line {bad[0] + 2}, column `circle`: {circle[bad[0]]:g} is not a joint number 1..{count}"
+            f"{path}: line {bad[0] + 2}, column `circle`: {circle[bad[0]]:g} is not a joint number 1..{count} "
+            "(or 0 for a point on no circle)"
         )
     bad = np.flatnonzero(~np.isin(direction, (-1.0, 1.0)))
     if bad.size:

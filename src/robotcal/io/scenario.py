@@ -60,6 +60,8 @@ class JointErrorTable(_Strict):
     dz: ErrorTerm = ErrorTerm()
     ex: ErrorTerm = ErrorTerm()
     ey: ErrorTerm = ErrorTerm()
+    backlash_deg: float = Field(default=0.0, ge=0)
+    lash_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 class CaptureTable(_Strict):
@@ -94,6 +96,25 @@ class MonteCarloTable(_Strict):
     coverage: float = Field(default=0.95, gt=0, lt=1)
 
 
+class TruthTable(_Strict):
+    """Synthetic runs: how far the "true" robot deviates from nominal (simulation.perturb)."""
+
+    length_sd_mm: float = Field(default=0.2, ge=0)
+    angle_sd_deg: float = Field(default=0.05, ge=0)
+    include_base: bool = False
+    seed: int | None = Field(default=None, ge=0)
+
+
+class ValidationTable(_Strict):
+    """Validation capture: random reachable poses with a flange target (simulation.poses)."""
+
+    poses: int = Field(default=100, ge=4)
+    seed: int | None = Field(default=None, ge=0)
+    flange_reflector_mm: list[float] = [60.0, 40.0, 30.0]
+    margin_deg: float = Field(default=5.0, ge=0)
+    min_height_mm: float | None = None
+
+
 class ScenarioFile(_Strict):
     description: str = ""
     robot: str
@@ -102,6 +123,8 @@ class ScenarioFile(_Strict):
     capture: CaptureTable
     identification: IdentificationTable = IdentificationTable()
     montecarlo: MonteCarloTable = MonteCarloTable()
+    truth: TruthTable | None = None
+    validation: ValidationTable | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -121,6 +144,8 @@ class Scenario:
     seed: int | None
     montecarlo: dict
     settings: dict = field(default_factory=dict)
+    truth: dict | None = None
+    validation: dict | None = None
 
 
 def _rigid(matrix, source: str) -> np.ndarray:
@@ -150,6 +175,7 @@ def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> 
     amplitude, period, phase, noise = (
         np.array(a) for a in (model.amplitude, model.period, model.phase, model.noise_sd)
     )
+    backlash, lash = np.zeros(n_joints), np.zeros((n_joints, 3))
     seen = set()
     for table in tables:
         if table.joint > n_joints or table.joint in seen:
@@ -164,7 +190,11 @@ def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> 
             noise[table.joint - 1, column] = term.noise_sd * to_core
             period[table.joint - 1, column] = np.deg2rad(term.period_deg)
             phase[table.joint - 1, column] = np.deg2rad(term.phase_deg)
-    return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=noise)
+        backlash[table.joint - 1] = np.deg2rad(table.backlash_deg)
+        lash[table.joint - 1] = table.lash_mm
+    return JointErrorModel(
+        amplitude=amplitude, period=period, phase=phase, noise_sd=noise, backlash=backlash, lash=lash
+    )
 
 
 def scenario_from_dict(
@@ -223,7 +253,19 @@ def scenario_from_dict(
         seed=capture.seed,
         montecarlo=spec.montecarlo.model_dump(),
         settings=spec.model_dump(),
+        truth=None if spec.truth is None else spec.truth.model_dump(),
+        validation=_validation(spec.validation, source),
     )
+
+
+def _validation(table: ValidationTable | None, source: str) -> dict | None:
+    if table is None:
+        return None
+    if len(table.flange_reflector_mm) != 3:
+        raise InputError(
+            f"{source}: key `validation.flange_reflector_mm` must be [x, y, z]; got {table.flange_reflector_mm}"
+        )
+    return table.model_dump()
 
 
 def load_scenario(name_or_path) -> Scenario:

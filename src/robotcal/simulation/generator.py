@@ -3,6 +3,8 @@
 A target point of circle i is ``tracker_from_base . F_{i-1} . G_Zi(q_i) . r_i`` (eq. 5-1), where
 ``F_{i-1}`` chains the links of the earlier joints at their current readings and
 ``G_Zi = RT_err = T(dx, dy, dz) Rx(ex) Ry(ey) Rz(q_i)`` (eqs 5-3, 5-4) carries the joint error model.
+Beyond the thesis, the error model has a direction-dependent backlash term (an angular lash about the
+joint axis and a translational lash), so that forward and return sweeps differ (ch. 4.6).
 Instrument noise ``U(L) = A + B L`` is added last, from one seeded generator.
 """
 
@@ -15,13 +17,13 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError, JointLimitWarning
-from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rot_x, rot_y, translation
+from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rot_x, rot_y, rot_z, translation
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["JointErrorModel", "simulate_capture", "ERROR_TERMS"]
+__all__ = ["JointErrorModel", "simulate_capture", "motion_direction", "ERROR_TERMS"]
 
 #: Error terms of a joint, in the order of the thesis's Err matrix rows (eq. 5-2).
 ERROR_TERMS = ("dx", "dy", "dz", "ex", "ey")
@@ -37,16 +39,30 @@ class JointErrorModel:
     once each time the joint reaches a new reading (so a joint resting after its circle keeps the
     error of its last point, as the thesis's generator keeps its last ``G_Zi``).
 
+    Backlash (not in the thesis's generator; ch. 4.6 measures it): the joint output lags the
+    commanded motion by half the lash. With ``s = +1`` when the joint's last motion was towards
+    larger ``q`` and ``s = -1`` towards smaller (see :func:`motion_direction`), the joint turns by
+    ``-s * backlash / 2`` about its axis and shifts by ``-s * lash / 2`` in frame {i-1}. A return
+    point therefore differs from the forward point at the same reading by a turn of ``+backlash``
+    and a shift of ``+lash``; a point reached without motion (the turnaround of a bidirectional
+    sweep) keeps the state of the motion before it.
+
     Attributes
     ----------
     amplitude, period, phase, noise_sd : ndarray, shape (n_joints, 5)
         A [mm | rad], T [rad of joint angle, > 0], phi [rad], R (standard deviation) [mm | rad].
+    backlash : ndarray, shape (n_joints,), optional
+        Total angular lash of each joint, >= 0 [rad]; zeros by default.
+    lash : ndarray, shape (n_joints, 3), optional
+        Total translational lash of each joint in frame {i-1} [mm]; zeros by default.
     """
 
     amplitude: np.ndarray
     period: np.ndarray
     phase: np.ndarray
     noise_sd: np.ndarray
+    backlash: np.ndarray | None = None
+    lash: np.ndarray | None = None
 
     def __post_init__(self):
         shape = np.shape(self.amplitude)
@@ -62,6 +78,18 @@ class JointErrorModel:
             raise InputError("joint error model: every `period` must be > 0")
         if np.any(self.noise_sd < 0):
             raise InputError("joint error model: `noise_sd` must be >= 0")
+        n = shape[0]
+        for name, expected in (("backlash", (n,)), ("lash", (n, 3))):
+            raw = getattr(self, name)
+            value = np.zeros(expected) if raw is None else np.array(raw, dtype=float)
+            if value.shape != expected:
+                raise InputError(f"joint error model: `{name}` must have shape {expected}; got {value.shape}")
+            if not np.all(np.isfinite(value)):
+                raise InputError(f"joint error model: `{name}` contains NaN or infinite values")
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        if np.any(self.backlash < 0):
+            raise InputError("joint error model: every `backlash` angle must be >= 0")
 
     @classmethod
     def zeros(cls, n_joints: int) -> JointErrorModel:
@@ -86,10 +114,52 @@ class JointErrorModel:
             values = values + raw
         return values
 
+    @property
+    def has_lash(self) -> bool:
+        """Whether any joint has an angular or translational lash."""
+        return bool(np.any(self.backlash != 0.0) or np.any(self.lash != 0.0))
+
     def transforms(self, q, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
-        """Error transforms ``E = T(dx, dy, dz) Rx(ex) Ry(ey)``, shape ``(n_points, n_joints, 4, 4)``."""
+        """Error transforms ``E = T(dx, dy, dz) Rx(ex) Ry(ey)``, shape ``(n_points, n_joints, 4, 4)``.
+
+        With lash, ``E = T(d - s lash / 2) Rx(ex) Ry(ey) Rz(-s backlash / 2)`` with ``s`` the
+        direction of each joint's last motion along the rows of ``q`` (:func:`motion_direction`);
+        ``E Rz(q)`` is then the joint turned to ``q - s backlash / 2``. The sinusoidal terms are
+        evaluated at the commanded ``q``.
+        """
         values = self.values(q, rng=rng)
-        return translation(values[..., :3]) @ rot_x(values[..., 3]) @ rot_y(values[..., 4])
+        shift = values[..., :3]
+        if not self.has_lash:
+            return translation(shift) @ rot_x(values[..., 3]) @ rot_y(values[..., 4])
+        state = motion_direction(q)
+        shift = shift - 0.5 * state[..., None] * self.lash
+        turn = rot_z(-0.5 * state * self.backlash)
+        return translation(shift) @ rot_x(values[..., 3]) @ rot_y(values[..., 4]) @ turn
+
+
+def motion_direction(q) -> np.ndarray:
+    """Direction of each joint's last motion along a sequence of configurations.
+
+    Parameters
+    ----------
+    q : array_like, shape (n_points, n_joints)
+        Joint variables in the order the robot visits them [rad].
+
+    Returns
+    -------
+    ndarray of int, shape (n_points, n_joints)
+        ``+1`` if the joint last moved towards larger values before (or on reaching) the row,
+        ``-1`` towards smaller ones. A row equal to the previous one keeps its state; a joint that
+        has not moved yet is taken to have approached its first value from below (``+1``).
+    """
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2:
+        raise InputError(f"`q` must have shape (n_points, n_joints); got {q.shape}")
+    step = np.sign(np.diff(q, axis=0))
+    step = np.concatenate([np.ones((1, q.shape[1])), step], axis=0)  # first row: approached from below
+    rows = np.arange(q.shape[0])[:, None]
+    last_moved = np.maximum.accumulate(np.where(step != 0.0, rows, 0), axis=0)
+    return step[last_moved, np.arange(q.shape[1])].astype(int)
 
 
 def _check_limits(robot: RobotModel, readings: np.ndarray, circle: np.ndarray, policy: str) -> None:
@@ -138,7 +208,8 @@ def simulate_capture(
     true_parameters : ParameterSet, optional
         The "real" robot; nominal parameters by default.
     joint_errors : JointErrorModel, optional
-        Joint error model of eq. 5-2 (none by default).
+        Joint error model of eq. 5-2 with its backlash term (none by default). The lash state of
+        each joint follows the order of ``plan.readings()``.
     joint_limits : {"warn", "error", "ignore"}
         What to do when the plan leaves the robot's software limits.
     rng : numpy.random.Generator or int or None

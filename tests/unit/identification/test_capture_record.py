@@ -48,7 +48,7 @@ def test_with_points_keeps_everything_else():
         ({"readings": np.zeros((3, 6))}, r"inconsistent capture shapes: .*readings \(3, 6\)"),
         ({"direction": np.ones(3)}, r"inconsistent capture shapes: circle \(4,\), direction \(3,\)"),
         ({"circle": np.array([1, 1, 2, 7])}, r"`circle` values must be joint numbers 1..6"),
-        ({"circle": np.array([0, 1, 2, 2])}, r"`circle` values must be joint numbers 1..6"),
+        ({"circle": np.array([-1, 1, 2, 2])}, r"`circle` values must be joint numbers 1..6"),
         ({"circle": np.array([1.0, 1.5, 2.0, 2.0])}, r"`circle` values must be joint numbers"),
         ({"direction": np.array([1, 0, 1, 1])}, r"`direction` values must be \+1 or -1"),
     ],

@@ -1,0 +1,136 @@
+"""``robotcal evaluate --scenario S --params P1.json [P2.json ...] --capture VALIDATION.csv --out DIR``."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from robotcal.cli import app
+from robotcal.cli._common import console, handle_errors
+from robotcal.errors import InputError
+from robotcal.io import load_scenario, read_capture, read_parameters
+from robotcal.io.atomic import atomic_directory
+from robotcal.kinematics.model import ParameterSet
+from robotcal.workflow import evaluate_scenario, versions
+
+COLUMNS = (
+    "parameter_set",
+    "view",
+    "capture",
+    "n_errors",
+    "mean_error_mm",
+    "max_error_mm",
+    "rms_error_mm",
+    "improvement_pct",
+)
+
+
+def _label(path: Path, used: set[str]) -> str:
+    label = path.stem
+    while label in used:
+        label = f"{path.parent.name}/{label}" if "/" not in label else label + "'"
+    used.add(label)
+    return label
+
+
+def _convergence(path: Path) -> dict | None:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    entry = (data.get("provenance") or {}).get("convergence") if isinstance(data, dict) else None
+    if isinstance(entry, dict) and "rms_mm" in entry and "criterion" in entry:
+        return entry
+    return None
+
+
+@app.command()
+@handle_errors
+def evaluate(
+    scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot and targets.")],
+    params: Annotated[list[Path], typer.Option("--params", "-p", help="Parameter JSON to evaluate (repeatable).")],
+    capture: Annotated[list[Path], typer.Option("--capture", "-c", help="Capture CSV to evaluate on (repeatable).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write.")],
+    nominal: Annotated[
+        bool, typer.Option("--nominal/--no-nominal", help="Include the nominal parameters first, as the reference.")
+    ] = True,
+) -> None:
+    """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
+    loaded = load_scenario(scenario)
+    robot = loaded.robot
+    used: set[str] = set()
+    sets: dict[str, ParameterSet] = {}
+    if nominal:
+        sets["nominal"] = ParameterSet.nominal(robot)
+        used.add("nominal")
+    histories = {}
+    for path in params:
+        label = _label(path, used)
+        sets[label] = read_parameters(path, robot)
+        history = _convergence(path)
+        if history is not None:
+            histories[label] = history
+    if not sets:
+        raise InputError("nothing to evaluate: give --params or keep --nominal")
+    captures = {}
+    capture_labels: set[str] = set()
+    for path in capture:
+        captures[_label(path, capture_labels)] = read_capture(path, n_joints=robot.n_joints)
+    rows = evaluate_scenario(loaded, captures, sets)
+    stream = io.StringIO()
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for row in rows:
+        writer.writerow([getattr(row, column) for column in COLUMNS])
+    report = {
+        "rows": [{column: getattr(row, column) for column in COLUMNS} for row in rows],
+        "reference": next(iter(sets)),
+        "settings": {
+            "scenario": {"name": loaded.name, "source": loaded.source},
+            "parameter_files": {
+                label: str(path) for label, path in zip(list(sets)[int(nominal) :], params, strict=True)
+            },
+            "capture_files": {label: str(path) for label, path in zip(captures, capture, strict=True)},
+            "views": {
+                "points": "distance per point after Horn registration of the predicted onto the measured points",
+                "distances": "absolute error of every pairwise distance between points at different poses",
+            },
+            "improvement": "100 * (1 - mean / mean of the reference set), per capture and view",
+        },
+        "convergence": histories,
+        "versions": versions(),
+    }
+    with atomic_directory(out) as folder:
+        (folder / "evaluation.csv").write_text(stream.getvalue(), encoding="utf-8")
+        (folder / "evaluation.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        if histories:
+            from robotcal.report.refine import plot_convergence
+
+            plot_convergence(
+                {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()},
+                folder / "convergence.png",
+            )
+    for capture_name in captures:
+        for view in ("points", "distances"):
+            table = Table(title=f"{capture_name}: {view} view", title_justify="left")
+            for column in ("parameter set", "mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]"):
+                table.add_column(column, justify="right" if column != "parameter set" else "left")
+            for row in rows:
+                if row.capture == capture_name and row.view == view:
+                    table.add_row(
+                        row.parameter_set,
+                        f"{row.mean_error_mm:.4f}",
+                        f"{row.max_error_mm:.4f}",
+                        f"{row.rms_error_mm:.4f}",
+                        f"{row.improvement_pct:.2f}",
+                    )
+            console.print(table)
+    console.print(
+        f"wrote {out}/evaluation.csv, evaluation.json" + (", convergence.png" if histories else ""), highlight=False
+    )

@@ -1,0 +1,627 @@
+"""Least-squares refinement of the kinematic parameters (thesis ch. 4.5.7, eqs 4-101 and 4-102).
+
+CPA gives parameters tied to the physical joint axes; a Levenberg-Marquardt refinement then
+minimises the residual over all measured points. Two objectives:
+
+``criterion="points"`` (eq. 4-101, the classic criterion)
+    residuals ``T(x_b) p_k(x) - m_k`` (x, y, z per point, vector residuals, not the distance per
+    point of eq. 4-101's summand), with the parameters x *and* the robot-to-tracker transform
+    ``tracker_from_base`` (6 dof, ``T = T_0 [Rz(rz) Ry(ry) Rx(rx) | t]``) estimated together.
+``criterion="distances"`` (eq. 4-102, the thesis's registration-free criterion)
+    residuals ``|p_i(x) - p_j(x)| - |m_i - m_j|`` for every pair i < j of measured points
+    (n(n-1)/2 residuals). No tracker transform enters.
+
+Both are solved by ``scipy.optimize.least_squares`` (``method="lm"``, MINPACK; ``"trf"`` where
+there are fewer residuals than unknowns) with an explicit ``x_scale`` (1 mm for lengths and
+translations, ``1/L`` rad for angles, L the RMS radius of the measured point cloud about its
+centroid, so that a unit step of any variable moves the points by about 1 mm) and the exact
+analytic Jacobian (:func:`robotcal.kinematics.jacobian.target_jacobian`).
+
+Gauge freedoms and identifiability
+----------------------------------
+* d1 and theta1 (a translation along and a rotation about the first joint axis, i.e. a rigid
+  motion of the base frame that the first joint does not see) are exactly equivalent to moving the
+  whole predicted point cloud. The distances criterion cannot see them at all; the points criterion
+  sees them only together with ``tracker_from_base``. Both criteria therefore hold d1 and theta1 at
+  the start value (the CPA result, which fixes them from the base frame) and say so in ``gauge``.
+  With ``estimate_base=False`` (points criterion, tracker transform known and held) they are free.
+* Every other parameter is checked at the start point by a rank-revealing, ordered selection on
+  the column-scaled Jacobian (:func:`robotcal.identification.observability.select_identifiable`):
+  parameters the data cannot determine (joint n's offsets behind per-joint reflectors, one of
+  joint n's d, theta, a, alpha behind a flange reflector, anything tied to a joint that never
+  moves) are **held at their start value with an** :class:`~robotcal.errors.IdentifiabilityWarning`
+  naming them (and any joint whose reading never changes) when the free set is automatic
+  (``free=None``), and raise :class:`~robotcal.errors.IdentifiabilityError` listing them when the
+  caller gave the free set explicitly or asked for ``on_unidentifiable="raise"``.
+
+Uncertainty
+-----------
+The linearised covariance of the free parameters assumes independent, isotropic point noise of
+one standard deviation sigma per coordinate. For the points criterion the residuals are that noise,
+so ``C = s^2 (J^T J)^-1`` with ``s^2 = SSR / (m - p)``. Pair residuals share points and are
+correlated: for the distances criterion the noise is propagated through ``G = d residual /
+d points`` (sandwich form) ``C = sigma^2 (J^T J)^-1 J^T G G^T J (J^T J)^-1``, with sigma^2 from
+``E[SSR] = sigma^2 (tr(G G^T) - tr(H G G^T))``, H the hat matrix.
+
+References
+----------
+Thesis ch. 4.5.7, eqs 4-101 and 4-102, Tables 4.8-4.11, Figs 4.24-4.25.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.optimize import least_squares
+from scipy.spatial.distance import pdist
+
+from robotcal.capture import Capture
+from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
+from robotcal.geometry.registration import register_points
+from robotcal.geometry.transforms import check_rigid_transform, rot_x, rot_y, rot_z
+from robotcal.identification.observability import (
+    conditioning,
+    correlation_from_covariance,
+    select_identifiable,
+    triangular_factor,
+)
+from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.jacobian import target_jacobian
+from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
+
+__all__ = ["CRITERIA", "BASE_NAMES", "RefinementResult", "refine_parameters", "capture_turning_joints"]
+
+#: The two objectives of thesis ch. 4.5.7.
+CRITERIA = ("points", "distances")
+#: Names of the six ``tracker_from_base`` corrections (points criterion): translation [mm], then
+#: rotation angles [rad] of ``Rz(rz) Ry(ry) Rx(rx)``, applied on the base side of the start transform.
+BASE_NAMES = ("base.tx", "base.ty", "base.tz", "base.rx", "base.ry", "base.rz")
+_D, _THETA = 0, 1
+_PAIR_CHUNK = 32768
+_STILL_RAD = 1e-9
+
+
+def _frozen(array, dtype=float):
+    array = np.array(array, dtype=dtype)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RefinementResult:
+    """Outcome of :func:`refine_parameters`, shaped like SciPy's ``OptimizeResult``.
+
+    Attributes
+    ----------
+    parameters : ParameterSet
+        Refined parameters [mm, rad]; ``identified`` is the start's flags or-ed with ``free``.
+    tracker_from_base : ndarray, shape (4, 4) or None
+        Estimated (or held) base frame for the points criterion; None for distances.
+    criterion : {"points", "distances"}
+    method : {"lm", "trf"}
+    success : bool
+    status : int
+        SciPy's termination status.
+    message : str
+    nfev, njev : int
+        Residual and Jacobian evaluations.
+    free : ndarray of bool, shape (n_joints, 5)
+        Parameters estimated.
+    base_free : ndarray of bool, shape (6,)
+        ``tracker_from_base`` corrections estimated (all False for distances).
+    gauge : tuple of str
+        Parameters held because the criterion cannot see them (d1, theta1; see module notes).
+    held : tuple of str
+        Parameters held because the data cannot determine them (see module notes).
+    still_joints : tuple of str
+        Joints whose reading never changes in the capture.
+    free_names : tuple of str
+        Names of the estimated quantities, in the order of the covariance rows.
+    x_scale : ndarray, shape (n_free,)
+        Characteristic scale of each unknown [mm | rad].
+    cost_history : ndarray, shape (n_iterations + 1,)
+        SciPy cost ``0.5 * sum(r^2)`` [mm^2] at the start and after every iteration (each Jacobian
+        evaluation happens at an accepted iterate), ending with the final cost.
+    rms_history : ndarray, shape (n_iterations + 1,)
+        ``sqrt(2 cost / m)`` [mm], the RMS residual along the way.
+    n_residuals : int
+    residual_rms, residual_mean, residual_max : float
+        Of the per-point distance ``|T p - m|`` (points) or of ``|D_model - D_measured|``
+        (distances) at the solution [mm].
+    singular_values : ndarray, shape (n_free,)
+        Of the column-scaled Jacobian at the solution.
+    condition_number : float
+    sigma : float
+        Estimated point noise per coordinate [mm] (see module notes).
+    covariance : ndarray, shape (n_free, n_free)
+        Linearised covariance of the free quantities [mm, rad].
+    correlation : ndarray, shape (n_free, n_free)
+    standard_uncertainty : ndarray, shape (n_joints, 5)
+        ``sqrt(diag(covariance))`` placed per parameter [mm, rad]; NaN where held.
+    wall_time_s : float
+    """
+
+    parameters: ParameterSet
+    tracker_from_base: np.ndarray | None
+    criterion: str
+    method: str
+    success: bool
+    status: int
+    message: str
+    nfev: int
+    njev: int
+    free: np.ndarray
+    base_free: np.ndarray
+    gauge: tuple[str, ...]
+    held: tuple[str, ...]
+    still_joints: tuple[str, ...]
+    free_names: tuple[str, ...]
+    x_scale: np.ndarray
+    cost_history: np.ndarray
+    rms_history: np.ndarray
+    n_residuals: int
+    residual_rms: float
+    residual_mean: float
+    residual_max: float
+    singular_values: np.ndarray
+    condition_number: float
+    sigma: float
+    covariance: np.ndarray
+    correlation: np.ndarray
+    standard_uncertainty: np.ndarray
+    wall_time_s: float
+
+
+def capture_turning_joints(capture: Capture, reflector: ReflectorMount) -> np.ndarray:
+    """0-based joint whose circle each point belongs to (circle - 1); checked against the reflector.
+
+    Points on no circle (``circle = 0``, free poses such as a validation capture) need a flange
+    reflector: a per-joint reflector is defined only for circle points.
+    """
+    if reflector.frame == "joint":
+        free_poses = np.flatnonzero(capture.circle == 0)
+        if free_poses.size:
+            raise InputError(
+                f"{capture.source}: {free_poses.size} points have circle = 0 (free poses, first at point "
+                f"{free_poses[0] + 1}); a per-joint reflector is defined only on circles, use a flange reflector"
+            )
+    return np.maximum(capture.circle - 1, 0)
+
+
+def _base_delta(x_base: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """Rotation ``Rz Ry Rx``, translation, and the three rotation derivatives of the correction."""
+    tx, ty, tz, rx, ry, rz = x_base
+    r_x, r_y, r_z = rot_x(rx)[:3, :3], rot_y(ry)[:3, :3], rot_z(rz)[:3, :3]
+    k_x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    k_y = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    k_z = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    rotation = r_z @ r_y @ r_x
+    derivatives = (r_z @ r_y @ r_x @ k_x, r_z @ r_y @ k_y @ r_x, r_z @ k_z @ r_y @ r_x)
+    return rotation, np.array([tx, ty, tz]), derivatives
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Problem:
+    """Immutable data of one refinement; residuals and Jacobian are pure functions of x."""
+
+    start: np.ndarray
+    free: np.ndarray  # (n, 5) bool
+    base_start: np.ndarray | None  # (4, 4)
+    base_free: np.ndarray  # (6,) bool
+    q: np.ndarray
+    turning: np.ndarray
+    reflector: ReflectorMount
+    measured: np.ndarray
+    criterion: str
+    pair_i: np.ndarray | None
+    pair_j: np.ndarray | None
+    pair_keep: np.ndarray | None
+    measured_distances: np.ndarray | None
+
+    @property
+    def n_kinematic(self) -> int:
+        return int(self.free.sum())
+
+    def x0(self) -> np.ndarray:
+        return np.concatenate([self.start[self.free], np.zeros(int(self.base_free.sum()))])
+
+    def unpack(self, x) -> tuple[np.ndarray, np.ndarray]:
+        values = self.start.copy()
+        values[self.free] = x[: self.n_kinematic]
+        x_base = np.zeros(6)
+        x_base[self.base_free] = x[self.n_kinematic :]
+        return values, x_base
+
+    def tracker(self, x_base) -> np.ndarray:
+        rotation, shift, _ = _base_delta(x_base)
+        delta = np.eye(4)
+        delta[:3, :3] = rotation
+        delta[:3, 3] = shift
+        return self.base_start @ delta
+
+    def residuals(self, x) -> np.ndarray:
+        values, x_base = self.unpack(x)
+        points = target_positions(values, self.q, self.turning, self.reflector)
+        if self.criterion == "distances":
+            return pdist(points)[self.pair_keep] - self.measured_distances
+        tracker = self.tracker(x_base)
+        return (points @ tracker[:3, :3].T + tracker[:3, 3] - self.measured).ravel()
+
+    def point_jacobian(self, values, x_base) -> tuple[np.ndarray, np.ndarray]:
+        """Base-frame points ``(n_points, 3)`` and ``d points / d x`` ``(n_points, 3, n_x)``."""
+        points, jac = target_jacobian(values, self.q, self.turning, self.reflector)
+        jac = jac.reshape(jac.shape[0], 3, -1)[:, :, self.free.ravel()]
+        if self.criterion == "distances":
+            return points, jac
+        rotation, shift, derivatives = _base_delta(x_base)
+        r0 = self.base_start[:3, :3]
+        total = r0 @ rotation
+        columns = [np.einsum("ij,pjk->pik", total, jac)]
+        base = [np.broadcast_to(r0[:, axis], points.shape) for axis in range(3)]
+        base += [points @ (r0 @ derivative).T for derivative in derivatives]
+        chosen = [base[k] for k in np.flatnonzero(self.base_free)]
+        if chosen:
+            columns.append(np.stack(chosen, axis=-1))
+        tracker_points = points @ total.T + r0 @ shift + self.base_start[:3, 3]
+        return tracker_points, np.concatenate(columns, axis=-1)
+
+    def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals ``(m,)`` and Jacobian ``(m, n_x)`` at x."""
+        values, x_base = self.unpack(x)
+        points, jac = self.point_jacobian(values, x_base)
+        if self.criterion == "points":
+            return (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
+        residuals = pdist(points)[self.pair_keep] - self.measured_distances
+        out = np.empty((self.pair_i.size, jac.shape[-1]))
+        for start in range(0, self.pair_i.size, _PAIR_CHUNK):
+            i = self.pair_i[start : start + _PAIR_CHUNK]
+            j = self.pair_j[start : start + _PAIR_CHUNK]
+            diff = points[i] - points[j]
+            unit = diff / np.linalg.norm(diff, axis=1, keepdims=True)
+            out[start : start + i.size] = np.einsum("pc,pck->pk", unit, jac[i]) - np.einsum("pc,pck->pk", unit, jac[j])
+        return residuals, out
+
+    def noise_map(self, x) -> sparse.csr_matrix | None:
+        """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
+        if self.criterion == "points":
+            return None
+        values, _ = self.unpack(x)
+        points = target_positions(values, self.q, self.turning, self.reflector)
+        diff = points[self.pair_i] - points[self.pair_j]
+        unit = diff / np.linalg.norm(diff, axis=1, keepdims=True)
+        m = self.pair_i.size
+        rows = np.repeat(np.arange(m), 6)
+        cols = np.concatenate(
+            [3 * self.pair_i[:, None] + np.arange(3), 3 * self.pair_j[:, None] + np.arange(3)], axis=1
+        ).ravel()
+        data = np.concatenate([unit, -unit], axis=1).ravel()
+        return sparse.csr_matrix((data, (rows, cols)), shape=(m, 3 * points.shape[0]))
+
+
+def _pairs(readings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs i < j of points at different poses, in :func:`scipy.spatial.distance.pdist` order.
+
+    Two points measured at the same readings (the forward and return sweeps of a bidirectional
+    capture share their readings) have model distance 0 for any parameters: such a pair carries
+    no information about the parameters and is left out.
+    """
+    n = readings.shape[0]
+    _, pose = np.unique(readings, axis=0, return_inverse=True)
+    pose = pose.ravel()
+    pair_i, pair_j = np.triu_indices(n, k=1)
+    keep = pose[pair_i] != pose[pair_j]
+    return pair_i[keep], pair_j[keep], keep
+
+
+def _check_free(free, robot, gauge_mask) -> tuple[np.ndarray | None, bool]:
+    if free is None:
+        return None, False
+    if isinstance(free, (list, tuple)) and all(isinstance(name, str) for name in free):
+        names = robot.parameter_names
+        unknown = [name for name in free if name not in names]
+        if unknown:
+            raise InputError(f"`free` names unknown parameters {unknown}; expected names like 'J2.beta'")
+        mask = np.array([name in free for name in names]).reshape(robot.n_joints, 5)
+    else:
+        mask = np.asarray(free)
+        if mask.shape != (robot.n_joints, 5) or mask.dtype != bool:
+            raise InputError(
+                f"`free` must be None, parameter names, or a bool array of shape ({robot.n_joints}, 5); got {mask.shape}"
+            )
+    fixed = mask & robot.structurally_fixed
+    if np.any(fixed):
+        names = [n for n, flag in zip(robot.parameter_names, fixed.ravel(), strict=True) if flag]
+        raise InputError(f"`free` frees parameters the model fixes at 0: {', '.join(names)}")
+    gauge = mask & gauge_mask
+    if np.any(gauge):
+        names = [n for n, flag in zip(robot.parameter_names, gauge.ravel(), strict=True) if flag]
+        raise IdentifiabilityError(
+            f"{', '.join(names)} cannot be refined with this criterion: they are a rigid motion of the base "
+            "(the points criterion absorbs them into tracker_from_base; the distances criterion cannot see them)",
+            parameters=names,
+        )
+    return mask, True
+
+
+def refine_parameters(
+    capture: Capture,
+    start: ParameterSet,
+    reflector: ReflectorMount,
+    *,
+    criterion: str = "points",
+    tracker_from_base=None,
+    estimate_base: bool = True,
+    free=None,
+    on_unidentifiable: str = "fix",
+    method: str = "auto",
+    max_nfev: int | None = None,
+    tolerance: float = 1e-12,
+    rank_tolerance: float = 1e-7,
+) -> RefinementResult:
+    """Refine kinematic parameters by least squares over all measured points (thesis ch. 4.5.7).
+
+    Parameters
+    ----------
+    capture : Capture
+        Measured points (tracker frame) [mm] with their joint readings; circle points and free
+        poses (``circle = 0``, flange reflector only) alike.
+    start : ParameterSet
+        Start values (the CPA result, or nominal) [mm, rad]; held parameters keep these values.
+    reflector : ReflectorMount
+        Where the target sat.
+    criterion : {"points", "distances"}
+        Eq. 4-101 (point positions with ``tracker_from_base`` estimated) or eq. 4-102 (all
+        pairwise distances); see the module notes.
+    tracker_from_base : array_like, shape (4, 4), optional
+        Start (or, with ``estimate_base=False``, fixed) base frame for the points criterion;
+        registered by Horn's method from the start parameters when omitted. Ignored by distances.
+    estimate_base : bool
+        Points criterion: estimate the 6 dof of ``tracker_from_base`` (then d1 and theta1 are held,
+        being equivalent to it); False holds the transform and frees d1 and theta1.
+    free : None, sequence of str, or ndarray of bool, shape (n_joints, 5)
+        Parameters to estimate. None: every parameter the model and the criterion allow and the data
+        determine (see module notes).
+    on_unidentifiable : {"fix", "raise"}
+        With ``free=None``: hold undeterminable parameters with a warning, or raise.
+    method : {"auto", "lm", "trf"}
+        ``auto``: ``"lm"`` when there are at least as many residuals as unknowns, else ``"trf"``.
+    max_nfev : int, optional
+        Residual-evaluation limit (SciPy's default when None).
+    tolerance : float
+        ``ftol = xtol = gtol`` of ``least_squares``.
+    rank_tolerance : float
+        See :func:`robotcal.identification.observability.select_identifiable`.
+
+    Returns
+    -------
+    RefinementResult
+
+    Raises
+    ------
+    InputError
+        Capture inconsistent with the robot, bad options.
+    IdentifiabilityError
+        An explicitly freed parameter cannot be determined (``parameters`` names them), or any
+        with ``on_unidentifiable="raise"``.
+    """
+    began = time.perf_counter()
+    robot = start.robot
+    n = robot.n_joints
+    if criterion not in CRITERIA:
+        raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
+    if method not in ("auto", "lm", "trf"):
+        raise InputError(f"`method` must be 'auto', 'lm' or 'trf'; got {method!r}")
+    if on_unidentifiable not in ("fix", "raise"):
+        raise InputError(f"`on_unidentifiable` must be 'fix' or 'raise'; got {on_unidentifiable!r}")
+    if capture.n_joints != n:
+        raise InputError(
+            f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints"
+        )
+    minimum = 3 if criterion == "points" else 4
+    if capture.n_points < minimum:
+        raise InputError(f"{capture.source}: {capture.n_points} points; refinement needs at least {minimum}")
+    turning = capture_turning_joints(capture, reflector)
+    q = robot.model_joint_variables(capture.readings)
+    measured = np.asarray(capture.points, dtype=float)
+    names = robot.parameter_names
+    use_base = criterion == "points" and estimate_base
+    gauge_mask = np.zeros((n, 5), dtype=bool)
+    if criterion == "distances" or use_base:
+        gauge_mask[0, [_D, _THETA]] = True
+    gauge_mask &= ~robot.structurally_fixed
+    explicit_mask, explicit = _check_free(free, robot, gauge_mask)
+
+    base_start = None
+    if criterion == "points":
+        if tracker_from_base is None:
+            nominal_points = target_positions(start.values, q, turning, reflector)
+            base_start = register_points(nominal_points, measured).transform
+        else:
+            base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    pair_i = pair_j = distances = pair_keep = None
+    if criterion == "distances":
+        pair_i, pair_j, pair_keep = _pairs(capture.readings)
+        distances = pdist(measured)[pair_keep]
+        if np.any(distances <= 0.0):
+            k = int(np.flatnonzero(distances <= 0.0)[0])
+            raise InputError(
+                f"{capture.source}: points {pair_i[k] + 1} and {pair_j[k] + 1} coincide at different poses; "
+                "the distances criterion needs distinct points"
+            )
+
+    spread = q.max(axis=0) - q.min(axis=0)
+    still = tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD))
+    size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
+    angle_scale = 1.0 / max(size, 1.0)
+    kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
+    all_scale = np.concatenate([np.tile(kind_scale, n), [1.0, 1.0, 1.0, angle_scale, angle_scale, angle_scale]])
+
+    # identifiability at the start, every candidate column free
+    candidates = ~robot.structurally_fixed & ~gauge_mask if explicit_mask is None else explicit_mask
+    base_free = np.full(6, use_base)
+    probe = _Problem(
+        start=start.values.copy(),
+        free=np.ones((n, 5), dtype=bool),
+        base_start=base_start,
+        base_free=base_free,
+        q=q,
+        turning=turning,
+        reflector=reflector,
+        measured=measured,
+        criterion=criterion,
+        pair_i=pair_i,
+        pair_j=pair_j,
+        pair_keep=pair_keep,
+        measured_distances=distances,
+    )
+    _, jac_all = probe.evaluate(probe.x0())
+    column_scale = all_scale[: jac_all.shape[1]]
+    order = np.r_[np.flatnonzero(base_free) + 5 * n, np.arange(5 * n)]  # base corrections first
+    chosen = np.r_[candidates.ravel(), base_free]
+    keep = np.zeros(5 * n + 6, dtype=bool)
+    keep_ordered = select_identifiable(
+        (jac_all * column_scale)[:, order] if order.size else jac_all,
+        chosen[order],
+        tolerance=rank_tolerance,
+    )
+    keep[order] = keep_ordered
+    free_mask = keep[: 5 * n].reshape(n, 5)
+    if use_base and not np.all(keep[5 * n :]):
+        lost = [BASE_NAMES[k] for k in np.flatnonzero(~keep[5 * n :])]
+        raise IdentifiabilityError(
+            f"{capture.source}: the capture cannot determine tracker_from_base ({', '.join(lost)}); "
+            "measure more spread-out points or give the base frame and estimate_base=False",
+            parameters=lost,
+        )
+    held_mask = candidates & ~free_mask
+    held = tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
+    if held:
+        detail = f"; joints that never move in the capture: {', '.join(still)}" if still else ""
+        text = (
+            f"{capture.source}: the {criterion} criterion cannot determine {', '.join(held)} from this capture "
+            f"(rank-deficient column-scaled Jacobian at the start){detail}"
+        )
+        if explicit or on_unidentifiable == "raise":
+            raise IdentifiabilityError(text, parameters=held)
+        warnings.warn(text + "; they are held at their start values", IdentifiabilityWarning, stacklevel=2)
+    gauge = tuple(name for name, flag in zip(names, gauge_mask.ravel(), strict=True) if flag)
+
+    problem = _Problem(
+        start=start.values.copy(),
+        free=free_mask,
+        base_start=base_start,
+        base_free=base_free,
+        q=q,
+        turning=turning,
+        reflector=reflector,
+        measured=measured,
+        criterion=criterion,
+        pair_i=pair_i,
+        pair_j=pair_j,
+        pair_keep=pair_keep,
+        measured_distances=distances,
+    )
+    x0 = problem.x0()
+    x_scale = np.concatenate([np.tile(kind_scale, (n, 1))[free_mask], all_scale[5 * n :][base_free]])
+    free_names = tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag) + tuple(
+        BASE_NAMES[k] for k in np.flatnonzero(base_free)
+    )
+    history: list[float] = []
+
+    def jacobian(x):
+        residuals, jac = problem.evaluate(x)
+        history.append(0.5 * float(residuals @ residuals))
+        return jac
+
+    m = capture.n_points * 3 if criterion == "points" else pair_i.size
+    chosen_method = ("lm" if m >= x0.size else "trf") if method == "auto" else method
+    if x0.size == 0:
+        raise IdentifiabilityError(f"{capture.source}: no parameter can be refined from this capture", parameters=held)
+    solution = least_squares(
+        problem.residuals,
+        x0,
+        jac=jacobian,
+        method=chosen_method,
+        x_scale=x_scale,
+        ftol=tolerance,
+        xtol=tolerance,
+        gtol=tolerance,
+        max_nfev=max_nfev,
+    )
+    final_cost = float(solution.cost)
+    if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
+        history.append(final_cost)
+    cost_history = np.asarray(history)
+    values, x_base = problem.unpack(solution.x)
+
+    # statistics at the solution
+    residuals, jac = problem.evaluate(solution.x)
+    if criterion == "points":
+        per = np.linalg.norm(residuals.reshape(-1, 3), axis=1)
+    else:
+        per = np.abs(residuals)
+    scaled = jac * x_scale
+    cond = conditioning(scaled)
+    covariance, sigma = _covariance(jac, x_scale, residuals, problem.noise_map(solution.x))
+    sd = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    standard = np.full((n, 5), np.nan)
+    standard[free_mask] = sd[: problem.n_kinematic]
+    refined = ParameterSet(robot=robot, values=values, identified=start.identified | free_mask)
+    return RefinementResult(
+        parameters=refined,
+        tracker_from_base=None if base_start is None else _frozen(problem.tracker(x_base)),
+        criterion=criterion,
+        method=chosen_method,
+        success=bool(solution.status > 0),
+        status=int(solution.status),
+        message=str(solution.message),
+        nfev=int(solution.nfev),
+        njev=int(solution.njev if solution.njev is not None else len(history)),
+        free=_frozen(free_mask, bool),
+        base_free=_frozen(base_free, bool),
+        gauge=gauge,
+        held=held,
+        still_joints=still,
+        free_names=free_names,
+        x_scale=_frozen(x_scale),
+        cost_history=_frozen(cost_history),
+        rms_history=_frozen(np.sqrt(2.0 * cost_history / m)),
+        n_residuals=int(m),
+        residual_rms=float(np.sqrt(np.mean(per**2))),
+        residual_mean=float(per.mean()),
+        residual_max=float(per.max()),
+        singular_values=cond.singular_values,
+        condition_number=cond.condition_number,
+        sigma=sigma,
+        covariance=_frozen(covariance),
+        correlation=_frozen(correlation_from_covariance(covariance)),
+        standard_uncertainty=_frozen(standard),
+        wall_time_s=time.perf_counter() - began,
+    )
+
+
+def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray, float]:
+    """Linearised covariance (module notes) in unscaled units, and sigma per coordinate [mm]."""
+    m, p = jac.shape
+    scaled = jac * x_scale
+    _, s, vt = np.linalg.svd(triangular_factor(scaled), full_matrices=False)
+    good = s > s[0] * 1e-12 if s.size else s.astype(bool)
+    inverse = (vt[good].T / s[good] ** 2) @ vt[good]  # (Js^T Js)^+
+    ssr = float(residuals @ residuals)
+    if noise_map is None:
+        dof = m - int(good.sum())
+        sigma2 = ssr / dof if dof > 0 else np.nan
+        covariance = sigma2 * inverse
+    else:
+        projected = np.asarray(noise_map.T @ scaled).T  # Js^T G, (p, 3 n_points)
+        middle = projected @ projected.T
+        trace_ggt = float(noise_map.multiply(noise_map).sum())
+        effective = trace_ggt - float(np.trace(inverse @ middle))
+        sigma2 = ssr / effective if effective > 0 else np.nan
+        covariance = sigma2 * inverse @ middle @ inverse
+    covariance = covariance * np.outer(x_scale, x_scale)
+    return covariance, float(np.sqrt(sigma2))
