@@ -1,8 +1,7 @@
-"""CPA under iGPS noise reproduces the published Monte Carlo spread of thesis Table 5.7.
+"""The Monte Carlo engine on the thesis iGPS scenario reproduces the published Table 5.7.
 
-This checks the whole capture -> CPA pipeline against a published table, not the Monte Carlo engine
-(a later issue): the noise-free capture of the built-in ``thesis-igps`` scenario is perturbed by
-uniform +-200 um noise per coordinate and identified in one batched call.
+Thesis ch. 5.2.3, Table 5.5 (iGPS: uniform +-200 um per coordinate, geometric circle fit, theta1 from
+circle 1) and Table 5.7 (mean, standard uncertainty, ... of every identified parameter).
 """
 
 from __future__ import annotations
@@ -13,33 +12,56 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robotcal.identification import identify_cpa_batch, prepare_cpa
 from robotcal.io import load_scenario
-from robotcal.workflow import simulate_scenario
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
 
 TABLES = Path(__file__).resolve().parents[3] / "shared" / "data" / "thesis_tables.json"
-DRAWS = 2000
+DRAWS = 20_000
+PUBLISHED_DRAWS = 100_000  # the thesis's iteration count for Tables 5.6/5.7 (ch. 5.2.3)
 
 
-@pytest.mark.skipif(not TABLES.exists(), reason=f"thesis tables not found at {TABLES}")
-def test_igps_standard_uncertainties_match_table_5_7():
-    published = json.loads(TABLES.read_text())["table_5_7_igps"]["std"]
+@pytest.fixture(scope="module")
+def igps():
+    if not TABLES.exists():
+        pytest.skip(f"thesis tables not found at {TABLES}")
+    published = json.loads(TABLES.read_text())["table_5_7_igps"]
     scenario = load_scenario("thesis-igps")
-    run = simulate_scenario(scenario)
-    structure = prepare_cpa(run.capture, scenario.robot, scenario.plan.reflector, scenario.identification)
-    rng = np.random.default_rng(20261122)
-    exact = np.broadcast_to(run.exact_points, (DRAWS,) + run.exact_points.shape)
-    batch = identify_cpa_batch(
-        exact + scenario.instrument.sample_noise(exact, rng=rng), structure, scenario.tracker_from_base
+    problem = prepare_monte_carlo(
+        scenario.robot,
+        scenario.plan,
+        scenario.instrument,
+        scenario.tracker_from_base,
+        options=scenario.identification,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
     )
-    values = batch.values.copy()
-    values[..., [1, 3, 4]] = np.rad2deg(values[..., [1, 3, 4]])
-    std = values.std(axis=0, ddof=1)
-    names = np.array(scenario.robot.parameter_names).reshape(6, 5)
-    ours = std[batch.identified]
-    theirs = np.array([published[name] for name in names[batch.identified]])
+    result = run_monte_carlo(problem, MonteCarloSettings(iterations=DRAWS, workers=2), seed=1, linearised=False)
+    names = np.array(scenario.robot.parameter_names).reshape(scenario.robot.n_joints, 5)
+    to_file = np.where(np.isin(np.arange(5), [1, 3, 4]), 180.0 / np.pi, 1.0)
+    return scenario, published, result, names, to_file
+
+
+def test_every_standard_uncertainty_within_3_percent_of_table_5_7(igps):
+    scenario, published, result, names, to_file = igps
+    assert scenario.instrument.noise == "uniform" and scenario.identification.base_axis == "circle1"
+    ours = (result.summary.std_uncertainty * to_file)[result.identified]
+    theirs = np.array([published["std"][name] for name in names[result.identified]])
     assert ours.size == 20
-    # The relative standard error of a standard deviation from n draws is 1/sqrt(2(n-1)) = 1.6 %
-    # at n = 2000; the published values carry their own Monte Carlo error (~0.2-0.5 %). 6 % is
-    # about 4 combined standard errors, so the test fails only if the pipeline's spread is wrong.
-    np.testing.assert_allclose(ours, theirs, rtol=0.06)
+    # Relative standard error of a standard deviation from M draws: 1/sqrt(2M) = 0.5 % here, 0.2 %
+    # for the published 10^5 draws; +-3 % (the issue's bound) is ~5 combined standard errors.
+    np.testing.assert_allclose(ours, theirs, rtol=0.03)
+
+
+@pytest.mark.parametrize("name", ["J4.d", "J3.a", "J4.theta"])
+def test_visible_nonlinear_biases_in_sign_and_size(igps, name):
+    scenario, published, result, names, to_file = igps
+    joint, column = np.argwhere(names == name)[0]
+    scale = to_file[column]
+    nominal = scenario.robot.nominal[joint, column] * scale
+    ours = result.summary.mean[joint, column] * scale - nominal
+    theirs = published["mean"][name] - nominal
+    u = result.summary.std_uncertainty[joint, column] * scale
+    standard_error = u * np.sqrt(1.0 / DRAWS + 1.0 / PUBLISHED_DRAWS)
+    assert abs(theirs) > 5 * standard_error  # the published bias is real, not Monte Carlo noise
+    assert np.sign(ours) == np.sign(theirs)
+    assert abs(ours - theirs) <= 4 * standard_error

@@ -81,7 +81,7 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
 def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
     """The robot TOML content of ``robot`` (radians -> degrees); ``robot_from_dict`` inverts it."""
     nominal_deg = robot.nominal.copy()
-    nominal_deg[:, 1:] = np.rad2deg(nominal_deg[:, 1:])
+    nominal_deg[:, [1, 3, 4]] = np.rad2deg(nominal_deg[:, [1, 3, 4]])  # theta, alpha, beta; d and a stay mm
     joints = []
     for index in range(robot.n_joints):
         d, theta, a, alpha, beta = (float(value) for value in nominal_deg[index])

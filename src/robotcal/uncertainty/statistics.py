@@ -187,6 +187,8 @@ def numerical_tolerance(std_uncertainty: np.ndarray, ndig: int) -> np.ndarray:
     if int(ndig) != ndig or ndig < 1:
         raise InputError(f"`ndig` must be a positive integer; got {ndig!r}")
     u = np.abs(np.asarray(std_uncertainty, dtype=float))
-    with np.errstate(divide="ignore"):
-        exponent = np.floor(np.log10(np.where(u > 0, u, 1.0))) - (int(ndig) - 1)
+    positive = np.where(u > 0, u, 1.0)
+    exponent = np.floor(np.log10(positive)) - (int(ndig) - 1)
+    # u = 0.0996 with ndig = 2 is written 0.10 (c = 10, l = -2), not 99.6e-3: round, then re-read l
+    exponent = np.where(np.round(positive / 10.0**exponent) >= 10 ** int(ndig), exponent + 1, exponent)
     return np.where(u > 0, 0.5 * 10.0**exponent, np.inf)

@@ -1,0 +1,182 @@
+"""``robotcal uncertainty SCENARIO --out DIR``: GUM Supplement 1 Monte Carlo of the calibration."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from robotcal.cli import app
+from robotcal.cli._common import console, handle_errors
+from robotcal.io import load_scenario, read_parameters
+from robotcal.io.atomic import atomic_directory
+from robotcal.io.draws_npz import write_draws
+from robotcal.io.scenario import Scenario
+from robotcal.io.uncertainty_files import uncertainty_rows, write_uncertainty_csv, write_uncertainty_json
+from robotcal.kinematics.model import ParameterSet
+from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+from robotcal.workflow import resolve_seed, versions
+
+__all__ = ["uncertainty", "compute_uncertainty", "write_uncertainty_folder", "uncertainty_table"]
+
+
+def compute_uncertainty(
+    scenario: Scenario,
+    settings: MonteCarloSettings,
+    *,
+    seed: int,
+    true_parameters: ParameterSet | None = None,
+    show_progress: bool = True,
+) -> MonteCarloResult:
+    """Prepare (all input checks happen here, before any draw) and run the Monte Carlo."""
+    problem = prepare_monte_carlo(
+        scenario.robot,
+        scenario.plan,
+        scenario.instrument,
+        scenario.tracker_from_base,
+        options=scenario.identification,
+        true_parameters=true_parameters,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
+    )
+    if not show_progress:
+        return run_monte_carlo(problem, settings, seed=seed)
+    total = None if settings.adaptive else settings.iterations
+    with Progress(
+        TextColumn("Monte Carlo"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("draws"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=console,
+        transient=True,
+    ) as progress:
+        task = progress.add_task("draws", total=total)
+
+        def report(done: int, expected: int | None) -> None:
+            progress.update(task, completed=done, total=expected)
+
+        return run_monte_carlo(problem, settings, seed=seed, progress=report)
+
+
+def write_uncertainty_folder(folder: Path, result: MonteCarloResult, scenario: Scenario, *, save_draws: bool) -> None:
+    """Write ``parameters.csv``, ``parameters.json``, the histograms and (optionally) ``draws.npz``
+    into ``folder`` (an existing, normally temporary, folder)."""
+    from robotcal.report.montecarlo import write_histograms  # matplotlib only when writing figures
+
+    echo = {"name": scenario.name, "source": scenario.source, "settings": scenario.settings}
+    write_uncertainty_csv(folder / "parameters.csv", result)
+    write_uncertainty_json(folder / "parameters.json", result, scenario=echo, versions=versions())
+    if save_draws:
+        write_draws(folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed)
+    write_histograms(result, folder)
+
+
+def uncertainty_table(result: MonteCarloResult) -> Table:
+    """Identified parameters: mean, u, interval, linearised u and the JCGM 101 §8 verdict."""
+    coverage = f"{result.settings.coverage:.0%}"
+    table = Table(
+        title=f"Monte Carlo uncertainty ({result.n_draws:,} draws, seed {result.seed}, {result.settings.interval} {coverage} interval)",
+        title_justify="left",
+    )
+    for column in ("parameter", "unit", "nominal", "mean", "u", f"{coverage} low", f"{coverage} high", "u (GUM)", "§8"):
+        table.add_column(column, justify="left" if column in ("parameter", "unit") else "right")
+    for row in uncertainty_rows(result):
+        if not row["identified"]:
+            continue
+        agrees = row.get("lpu_agrees")
+        verdict = "" if agrees is None else ("[green]agrees[/green]" if agrees else "[yellow]differs[/yellow]")
+        table.add_row(
+            row["name"],
+            row["unit"],
+            f"{row['nominal']:.4f}",
+            f"{row['mean']:.5f}",
+            f"{row['std_uncertainty']:.2e}",
+            f"{row['coverage_low']:.5f}",
+            f"{row['coverage_high']:.5f}",
+            f"{row['lpu_std_uncertainty']:.2e}" if "lpu_std_uncertainty" in row else "",
+            verdict,
+        )
+    return table
+
+
+@app.command()
+@handle_errors
+def uncertainty(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (replaced if it exists).")],
+    iterations: Annotated[
+        int | None,
+        typer.Option("--iterations", "-n", help="Number of draws (default: the scenario's montecarlo.iterations)."),
+    ] = None,
+    adaptive: Annotated[
+        bool, typer.Option("--adaptive", help="JCGM 101 §7.9 adaptive mode: blocks of 10^4 draws until stable.")
+    ] = False,
+    ndig: Annotated[int, typer.Option(help="Adaptive mode: significant digits of u that must be stable.")] = 2,
+    max_draws: Annotated[int, typer.Option("--max-draws", help="Adaptive mode: upper limit of draws.")] = 2_000_000,
+    seed: Annotated[
+        int | None, typer.Option(help="Seed (default: the scenario's montecarlo.seed, else fresh entropy; recorded).")
+    ] = None,
+    coverage: Annotated[
+        float | None, typer.Option(help="Coverage probability in (0, 1) (default: the scenario's, 0.95).")
+    ] = None,
+    interval: Annotated[
+        str, typer.Option(help="Interval reported as coverage_low/high: symmetric | shortest.")
+    ] = "symmetric",
+    batch_size: Annotated[
+        int, typer.Option("--batch-size", help="Draws per vectorised CPA call (bounds memory).")
+    ] = 2_000,
+    workers: Annotated[
+        int | None, typer.Option(help="Parallel worker processes (default: the CPU count, at most 4).")
+    ] = None,
+    save_draws: Annotated[bool, typer.Option("--save-draws", help="Also write every draw to draws.npz.")] = False,
+    true_params: Annotated[
+        Path | None,
+        typer.Option("--true-params", help="Parameter JSON of the 'real' robot to simulate (default: nominal)."),
+    ] = None,
+) -> None:
+    """Monte Carlo (GUM Supplement 1) uncertainty of every CPA parameter, with the linearised comparison."""
+    loaded = load_scenario(scenario)
+    table = loaded.montecarlo
+    settings = MonteCarloSettings(
+        iterations=int(table["iterations"]) if iterations is None else iterations,
+        coverage=float(table["coverage"]) if coverage is None else coverage,
+        interval=interval,
+        adaptive=adaptive,
+        ndig=ndig,
+        max_draws=max_draws,
+        batch_size=batch_size,
+        workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
+    )
+    truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
+    run_seed = resolve_seed(seed, table.get("seed"))
+    result = compute_uncertainty(loaded, settings, seed=run_seed, true_parameters=truth)
+    with atomic_directory(out) as folder:
+        write_uncertainty_folder(folder, result, loaded, save_draws=save_draws)
+    console.print(uncertainty_table(result))
+    timings = result.timings_s
+    rate = result.n_draws / max(timings["draws"], 1e-9)
+    console.print(
+        f"{result.message}; {timings['draws']:.2f} s for the draws ({rate:,.0f} draws/s, {settings.workers} worker(s))",
+        highlight=False,
+    )
+    if result.linearised is not None:
+        differs = int(np.sum(~result.linearised.agrees & result.identified))
+        console.print(
+            f"linearised (GUM) vs Monte Carlo, JCGM 101 §8 with ndig = {settings.ndig}: "
+            + (
+                "all intervals agree"
+                if differs == 0
+                else f"{differs} parameter(s) differ: the Monte Carlo result stands"
+            ),
+            highlight=False,
+        )
+    if result.adaptive is not None and not result.adaptive.stable:
+        console.print(f"[yellow]warning:[/yellow] {result.adaptive.reason}", highlight=False)
+    console.print(f"wrote {out}", highlight=False)

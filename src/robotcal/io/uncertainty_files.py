@@ -1,0 +1,212 @@
+"""Monte Carlo result files: ``parameters.csv`` and ``parameters.json`` (docs/results.md, DESIGN.md
+"Uncertainty CSV"). Core results are in mm and rad; these files are in mm and degrees."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.errors import InputError
+from robotcal.io.atomic import atomic_write_text
+from robotcal.io.draws_npz import parameter_units
+from robotcal.uncertainty.montecarlo import MonteCarloResult
+
+__all__ = [
+    "FORMAT",
+    "CSV_COLUMNS",
+    "uncertainty_rows",
+    "write_uncertainty_csv",
+    "write_uncertainty_json",
+    "read_uncertainty_csv",
+]
+
+FORMAT = "robotcal-uncertainty/1"
+#: DESIGN.md's columns first (other tools rely on them), then robotcal's extensions.
+CSV_COLUMNS = (
+    "name",
+    "unit",
+    "nominal",
+    "mean",
+    "std_uncertainty",
+    "coverage_low",
+    "coverage_high",
+    "min",
+    "max",
+    "identified",
+    "symmetric_low",
+    "symmetric_high",
+    "shortest_low",
+    "shortest_high",
+    "noise_free",
+    "lpu_std_uncertainty",
+    "lpu_coverage_low",
+    "lpu_coverage_high",
+    "lpu_agrees",
+)
+
+
+def _scale(result: MonteCarloResult) -> np.ndarray:
+    """Per parameter factor core -> file units (1 for mm, 180/pi for angles), flat joint-major."""
+    return np.array([180.0 / math.pi if unit == "deg" else 1.0 for unit in parameter_units(result.robot)])
+
+
+def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
+    """One dict per parameter (``J1.d`` ... ``Jn.beta``) in mm / deg."""
+    scale = _scale(result)
+    summary = result.summary
+    low, high = result.interval()
+
+    def flat(array):
+        return np.asarray(array, dtype=float).reshape(-1) * scale
+
+    columns = {
+        "nominal": flat(result.robot.nominal),
+        "mean": flat(summary.mean),
+        "std_uncertainty": flat(summary.std_uncertainty),
+        "coverage_low": flat(low),
+        "coverage_high": flat(high),
+        "min": flat(summary.minimum),
+        "max": flat(summary.maximum),
+        "symmetric_low": flat(summary.symmetric_low),
+        "symmetric_high": flat(summary.symmetric_high),
+        "shortest_low": flat(summary.shortest_low),
+        "shortest_high": flat(summary.shortest_high),
+        "noise_free": flat(result.noise_free_values),
+        "true": flat(result.true_values),
+    }
+    linear = result.linearised
+    if linear is not None:
+        columns.update(
+            lpu_std_uncertainty=flat(linear.std_uncertainty),
+            lpu_coverage_low=flat(linear.coverage_low),
+            lpu_coverage_high=flat(linear.coverage_high),
+        )
+    rows = []
+    units = parameter_units(result.robot)
+    identified = result.identified.reshape(-1)
+    for index, name in enumerate(result.robot.parameter_names):
+        row = {"name": name, "unit": units[index], "identified": bool(identified[index])}
+        row.update({key: float(values[index]) for key, values in columns.items()})
+        if linear is not None:
+            row["lpu_agrees"] = bool(linear.agrees.reshape(-1)[index])
+        rows.append(row)
+    return rows
+
+
+def _format(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return format(value, ".12g")
+    return str(value)
+
+
+def write_uncertainty_csv(path, result: MonteCarloResult) -> Path:
+    """``parameters.csv``: one row per parameter, columns :data:`CSV_COLUMNS` (mm, deg)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for row in uncertainty_rows(result):
+        writer.writerow([_format(row[column]) if column in row else "" for column in CSV_COLUMNS])
+    return atomic_write_text(path, buffer.getvalue())
+
+
+def read_uncertainty_csv(path) -> list[dict]:
+    """Rows of a ``parameters.csv`` (floats and booleans parsed; errors name the file and line)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    reader = csv.DictReader(io.StringIO(text))
+    missing = [column for column in CSV_COLUMNS[:9] if column not in (reader.fieldnames or [])]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)}")
+    rows = []
+    for line, raw in enumerate(reader, start=2):
+        row = {}
+        for key, value in raw.items():
+            if key in ("name", "unit"):
+                row[key] = value
+            elif value in ("true", "false"):
+                row[key] = value == "true"
+            elif value == "":
+                row[key] = None
+            else:
+                try:
+                    row[key] = float(value)
+                except ValueError:
+                    raise InputError(f"{path}, line {line}: column `{key}` is not a number: {value!r}") from None
+        rows.append(row)
+    return rows
+
+
+def _matrix_in_file_units(result: MonteCarloResult, matrix: np.ndarray, *, scaled: bool) -> dict:
+    mask = result.identified.reshape(-1)
+    names = [name for name, keep in zip(result.robot.parameter_names, mask, strict=True) if keep]
+    sub = matrix[np.ix_(mask, mask)]
+    if scaled:
+        scale = _scale(result)[mask]
+        sub = sub * np.outer(scale, scale)
+    return {"names": names, "matrix": [[float(format(v, ".12g")) for v in row] for row in sub]}
+
+
+def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict, versions: dict) -> Path:
+    """``parameters.json``: the CSV's content plus covariance, correlation, seed, draws, adaptive
+    record, settings, timings, versions and the scenario echo (mm, deg)."""
+    settings = result.settings
+    adaptive = None
+    if result.adaptive is not None:
+        record = result.adaptive
+        scale = _scale(result)[result.identified.reshape(-1)]
+        adaptive = {
+            "blocks": record.blocks,
+            "block_size": settings.block_size,
+            "stable": record.stable,
+            "reason": record.reason,
+            "ndig": settings.ndig,
+            "tolerance": (np.asarray(record.tolerance) * scale).tolist(),
+            "stability": {key: (np.asarray(value) * scale).tolist() for key, value in record.stability.items()},
+        }
+    document = {
+        "format": FORMAT,
+        "robot": result.robot.name,
+        "units": {"length": "mm", "angle": "deg"},
+        "method": "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of simulated capture + CPA (thesis ch. 5.2.3)",
+        "seed": result.seed,
+        "draws": result.n_draws,
+        "coverage": settings.coverage,
+        "interval": settings.interval,
+        "settings": {
+            "iterations": settings.iterations,
+            "adaptive": settings.adaptive,
+            "ndig": settings.ndig,
+            "max_draws": settings.max_draws,
+            "batch_size": settings.batch_size,
+            "block_size": settings.block_size,
+            "workers": settings.workers,
+        },
+        "success": result.success,
+        "message": result.message,
+        "adaptive": adaptive,
+        "parameters": uncertainty_rows(result),
+        "covariance": _matrix_in_file_units(result, result.covariance, scaled=True),
+        "correlation": _matrix_in_file_units(result, result.correlation, scaled=False),
+        "linearised": None
+        if result.linearised is None
+        else {
+            "method": "GUM law of propagation, Jacobian of CPA by central differences over the measured coordinates",
+            "step_mm": result.linearised.step_mm,
+            "covariance": _matrix_in_file_units(result, result.linearised.covariance, scaled=True),
+            "validation": "JCGM 101 §8.2: both interval ends within the numerical tolerance of ndig digits",
+        },
+        "timings_s": {key: round(value, 4) for key, value in result.timings_s.items()},
+        "versions": versions,
+        "scenario": scenario,
+    }
+    return atomic_write_text(path, json.dumps(document, indent=2, allow_nan=False) + "\n")

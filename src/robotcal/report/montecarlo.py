@@ -1,0 +1,77 @@
+"""Monte Carlo figures: histograms of the parameter draws (thesis Figs 5.11/5.12)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.report.figures import new_figure, save_figure
+from robotcal.uncertainty.montecarlo import MonteCarloResult
+
+__all__ = ["write_histograms"]
+
+
+def _bins(n_draws: int) -> int:
+    return int(np.clip(round(2.0 * n_draws ** (1.0 / 3.0)), 20, 120))  # Rice rule, bounded
+
+
+def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]:
+    """One PNG per joint, ``hist_J<i>.png``, a panel per identified parameter.
+
+    Each panel shows the draws as a density histogram, the mean (solid), the coverage interval
+    chosen in the settings (dashed), the linearised (GUM) normal density when available, and the
+    value CPA gives for the noise-free capture (dotted). Angles in degrees, lengths in mm.
+    """
+    if result.draws is None:
+        raise ValueError("the result holds no draws (run with keep_draws=True)")
+    folder = Path(folder)
+    low, high = result.interval()
+    written = []
+    kinds = ("d", "theta", "a", "alpha", "beta")
+    for joint in range(result.robot.n_joints):
+        columns = np.flatnonzero(result.identified[joint])
+        if columns.size == 0:
+            continue
+        n_cols = min(3, columns.size)
+        n_rows = math.ceil(columns.size / n_cols)
+        figure, axes = new_figure(n_rows, n_cols, width_in=3.3 * n_cols, height_in=2.6 * n_rows + 0.4, squeeze=False)
+        for panel, column in enumerate(columns):
+            axis = axes[panel // n_cols][panel % n_cols]
+            is_angle = kinds[column] in ("theta", "alpha", "beta")
+            scale = 180.0 / math.pi if is_angle else 1.0
+            unit = "deg" if is_angle else "mm"
+            values = result.draws[:, joint, column] * scale
+            axis.hist(values, bins=_bins(values.size), density=True, color="#8fb4d9", edgecolor="none")
+            mean = result.summary.mean[joint, column] * scale
+            axis.axvline(mean, color="#1f4e79", lw=1.5, label="mean")
+            axis.axvline(
+                low[joint, column] * scale,
+                color="#c0392b",
+                ls="--",
+                lw=1.2,
+                label=f"{result.settings.coverage:.0%} interval",
+            )
+            axis.axvline(high[joint, column] * scale, color="#c0392b", ls="--", lw=1.2)
+            axis.axvline(
+                result.noise_free_values[joint, column] * scale, color="#444444", ls=":", lw=1.2, label="noise-free CPA"
+            )
+            if result.linearised is not None:
+                sigma = result.linearised.std_uncertainty[joint, column] * scale
+                centre = result.linearised.estimate[joint, column] * scale
+                if sigma > 0:
+                    grid = np.linspace(values.min(), values.max(), 200)
+                    density = np.exp(-0.5 * ((grid - centre) / sigma) ** 2) / (sigma * math.sqrt(2 * math.pi))
+                    axis.plot(grid, density, color="#e67e22", lw=1.2, label="linearised (GUM)")
+            axis.set_xlabel(f"J{joint + 1}.{kinds[column]} [{unit}]")
+            axis.set_ylabel(f"density [1/{unit}]")
+            axis.ticklabel_format(axis="x", useOffset=False)
+            axis.tick_params(axis="x", labelrotation=20)
+        for panel in range(columns.size, n_rows * n_cols):
+            axes[panel // n_cols][panel % n_cols].axis("off")
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
+        figure.legend(handles, labels, loc="outside lower center", ncols=4, fontsize="small", frameon=False)
+        written.append(save_figure(figure, folder / f"hist_J{joint + 1}.png"))
+    return written

@@ -1,0 +1,696 @@
+"""GUM Supplement 1 Monte Carlo of the whole capture-and-CPA pipeline (thesis ch. 5.2.3).
+
+The noise-free capture is simulated once. Every draw adds instrument noise (and, where the scenario's
+joint error model has a random part, redraws the joint errors), runs CPA, and keeps the parameters.
+Draws are vectorised: a batch of ``batch_size`` noisy captures goes through one
+``identify_cpa_batch`` call.
+
+Reproducibility: draws are organised in fixed blocks of ``block_size`` (10^4 by default, the block
+of JCGM 101 §7.9). Block ``b`` draws from its own generators, seeded by
+``SeedSequence(seed, spawn_key=(b,))``, instrument noise and joint-error noise from separate
+children; a block is consumed in draw order whatever the batch size, and blocks are independent of
+which worker computes them. The same seed therefore gives the same draws for any ``batch_size`` and
+any number of ``workers``.
+
+References
+----------
+JCGM 101:2008 §5.9 (propagation), §7 (Monte Carlo), §7.9 (adaptive procedure), §8 (validation of
+the GUM uncertainty framework); thesis ch. 5.2.3 (Tables 5.6 and 5.7).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import multiprocessing
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from scipy.stats import norm
+
+from robotcal.capture import Capture
+from robotcal.errors import InputError, RobotcalError
+from robotcal.geometry.transforms import apply_transform, check_rigid_transform
+from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
+from robotcal.instruments import Instrument
+from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.model import ParameterSet, RobotModel
+from robotcal.simulation.generator import JointErrorModel, simulate_capture
+from robotcal.simulation.plan import CapturePlan
+from robotcal.uncertainty.statistics import (
+    INTERVAL_KINDS,
+    SampleSummary,
+    check_coverage,
+    coverage_interval,
+    numerical_tolerance,
+    summarize_draws,
+)
+
+__all__ = [
+    "MonteCarloProblem",
+    "MonteCarloSettings",
+    "MonteCarloResult",
+    "AdaptiveRecord",
+    "LinearisedResult",
+    "prepare_monte_carlo",
+    "run_monte_carlo",
+    "linearised_uncertainty",
+    "draw_block",
+]
+
+#: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.
+DEFAULT_BLOCK_SIZE = 10_000
+
+ProgressCallback = Callable[[int, int | None], None]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MonteCarloProblem:
+    """What every draw shares: the noise-free capture and how to identify it.
+
+    Attributes
+    ----------
+    robot : RobotModel
+    true_parameters : ParameterSet
+        The robot that "produced" the capture (nominal unless a perturbed truth is given).
+    capture : Capture
+        The noise-free capture (readings of every point; points in the tracker frame [mm]).
+    exact_points : ndarray, shape (n_points, 3)
+        Noise-free target positions in the tracker frame [mm] (with the deterministic part of the
+        joint error model).
+    error_bound : ndarray, shape (n_points,)
+        Instrument bound ``U(L) = A + B L`` at every point [mm].
+    instrument : Instrument
+    tracker_from_base : ndarray, shape (4, 4)
+    joint_errors : JointErrorModel or None
+        Kept only when it has a random part, which is then redrawn in every draw.
+    options : CPAOptions
+    structure
+        The CPA structure shared by all draws (``prepare_cpa``).
+    noise_free_values : ndarray, shape (n_joints, 5)
+        CPA of the noise-free capture [mm, rad]: the model value ``f(x)`` at the input estimates,
+        used by the linearised comparison.
+    """
+
+    robot: RobotModel
+    true_parameters: ParameterSet
+    capture: Capture
+    exact_points: np.ndarray
+    error_bound: np.ndarray
+    instrument: Instrument
+    tracker_from_base: np.ndarray
+    joint_errors: JointErrorModel | None
+    options: CPAOptions
+    structure: object
+    noise_free_values: np.ndarray
+    identified: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return self.exact_points.shape[0]
+
+
+def prepare_monte_carlo(
+    robot: RobotModel,
+    plan: CapturePlan,
+    instrument: Instrument,
+    tracker_from_base,
+    *,
+    options: CPAOptions | None = None,
+    true_parameters: ParameterSet | None = None,
+    joint_errors: JointErrorModel | None = None,
+    joint_limits: str = "warn",
+) -> MonteCarloProblem:
+    """Simulate the noise-free capture once and check that CPA can identify it.
+
+    Every problem that would make draws fail (a circle of 2 points, a joint that does not turn, a
+    reading sign that contradicts the data) raises here, before any draw is made.
+
+    Parameters
+    ----------
+    robot, plan, instrument, tracker_from_base, true_parameters, joint_errors, joint_limits
+        As for :func:`robotcal.simulation.generator.simulate_capture`.
+    options : CPAOptions, optional
+        CPA options (circle fit, base frame, theta1 reference).
+    """
+    options = CPAOptions() if options is None else options
+    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    true_parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
+    noisy_joints = joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0))
+    deterministic_errors = joint_errors
+    if noisy_joints:
+        deterministic_errors = dataclasses.replace(joint_errors, noise_sd=np.zeros_like(joint_errors.noise_sd))
+    noise_free = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
+    capture, exact = simulate_capture(
+        robot,
+        plan,
+        noise_free,
+        tracker_from_base,
+        true_parameters=true_parameters,
+        joint_errors=deterministic_errors,
+        joint_limits=joint_limits,
+        rng=0,
+    )
+    capture = Capture(
+        circle=capture.circle,
+        direction=capture.direction,
+        readings=capture.readings,
+        points=capture.points,
+        source="noise-free capture of the Monte Carlo scenario",
+    )
+    structure = prepare_cpa(capture, robot, plan.reflector, options)
+    reference = identify_cpa_batch(exact, structure, tracker_from_base)
+    return MonteCarloProblem(
+        robot=robot,
+        true_parameters=true_parameters,
+        capture=capture,
+        exact_points=exact,
+        error_bound=instrument.error_bound(exact),
+        instrument=instrument,
+        tracker_from_base=tracker_from_base,
+        joint_errors=joint_errors if noisy_joints else None,
+        options=options,
+        structure=structure,
+        noise_free_values=reference.values,
+        identified=reference.identified,
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MonteCarloSettings:
+    """How many draws, and how they are organised.
+
+    Attributes
+    ----------
+    iterations : int
+        Number of draws M (fixed mode). Ignored by the adaptive mode.
+    coverage : float
+        Coverage probability p of the intervals.
+    interval : {"symmetric", "shortest"}
+        The interval reported as ``coverage_low/high`` and checked by the adaptive mode.
+    adaptive : bool
+        JCGM 101 §7.9 adaptive procedure: blocks of ``block_size`` until the mean, the standard
+        uncertainty and both interval ends are stable to the numerical tolerance of ``ndig``
+        significant digits (or ``max_draws`` is reached).
+    ndig : int
+        Significant decimal digits regarded as meaningful in the standard uncertainties.
+    max_draws : int
+        Upper limit of the adaptive mode.
+    batch_size : int
+        Draws identified per vectorised call; bounds the working memory (~50 kB per draw).
+    block_size : int
+        Draws per seeded block (the reproducibility unit; also the adaptive block size).
+    workers : int
+        Processes that compute blocks in parallel (1: in this process).
+    keep_draws : bool
+        Keep every draw in the result (needed for histograms, ``draws.npz`` and the TCP stage).
+    """
+
+    iterations: int = 100_000
+    coverage: float = 0.95
+    interval: Literal["symmetric", "shortest"] = "symmetric"
+    adaptive: bool = False
+    ndig: int = 2
+    max_draws: int = 2_000_000
+    batch_size: int = 2_000
+    block_size: int = DEFAULT_BLOCK_SIZE
+    workers: int = 1
+    keep_draws: bool = True
+
+    def __post_init__(self):
+        for name in ("iterations", "ndig", "max_draws", "batch_size", "block_size", "workers"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise InputError(f"`{name}` must be a positive integer; got {value!r}")
+        object.__setattr__(self, "coverage", check_coverage(self.coverage))
+        if self.interval not in INTERVAL_KINDS:
+            raise InputError(f"`interval` must be one of {INTERVAL_KINDS}; got {self.interval!r}")
+        smallest = math.ceil(1.0 / (1.0 - self.coverage)) + 1
+        if not self.adaptive and self.iterations < smallest:
+            raise InputError(
+                f"`iterations` = {self.iterations} is too few for a {self.coverage:g} coverage interval: "
+                f"at least {smallest} (JCGM 101 §7.2 recommends 10^4 or more)"
+            )
+        if self.adaptive and self.max_draws < 2 * self.block_size:
+            raise InputError(f"adaptive mode needs `max_draws` >= 2 blocks of {self.block_size}; got {self.max_draws}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AdaptiveRecord:
+    """How the adaptive procedure (JCGM 101 §7.9.4) ended.
+
+    ``stability`` holds, per output quantity (identified parameters, joint-major, core units), twice
+    the standard deviation of the block means of y, u(y), y_low and y_high (the quantities compared
+    with ``tolerance``).
+    """
+
+    blocks: int
+    stable: bool
+    reason: str
+    tolerance: np.ndarray
+    stability: dict
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LinearisedResult:
+    """GUM law of propagation of uncertainty (linearised) for the same capture, and its §8 check.
+
+    Attributes
+    ----------
+    estimate : ndarray, shape (n_joints, 5)
+        ``f(x)``: CPA of the noise-free capture [mm, rad].
+    covariance : ndarray, shape (n_params, n_params)
+        ``J U_x J^T`` over every parameter (joint-major, ``n_params = 5 n_joints``) [mm^2, mm rad, rad^2].
+    std_uncertainty : ndarray, shape (n_joints, 5)
+    coverage_low, coverage_high : ndarray, shape (n_joints, 5)
+        ``f(x) -+ k_p u`` with ``k_p`` the normal quantile for coverage p.
+    agrees : ndarray of bool, shape (n_joints, 5)
+        JCGM 101 §8.2: both ``|y - U_p - y_low|`` and ``|y + U_p - y_high|`` are within the numerical
+        tolerance of ``ndig`` significant digits of u (identified parameters only; True elsewhere).
+    endpoint_difference : ndarray, shape (n_joints, 5)
+        The larger of the two endpoint differences [mm, rad].
+    tolerance : ndarray, shape (n_joints, 5)
+    step_mm : float
+        Central-difference step of the Jacobian.
+    """
+
+    estimate: np.ndarray
+    covariance: np.ndarray
+    std_uncertainty: np.ndarray
+    coverage_low: np.ndarray
+    coverage_high: np.ndarray
+    agrees: np.ndarray
+    endpoint_difference: np.ndarray
+    tolerance: np.ndarray
+    step_mm: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MonteCarloResult:
+    """Monte Carlo uncertainty of every parameter (core units: mm, rad).
+
+    Attributes
+    ----------
+    robot : RobotModel
+    settings : MonteCarloSettings
+    seed : int
+    n_draws : int
+    summary : SampleSummary
+        Per parameter (arrays of shape (n_joints, 5)): mean, u, both intervals, min, max.
+    identified : ndarray of bool, shape (n_joints, 5)
+        Parameters CPA determines; the others are nominal in every draw (u = 0).
+    covariance, correlation : ndarray, shape (n_params, n_params)
+        Over every parameter, joint-major (zeros / NaN-free identity rows for fixed ones).
+    draws : ndarray, shape (n_draws, n_joints, 5) or None
+    noise_free_values : ndarray, shape (n_joints, 5)
+    true_values : ndarray, shape (n_joints, 5)
+    adaptive : AdaptiveRecord or None
+    linearised : LinearisedResult or None
+    timings_s : dict
+    success : bool
+    message : str
+    """
+
+    robot: RobotModel
+    settings: MonteCarloSettings
+    seed: int
+    n_draws: int
+    summary: SampleSummary
+    identified: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    draws: np.ndarray | None
+    noise_free_values: np.ndarray
+    true_values: np.ndarray
+    adaptive: AdaptiveRecord | None = None
+    linearised: LinearisedResult | None = None
+    timings_s: dict = field(default_factory=dict)
+    success: bool = True
+    message: str = ""
+
+    def interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """The coverage interval chosen in the settings, ``(low, high)`` of shape (n_joints, 5)."""
+        return self.summary.interval(self.settings.interval)
+
+
+# ----------------------------------------------------------------------------------------- draws
+
+
+def _block_generators(seed: int, block: int) -> tuple[np.random.Generator, np.random.Generator]:
+    sequence = np.random.SeedSequence(entropy=seed, spawn_key=(block,))
+    instrument_seq, joint_seq = sequence.spawn(2)
+    return np.random.default_rng(instrument_seq), np.random.default_rng(joint_seq)
+
+
+def _noisy_exact_points(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -> np.ndarray:
+    """Exact points ``(n_draws, n_points, 3)`` with a fresh draw of the joint errors' random part."""
+    q = problem.robot.model_joint_variables(problem.capture.readings)
+    errors = np.stack([problem.joint_errors.transforms(q, rng=rng) for _ in range(n_draws)])
+    base = target_positions(
+        problem.true_parameters.values,
+        q,
+        problem.capture.circle - 1,
+        problem.structure.reflector,
+        joint_errors=errors,
+    )
+    return apply_transform(problem.tracker_from_base, base)
+
+
+def _noise(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -> np.ndarray:
+    """Instrument errors ``(n_draws, n_points, 3)`` [mm], draw-major from ``rng``."""
+    shape = (n_draws, problem.n_points, 3)
+    bound = problem.error_bound[:, None]
+    if problem.instrument.is_noise_free:
+        return np.zeros(shape)
+    if problem.instrument.noise == "uniform":
+        return rng.uniform(-1.0, 1.0, size=shape) * bound
+    return rng.standard_normal(size=shape) * (bound / problem.instrument.coverage_factor)
+
+
+def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, batch_size: int) -> np.ndarray:
+    """Parameters of the ``n_draws`` draws of block ``block``, shape ``(n_draws, n_joints, 5)`` [mm, rad]."""
+    instrument_rng, joint_rng = _block_generators(seed, block)
+    values = np.empty((n_draws, problem.robot.n_joints, 5))
+    for start, count in _chunks(n_draws, batch_size):
+        if problem.joint_errors is not None:
+            exact = _noisy_exact_points(problem, count, joint_rng)
+        else:
+            exact = problem.exact_points
+        points = exact + _noise(problem, count, instrument_rng)
+        try:
+            batch = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
+        except RobotcalError as exc:
+            raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
+        values[start : start + count] = batch.values
+    return values
+
+
+def _chunks(n_draws: int, batch_size: int) -> list[tuple[int, int]]:
+    """``(start, count)`` of the vectorised calls over a block, never a lone draw after a full batch.
+
+    numpy reduces a batch of one with other loops than a larger batch (last-bit differences), so a
+    trailing single draw joins the previous batch: every draw is then computed identically for any
+    ``batch_size`` and the same seed gives bit-identical results.
+    """
+    chunks = [(start, min(batch_size, n_draws - start)) for start in range(0, n_draws, batch_size)]
+    if len(chunks) > 1 and chunks[-1][1] == 1:
+        start, count = chunks[-2]
+        chunks[-2:] = [(start, count + 1)]
+    return chunks
+
+
+def _block_sizes(total: int, block_size: int) -> list[int]:
+    full, rest = divmod(total, block_size)
+    return [block_size] * full + ([rest] if rest else [])
+
+
+class _BlockRunner:
+    """Computes blocks in this process or in a pool of forked workers."""
+
+    def __init__(self, problem: MonteCarloProblem, seed: int, settings: MonteCarloSettings):
+        self.problem, self.seed, self.settings = problem, seed, settings
+        self.pool = None
+        if settings.workers > 1:
+            context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
+            self.pool = ProcessPoolExecutor(max_workers=settings.workers, mp_context=context)
+
+    def map(self, blocks: list[tuple[int, int]]):
+        """Yield ``(block, values)`` in block order."""
+        args = (self.problem, self.seed)
+        if self.pool is None:
+            for block, size in blocks:
+                yield block, draw_block(*args, block, size, self.settings.batch_size)
+            return
+        futures = [self.pool.submit(draw_block, *args, block, size, self.settings.batch_size) for block, size in blocks]
+        for (block, _), future in zip(blocks, futures, strict=True):
+            yield block, future.result()
+
+    def close(self):
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+# ------------------------------------------------------------------------------------ statistics
+
+
+def _flat_identified(values: np.ndarray, identified: np.ndarray) -> np.ndarray:
+    return values.reshape(values.shape[0], -1)[:, identified.reshape(-1)]
+
+
+def _block_estimates(values: np.ndarray, identified: np.ndarray, coverage: float, interval: str) -> np.ndarray:
+    """``(4, n_identified)``: y, u(y), y_low, y_high of one block (JCGM 101 §7.9.4 c)."""
+    flat = _flat_identified(values, identified)
+    low, high = coverage_interval(flat, coverage, interval)
+    return np.stack([flat.mean(axis=0), flat.std(axis=0, ddof=1), low, high])
+
+
+def _adaptive_check(estimates: list[np.ndarray], u_all: np.ndarray, ndig: int) -> tuple[bool, dict, np.ndarray]:
+    """JCGM 101 §7.9.4 d-g: twice the standard deviation of the mean of the block estimates vs delta,
+    delta from u(y) of all draws so far (``u_all``)."""
+    stack = np.stack(estimates)  # (h, 4, n_identified)
+    h = stack.shape[0]
+    spread = 2.0 * stack.std(axis=0, ddof=1) / math.sqrt(h)
+    tolerance = numerical_tolerance(u_all, ndig)
+    stable = bool(np.all(spread <= tolerance))
+    stability = {name: spread[row] for row, name in enumerate(("mean", "std_uncertainty", "low", "high"))}
+    return stable, stability, tolerance
+
+
+class _PooledMoments:
+    """Running mean and sum of squared deviations over blocks (Chan et al.'s pairwise update)."""
+
+    def __init__(self):
+        self.count, self.mean, self.m2 = 0, None, None
+
+    def add(self, values: np.ndarray) -> None:
+        n = values.shape[0]
+        mean = values.mean(axis=0)
+        m2 = ((values - mean) ** 2).sum(axis=0)
+        if self.count == 0:
+            self.count, self.mean, self.m2 = n, mean, m2
+            return
+        total = self.count + n
+        delta = mean - self.mean
+        self.mean = self.mean + delta * n / total
+        self.m2 = self.m2 + m2 + delta**2 * self.count * n / total
+        self.count = total
+
+    def std(self) -> np.ndarray:
+        return np.sqrt(self.m2 / (self.count - 1))
+
+
+def _covariance(values: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    flat = values.reshape(values.shape[0], -1)
+    n_params = flat.shape[1]
+    mask = identified.reshape(-1)
+    covariance = np.zeros((n_params, n_params))
+    correlation = np.eye(n_params)
+    if mask.sum() >= 1:
+        free = flat[:, mask]
+        sub = np.atleast_2d(np.cov(free, rowvar=False))
+        covariance[np.ix_(mask, mask)] = sub
+        scale = np.sqrt(np.diag(sub))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            corr = sub / np.outer(scale, scale)
+        corr[~np.isfinite(corr)] = 0.0
+        np.fill_diagonal(corr, 1.0)
+        correlation[np.ix_(mask, mask)] = corr
+    return covariance, correlation
+
+
+# ---------------------------------------------------------------------------------------- driver
+
+
+def run_monte_carlo(
+    problem: MonteCarloProblem,
+    settings: MonteCarloSettings | None = None,
+    *,
+    seed: int,
+    linearised: bool = True,
+    progress: ProgressCallback | None = None,
+) -> MonteCarloResult:
+    """Monte Carlo propagation of the capture noise to the CPA parameters (JCGM 101 §7).
+
+    Parameters
+    ----------
+    problem : MonteCarloProblem
+        From :func:`prepare_monte_carlo`.
+    settings : MonteCarloSettings, optional
+    seed : int
+        Seed of the whole run (blocks are seeded from it, see the module notes). Recorded.
+    linearised : bool
+        Also compute the GUM law-of-propagation result and the JCGM 101 §8 comparison.
+    progress : callable, optional
+        Called as ``progress(draws_done, draws_total_or_None)`` after every block.
+
+    Returns
+    -------
+    MonteCarloResult
+    """
+    settings = MonteCarloSettings() if settings is None else settings
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
+    seed = int(seed)
+    started = time.perf_counter()
+    identified = problem.identified
+    runner = _BlockRunner(problem, seed, settings)
+    capacity = settings.max_draws if settings.adaptive else settings.iterations
+    # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
+    store = np.empty((capacity, problem.robot.n_joints, 5))
+    adaptive_record = None
+    try:
+        if not settings.adaptive:
+            blocks = list(enumerate(_block_sizes(settings.iterations, settings.block_size)))
+            done = 0
+            for _, values in runner.map(blocks):
+                store[done : done + values.shape[0]] = values
+                done += values.shape[0]
+                if progress is not None:
+                    progress(done, settings.iterations)
+        else:
+            adaptive_record, done = _run_adaptive(runner, settings, identified, store, progress)
+    finally:
+        runner.close()
+    draws = store[:done]
+    draw_time = time.perf_counter() - started
+    summary_start = time.perf_counter()
+    summary = summarize_draws(draws, settings.coverage)
+    covariance, correlation = _covariance(draws, identified)
+    timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
+    linear = None
+    if linearised:
+        linear_start = time.perf_counter()
+        linear = linearised_uncertainty(problem, summary, settings)
+        timings["linearised"] = time.perf_counter() - linear_start
+    timings["total"] = time.perf_counter() - started
+    message = f"{draws.shape[0]} draws"
+    success = True
+    if adaptive_record is not None:
+        message += f"; adaptive: {adaptive_record.reason}"
+        success = adaptive_record.stable
+    return MonteCarloResult(
+        robot=problem.robot,
+        settings=settings,
+        seed=seed,
+        n_draws=int(draws.shape[0]),
+        summary=summary,
+        identified=identified,
+        covariance=covariance,
+        correlation=correlation,
+        draws=draws if settings.keep_draws else None,
+        noise_free_values=problem.noise_free_values,
+        true_values=problem.true_parameters.values,
+        adaptive=adaptive_record,
+        linearised=linear,
+        timings_s=timings,
+        success=success,
+        message=message,
+    )
+
+
+def _run_adaptive(runner: _BlockRunner, settings, identified, store, progress) -> tuple[AdaptiveRecord, int]:
+    """Blocks of ``block_size`` until stable (JCGM 101 §7.9.4), computed ``workers`` at a time.
+
+    Stability is checked after each block in block order, so the stopping block, and hence the
+    result, do not depend on the number of workers (blocks computed past it are discarded).
+    Returns the record and the number of draws kept in ``store``.
+    """
+    size = settings.block_size
+    max_blocks = settings.max_draws // size
+    estimates: list[np.ndarray] = []
+    moments = _PooledMoments()
+    next_block = 0
+    while next_block < max_blocks:
+        wave = [(b, size) for b in range(next_block, min(next_block + settings.workers, max_blocks))]
+        next_block += len(wave)
+        for block, values in runner.map(wave):
+            store[block * size : (block + 1) * size] = values
+            estimates.append(_block_estimates(values, identified, settings.coverage, settings.interval))
+            moments.add(_flat_identified(values, identified))
+            if progress is not None:
+                progress((block + 1) * size, None)
+            if len(estimates) < 2:
+                continue
+            stable, stability, tolerance = _adaptive_check(estimates, moments.std(), settings.ndig)
+            if stable:
+                reason = (
+                    f"stable after {block + 1} blocks of {size}: mean, u and both {settings.interval} "
+                    f"interval ends within the numerical tolerance of ndig = {settings.ndig}"
+                )
+                record = AdaptiveRecord(
+                    blocks=block + 1, stable=True, reason=reason, tolerance=tolerance, stability=stability
+                )
+                return record, (block + 1) * size
+    reason = f"max_draws = {settings.max_draws} reached before the results were stable to ndig = {settings.ndig}"
+    record = AdaptiveRecord(blocks=max_blocks, stable=False, reason=reason, tolerance=tolerance, stability=stability)
+    return record, max_blocks * size
+
+
+# ------------------------------------------------------------------------------------ linearised
+
+
+def _input_variance(problem: MonteCarloProblem) -> np.ndarray:
+    """Variance of each measured coordinate ``(n_points, 3)`` [mm^2]: U^2/3 (uniform) or (U/k)^2."""
+    bound = np.repeat(problem.error_bound[:, None], 3, axis=1)
+    if problem.instrument.noise == "uniform":
+        return bound**2 / 3.0
+    return (bound / problem.instrument.coverage_factor) ** 2
+
+
+def linearised_uncertainty(
+    problem: MonteCarloProblem, summary: SampleSummary | None = None, settings: MonteCarloSettings | None = None
+) -> LinearisedResult:
+    """GUM law of propagation: ``U_y = J U_x J^T`` with J the Jacobian of CPA w.r.t. the measured points.
+
+    J is computed by central differences, all ``2 x 3 n_points`` perturbed captures in one batched
+    CPA call, with a step of 1e-3 mm (CPA is exact to ~1e-12 mm, so the truncation and rounding
+    errors are ~1e-6 and ~1e-9 relative). Only instrument noise enters U_x (independent coordinates);
+    a random joint-error part, if the scenario has one, is not linearised (the Monte Carlo covers it).
+
+    When ``summary`` is given, the JCGM 101 §8.2 comparison is made: the linearised interval
+    ``f(x) -+ k_p u`` against the Monte Carlo interval chosen in ``settings``, endpoint by endpoint,
+    within the numerical tolerance of ``settings.ndig`` significant digits of the linearised u.
+    """
+    settings = MonteCarloSettings() if settings is None else settings
+    step = 1e-3
+    n_points = problem.n_points
+    n_inputs = 3 * n_points
+    perturbation = np.zeros((2 * n_inputs, n_points, 3))
+    index = np.arange(n_inputs)
+    perturbation[index, index // 3, index % 3] = step
+    perturbation[n_inputs + index, index // 3, index % 3] = -step
+    values = identify_cpa_batch(
+        problem.exact_points + perturbation, problem.structure, problem.tracker_from_base
+    ).values
+    flat = values.reshape(2 * n_inputs, -1)
+    jacobian = ((flat[:n_inputs] - flat[n_inputs:]) / (2.0 * step)).T  # (n_params, n_inputs)
+    variance = _input_variance(problem).reshape(-1)
+    covariance = (jacobian * variance) @ jacobian.T
+    n_joints = problem.robot.n_joints
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n_joints, 5)
+    k = float(norm.ppf(0.5 + settings.coverage / 2.0))
+    estimate = problem.noise_free_values
+    low, high = estimate - k * std, estimate + k * std
+    tolerance = numerical_tolerance(std, settings.ndig)
+    if summary is not None:
+        mc_low, mc_high = summary.interval(settings.interval)
+        difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
+        agrees = (difference <= tolerance) | ~problem.identified
+    else:
+        difference = np.full(std.shape, np.nan)
+        agrees = np.ones(std.shape, dtype=bool)
+    return LinearisedResult(
+        estimate=estimate,
+        covariance=covariance,
+        std_uncertainty=std,
+        coverage_low=low,
+        coverage_high=high,
+        agrees=agrees,
+        endpoint_difference=difference,
+        tolerance=tolerance,
+        step_mm=step,
+    )
