@@ -1,0 +1,39 @@
+"""``robotcal report DIR [--out FILE]``: rebuild the HTML report of a run folder from its files."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from robotcal.cli import app
+from robotcal.cli._common import console, error_console, handle_errors
+from robotcal.report.html import REPORT_NAME, build_report
+
+
+@app.command()
+@handle_errors
+def report(
+    run_dir: Annotated[Path, typer.Argument(help="Run folder written by `robotcal run` (docs/results.md).")],
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help=f"HTML file to write [default: DIR/{REPORT_NAME}].")
+    ] = None,
+) -> None:
+    """Build the self-contained HTML calibration report of a run folder, from the saved results only."""
+    started = time.perf_counter()
+    result = build_report(run_dir, out)
+    for problem in result.problems:
+        error_console.print(f"[yellow]warning:[/yellow] {problem}", highlight=False)
+    missing = [s.title for s in result.sections if not s.present]
+    size_kib = len(result.html.encode("utf-8")) / 1024
+    console.print(
+        f"wrote {result.path}: {len(result.sections) - len(missing)} of {len(result.sections)} sections with "
+        f"results, {result.figures} figures, {result.canvases} 3-D view(s), {size_kib:.0f} KiB, "
+        f"in {time.perf_counter() - started:.2f} s",
+        highlight=False,
+        soft_wrap=True,
+    )
+    if missing:
+        console.print(f"not in this run: {', '.join(missing)}", highlight=False, soft_wrap=True)

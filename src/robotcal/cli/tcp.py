@@ -1,0 +1,198 @@
+"""``robotcal tcp``: TCP position and orientation uncertainty from Monte Carlo parameter draws (ch. 5.3)."""
+
+from __future__ import annotations
+
+import time
+import warnings
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from robotcal.cli import app
+from robotcal.cli._common import console, handle_errors
+from robotcal.errors import InputError, JointLimitWarning
+from robotcal.io.atomic import atomic_directory
+from robotcal.io.draws_npz import ParameterDraws, read_draws
+from robotcal.io.tcp_results import write_tcp_csv, write_tcp_json
+from robotcal.io.trajectory_csv import load_trajectory
+from robotcal.uncertainty.statistics import INTERVAL_KINDS
+from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty, check_readings, propagate_to_tcp
+from robotcal.uncertainty.workspace import workspace_uncertainty
+from robotcal.workflow import versions
+
+_DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
+
+
+def _numbers(text: str, option: str, count: int | None = None) -> np.ndarray:
+    try:
+        values = np.array([float(part) for part in text.replace(";", ",").split(",") if part.strip()])
+    except ValueError:
+        raise InputError(f"{option} {text!r}: expected comma-separated numbers") from None
+    if count is not None and values.size != count:
+        raise InputError(f"{option} {text!r}: expected {count} numbers; got {values.size}")
+    if not np.all(np.isfinite(values)):
+        raise InputError(f"{option} {text!r}: every value must be a finite number")
+    return values
+
+
+def _draws_path(draws: Path | None, run: Path | None) -> Path:
+    if (draws is None) == (run is None):
+        raise InputError("give exactly one of --draws FILE and --run DIR")
+    if draws is not None:
+        return draws
+    for candidate in (run / "draws.npz", run / "uncertainty" / "draws.npz"):
+        if candidate.is_file():
+            return candidate
+    raise InputError(
+        f"{run}: neither {run / 'draws.npz'} nor {run / 'uncertainty' / 'draws.npz'} exists "
+        "(write draws with `robotcal uncertainty --save-draws`)"
+    )
+
+
+def _subset(loaded: ParameterDraws, max_draws: int | None) -> np.ndarray:
+    if max_draws is None or max_draws >= loaded.n_draws:
+        return loaded.values
+    return loaded.values[:max_draws]
+
+
+@contextmanager
+def _limits_already_checked():
+    """Silence the library's second joint-limit warning (the CLI has warned, naming the file)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", JointLimitWarning)
+        yield
+
+
+def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> Table:
+    low, high = result.summary.interval(interval)
+    table = Table(title=f"TCP at pose {pose + 1} ({result.n_draws} draws)", title_justify="left")
+    for column in ("", "unit", "nominal", "mean", "u (MC)", "u (linear)", f"{result.coverage:.0%} low", "high"):
+        table.add_column(column, justify="right")
+    for k, name in enumerate(TCP_COORDINATES):
+        f = _DEG[k]
+        table.add_row(
+            name,
+            TCP_UNITS[k],
+            f"{result.nominal[pose, k] * f:.4f}",
+            f"{result.summary.mean[pose, k] * f:.4f}",
+            f"{result.summary.std_uncertainty[pose, k] * f:.4f}",
+            f"{result.lpu_std_uncertainty[pose, k] * f:.4f}",
+            f"{low[pose, k] * f:.4f}",
+            f"{high[pose, k] * f:.4f}",
+        )
+    return table
+
+
+@app.command()
+@handle_errors
+def tcp(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (tcp.csv, tcp.json, figures).")],
+    draws: Annotated[
+        Path | None, typer.Option("--draws", help="draws.npz of `robotcal uncertainty --save-draws`.")
+    ] = None,
+    run: Annotated[
+        Path | None, typer.Option("--run", help="Uncertainty folder (DIR/draws.npz) or run folder (DIR/uncertainty/).")
+    ] = None,
+    pose: Annotated[str | None, typer.Option("--pose", help='Joint readings in deg, "q1,...,qN".')] = None,
+    trajectory: Annotated[
+        str | None, typer.Option("--trajectory", help="Pose CSV (q1..qN in deg) or built-in name (kr5-sweep-75).")
+    ] = None,
+    workspace: Annotated[
+        int | None, typer.Option("--workspace", min=1, help="Number of random poses within the joint limits.")
+    ] = None,
+    tool: Annotated[str | None, typer.Option("--tool", help='TCP offset on the flange "x,y,z" [mm].')] = None,
+    coverage: Annotated[float, typer.Option("--coverage", help="Coverage probability.")] = 0.95,
+    interval: Annotated[str, typer.Option("--interval", help="Coverage interval: symmetric | shortest.")] = "symmetric",
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the --workspace pose sample.")] = 0,
+    max_draws: Annotated[
+        int | None, typer.Option("--max-draws", min=2, help="Use only the first N draws (quicker maps).")
+    ] = None,
+) -> None:
+    """TCP position (X, Y, Z) and KUKA orientation (A, B, C) uncertainty at a pose, along a trajectory, or over the workspace."""
+    started = time.perf_counter()
+    if sum(option is not None for option in (pose, trajectory, workspace)) != 1:
+        raise InputError("give exactly one of --pose, --trajectory and --workspace")
+    if interval not in INTERVAL_KINDS:
+        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
+    source = _draws_path(draws, run)
+    loaded = read_draws(source)
+    robot = loaded.robot
+    values = _subset(loaded, max_draws)
+    tool_mm = None if tool is None else _numbers(tool, "--tool", 3)
+    provenance = {
+        "draws_file": str(source),
+        "draws_seed": loaded.seed,
+        "draws_in_file": loaded.n_draws,
+        "versions": versions(),
+    }
+    ws = None
+    if pose is not None:
+        readings = _numbers(pose, "--pose")
+        if readings.size != robot.n_joints:
+            raise InputError(
+                f"--pose {pose!r}: {readings.size} joint readings but robot {robot.name!r} has {robot.n_joints} joints"
+            )
+        readings = check_readings(robot, np.deg2rad(readings)[None], name="--pose")
+        with _limits_already_checked():
+            result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage, keep_draws=True)
+        mode = "pose"
+    elif trajectory is not None:
+        readings, path = load_trajectory(trajectory, n_joints=robot.n_joints)
+        readings = check_readings(robot, readings, name="trajectory", source=path)
+        with _limits_already_checked():
+            result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage)
+        provenance["trajectory"] = path
+        mode = "trajectory"
+    else:
+        ws = workspace_uncertainty(robot, values, workspace, rng=seed, tool=tool_mm, coverage=coverage)
+        result = ws.tcp
+        mode = "workspace"
+    provenance["mode"] = mode
+    provenance["seconds"] = round(time.perf_counter() - started, 3)
+
+    from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
+
+    with atomic_directory(out) as folder:
+        write_tcp_csv(folder / "tcp.csv", result, interval=interval)
+        write_tcp_json(folder / "tcp.json", result, interval=interval, workspace=ws, provenance=provenance)
+        if mode == "pose":
+            plot_tcp_scatter(result, folder / "scatter.png")
+            plot_tcp_histograms(result, folder / "histograms.png")
+        elif mode == "trajectory":
+            plot_trajectory(result, folder / "trajectory.png")
+        else:
+            plot_workspace(ws, folder / "workspace.png")
+
+    if mode == "pose":
+        console.print(_summary_table(result, 0, interval))
+        semi = ", ".join(f"{a:.4f}" for a in result.ellipsoid.semi_axes[0])
+        console.print(
+            f"{result.coverage:.0%} position ellipsoid: semi-axes {semi} mm, "
+            f"{result.ellipsoid.fraction_inside[0]:.2%} of the draws inside",
+            highlight=False,
+        )
+    else:
+        worst = int(np.argmax(result.position_uncertainty))
+        best = int(np.argmin(result.position_uncertainty))
+        console.print(
+            f"{result.n_poses} poses: position uncertainty sqrt(uX^2+uY^2+uZ^2) from "
+            f"{result.position_uncertainty[best]:.4f} mm (pose {best + 1}) to "
+            f"{result.position_uncertainty[worst]:.4f} mm (pose {worst + 1}); largest range "
+            f"{(result.value_range[:, :3]).max():.4f} mm",
+            highlight=False,
+        )
+        if ws is not None:
+            marks = ", ".join(
+                f"P{level:g} {value:.4f}"
+                for level, value in zip(ws.percentiles, ws.position_uncertainty_percentiles, strict=True)
+            )
+            console.print(f"percentiles of the position uncertainty [mm]: {marks}", highlight=False)
+    console.print(
+        "orientation: KUKA A (about Z), B (about Y), C (about X); thesis Table 5.8 lists them as C, B, A",
+        highlight=False,
+    )
+    console.print(f"wrote {out} in {time.perf_counter() - started:.1f} s ({result.n_draws} draws)", highlight=False)

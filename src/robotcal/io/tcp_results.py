@@ -1,0 +1,169 @@
+"""TCP uncertainty result files: ``tcp.csv`` and ``tcp.json`` (docs/results.md, DESIGN.md "TCP CSV").
+
+``tcp.csv``: one row per pose and coordinate, columns ``pose, name, unit, nominal, mean,
+std_uncertainty, coverage_low, coverage_high, min, max, lpu_std_uncertainty``; ``name`` is X, Y, Z
+[mm] or the KUKA angles A (about Z), B (about Y), C (about X) [deg]. ``pose`` counts from 1 in the
+order of the input poses.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.io.atomic import atomic_write_text
+from robotcal.uncertainty.tcp import ORIENTATION_CONVENTION, TCP_COORDINATES, TCP_UNITS, TCPUncertainty
+from robotcal.uncertainty.workspace import WorkspaceUncertainty
+
+__all__ = ["TCP_CSV_COLUMNS", "tcp_to_csv", "write_tcp_csv", "tcp_to_dict", "write_tcp_json"]
+
+TCP_CSV_COLUMNS = (
+    "pose",
+    "name",
+    "unit",
+    "nominal",
+    "mean",
+    "std_uncertainty",
+    "coverage_low",
+    "coverage_high",
+    "min",
+    "max",
+    "lpu_std_uncertainty",
+)
+_DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
+
+
+def _file_units(values: np.ndarray) -> np.ndarray:
+    """Scale the last axis (X, Y, Z, A, B, C) from mm/rad to mm/deg."""
+    return np.asarray(values, dtype=float) * _DEG
+
+
+def _covariance_file_units(covariance: np.ndarray) -> np.ndarray:
+    return np.asarray(covariance, dtype=float) * _DEG[:, None] * _DEG[None, :]
+
+
+def tcp_to_csv(result: TCPUncertainty, *, interval: str = "symmetric") -> str:
+    """The ``tcp.csv`` text (12 significant digits) of a result; ``interval`` picks the coverage interval."""
+    low, high = result.summary.interval(interval)
+    columns = [
+        _file_units(array)
+        for array in (
+            result.nominal,
+            result.summary.mean,
+            result.summary.std_uncertainty,
+            low,
+            high,
+            result.summary.minimum,
+            result.summary.maximum,
+            result.lpu_std_uncertainty,
+        )
+    ]
+    stream = io.StringIO()
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(TCP_CSV_COLUMNS)
+    for pose in range(result.n_poses):
+        for k, (name, unit) in enumerate(zip(TCP_COORDINATES, TCP_UNITS, strict=True)):
+            writer.writerow([pose + 1, name, unit, *[f"{column[pose, k]:.12g}" for column in columns]])
+    return stream.getvalue()
+
+
+def write_tcp_csv(path, result: TCPUncertainty, *, interval: str = "symmetric") -> Path:
+    """Write ``tcp.csv`` atomically."""
+    return atomic_write_text(path, tcp_to_csv(result, interval=interval))
+
+
+def tcp_to_dict(
+    result: TCPUncertainty,
+    *,
+    interval: str = "symmetric",
+    workspace: WorkspaceUncertainty | None = None,
+    provenance: dict | None = None,
+) -> dict:
+    """Everything of a result as JSON-ready data in mm and degrees (``tcp.json``)."""
+    low, high = result.summary.interval(interval)
+    poses = []
+    ellipsoid = result.ellipsoid
+    for p in range(result.n_poses):
+        coordinates = {}
+        for k, name in enumerate(TCP_COORDINATES):
+            f = _DEG[k]
+            coordinates[name] = {
+                "unit": TCP_UNITS[k],
+                "nominal": float(result.nominal[p, k] * f),
+                "mean": float(result.summary.mean[p, k] * f),
+                "std_uncertainty": float(result.summary.std_uncertainty[p, k] * f),
+                "coverage_low": float(low[p, k] * f),
+                "coverage_high": float(high[p, k] * f),
+                "symmetric_low": float(result.summary.symmetric_low[p, k] * f),
+                "symmetric_high": float(result.summary.symmetric_high[p, k] * f),
+                "shortest_low": float(result.summary.shortest_low[p, k] * f),
+                "shortest_high": float(result.summary.shortest_high[p, k] * f),
+                "min": float(result.summary.minimum[p, k] * f),
+                "max": float(result.summary.maximum[p, k] * f),
+                "range": float(result.value_range[p, k] * f),
+                "lpu_std_uncertainty": float(result.lpu_std_uncertainty[p, k] * f),
+            }
+        poses.append(
+            {
+                "pose": p + 1,
+                "readings_deg": np.rad2deg(result.readings[p]).tolist(),
+                "coordinates": coordinates,
+                "position_uncertainty_mm": float(result.position_uncertainty[p]),
+                "position_covariance_mm2": result.position_covariance[p].tolist(),
+                "covariance": _covariance_file_units(result.covariance[p]).tolist(),
+                "lpu_covariance": _covariance_file_units(result.lpu_covariance[p]).tolist(),
+                "ellipsoid": {
+                    "semi_axes_mm": ellipsoid.semi_axes[p].tolist(),
+                    "directions": ellipsoid.directions[p].T.tolist(),
+                    "fraction_inside": _finite_or_none(ellipsoid.fraction_inside[p]),
+                    "monte_carlo_semi_axes_mm": [_finite_or_none(v) for v in ellipsoid.monte_carlo_semi_axes[p]],
+                },
+            }
+        )
+    data = {
+        "robot": result.robot_name,
+        "draws": result.n_draws,
+        "coverage": result.coverage,
+        "interval": interval,
+        "tool_mm": result.tool.tolist(),
+        "units": {"length": "mm", "angle": "deg"},
+        "coordinates": list(TCP_COORDINATES),
+        "orientation": ORIENTATION_CONVENTION,
+        "covariance_order": "X, Y, Z [mm], A, B, C [deg]",
+        "ellipsoid": (
+            f"{result.coverage:g} coverage region (x - mean)^T V^-1 (x - mean) <= k^2 of the position, "
+            f"k^2 = chi2.ppf({result.coverage:g}, 3) = {ellipsoid.gaussian_scale**2:.6g} (JCGM 102 6.5.3); "
+            "directions: one unit vector per semi-axis, base frame; monte_carlo_semi_axes: k_p from the "
+            "draws (JCGM 102 7.7.2)"
+        ),
+        "poses": poses,
+    }
+    if workspace is not None:
+        data["workspace"] = {
+            "seed": workspace.seed,
+            "poses": result.n_poses,
+            "percentiles": list(workspace.percentiles),
+            "position_uncertainty_mm": workspace.position_uncertainty_percentiles.tolist(),
+            "max_semi_axis_mm": workspace.max_semi_axis_percentiles.tolist(),
+            "std_uncertainty": {
+                name: (workspace.std_uncertainty_percentiles[:, k] * _DEG[k]).tolist()
+                for k, name in enumerate(TCP_COORDINATES)
+            },
+        }
+    if provenance:
+        data["provenance"] = provenance
+    return data
+
+
+def _finite_or_none(value) -> float | None:
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
+def write_tcp_json(path, result: TCPUncertainty, **kwargs) -> Path:
+    """Write ``tcp.json`` atomically (arguments as :func:`tcp_to_dict`)."""
+    return atomic_write_text(path, json.dumps(tcp_to_dict(result, **kwargs), indent=1) + "\n")

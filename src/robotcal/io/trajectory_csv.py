@@ -1,0 +1,129 @@
+"""Pose CSV (a trajectory): one row per pose, joint readings ``q1..qN`` in degrees.
+
+Format::
+
+    # comment lines start with '#'
+    pose,q1,q2,q3,q4,q5,q6
+    1,-45.0,-80.0,100.0,0.0,70.0,-90.0
+    ...
+
+The header must name ``q1`` .. ``qN`` (N = the robot's joint count); other columns (``pose``, a
+name, a time stamp) are allowed and ignored. Readings are controller readings, mapped to model
+joint variables by the robot file's ``reading_sign`` and ``reading_offset``. Built-in trajectories
+live in ``robotcal/data/trajectories/<name>.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.errors import InputError
+from robotcal.io.atomic import atomic_write_text
+from robotcal.io.builtins import data_path
+
+__all__ = ["read_trajectory", "write_trajectory", "trajectory_to_csv", "load_trajectory", "builtin_trajectories"]
+
+
+def builtin_trajectories() -> list[str]:
+    """Names of the built-in trajectories (file stems of ``data/trajectories/*.csv``), sorted."""
+    return sorted(p.stem for p in data_path("trajectories").glob("*.csv"))
+
+
+def trajectory_to_csv(readings_rad, *, comment: str = "") -> str:
+    """CSV text ``pose,q1..qN`` (readings in degrees, 9 decimals) of readings ``(n_poses, n_joints)`` [rad]."""
+    readings = np.asarray(readings_rad, dtype=float)
+    if readings.ndim != 2:
+        raise InputError(f"`readings` must have shape (n_poses, n_joints); got {readings.shape}")
+    stream = io.StringIO()
+    for line in comment.splitlines():
+        stream.write(f"# {line}\n" if line else "#\n")
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(["pose", *[f"q{i + 1}" for i in range(readings.shape[1])]])
+    for k, row in enumerate(np.rad2deg(readings), start=1):
+        writer.writerow([k, *[f"{value:.9f}" for value in row]])
+    return stream.getvalue()
+
+
+def write_trajectory(path, readings_rad, *, comment: str = "") -> Path:
+    """Write a pose CSV atomically (see :func:`trajectory_to_csv`)."""
+    return atomic_write_text(path, trajectory_to_csv(readings_rad, comment=comment))
+
+
+def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
+    """Read a pose CSV; returns controller readings ``(n_poses, n_joints)`` [rad].
+
+    Every problem is an :class:`InputError` naming the file, the line (1-based, as an editor shows
+    it) and the column: missing ``q`` columns, a joint count other than ``n_joints``, a row with
+    the wrong number of fields, a value that is not a finite number (NaN, empty, text).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read: {exc}") from None
+    lines = [
+        (number, row)
+        for number, row in enumerate(csv.reader(io.StringIO(text)), start=1)
+        if any(cell.strip() for cell in row) and not row[0].lstrip().startswith("#")
+    ]
+    if not lines:
+        raise InputError(f"{path}: empty file; expected a header with q1..qN (joint readings in deg)")
+    header_line, header_row = lines[0]
+    header = [cell.strip().lower() for cell in header_row]
+    joints = sorted((c for c in header if c.startswith("q") and c[1:].isdigit()), key=lambda c: int(c[1:]))
+    count = len(joints)
+    expected = [f"q{i + 1}" for i in range(count)]
+    if count == 0 or joints != expected:
+        missing = [c for c in expected if c not in joints] or ["q1"]
+        raise InputError(
+            f"{path}: line {header_line}: header needs joint columns q1..qN; missing {', '.join(missing)} "
+            f"(got {','.join(header)})"
+        )
+    if len(set(header)) != len(header):
+        raise InputError(f"{path}: line {header_line}: duplicate column names in the header")
+    if n_joints is not None and count != n_joints:
+        raise InputError(f"{path}: {count} joint columns (q1..q{count}) but the robot has {n_joints} joints")
+    index = [header.index(c) for c in expected]
+    readings = np.empty((len(lines) - 1, count))
+    for k, (number, row) in enumerate(lines[1:]):
+        if len(row) != len(header):
+            raise InputError(
+                f"{path}: line {number} (pose {k + 1}) has {len(row)} fields; the header has {len(header)}"
+            )
+        for column, position in enumerate(index):
+            cell = row[position].strip()
+            try:
+                value = float(cell)
+            except ValueError:
+                raise InputError(
+                    f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`: {cell!r} is not a number"
+                ) from None
+            if not np.isfinite(value):
+                raise InputError(
+                    f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`: {cell!r} is not a finite number"
+                )
+            readings[k, column] = value
+    if readings.shape[0] == 0:
+        raise InputError(f"{path}: no poses after the header")
+    return np.deg2rad(readings)
+
+
+def load_trajectory(name_or_path, *, n_joints: int | None = None) -> tuple[np.ndarray, str]:
+    """Readings [rad] of a built-in trajectory (by name) or a pose CSV (by path), and its source path."""
+    text = str(name_or_path)
+    if text in builtin_trajectories():
+        path = data_path("trajectories", f"{text}.csv")
+    else:
+        path = Path(text)
+        if not path.exists():
+            raise InputError(
+                f"unknown trajectory {text!r}: not a built-in trajectory "
+                f"({', '.join(builtin_trajectories())}) nor an existing file"
+            )
+    return read_trajectory(path, n_joints=n_joints), str(path)

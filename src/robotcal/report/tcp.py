@@ -1,0 +1,159 @@
+"""Figures of the TCP uncertainty (thesis Figs 5.17-5.20) and of the workspace map."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.ticker import MaxNLocator
+
+from robotcal.report.figures import new_figure, plt, save_figure
+from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty
+from robotcal.uncertainty.workspace import WorkspaceUncertainty
+
+__all__ = ["plot_tcp_scatter", "plot_tcp_histograms", "plot_trajectory", "plot_workspace"]
+
+_DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
+
+
+def _need_draws(result: TCPUncertainty, pose: int) -> np.ndarray:
+    if result.draws is None:
+        raise ValueError("this figure needs the draws: call propagate_to_tcp(..., keep_draws=True)")
+    return result.draws[:, pose] * _DEG
+
+
+def _ellipsoid_mesh(semi_axes: np.ndarray, directions: np.ndarray, n: int = 24):
+    u = np.linspace(0.0, 2.0 * np.pi, n)
+    v = np.linspace(0.0, np.pi, n // 2)
+    sphere = np.stack(
+        [np.outer(np.cos(u), np.sin(v)), np.outer(np.sin(u), np.sin(v)), np.outer(np.ones_like(u), np.cos(v))]
+    )
+    points = np.einsum("ij,j,jkl->ikl", directions, semi_axes, sphere)
+    return points[0], points[1], points[2]
+
+
+def plot_tcp_scatter(result: TCPUncertainty, path, *, pose: int = 0, max_points: int = 4000, rng=0) -> Path:
+    """3-D scatter of the TCP positions of the draws around their mean, with the coverage ellipsoid (Fig. 5.19).
+
+    Positions are drawn relative to the mean (a calibrated robot's mean can sit millimetres from the
+    nominal, which would squash the cloud to a dot); the title gives the mean minus the nominal.
+    """
+    rng = np.random.default_rng(rng)
+    mean = result.summary.mean[pose, :3]
+    draws = _need_draws(result, pose)[:, :3] - mean
+    if draws.shape[0] > max_points:
+        draws = draws[rng.choice(draws.shape[0], max_points, replace=False)]
+    figure = plt.figure(figsize=(6.4, 5.6), dpi=110, layout="constrained")
+    axes = figure.add_subplot(projection="3d")
+    axes.scatter(draws[:, 0], draws[:, 1], draws[:, 2], s=2, alpha=0.25, color="tab:blue", label="draws")
+    x, y, z = _ellipsoid_mesh(result.ellipsoid.semi_axes[pose], result.ellipsoid.directions[pose])
+    axes.plot_wireframe(x, y, z, color="tab:red", linewidth=0.5, alpha=0.6, label=f"{result.coverage:.0%} ellipsoid")
+    axes.set_xlabel("X - mean [mm]")
+    axes.set_ylabel("Y - mean [mm]")
+    axes.set_zlabel("Z - mean [mm]")
+    semi = ", ".join(f"{a:.3g}" for a in result.ellipsoid.semi_axes[pose])
+    offset = ", ".join(f"{v:+.3g}" for v in mean - result.nominal[pose, :3])
+    axes.set_title(
+        f"TCP positions of {result.n_draws} draws, pose {pose + 1}; mean - nominal = ({offset}) mm\n"
+        f"{result.coverage:.0%} ellipsoid semi-axes {semi} mm",
+        fontsize=9,
+    )
+    axes.legend(loc="upper left", fontsize=8)
+    return save_figure(figure, path)
+
+
+def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: int = 60) -> Path:
+    """Histograms of X, Y, Z [mm] and A, B, C [deg] over the draws at one pose (Figs 5.17/5.18)."""
+    draws = _need_draws(result, pose)
+    figure, axes = new_figure(2, 3, width_in=10.0, height_in=5.6)
+    low, high = result.summary.interval("symmetric")
+    for k, ax in enumerate(axes.ravel()):
+        f = _DEG[k]
+        ax.hist(draws[:, k], bins=bins, color="tab:blue", alpha=0.75)
+        ax.axvline(result.nominal[pose, k] * f, color="black", linewidth=1.2, label="nominal")
+        ax.axvline(result.summary.mean[pose, k] * f, color="tab:red", linewidth=1.2, label="mean")
+        for bound in (low[pose, k], high[pose, k]):
+            ax.axvline(bound * f, color="tab:red", linestyle="--", linewidth=1.0)
+        angle = " (KUKA, about " + "ZYX"[k - 3] + ")" if k >= 3 else ""
+        ax.set_xlabel(f"{TCP_COORDINATES[k]}{angle} [{TCP_UNITS[k]}]")
+        ax.set_ylabel("draws")
+        ax.set_title(f"u = {result.summary.std_uncertainty[pose, k] * f:.4g} {TCP_UNITS[k]}", fontsize=9)
+        ax.xaxis.set_major_locator(MaxNLocator(4))
+    axes[0, 0].legend(fontsize=7)
+    figure.suptitle(
+        f"TCP at pose {pose + 1}: {result.n_draws} draws, {result.coverage:.0%} interval dashed", fontsize=10
+    )
+    return save_figure(figure, path)
+
+
+def plot_trajectory(result: TCPUncertainty, path) -> Path:
+    """The trajectory coloured by its uncertainty (Fig. 5.20) with per-pose u and ranges."""
+    figure = plt.figure(figsize=(11.0, 8.0), dpi=110, layout="constrained")
+    grid = figure.add_gridspec(2, 2)
+    axes3d = figure.add_subplot(grid[0, 0], projection="3d")
+    position = result.nominal[:, :3]
+    value_range = result.value_range * _DEG
+    colour = value_range[:, :3].max(axis=1)
+    axes3d.plot(position[:, 0], position[:, 1], position[:, 2], color="0.7", linewidth=0.8)
+    points = axes3d.scatter(position[:, 0], position[:, 1], position[:, 2], c=colour, cmap="viridis", s=18)
+    figure.colorbar(points, ax=axes3d, shrink=0.7, label="largest range of X, Y, Z over the draws [mm]")
+    axes3d.set_xlabel("X [mm]")
+    axes3d.set_ylabel("Y [mm]")
+    axes3d.set_zlabel("Z [mm]")
+    axes3d.set_title("nominal TCP path, coloured by max - min", fontsize=9)
+    pose = np.arange(1, result.n_poses + 1)
+    std = result.std_uncertainty * _DEG
+    ax = figure.add_subplot(grid[0, 1])
+    for k in range(3):
+        ax.plot(pose, value_range[:, k], marker=".", label=TCP_COORDINATES[k])
+    ax.set_xlabel("pose")
+    ax.set_ylabel("max - min over the draws [mm]")
+    ax.set_title("range per coordinate (thesis Fig. 5.20)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax = figure.add_subplot(grid[1, 0])
+    for k in range(3):
+        ax.plot(pose, std[:, k], marker=".", label=TCP_COORDINATES[k])
+    ax.set_xlabel("pose")
+    ax.set_ylabel("standard uncertainty [mm]")
+    ax.set_title("position", fontsize=9)
+    ax.legend(fontsize=8)
+    ax = figure.add_subplot(grid[1, 1])
+    for k in range(3, 6):
+        ax.plot(pose, std[:, k], marker=".", label=f"{TCP_COORDINATES[k]} (about {'ZYX'[k - 3]})")
+    ax.set_xlabel("pose")
+    ax.set_ylabel("standard uncertainty [deg]")
+    ax.set_title("orientation (KUKA A, B, C)", fontsize=9)
+    ax.legend(fontsize=8)
+    figure.suptitle(f"TCP uncertainty along {result.n_poses} poses, {result.n_draws} draws", fontsize=10)
+    return save_figure(figure, path)
+
+
+def plot_workspace(workspace: WorkspaceUncertainty, path) -> Path:
+    """Sampled TCP positions coloured by ``sqrt(u_X^2 + u_Y^2 + u_Z^2)``: top view, side view, histogram."""
+    result = workspace.tcp
+    position = result.nominal[:, :3]
+    value = workspace.position_uncertainty
+    figure, axes = new_figure(1, 3, width_in=13.0, height_in=4.4)
+    norm = plt.Normalize(vmin=float(value.min()), vmax=float(value.max()))
+    order = np.argsort(value)  # most uncertain drawn last, on top
+    axes[0].scatter(position[order, 0], position[order, 1], c=value[order], cmap="viridis", norm=norm, s=10)
+    axes[0].set_xlabel("X [mm]")
+    axes[0].set_ylabel("Y [mm]")
+    axes[0].set_title("top view", fontsize=9)
+    axes[0].set_aspect("equal", adjustable="datalim")
+    radial = np.hypot(position[:, 0], position[:, 1])
+    points = axes[1].scatter(radial[order], position[order, 2], c=value[order], cmap="viridis", norm=norm, s=10)
+    axes[1].set_xlabel("distance from the base axis sqrt(X^2 + Y^2) [mm]")
+    axes[1].set_ylabel("Z [mm]")
+    axes[1].set_title("side view", fontsize=9)
+    axes[1].set_aspect("equal", adjustable="datalim")
+    figure.colorbar(points, ax=axes[:2], label="position standard uncertainty sqrt(trace V) [mm]")
+    axes[2].hist(value, bins=40, color="tab:blue", alpha=0.8)
+    for level, mark in zip(workspace.percentiles, workspace.position_uncertainty_percentiles, strict=True):
+        if level in (5.0, 50.0, 95.0):
+            axes[2].axvline(mark, color="tab:red", linestyle="--", linewidth=1.0)
+            axes[2].text(mark, axes[2].get_ylim()[1] * 0.95, f"P{level:g}", fontsize=7, rotation=90, va="top")
+    axes[2].set_xlabel("position standard uncertainty [mm]")
+    axes[2].set_ylabel("poses")
+    axes[2].set_title(f"{result.n_poses} random poses, {result.n_draws} draws", fontsize=9)
+    return save_figure(figure, path)

@@ -1,0 +1,608 @@
+"""Propagation of Monte Carlo parameter draws to the tool centre point (thesis ch. 5.3, Table 5.8).
+
+Every parameter draw ``(n_joints, 5)`` is pushed through the forward kinematics at every pose (thesis
+5.3: "se han verificado todas las combinaciones de parámetros cinemáticos obtenidas mediante la
+calibración"), giving a TCP position X, Y, Z [mm] and a KUKA orientation A, B, C per draw and pose.
+The draws of those six coordinates are then summarised like the parameters (JCGM 101 §7.6-7.7:
+mean, standard uncertainty, coverage interval, min, max), the position's 3x3 covariance gives a
+coverage ellipsoid (JCGM 102 §6.5.3, §7.7), and a linearised propagation (the draws' parameter
+covariance through the kinematic Jacobian, JCGM 102 §6.2) is given beside it.
+
+Orientation: KUKA ``A, B, C`` with ``R = Rz(A) Ry(B) Rx(C)`` (A about Z, B about Y, C about X;
+:mod:`robotcal.geometry.euler`). The thesis's Table 5.8 lists the same three angles in X, Y, Z order.
+Lengths in mm, angles in radians in every array here; the I/O layer writes degrees.
+
+Memory stays bounded for any number of draws and poses: poses are handled in chunks whose six
+coordinates for every draw fit in ``max_bytes``, and within a chunk the draws go through the
+kinematics ``batch_size`` at a time. Only the 6 coordinates per draw and pose of one chunk are held,
+never the 4x4 frames of all draws and poses.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from robotcal.errors import InputError, JointLimitWarning
+from robotcal.geometry.euler import kuka_abc_from_matrix, wrap_angle_near
+from robotcal.kinematics.forward import link_transforms
+from robotcal.kinematics.model import PARAMETER_KINDS, RobotModel, check_parameter_array
+from robotcal.uncertainty.statistics import SampleSummary, check_coverage, summarize_draws
+
+__all__ = [
+    "TCP_COORDINATES",
+    "TCP_UNITS",
+    "ORIENTATION_CONVENTION",
+    "CoverageEllipsoid",
+    "TCPUncertainty",
+    "check_readings",
+    "check_tool",
+    "tcp_coordinates",
+    "tcp_jacobian",
+    "coverage_ellipsoid",
+    "propagate_to_tcp",
+]
+
+#: Names of the six TCP coordinates, in the column order of every ``(..., 6)`` array.
+TCP_COORDINATES = ("X", "Y", "Z", "A", "B", "C")
+#: Units of the six coordinates in files and reports (the arrays here hold radians for A, B, C).
+TCP_UNITS = ("mm", "mm", "mm", "deg", "deg", "deg")
+ORIENTATION_CONVENTION = (
+    "KUKA A, B, C: R = Rz(A) Ry(B) Rx(C), A about Z, B about Y, C about X (scipy Rotation 'ZYX'); "
+    "thesis Table 5.8 lists the same angles in X, Y, Z order, i.e. (C, B, A)"
+)
+_ANGLES = slice(3, 6)
+_ANGLE_KINDS = [PARAMETER_KINDS.index(kind) for kind in ("theta", "alpha", "beta")]
+#: Central-difference steps of :func:`tcp_jacobian`: lengths [mm], angles [rad].
+JACOBIAN_STEP_MM = 1e-4
+JACOBIAN_STEP_RAD = 1e-6
+#: Draw-poses per kinematics call when ``batch_size`` is not given (~2 MB per temporary block).
+_BLOCK_FRAMES = 20_000
+
+
+# ----------------------------------------------------------------------------------------------- checks
+def check_readings(robot: RobotModel, readings, *, name: str = "readings", source: str = "") -> np.ndarray:
+    """Coerce controller readings to ``(n_poses, n_joints)`` [rad]; warn for readings outside the limits.
+
+    Parameters
+    ----------
+    robot : RobotModel
+    readings : array_like, shape (n_poses, n_joints) or (n_joints,)
+        Controller joint readings [rad] (mapped to model joint variables by the robot's
+        ``reading_sign`` and ``reading_offset``).
+    name, source : str
+        Argument name and file used in messages; poses are numbered from 1.
+
+    Raises
+    ------
+    InputError
+        Wrong joint count or non-finite values (naming the pose).
+
+    Warns
+    -----
+    JointLimitWarning
+        Readings outside the robot file's software limits (naming pose, joint and limits).
+    """
+    prefix = f"{source}: " if source else ""
+    try:
+        values = np.asarray(readings, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{prefix}`{name}` must be numeric joint readings") from exc
+    if values.ndim == 1:
+        values = values[None, :]
+    n = robot.n_joints
+    if values.ndim != 2 or values.shape[1] != n or values.shape[0] < 1:
+        got = values.shape[1] if values.ndim == 2 else values.shape
+        raise InputError(f"{prefix}`{name}` must give {n} joint readings per pose (robot {robot.name!r}); got {got}")
+    bad = np.argwhere(~np.isfinite(values))
+    if bad.size:
+        pose, joint = bad[0]
+        raise InputError(f"{prefix}`{name}`: pose {pose + 1}, joint J{joint + 1} is not a finite number")
+    outside = (values < robot.limits[:, 0] - 1e-12) | (values > robot.limits[:, 1] + 1e-12)
+    if np.any(outside):
+        messages = []
+        for pose, joint in np.argwhere(outside)[:5]:
+            lo, hi = np.rad2deg(robot.limits[joint])
+            messages.append(
+                f"pose {pose + 1}: J{joint + 1} = {np.rad2deg(values[pose, joint]):.6g} deg outside [{lo:g}, {hi:g}] deg"
+            )
+        more = int(outside.sum()) - len(messages)
+        tail = f"; and {more} more" if more > 0 else ""
+        warnings.warn(
+            f"{prefix}readings outside the joint limits of robot {robot.name!r}: " + "; ".join(messages) + tail,
+            JointLimitWarning,
+            stacklevel=3,
+        )
+    return values
+
+
+def check_tool(tool) -> np.ndarray:
+    """Tool offset on the flange ``(3,)`` [mm] in flange coordinates; ``None`` = the flange origin."""
+    if tool is None:
+        return np.zeros(3)
+    try:
+        tool = np.asarray(tool, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError("`tool` must be three numbers x, y, z [mm]") from exc
+    if tool.shape != (3,) or not np.all(np.isfinite(tool)):
+        raise InputError(f"`tool` must be three finite numbers x, y, z [mm]; got {tool.tolist()}")
+    return tool
+
+
+def _check_draws(robot: RobotModel, draws) -> np.ndarray:
+    draws = check_parameter_array(draws, robot.n_joints, "parameter_draws")
+    if draws.ndim == 2:
+        draws = draws[None]
+    if draws.ndim != 3:
+        raise InputError(f"`parameter_draws` must have shape (n_draws, {robot.n_joints}, 5); got {draws.shape}")
+    return draws
+
+
+# --------------------------------------------------------------------------------------------- kinematics
+def _flange_blocks(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray, tool: np.ndarray):
+    """TCP rotation ``(m, P, 3, 3)`` and position ``(m, P, 3)`` for ``m`` parameter sets and ``P`` poses.
+
+    ``links (m, n, 4, 4)`` are the pose-independent factors ``B_i = Rz(theta_i) Tz(d_i) Tx(a_i)
+    Rx(alpha_i) Ry(beta_i)``, so that ``A_i(q) = Rz(q_i) B_i`` and the flange is
+    ``Rz(q_1) B_1 ... Rz(q_n) B_n`` (eq. 3-84). The chain is carried as 3x4 blocks ``[R | t]``:
+    right-multiplying by ``Rz(q)`` mixes the first two columns elementwise, and by ``B_i`` is one
+    stacked matrix product over all poses of a parameter set.
+    """
+    m, n = links.shape[0], links.shape[1]
+    n_poses = cos_q.shape[0]
+    block = np.zeros((1, n_poses, 3, 4))
+    block[0, :, 0, 0] = block[0, :, 1, 1] = 1.0
+    block[0, :, 2, 2] = 1.0
+    block = np.broadcast_to(block, (m, n_poses, 3, 4))
+    for joint in range(n):
+        c = cos_q[None, :, joint, None]
+        s = sin_q[None, :, joint, None]
+        first, second = block[..., 0], block[..., 1]
+        turned = np.empty((m, n_poses, 3, 4))
+        turned[..., 0] = first * c + second * s
+        turned[..., 1] = second * c - first * s
+        turned[..., 2:] = block[..., 2:]
+        block = np.matmul(turned.reshape(m, n_poses * 3, 4), links[:, joint]).reshape(m, n_poses, 3, 4)
+    rotation = block[..., :3]
+    position = block[..., 3] + rotation @ tool
+    return rotation, position
+
+
+def _pose_independent_links(parameters: np.ndarray) -> np.ndarray:
+    """``B_i`` of every parameter set: link transforms at q = 0, ``(m, n_joints, 4, 4)``."""
+    n = parameters.shape[-2]
+    return link_transforms(parameters, np.zeros((1, n)))[:, 0]
+
+
+def _coordinates(parameters: np.ndarray, q_model: np.ndarray, tool: np.ndarray) -> np.ndarray:
+    """``(m, P, 6)`` X, Y, Z [mm], A, B, C [rad] for parameter sets ``(m, n, 5)``."""
+    links = _pose_independent_links(parameters)
+    rotation, position = _flange_blocks(links, np.cos(q_model), np.sin(q_model), tool)
+    out = np.empty(position.shape[:-1] + (6,))
+    out[..., :3] = position
+    out[..., 3:] = kuka_abc_from_matrix(rotation)
+    return out
+
+
+def tcp_coordinates(parameters, q, *, tool=None) -> np.ndarray:
+    """TCP position and KUKA orientation for parameter sets and poses.
+
+    Parameters
+    ----------
+    parameters : array_like, shape (..., n_joints, 5)
+        ``d, theta, a, alpha, beta`` [mm, rad]; one set or a batch.
+    q : array_like, shape (n_poses, n_joints)
+        *Model* joint variables [rad] (``RobotModel.model_joint_variables`` of the readings).
+    tool : array_like, shape (3,), optional
+        TCP in flange coordinates [mm]; default the flange origin (Table 5.8).
+
+    Returns
+    -------
+    ndarray, shape (..., n_poses, 6)
+        ``X, Y, Z`` [mm] in the base frame and ``A, B, C`` [rad], angles in their principal ranges.
+    """
+    parameters = np.asarray(parameters, dtype=float)
+    n = parameters.shape[-2]
+    parameters = check_parameter_array(parameters, n)
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 1:
+        q = q[None, :]
+    if q.ndim != 2 or q.shape[1] != n or not np.all(np.isfinite(q)):
+        raise InputError(f"`q` must be finite with shape (n_poses, {n}); got {q.shape}")
+    lead = parameters.shape[:-2]
+    flat = parameters.reshape((-1, n, 5))
+    return _coordinates(flat, q, check_tool(tool)).reshape(lead + (q.shape[0], 6))
+
+
+def _free_steps(values: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    index = np.flatnonzero(free.reshape(-1))
+    kinds = index % 5
+    steps = np.where(np.isin(kinds, _ANGLE_KINDS), JACOBIAN_STEP_RAD, JACOBIAN_STEP_MM)
+    return index, steps
+
+
+def tcp_jacobian(parameters, q, *, tool=None, free=None) -> np.ndarray:
+    """Jacobian of the six TCP coordinates with respect to the kinematic parameters.
+
+    Central differences with steps ``JACOBIAN_STEP_MM`` (1e-4 mm) and ``JACOBIAN_STEP_RAD``
+    (1e-6 rad): the truncation error ``h^2 f'''/6`` and the rounding error ``eps |f| / h`` are both
+    below 1e-9 relative for a robot of metre size. All ``2 k`` perturbed parameter sets go through
+    one batched kinematics call. Angle differences are wrapped, so A or C near +-180 deg is fine;
+    at the gimbal lock (B = +-90 deg) the A and C rows are undefined.
+
+    Parameters
+    ----------
+    parameters : array_like, shape (n_joints, 5)
+        Where to linearise [mm, rad].
+    q : array_like, shape (n_poses, n_joints)
+        Model joint variables [rad].
+    tool : array_like, shape (3,), optional
+        TCP in flange coordinates [mm].
+    free : array_like of bool, shape (n_joints, 5), optional
+        Parameters to differentiate for (default all ``n_joints * 5``, joint-major like
+        ``RobotModel.parameter_names``).
+
+    Returns
+    -------
+    ndarray, shape (n_poses, 6, k)
+        ``d(X, Y, Z, A, B, C) / d(parameter)`` [mm/mm, mm/rad, rad/mm, rad/rad], k free parameters.
+    """
+    values = np.asarray(parameters, dtype=float)
+    if values.ndim != 2 or values.shape[1] != 5:
+        raise InputError(f"`parameters` must be one set (n_joints, 5); got {values.shape}")
+    n = values.shape[0]
+    values = check_parameter_array(values, n)
+    free = np.ones(values.shape, dtype=bool) if free is None else np.asarray(free, dtype=bool)
+    if free.shape != values.shape:
+        raise InputError(f"`free` must have shape {values.shape}; got {free.shape}")
+    index, steps = _free_steps(values, free)
+    k = index.size
+    centre = tcp_coordinates(values, q, tool=tool)
+    perturbed = np.repeat(values.reshape(1, -1), 2 * k, axis=0)
+    perturbed[np.arange(k), index] += steps
+    perturbed[k + np.arange(k), index] -= steps
+    coords = tcp_coordinates(perturbed.reshape(2 * k, n, 5), q, tool=tool)
+    coords[..., _ANGLES] = wrap_angle_near(coords[..., _ANGLES], centre[..., _ANGLES])
+    derivative = (coords[:k] - coords[k:]) / (2.0 * steps[:, None, None])
+    return np.moveaxis(derivative, 0, -1)
+
+
+# ------------------------------------------------------------------------------------------------ results
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CoverageEllipsoid:
+    """Coverage ellipsoids of the TCP position, one per pose (JCGM 102 §6.5.3 and §7.7).
+
+    The region is ``(x - mean)^T V^-1 (x - mean) <= k^2`` with ``V`` the 3x3 Monte Carlo covariance.
+
+    Attributes
+    ----------
+    coverage : float
+        Coverage probability p.
+    gaussian_scale : float
+        ``k`` from the chi-squared distribution with 3 degrees of freedom, ``k^2 = chi2.ppf(p, 3)``
+        (exact for a Gaussian position, JCGM 102 §6.5.3).
+    semi_axes : ndarray, shape (n_poses, 3)
+        ``k sqrt(lambda_j)``, largest first [mm].
+    directions : ndarray, shape (n_poses, 3, 3)
+        Unit axis directions in the base frame; column j goes with ``semi_axes[:, j]``.
+    fraction_inside : ndarray, shape (n_poses,)
+        Fraction of the draws inside the chi-squared ellipsoid: close to p when the position is
+        nearly Gaussian (a check of the ellipsoid).
+    monte_carlo_scale : ndarray, shape (n_poses,)
+        ``k_p`` such that the fraction p of the draws lie inside (JCGM 102 §7.7.2: the
+        ``round(p M)``-th smallest squared Mahalanobis distance); ``monte_carlo_scale /
+        gaussian_scale`` enlarges the semi-axes to the distribution-free region.
+    """
+
+    coverage: float
+    gaussian_scale: float
+    semi_axes: np.ndarray
+    directions: np.ndarray
+    fraction_inside: np.ndarray
+    monte_carlo_scale: np.ndarray
+
+    @property
+    def monte_carlo_semi_axes(self) -> np.ndarray:
+        """Semi-axes of the Monte Carlo region ``k_p sqrt(lambda_j)`` [mm], ``(n_poses, 3)``."""
+        return self.semi_axes * (self.monte_carlo_scale / self.gaussian_scale)[:, None]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TCPUncertainty:
+    """Uncertainty of the TCP at one or more poses from Monte Carlo parameter draws.
+
+    Every ``(n_poses, 6)`` array has the columns ``TCP_COORDINATES`` = X, Y, Z [mm], A, B, C [rad].
+
+    Attributes
+    ----------
+    robot_name : str
+    readings : ndarray, shape (n_poses, n_joints)
+        Controller readings [rad].
+    q : ndarray, shape (n_poses, n_joints)
+        Model joint variables [rad].
+    tool : ndarray, shape (3,)
+        TCP in flange coordinates [mm].
+    n_draws : int
+    nominal : ndarray, shape (n_poses, 6)
+        TCP of the nominal parameters.
+    summary : SampleSummary
+        Mean, standard uncertainty, both coverage intervals, min, max over the draws, each
+        ``(n_poses, 6)``. Angles of the draws are taken within +-180 deg of the nominal angle.
+    covariance : ndarray, shape (n_poses, 6, 6)
+        Monte Carlo covariance of the six coordinates [mm^2, mm rad, rad^2].
+    ellipsoid : CoverageEllipsoid
+    lpu_covariance : ndarray, shape (n_poses, 6, 6)
+        Linearised covariance ``J U_p J^T`` (``U_p``: sample covariance of the draws, ``J`` at the
+        mean parameters).
+    parameter_mean : ndarray, shape (n_joints, 5)
+        Mean of the draws [mm, rad], where the Jacobian is taken.
+    draws : ndarray, shape (n_draws, n_poses, 6) or None
+        The coordinates of every draw, kept only with ``keep_draws=True``.
+    """
+
+    robot_name: str
+    readings: np.ndarray
+    q: np.ndarray
+    tool: np.ndarray
+    n_draws: int
+    coverage: float
+    nominal: np.ndarray
+    summary: SampleSummary
+    covariance: np.ndarray
+    ellipsoid: CoverageEllipsoid
+    lpu_covariance: np.ndarray
+    parameter_mean: np.ndarray
+    draws: np.ndarray | None = field(default=None)
+
+    @property
+    def n_poses(self) -> int:
+        return self.readings.shape[0]
+
+    @property
+    def std_uncertainty(self) -> np.ndarray:
+        """Monte Carlo standard uncertainty ``(n_poses, 6)`` [mm, rad]."""
+        return self.summary.std_uncertainty
+
+    @property
+    def lpu_std_uncertainty(self) -> np.ndarray:
+        """Linearised standard uncertainty ``(n_poses, 6)`` [mm, rad]."""
+        return np.sqrt(np.clip(np.diagonal(self.lpu_covariance, axis1=-2, axis2=-1), 0.0, None))
+
+    @property
+    def value_range(self) -> np.ndarray:
+        """``max - min`` over the draws per pose and coordinate (thesis Fig. 5.20) ``(n_poses, 6)``."""
+        return self.summary.maximum - self.summary.minimum
+
+    @property
+    def position_covariance(self) -> np.ndarray:
+        """Monte Carlo 3x3 covariance of X, Y, Z ``(n_poses, 3, 3)`` [mm^2]."""
+        return self.covariance[:, :3, :3]
+
+    @property
+    def position_uncertainty(self) -> np.ndarray:
+        """``sqrt(trace V)``, the root-sum-square of u(X), u(Y), u(Z) ``(n_poses,)`` [mm]."""
+        return np.sqrt(np.trace(self.position_covariance, axis1=-2, axis2=-1))
+
+
+# ---------------------------------------------------------------------------------------------- ellipsoid
+def _eigen(covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (descending) and eigenvectors of stacked symmetric 3x3 matrices."""
+    values, vectors = np.linalg.eigh(covariance)
+    return values[..., ::-1], vectors[..., ::-1]
+
+
+def _squared_mahalanobis(centred: np.ndarray, values: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """``d^2 = c^T V^-1 c`` of ``centred (m, P, 3)``, ``V`` given by its eigenpairs; NaN where singular."""
+    singular = ~(values[:, -1] > 1e-14 * np.maximum(values[:, 0], np.finfo(float).tiny))
+    safe = np.where(singular[:, None], 1.0, values)
+    weight = np.einsum("pij,pj,pkj->pik", vectors, 1.0 / safe, vectors)  # V^-1 per pose
+    d2 = np.zeros(centred.shape[:2])
+    for i in range(3):  # elementwise over (m, P): six products of coordinates, no (m, P, 3) temporaries
+        d2 += weight[:, i, i] * centred[..., i] ** 2
+        for j in range(i + 1, 3):
+            d2 += 2.0 * weight[:, i, j] * centred[..., i] * centred[..., j]
+    d2[:, singular] = np.nan
+    return d2
+
+
+def _rank(n_draws: int, coverage: float) -> int:
+    product = coverage * n_draws
+    q = int(round(product)) if abs(product - round(product)) < 1e-9 else int(math.floor(product + 0.5))
+    return min(max(q, 1), n_draws)
+
+
+def coverage_ellipsoid(positions, coverage: float = 0.95) -> CoverageEllipsoid:
+    """Coverage ellipsoid of position draws ``(n_draws, n_poses, 3)`` [mm] (see :class:`CoverageEllipsoid`)."""
+    positions = np.asarray(positions, dtype=float)
+    if positions.ndim == 2:
+        positions = positions[:, None, :]
+    if positions.ndim != 3 or positions.shape[-1] != 3 or positions.shape[0] < 4:
+        raise InputError(f"`positions` must have shape (n_draws >= 4, n_poses, 3); got {positions.shape}")
+    coverage = check_coverage(coverage)
+    centred = positions - positions.mean(axis=0)
+    covariance = _sample_covariance(centred)
+    return _ellipsoid_from(centred, covariance, coverage)
+
+
+def _sample_covariance(centred: np.ndarray) -> np.ndarray:
+    """``sum_m c_m c_m^T / (M - 1)`` of centred draws ``(M, P, k)`` -> ``(P, k, k)``."""
+    k = centred.shape[-1]
+    out = np.empty(centred.shape[1:] + (k,))
+    for i in range(k):
+        for j in range(i, k):
+            out[:, i, j] = out[:, j, i] = np.einsum("mp,mp->p", centred[..., i], centred[..., j])
+    return out / (centred.shape[0] - 1)
+
+
+def _ellipsoid_from(centred: np.ndarray, covariance: np.ndarray, coverage: float) -> CoverageEllipsoid:
+    values, vectors = _eigen(covariance)
+    scale = math.sqrt(chi2.ppf(coverage, 3))
+    d2 = _squared_mahalanobis(centred, values, vectors)
+    rank = _rank(centred.shape[0], coverage)
+    with np.errstate(invalid="ignore"):
+        inside = np.mean(d2 <= scale**2, axis=0)
+        inside = np.where(np.isnan(d2[0]), np.nan, inside)
+        k_mc = np.sqrt(np.sort(d2, axis=0)[rank - 1])
+    return CoverageEllipsoid(
+        coverage=coverage,
+        gaussian_scale=scale,
+        semi_axes=scale * np.sqrt(np.clip(values, 0.0, None)),
+        directions=vectors,
+        fraction_inside=inside,
+        monte_carlo_scale=k_mc,
+    )
+
+
+def _concatenate_ellipsoids(parts: list[CoverageEllipsoid]) -> CoverageEllipsoid:
+    return CoverageEllipsoid(
+        coverage=parts[0].coverage,
+        gaussian_scale=parts[0].gaussian_scale,
+        semi_axes=np.concatenate([p.semi_axes for p in parts]),
+        directions=np.concatenate([p.directions for p in parts]),
+        fraction_inside=np.concatenate([p.fraction_inside for p in parts]),
+        monte_carlo_scale=np.concatenate([p.monte_carlo_scale for p in parts]),
+    )
+
+
+def _concatenate_summaries(parts: list[SampleSummary]) -> SampleSummary:
+    fields = ("mean", "std_uncertainty", "symmetric_low", "symmetric_high", "shortest_low", "shortest_high")
+    arrays = {name: np.concatenate([getattr(p, name) for p in parts]) for name in fields}
+    return SampleSummary(
+        n_draws=parts[0].n_draws,
+        coverage=parts[0].coverage,
+        minimum=np.concatenate([p.minimum for p in parts]),
+        maximum=np.concatenate([p.maximum for p in parts]),
+        **arrays,
+    )
+
+
+# -------------------------------------------------------------------------------------------- propagation
+def _linearised(draws: np.ndarray, nominal: np.ndarray, q: np.ndarray, tool: np.ndarray):
+    """Mean parameters and ``J U_p J^T`` with ``U_p`` the draws' sample covariance."""
+    n_draws, n = draws.shape[0], draws.shape[1]
+    deviation = draws - nominal
+    deviation[..., _ANGLE_KINDS] = np.angle(np.exp(1j * deviation[..., _ANGLE_KINDS]))
+    flat = deviation.reshape(n_draws, n * 5)
+    mean_deviation = flat.mean(axis=0)
+    centred = flat - mean_deviation
+    parameter_covariance = centred.T @ centred / (n_draws - 1)
+    mean = nominal + mean_deviation.reshape(n, 5)
+    free = (np.diagonal(parameter_covariance) > 0.0).reshape(n, 5)
+    if not np.any(free):
+        return mean, np.zeros((q.shape[0], 6, 6))
+    jacobian = tcp_jacobian(mean, q, tool=tool, free=free)
+    index = np.flatnonzero(free.reshape(-1))
+    covariance = jacobian @ parameter_covariance[np.ix_(index, index)] @ np.swapaxes(jacobian, -1, -2)
+    return mean, 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
+
+
+def propagate_to_tcp(
+    robot: RobotModel,
+    parameter_draws,
+    readings,
+    *,
+    tool=None,
+    coverage: float = 0.95,
+    batch_size: int | None = None,
+    max_bytes: int = 64 * 2**20,
+    keep_draws: bool = False,
+) -> TCPUncertainty:
+    """TCP position and orientation uncertainty at poses from Monte Carlo parameter draws.
+
+    Parameters
+    ----------
+    robot : RobotModel
+        Gives the nominal parameters (the "Nominal" row of Table 5.8) and the reading map.
+    parameter_draws : array_like, shape (n_draws, n_joints, 5)
+        Monte Carlo draws of ``d, theta, a, alpha, beta`` [mm, rad] (``draws.npz`` of
+        ``robotcal uncertainty``); parameters that do not vary simply stay at their value.
+    readings : array_like, shape (n_poses, n_joints) or (n_joints,)
+        Controller joint readings [rad]; ``q = reading_sign * reading + reading_offset``. Readings
+        outside the robot's limits give a :class:`~robotcal.errors.JointLimitWarning`.
+    tool : array_like, shape (3,), optional
+        TCP in flange coordinates [mm]; default the flange origin, as in Table 5.8.
+    coverage : float
+        Coverage probability of the intervals and the ellipsoid.
+    batch_size : int, optional
+        Draws per kinematics call; the temporaries are ``batch_size x poses-in-chunk`` 3x4 blocks.
+        Default: about 20,000 draw-poses per call.
+    max_bytes : int
+        Bound on the coordinates held at once: poses are processed in chunks of
+        ``max(1, max_bytes // (48 n_draws))``.
+    keep_draws : bool
+        Keep the ``(n_draws, n_poses, 6)`` coordinates in the result (for histograms and scatter
+        plots of a few poses; ignores ``max_bytes``).
+
+    Returns
+    -------
+    TCPUncertainty
+
+    Notes
+    -----
+    Forward kinematics ``T = A_1(q_1) ... A_n(q_n)`` (eq. 3-84) with ``A_i(q) = Rz(q) B_i``,
+    ``B_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)`` (eqs 3-72, 3-82); TCP position
+    ``T [tool; 1]``; orientation KUKA ``A, B, C`` of ``T``'s rotation. The statistics are those of
+    :func:`robotcal.uncertainty.statistics.summarize_draws` on the full set of draws (each pose
+    chunk holds every draw). Draws of A, B, C are taken within +-180 deg of the nominal angle.
+
+    References
+    ----------
+    Thesis ch. 5.3, Table 5.8, Figs 5.17-5.20; JCGM 101:2008 §7.6-7.7; JCGM 102:2011 §6.2, §6.5.3, §7.7.
+    """
+    draws = _check_draws(robot, parameter_draws)
+    readings = check_readings(robot, readings)
+    tool = check_tool(tool)
+    coverage = check_coverage(coverage)
+    if batch_size is not None and (int(batch_size) != batch_size or batch_size < 1):
+        raise InputError(f"`batch_size` must be a positive integer; got {batch_size!r}")
+    n_draws = draws.shape[0]
+    if n_draws < 2:
+        raise InputError(f"`parameter_draws` must hold at least 2 draws; got {n_draws}")
+    q = robot.model_joint_variables(readings)
+    n_poses = q.shape[0]
+    nominal = _coordinates(robot.nominal[None], q, tool)[0]
+    pose_chunk = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
+    cos_q, sin_q = np.cos(q), np.sin(q)
+    if batch_size is None:
+        batch_size = max(1, _BLOCK_FRAMES // pose_chunk)
+    batch_size = int(batch_size)
+
+    summaries, ellipsoids, covariances = [], [], []
+    kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
+    for start in range(0, n_poses, pose_chunk):
+        poses = slice(start, min(start + pose_chunk, n_poses))
+        coords = kept[:, poses] if keep_draws else np.empty((n_draws, poses.stop - poses.start, 6))
+        for first in range(0, n_draws, batch_size):
+            rows = slice(first, min(first + batch_size, n_draws))
+            links = _pose_independent_links(draws[rows])
+            rotation, position = _flange_blocks(links, cos_q[poses], sin_q[poses], tool)
+            coords[rows, :, :3] = position
+            coords[rows, :, 3:] = wrap_angle_near(kuka_abc_from_matrix(rotation), nominal[None, poses, 3:])
+        summary = summarize_draws(coords, coverage)
+        centred = coords - summary.mean
+        covariance = _sample_covariance(centred)
+        summaries.append(summary)
+        covariances.append(covariance)
+        ellipsoids.append(_ellipsoid_from(centred[..., :3], covariance[:, :3, :3], coverage))
+        del coords, centred
+
+    parameter_mean, lpu_covariance = _linearised(draws, robot.nominal, q, tool)
+    return TCPUncertainty(
+        robot_name=robot.name,
+        readings=readings,
+        q=q,
+        tool=tool,
+        n_draws=n_draws,
+        coverage=coverage,
+        nominal=nominal,
+        summary=_concatenate_summaries(summaries),
+        covariance=np.concatenate(covariances),
+        ellipsoid=_concatenate_ellipsoids(ellipsoids),
+        lpu_covariance=lpu_covariance,
+        parameter_mean=parameter_mean,
+        draws=kept,
+    )

@@ -1,0 +1,107 @@
+"""The report in a real headless Chromium: every figure rendered, the 3-D view drew, no console errors.
+
+No DevTools protocol is needed: the page's own scripts record script errors, failed resources and
+console errors/warnings, mark every ``<img>`` with ``data-loaded`` and every canvas with
+``data-rendered``/``data-ink``, and set ``<body data-status>``. ``--dump-dom`` (after a virtual-time
+budget that lets the load event fire) returns that DOM; ``--enable-logging=stderr`` additionally
+prints every console message as a ``CONSOLE`` line, and the report logs nothing when all is well.
+A screenshot of the first 4000 px is saved under the test's tmp dir.
+
+Chromium is Debian's ``chromium`` package (``.ci/run`` installs it when missing); the test is
+skipped only where no Chromium binary exists.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import struct
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from robotcal.report.html import build_report
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return "/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None
+
+
+CHROMIUM = _chromium()
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None,
+    reason="no Chromium binary (`chromium`): install Debian's chromium package (.ci/run does) to run the browser test",
+)
+
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-component-update",
+    "--disable-sync",
+    "--hide-scrollbars",
+]
+
+
+def _run_chromium(page: Path, profile: Path, *extra: str) -> subprocess.CompletedProcess:
+    command = [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--virtual-time-budget=10000", *extra, page.as_uri()]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=180, check=False)
+    assert result.returncode == 0, f"chromium failed ({result.returncode}): {result.stderr[-2000:]}"
+    return result
+
+
+def _load(page: Path, tmp_path: Path) -> tuple[dict, str, list[str]]:
+    """``(body attributes, dumped DOM, console lines)`` of ``page`` after loading it in Chromium."""
+    result = _run_chromium(page, tmp_path / "profile-dom", "--enable-logging=stderr", "--v=0", "--dump-dom")
+    body = re.search(r"<body([^>]*)>", result.stdout)
+    assert body, f"no <body> in the dumped DOM: {result.stdout[:500]}"
+    attributes = dict(re.findall(r'([\w-]+)="([^"]*)"', body.group(1)))
+    console = [line for line in result.stderr.splitlines() if ":CONSOLE" in line]
+    return attributes, result.stdout, console
+
+
+def test_report_renders_in_headless_chromium(run_folder, tmp_path):
+    report = build_report(run_folder)
+    body, dom, console = _load(report.path, tmp_path)
+    errors = re.search(r'<pre id="rc-errors"[^>]*>(.*?)</pre>', dom, re.S)
+    assert console == [], console
+    assert body["data-status"] == "ok", (body, errors.group(1) if errors else dom[-2000:])
+    assert body["data-errors"] == "0" and errors.group(1) == ""
+    # every embedded figure decoded with a non-zero width, and the 3-D view drew on its canvas
+    assert body["data-figures"] == body["data-figures-ok"] == str(report.figures) == "5"
+    assert body["data-canvases"] == body["data-canvases-ok"] == "1"
+    images = re.findall(r"<img [^>]*>", dom)
+    assert len(images) == 5 and all('data-loaded="1"' in image for image in images)
+    ink = re.search(r'<canvas [^>]*data-ink="(\d+)"', dom)
+    assert ink and int(ink.group(1)) > 5000, "the 3-D view is (nearly) blank"
+    # the legend was built by the viewer script: one entry per circle plus the four toggles
+    assert dom.count('class="rc-legend-item"') == 6 + 4
+
+    screenshot = tmp_path / "report.png"
+    _run_chromium(report.path, tmp_path / "profile-shot", f"--screenshot={screenshot}", "--window-size=1280,4000")
+    header = screenshot.read_bytes()[:24]
+    assert header[:8] == b"\x89PNG\r\n\x1a\n"
+    assert struct.unpack(">II", header[16:24]) == (1280, 4000)
+
+
+def test_self_check_catches_a_broken_figure_and_a_script_error(run_folder, tmp_path):
+    """Negative control: the page's self-check must report what went wrong, so that "ok" means something."""
+    report = build_report(run_folder)
+    page = report.html.replace("data:image/png;base64,", "data:image/png;base64,AAAA", 1)
+    page = page.replace("</main>", "<script>undefinedFunction();</script></main>", 1)
+    broken = tmp_path / "broken.html"
+    broken.write_text(page, encoding="utf-8")
+    body, dom, console = _load(broken, tmp_path)
+    assert body["data-status"] == "error"
+    assert body["data-figures-ok"] == "4" and body["data-figures"] == "5"
+    assert 'data-loaded="0"' in dom
+    assert "undefinedFunction is not defined" in dom
+    assert any("undefinedFunction" in line for line in console)
