@@ -1,0 +1,136 @@
+"""Benchmark of the Monte Carlo engine on the thesis laser-tracker scenario (Tables 5.2/5.4).
+
+Plain script: ``python benchmarks/bench_montecarlo.py [--draws 100000] [--loop 300] [--million]``.
+Prints, side by side in one run:
+
+- the plain per-draw loop (one noisy capture at a time through the single-capture ``identify_cpa``,
+  what a straightforward implementation of the thesis's algorithm 5.2.2 does), in draws/s;
+- the batched engine (``run_monte_carlo``) with 1 and 2 worker processes: draws/s and wall time for
+  ``--draws`` draws (geometric circle fit, 135 points per draw, uniform noise A + B L);
+- the speed-up of the batched engine over the loop;
+- the cost at 1/4, 1/2 and 1 x ``--draws`` and the fitted exponent of time vs draws (1 = linear);
+- peak memory (max RSS of a fresh process, draws kept) at ``--draws``, and at 10^6 draws with
+  ``--million`` (about a minute).
+
+Targets (issue 3, DESIGN.md): >= 30x the per-draw loop; 100,000 draws <= 3 s on 2 cores; linear cost;
+< 1 GB at 10^6 draws.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from robotcal.identification.cpa import identify_cpa
+from robotcal.io import load_scenario
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+
+SCENARIO = "thesis-laser-tracker"
+
+
+def _problem():
+    scenario = load_scenario(SCENARIO)
+    problem = prepare_monte_carlo(
+        scenario.robot,
+        scenario.plan,
+        scenario.instrument,
+        scenario.tracker_from_base,
+        options=scenario.identification,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
+    )
+    return scenario, problem
+
+
+def per_draw_loop(n_draws: int) -> float:
+    """Draws per second of the plain loop over the single-capture CPA."""
+    scenario, problem = _problem()
+    rng = np.random.default_rng(1)
+    began = time.perf_counter()
+    for _ in range(n_draws):
+        noise = rng.uniform(-1.0, 1.0, size=problem.exact_points.shape) * problem.error_bound[:, None]
+        identify_cpa(
+            problem.capture.with_points(problem.exact_points + noise),
+            scenario.robot,
+            scenario.plan.reflector,
+            tracker_from_base=scenario.tracker_from_base,
+            options=scenario.identification,
+        )
+    return n_draws / (time.perf_counter() - began)
+
+
+def engine(n_draws: int, workers: int) -> float:
+    """Wall seconds of the batched engine for ``n_draws`` draws (statistics and LPU excluded)."""
+    _, problem = _problem()
+    settings = MonteCarloSettings(iterations=n_draws, workers=workers, keep_draws=True)
+    result = run_monte_carlo(problem, settings, seed=1, linearised=False)
+    return result.timings_s["draws"]
+
+
+def peak_memory_mb(n_draws: int, workers: int) -> float:
+    """Max RSS [MB] of a fresh process (and its workers) running ``n_draws`` draws with statistics."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    code = (
+        "import resource, sys\n"
+        f"sys.path.insert(0, {here!r})\n"
+        "from bench_montecarlo import _problem\n"
+        "from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo\n"
+        "_, problem = _problem()\n"
+        f"run_monte_carlo(problem, MonteCarloSettings(iterations={n_draws}, workers={workers}), seed=1)\n"
+        "own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss\n"
+        "print(max(own, kids) / 1024)\n"
+    )
+    output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(output.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--draws", type=int, default=100_000, help="draws of the timed engine runs")
+    parser.add_argument("--loop", type=int, default=300, help="draws of the per-draw reference loop")
+    parser.add_argument("--million", action="store_true", help="also measure peak memory at 10^6 draws")
+    parser.add_argument("--json", help="also write the figures to this JSON file")
+    args = parser.parse_args()
+    _, problem = _problem()
+    print(f"scenario {SCENARIO}: {problem.n_points} points per draw; CPU cores visible: {os.cpu_count()}")
+    engine(2_000, 1)  # warm-up (imports, caches)
+    loop_rate = per_draw_loop(args.loop)
+    figures = {"per_draw_loop_draws_per_s": loop_rate}
+    print(f"{'path':<28} {'draws':>9} {'time_s':>8} {'draws/s':>10} {'speed-up':>9}")
+    print(
+        f"{'per-draw loop (identify_cpa)':<28} {args.loop:>9} {args.loop / loop_rate:>8.2f} {loop_rate:>10.0f} {1:>9.1f}"
+    )
+    for workers in (1, 2):
+        seconds = engine(args.draws, workers)
+        rate = args.draws / seconds
+        figures[f"engine_{workers}_workers_s"] = seconds
+        print(
+            f"{f'batched engine, {workers} worker(s)':<28} {args.draws:>9} {seconds:>8.2f} {rate:>10.0f} {rate / loop_rate:>9.1f}"
+        )
+    sizes = [args.draws // 4, args.draws // 2, args.draws]
+    times = [engine(size, 2) for size in sizes]
+    exponent = float(np.polyfit(np.log(sizes), np.log(times), 1)[0])
+    figures["scaling_exponent"] = exponent
+    print("cost vs draws (2 workers): " + ", ".join(f"{s}: {t:.2f} s" for s, t in zip(sizes, times, strict=True)))
+    print(f"fitted exponent of time vs draws: {exponent:.3f} (1 = linear)")
+    memory = peak_memory_mb(args.draws, 2)
+    figures["peak_rss_mb"] = {str(args.draws): memory}
+    print(f"peak memory (max RSS, draws kept): {memory:.0f} MB at {args.draws} draws")
+    if args.million:
+        big = peak_memory_mb(1_000_000, 2)
+        figures["peak_rss_mb"]["1000000"] = big
+        print(f"peak memory (max RSS, draws kept): {big:.0f} MB at 1,000,000 draws")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as stream:
+            json.dump(figures, stream, indent=2)
+
+
+if __name__ == "__main__":
+    main()
