@@ -291,3 +291,148 @@ def evaluate_scenario(scenario: Scenario, captures: dict, parameter_sets: dict):
 
     reflectors = {name: capture_reflector(scenario, capture) for name, capture in captures.items()}
     return evaluate_parameters(captures, parameter_sets, reflectors)
+
+
+# --- TCP targets of `robotcal run` (thesis ch. 5.3) ------------------------------------------------
+
+#: Robot whose readings are KUKA controller angles; the thesis's Table 5.8 pose and the built-in
+#: trajectories are given in its readings.
+KUKA_CONTROLLER_ROBOT = "kuka-kr5-sixx-r650-krc"
+#: Thesis Table 5.8 pose, KUKA controller readings A1..A6 [deg] (the text's "68" is a misprint: THESIS_NOTES).
+TABLE_5_8_READINGS_DEG = (60.0, 80.0, -45.0, 200.0, 125.0, 280.0)
+#: Built-in 75-pose trajectory of the TCP stage (docs/tcp.md), KUKA controller readings.
+DEFAULT_TRAJECTORY = "kr5-sweep-75"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TCPTargets:
+    """Where ``robotcal run`` states the TCP uncertainty: readings of the scenario's robot [rad].
+
+    ``pose`` (1, n) and ``trajectory`` (m, n) are ``None`` when the stage part is skipped (the reason
+    is in ``notes``); ``*_source`` say where the readings come from.
+    """
+
+    pose: np.ndarray | None
+    pose_source: str
+    trajectory: np.ndarray | None
+    trajectory_source: str
+    workspace_poses: int
+    workspace_draws: int | None
+    workspace_seed: int
+    tool_mm: np.ndarray | None
+    notes: tuple[str, ...] = ()
+
+
+def _same_geometry(a, b) -> bool:
+    return (
+        a.n_joints == b.n_joints
+        and bool(np.all(a.hayati == b.hayati))
+        and np.allclose(a.nominal, b.nominal, rtol=0.0, atol=1e-9)
+    )
+
+
+def convert_readings(readings, from_robot, to_robot) -> np.ndarray:
+    """Readings of ``from_robot`` [rad] as readings of ``to_robot`` [rad], through the model joint
+    variables (``q = sign * reading + offset`` of each robot file); both must share the same model."""
+    from robotcal.errors import InputError
+
+    if not _same_geometry(from_robot, to_robot):
+        raise InputError(
+            f"readings of robot {from_robot.name!r} cannot be used on robot {to_robot.name!r}: "
+            "their joint count, joint types or nominal parameters differ"
+        )
+    return to_robot.readings_from_model(from_robot.model_joint_variables(readings))
+
+
+def tcp_targets(scenario: Scenario) -> TCPTargets:
+    """Resolve and check the ``[tcp]`` table (defaults when absent) before any computation.
+
+    Defaults: the Table 5.8 pose and the trajectory ``kr5-sweep-75``, both KUKA controller readings
+    (robot ``kuka-kr5-sixx-r650-krc``), converted to the scenario robot's readings when it has the
+    same model (e.g. ``kuka-kr5-sixx-r650``, model q = (-60, -80, 45, -200, 125, -280) deg); for
+    another robot without ``pose_deg``/``trajectory`` that part is skipped, with a note. Readings
+    outside the limits are noted (the thesis's pose is outside them), not refused.
+    """
+    import warnings
+
+    from robotcal.errors import InputError, JointLimitWarning
+    from robotcal.io.robots import load_robot
+    from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
+    from robotcal.uncertainty.tcp import check_readings
+
+    table = scenario.tcp or {}
+    robot = scenario.robot
+    where = f"{scenario.source}: key `tcp"
+    notes: list[str] = []
+    kuka = load_robot(KUKA_CONTROLLER_ROBOT)
+    kuka_compatible = _same_geometry(kuka, robot)
+    readings_robot = robot
+    if table.get("readings_robot"):
+        try:
+            readings_robot = load_robot(table["readings_robot"])
+        except InputError as exc:
+            raise InputError(f"{where}.readings_robot`: {exc}") from None
+        if not _same_geometry(readings_robot, robot):
+            raise InputError(
+                f"{where}.readings_robot`: robot {readings_robot.name!r} does not share the model of {robot.name!r}"
+            )
+
+    def checked(values, key, source_robot):
+        values = np.asarray(values, dtype=float)
+        if values.ndim != 2 or values.shape[1] != robot.n_joints:
+            raise InputError(
+                f"{where}.{key}`: {values.shape[-1]} joint readings; robot {robot.name!r} has {robot.n_joints}"
+            )
+        values = convert_readings(values, source_robot, robot)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", JointLimitWarning)
+            try:
+                values = check_readings(robot, values, name=f"tcp.{key}")
+            except InputError as exc:
+                raise InputError(f"{scenario.source}: key {exc}") from None
+        notes.extend(str(w.message) for w in caught if issubclass(w.category, JointLimitWarning))
+        return values
+
+    pose = trajectory = None
+    pose_source = trajectory_source = "skipped"
+    if table.get("pose_deg") is not None:
+        pose = checked(np.deg2rad([table["pose_deg"]]), "pose_deg", readings_robot)
+        pose_source = f"tcp.pose_deg = {list(table['pose_deg'])} (readings of {readings_robot.name})"
+    elif kuka_compatible:
+        pose = checked(np.deg2rad([TABLE_5_8_READINGS_DEG]), "pose_deg", kuka)
+        shown = ", ".join(f"{v:g}" for v in np.rad2deg(pose[0]))
+        pose_source = (
+            f"thesis Table 5.8 pose, KUKA readings {', '.join(f'{v:g}' for v in TABLE_5_8_READINGS_DEG)} deg "
+            f"({KUKA_CONTROLLER_ROBOT}) = readings {shown} deg of {robot.name}"
+        )
+    else:
+        notes.append(f"no TCP pose: give `tcp.pose_deg` (the Table 5.8 default is for the KR 5 sixx R650)")
+    name = table.get("trajectory")
+    builtin = name is None or name in builtin_trajectories()
+    if name is None and not kuka_compatible:
+        notes.append(
+            f"no trajectory: give `tcp.trajectory` (the {DEFAULT_TRAJECTORY} default is for the KR 5 sixx R650)"
+        )
+    else:
+        try:
+            values, path = load_trajectory(DEFAULT_TRAJECTORY if name is None else name, n_joints=robot.n_joints)
+        except InputError as exc:
+            raise InputError(f"{where}.trajectory`: {exc}") from None
+        trajectory = checked(values, "trajectory", kuka if builtin else readings_robot)
+        trajectory_source = (
+            f"built-in {DEFAULT_TRAJECTORY if name is None else name} ({path}), KUKA readings converted to {robot.name}"
+            if builtin
+            else path
+        )
+    tool = table.get("tool_mm")
+    return TCPTargets(
+        pose=pose,
+        pose_source=pose_source,
+        trajectory=trajectory,
+        trajectory_source=trajectory_source,
+        workspace_poses=int(table.get("workspace_poses", 1000)),
+        workspace_draws=table.get("workspace_draws", 10_000),
+        workspace_seed=int(table.get("workspace_seed", 0)),
+        tool_mm=None if tool is None else np.asarray(tool, dtype=float),
+        notes=tuple(notes),
+    )

@@ -12,7 +12,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-from robotcal.cli import catalog, demo, evaluate, identify, joints, refine, report, simulate, tcp, uncertainty  # noqa: E402,F401  (register commands)
+from robotcal.cli import catalog, demo, evaluate, identify, joints, refine, report, run, simulate, tcp, uncertainty  # noqa: E402,F401  (register commands)
 
 
 def main() -> None:

@@ -50,6 +50,85 @@ def _convergence(path: Path) -> dict | None:
     return None
 
 
+def evaluation_csv(rows) -> str:
+    """``evaluation.csv``: one row per parameter set, view and capture (:data:`COLUMNS`)."""
+    stream = io.StringIO()
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for row in rows:
+        writer.writerow([getattr(row, column) for column in COLUMNS])
+    return stream.getvalue()
+
+
+def evaluation_headline(rows, *, reference: str, after: str | None = None) -> dict | None:
+    """Headline numbers of the report: mean error of ``reference`` (before) and ``after`` (default: the
+    last parameter set) on the first capture, points view; ``None`` when either row is missing."""
+    if not rows:
+        return None
+    labels = list(dict.fromkeys(row.parameter_set for row in rows))
+    after = labels[-1] if after is None else after
+    capture = rows[0].capture
+    chosen = {row.parameter_set: row for row in rows if row.capture == capture and row.view == "points"}
+    if reference not in chosen or after not in chosen:
+        return None
+    return {
+        "capture": capture,
+        "view": "points",
+        "before_label": reference,
+        "after_label": after,
+        "before_mean_mm": chosen[reference].mean_error_mm,
+        "after_mean_mm": chosen[after].mean_error_mm,
+    }
+
+
+def evaluation_document(
+    rows,
+    scenario,
+    *,
+    parameter_files: dict,
+    capture_files: dict,
+    reference: str,
+    histories: dict,
+    headline_after: str | None = None,
+) -> dict:
+    """``evaluation.json``: the rows, the reference set, the headline, settings, convergence, versions."""
+    return {
+        "rows": [{column: getattr(row, column) for column in COLUMNS} for row in rows],
+        "reference": reference,
+        "headline": evaluation_headline(rows, reference=reference, after=headline_after),
+        "settings": {
+            "scenario": {"name": scenario.name, "source": scenario.source},
+            "parameter_files": parameter_files,
+            "capture_files": capture_files,
+            "views": {
+                "points": "distance per point after Horn registration of the predicted onto the measured points",
+                "distances": "absolute error of every pairwise distance between points at different poses",
+            },
+            "improvement": "100 * (1 - mean / mean of the reference set), per capture and view",
+        },
+        "convergence": histories,
+        "versions": versions(),
+    }
+
+
+def write_evaluation_folder(folder: Path, rows, document: dict) -> list[str]:
+    """Write ``evaluation.csv``, ``evaluation.json`` and (with convergence histories) ``convergence.png``
+    into ``folder`` (an existing, normally temporary, folder); returns the file names."""
+    (folder / "evaluation.csv").write_text(evaluation_csv(rows), encoding="utf-8")
+    (folder / "evaluation.json").write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    names = ["evaluation.csv", "evaluation.json"]
+    histories = document.get("convergence") or {}
+    if histories:
+        from robotcal.report.refine import plot_convergence  # matplotlib only when writing figures
+
+        plot_convergence(
+            {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()},
+            folder / "convergence.png",
+        )
+        names.append("convergence.png")
+    return names
+
+
 @app.command()
 @handle_errors
 def evaluate(
@@ -83,39 +162,16 @@ def evaluate(
     for path in capture:
         captures[_label(path, capture_labels)] = read_capture(path, n_joints=robot.n_joints)
     rows = evaluate_scenario(loaded, captures, sets)
-    stream = io.StringIO()
-    writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    for row in rows:
-        writer.writerow([getattr(row, column) for column in COLUMNS])
-    report = {
-        "rows": [{column: getattr(row, column) for column in COLUMNS} for row in rows],
-        "reference": next(iter(sets)),
-        "settings": {
-            "scenario": {"name": loaded.name, "source": loaded.source},
-            "parameter_files": {
-                label: str(path) for label, path in zip(list(sets)[int(nominal) :], params, strict=True)
-            },
-            "capture_files": {label: str(path) for label, path in zip(captures, capture, strict=True)},
-            "views": {
-                "points": "distance per point after Horn registration of the predicted onto the measured points",
-                "distances": "absolute error of every pairwise distance between points at different poses",
-            },
-            "improvement": "100 * (1 - mean / mean of the reference set), per capture and view",
-        },
-        "convergence": histories,
-        "versions": versions(),
-    }
+    document = evaluation_document(
+        rows,
+        loaded,
+        parameter_files={label: str(path) for label, path in zip(list(sets)[int(nominal) :], params, strict=True)},
+        capture_files={label: str(path) for label, path in zip(captures, capture, strict=True)},
+        reference=next(iter(sets)),
+        histories=histories,
+    )
     with atomic_directory(out) as folder:
-        (folder / "evaluation.csv").write_text(stream.getvalue(), encoding="utf-8")
-        (folder / "evaluation.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-        if histories:
-            from robotcal.report.refine import plot_convergence
-
-            plot_convergence(
-                {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()},
-                folder / "convergence.png",
-            )
+        write_evaluation_folder(folder, rows, document)
     for capture_name in captures:
         for view in ("points", "distances"):
             table = Table(title=f"{capture_name}: {view} view", title_justify="left")

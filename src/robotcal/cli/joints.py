@@ -13,6 +13,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from robotcal.capture import Capture
 from robotcal.cli import app
 from robotcal.cli._common import console, error_console, handle_errors
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
@@ -132,6 +133,37 @@ def _table(diagnostics: JointDiagnostics) -> Table:
     return table
 
 
+def compute_joints(
+    capture: Capture, scenario, *, order: int = 2, backlash: bool = True, match_tolerance_deg: float = 1e-3
+) -> tuple[JointDiagnostics, HarmonicModel]:
+    """Diagnostics (:func:`analyze_joints` with the scenario's circle fit) and their harmonic model."""
+    diagnostics = analyze_joints(
+        capture,
+        backlash=backlash,
+        match_tolerance=float(np.deg2rad(match_tolerance_deg)),
+        method=scenario.identification.circle_fit,
+    )
+    return diagnostics, fit_harmonics(diagnostics, order=order)
+
+
+def write_joints_folder(
+    folder: Path, diagnostics: JointDiagnostics, model: HarmonicModel, *, capture, scenario, scale: float = 500.0
+) -> list[str]:
+    """Write the CSV files, ``harmonics.json`` and the figures into ``folder`` (an existing, normally
+    temporary, folder); ``capture`` names the capture in the provenance. Returns the file names."""
+    from robotcal.report.joints import write_joint_figures  # matplotlib only when writing figures
+
+    atomic_write_text(folder / "summary.csv", summary_csv(diagnostics))
+    atomic_write_text(folder / "points.csv", points_csv(diagnostics))
+    if diagnostics.backlash:
+        atomic_write_text(folder / "backlash.csv", backlash_csv(diagnostics))
+    document = harmonics_document(model, diagnostics, capture=capture, scenario=scenario)
+    atomic_write_text(folder / "harmonics.json", json.dumps(document, indent=2, allow_nan=False) + "\n")
+    figures = write_joint_figures(diagnostics, folder, model=model, scale=scale)
+    files = ["summary.csv", "points.csv"] + (["backlash.csv"] if diagnostics.backlash else [])
+    return files + ["harmonics.json"] + [path.name for path in figures]
+
+
 @app.command()
 @handle_errors
 def joints(
@@ -152,28 +184,14 @@ def joints(
     ] = 1e-3,
 ) -> None:
     """Backlash and axial/radial eccentricity per joint (thesis ch. 4.6), with a harmonic model."""
-    from robotcal.report.joints import write_joint_figures  # matplotlib only when the command runs
-
     loaded = load_scenario(scenario)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
-    diagnostics = analyze_joints(
-        measured,
-        backlash=backlash,
-        match_tolerance=float(np.deg2rad(match_tolerance_deg)),
-        method=loaded.identification.circle_fit,
+    diagnostics, model = compute_joints(
+        measured, loaded, order=order, backlash=backlash, match_tolerance_deg=match_tolerance_deg
     )
-    model = fit_harmonics(diagnostics, order=order)
     with atomic_directory(out) as folder:
-        atomic_write_text(folder / "summary.csv", summary_csv(diagnostics))
-        atomic_write_text(folder / "points.csv", points_csv(diagnostics))
-        if diagnostics.backlash:
-            atomic_write_text(folder / "backlash.csv", backlash_csv(diagnostics))
-        document = harmonics_document(model, diagnostics, capture=capture, scenario=loaded)
-        atomic_write_text(folder / "harmonics.json", json.dumps(document, indent=2, allow_nan=False) + "\n")
-        figures = write_joint_figures(diagnostics, folder, model=model, scale=scale)
+        files = write_joints_folder(folder, diagnostics, model, capture=capture, scenario=loaded, scale=scale)
     console.print(_table(diagnostics))
     for note in (*diagnostics.messages, *model.messages):
         error_console.print(f"note: {note}", highlight=False)
-    files = ["summary.csv", "points.csv"] + (["backlash.csv"] if diagnostics.backlash else [])
-    files += ["harmonics.json"] + [path.name for path in figures]
     console.print(f"wrote {out}: {', '.join(files)}", highlight=False)

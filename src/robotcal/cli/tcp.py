@@ -87,6 +87,61 @@ def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> Table:
     return table
 
 
+def compute_tcp(
+    robot,
+    values: np.ndarray,
+    mode: str,
+    *,
+    readings: np.ndarray | None = None,
+    n_poses: int | None = None,
+    seed: int = 0,
+    tool_mm=None,
+    coverage: float = 0.95,
+):
+    """TCP uncertainty of the draws ``values`` (n_draws, n_joints, 5) [mm, rad].
+
+    ``mode`` ``"pose"`` or ``"trajectory"``: at ``readings`` (n_poses, n_joints) [rad], already checked
+    against the limits (:func:`check_readings`; the library's second warning is silenced);
+    ``"workspace"``: at ``n_poses`` random poses within the limits drawn with ``seed``. Returns
+    ``(TCPUncertainty, WorkspaceUncertainty or None)``.
+    """
+    if mode == "workspace":
+        ws = workspace_uncertainty(robot, values, n_poses, rng=seed, tool=tool_mm, coverage=coverage)
+        return ws.tcp, ws
+    if mode not in ("pose", "trajectory"):
+        raise InputError(f"unknown TCP mode {mode!r}: pose, trajectory or workspace")
+    with _limits_already_checked():
+        result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage, keep_draws=mode == "pose")
+    return result, None
+
+
+def write_tcp_folder(
+    folder: Path,
+    result: TCPUncertainty,
+    mode: str,
+    *,
+    interval: str = "symmetric",
+    workspace=None,
+    provenance: dict | None = None,
+) -> list[str]:
+    """Write ``tcp.csv``, ``tcp.json`` and the mode's figures into ``folder`` (an existing, normally
+    temporary, folder); returns the file names."""
+    from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
+
+    write_tcp_csv(folder / "tcp.csv", result, interval=interval)
+    write_tcp_json(folder / "tcp.json", result, interval=interval, workspace=workspace, provenance=provenance or {})
+    if mode == "pose":
+        figures = [
+            plot_tcp_scatter(result, folder / "scatter.png"),
+            plot_tcp_histograms(result, folder / "histograms.png"),
+        ]
+    elif mode == "trajectory":
+        figures = [plot_trajectory(result, folder / "trajectory.png")]
+    else:
+        figures = [plot_workspace(workspace, folder / "workspace.png")]
+    return ["tcp.csv", "tcp.json"] + [Path(figure).name for figure in figures]
+
+
 @app.command()
 @handle_errors
 def tcp(
@@ -129,43 +184,26 @@ def tcp(
         "draws_in_file": loaded.n_draws,
         "versions": versions(),
     }
-    ws = None
     if pose is not None:
         readings = _numbers(pose, "--pose")
         if readings.size != robot.n_joints:
             raise InputError(
                 f"--pose {pose!r}: {readings.size} joint readings but robot {robot.name!r} has {robot.n_joints} joints"
             )
-        readings = check_readings(robot, np.deg2rad(readings)[None], name="--pose")
-        with _limits_already_checked():
-            result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage, keep_draws=True)
-        mode = "pose"
+        mode, readings = "pose", check_readings(robot, np.deg2rad(readings)[None], name="--pose")
     elif trajectory is not None:
         readings, path = load_trajectory(trajectory, n_joints=robot.n_joints)
-        readings = check_readings(robot, readings, name="trajectory", source=path)
-        with _limits_already_checked():
-            result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage)
+        mode, readings = "trajectory", check_readings(robot, readings, name="trajectory", source=path)
         provenance["trajectory"] = path
-        mode = "trajectory"
     else:
-        ws = workspace_uncertainty(robot, values, workspace, rng=seed, tool=tool_mm, coverage=coverage)
-        result = ws.tcp
-        mode = "workspace"
+        mode, readings = "workspace", None
+    result, ws = compute_tcp(
+        robot, values, mode, readings=readings, n_poses=workspace, seed=seed, tool_mm=tool_mm, coverage=coverage
+    )
     provenance["mode"] = mode
     provenance["seconds"] = round(time.perf_counter() - started, 3)
-
-    from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
-
     with atomic_directory(out) as folder:
-        write_tcp_csv(folder / "tcp.csv", result, interval=interval)
-        write_tcp_json(folder / "tcp.json", result, interval=interval, workspace=ws, provenance=provenance)
-        if mode == "pose":
-            plot_tcp_scatter(result, folder / "scatter.png")
-            plot_tcp_histograms(result, folder / "histograms.png")
-        elif mode == "trajectory":
-            plot_trajectory(result, folder / "trajectory.png")
-        else:
-            plot_workspace(ws, folder / "workspace.png")
+        write_tcp_folder(folder, result, mode, interval=interval, workspace=ws, provenance=provenance)
 
     if mode == "pose":
         console.print(_summary_table(result, 0, interval))

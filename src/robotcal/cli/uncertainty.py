@@ -19,7 +19,13 @@ from robotcal.io.draws_npz import write_draws
 from robotcal.io.scenario import Scenario
 from robotcal.io.uncertainty_files import uncertainty_rows, write_uncertainty_csv, write_uncertainty_json
 from robotcal.kinematics.model import ParameterSet
-from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+from robotcal.uncertainty.montecarlo import (
+    MonteCarloResult,
+    MonteCarloSettings,
+    ProgressCallback,
+    prepare_monte_carlo,
+    run_monte_carlo,
+)
 from robotcal.workflow import resolve_seed, versions
 
 __all__ = ["uncertainty", "compute_uncertainty", "write_uncertainty_folder", "uncertainty_table"]
@@ -32,8 +38,13 @@ def compute_uncertainty(
     seed: int,
     true_parameters: ParameterSet | None = None,
     show_progress: bool = True,
+    progress: ProgressCallback | None = None,
 ) -> MonteCarloResult:
-    """Prepare (all input checks happen here, before any draw) and run the Monte Carlo."""
+    """Prepare (all input checks happen here, before any draw) and run the Monte Carlo.
+
+    ``progress(done, total)`` is called after every block when given (``robotcal run`` drives its own
+    display with it); else ``show_progress`` shows a progress bar of its own.
+    """
     problem = prepare_monte_carlo(
         scenario.robot,
         scenario.plan,
@@ -44,8 +55,8 @@ def compute_uncertainty(
         joint_errors=scenario.joint_errors,
         joint_limits=scenario.joint_limits,
     )
-    if not show_progress:
-        return run_monte_carlo(problem, settings, seed=seed)
+    if progress is not None or not show_progress:
+        return run_monte_carlo(problem, settings, seed=seed, progress=progress)
     total = None if settings.adaptive else settings.iterations
     with Progress(
         TextColumn("Monte Carlo"),

@@ -115,6 +115,18 @@ class ValidationTable(_Strict):
     min_height_mm: float | None = None
 
 
+class TCPTable(_Strict):
+    """TCP stage of ``robotcal run`` (docs/scenario.md ``[tcp]``): where the TCP uncertainty is stated."""
+
+    pose_deg: list[float] | None = None
+    trajectory: str | None = None
+    readings_robot: str | None = None
+    workspace_poses: int = Field(default=1000, ge=1)
+    workspace_draws: int | None = Field(default=10_000, ge=2)
+    workspace_seed: int = Field(default=0, ge=0)
+    tool_mm: tuple[float, float, float] | None = None
+
+
 class ScenarioFile(_Strict):
     description: str = ""
     robot: str
@@ -125,6 +137,7 @@ class ScenarioFile(_Strict):
     montecarlo: MonteCarloTable = MonteCarloTable()
     truth: TruthTable | None = None
     validation: ValidationTable | None = None
+    tcp: TCPTable | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -146,6 +159,7 @@ class Scenario:
     settings: dict = field(default_factory=dict)
     truth: dict | None = None
     validation: dict | None = None
+    tcp: dict | None = None
 
 
 def _rigid(matrix, source: str) -> np.ndarray:
@@ -255,6 +269,7 @@ def scenario_from_dict(
         settings=spec.model_dump(),
         truth=None if spec.truth is None else spec.truth.model_dump(),
         validation=_validation(spec.validation, source),
+        tcp=None if spec.tcp is None else spec.tcp.model_dump(),
     )
 
 
