@@ -7,7 +7,8 @@ Two views of the error, one per criterion of ch. 4.5.7:
     points (tracker frame) by Horn's method, and the error of a point is its distance after
     registration ``|T p_k - m_k|``.
 ``"distances"`` (Table 4.11)
-    the error of a pair i < j of points at different poses is ``| |p_i - p_j| - |m_i - m_j| |``,
+    the error of a pair i < j of distinct measurements (different poses or, with per-joint
+    reflectors, different targets) is ``| |p_i - p_j| - |m_i - m_j| |``,
     over all such pairs (no registration).
 
 The improvement of a set is ``100 (1 - mean / mean_reference)`` [%], the reference being the
@@ -26,7 +27,7 @@ from scipy.spatial.distance import pdist
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.registration import register_points
-from robotcal.identification.refine import capture_turning_joints
+from robotcal.identification.refine import capture_target_index, capture_turning_joints, measurement_pairs
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
@@ -67,12 +68,14 @@ def point_errors(capture: Capture, parameters: ParameterSet, reflector: Reflecto
 
 
 def distance_errors(capture: Capture, parameters: ParameterSet, reflector: ReflectorMount) -> np.ndarray:
-    """``| |p_i - p_j| - |m_i - m_j| |`` over pairs of points at different poses, ``(n_pairs,)`` [mm]."""
+    """``| |p_i - p_j| - |m_i - m_j| |`` over pairs of distinct measurements, ``(n_pairs,)`` [mm].
+
+    A pair at the same readings on the same target (bidirectional twins) is left out; with per-joint
+    reflectors points of different circles are different targets (see
+    :func:`robotcal.identification.refine.measurement_pairs`).
+    """
     predicted = _predicted(capture, parameters, reflector)
-    _, pose = np.unique(capture.readings, axis=0, return_inverse=True)
-    pose = pose.ravel()
-    i, j = np.triu_indices(capture.n_points, k=1)
-    keep = pose[i] != pose[j]
+    _, _, keep = measurement_pairs(capture.readings, capture_target_index(capture, reflector))
     return np.abs(pdist(predicted) - pdist(capture.points))[keep]
 
 

@@ -9,7 +9,8 @@ minimises the residual over all measured points. Two objectives:
     ``tracker_from_base`` (6 dof, ``T = T_0 [Rz(rz) Ry(ry) Rx(rx) | t]``) estimated together.
 ``criterion="distances"`` (eq. 4-102, the thesis's registration-free criterion)
     residuals ``|p_i(x) - p_j(x)| - |m_i - m_j|`` for every pair i < j of measured points
-    (n(n-1)/2 residuals). No tracker transform enters.
+    (n(n-1)/2 residuals, less the pairs that are the same measurement: same readings on the same
+    target, see :func:`measurement_pairs`). No tracker transform enters.
 
 Both are solved by ``scipy.optimize.least_squares`` (``method="lm"``, MINPACK; ``"trf"`` where
 there are fewer residuals than unknowns) with an explicit ``x_scale`` (1 mm for lengths and
@@ -43,6 +44,12 @@ correlated: for the distances criterion the noise is propagated through ``G = d 
 d points`` (sandwich form) ``C = sigma^2 (J^T J)^-1 J^T G G^T J (J^T J)^-1``, with sigma^2 from
 ``E[SSR] = sigma^2 (tr(G G^T) - tr(H G G^T))``, H the hat matrix.
 
+When the capture leaves no degree of freedom for the noise (e.g. a 6-point flange capture: 18
+residuals for 18 determinable unknowns; for distances, ``tr(G G^T) - tr(H G G^T) <= 0``) the fit
+still runs and returns its parameters, but sigma cannot be estimated: the result then has
+``sigma = NaN``, ``covariance = correlation = None``, ``standard_uncertainty`` all NaN, and
+``message`` says so (the solver's message follows). Writers must map those NaNs to null.
+
 References
 ----------
 Thesis ch. 4.5.7, eqs 4-101 and 4-102, Tables 4.8-4.11, Figs 4.24-4.25.
@@ -73,7 +80,15 @@ from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
-__all__ = ["CRITERIA", "BASE_NAMES", "RefinementResult", "refine_parameters", "capture_turning_joints"]
+__all__ = [
+    "CRITERIA",
+    "BASE_NAMES",
+    "RefinementResult",
+    "refine_parameters",
+    "capture_turning_joints",
+    "capture_target_index",
+    "measurement_pairs",
+]
 
 #: The two objectives of thesis ch. 4.5.7.
 CRITERIA = ("points", "distances")
@@ -107,6 +122,7 @@ class RefinementResult:
     status : int
         SciPy's termination status.
     message : str
+        SciPy's message; prefixed with an explanation when sigma could not be estimated.
     nfev, njev : int
         Residual and Jacobian evaluations.
     free : ndarray of bool, shape (n_joints, 5)
@@ -136,12 +152,15 @@ class RefinementResult:
         Of the column-scaled Jacobian at the solution.
     condition_number : float
     sigma : float
-        Estimated point noise per coordinate [mm] (see module notes).
-    covariance : ndarray, shape (n_free, n_free)
-        Linearised covariance of the free quantities [mm, rad].
-    correlation : ndarray, shape (n_free, n_free)
+        Estimated point noise per coordinate [mm] (see module notes); NaN when the capture leaves
+        no degree of freedom for it (then ``covariance`` is None and ``message`` says why).
+    covariance : ndarray, shape (n_free, n_free), or None
+        Linearised covariance of the free quantities [mm, rad]; None when sigma is NaN.
+    correlation : ndarray, shape (n_free, n_free), or None
+        None when sigma is NaN.
     standard_uncertainty : ndarray, shape (n_joints, 5)
-        ``sqrt(diag(covariance))`` placed per parameter [mm, rad]; NaN where held.
+        ``sqrt(diag(covariance))`` placed per parameter [mm, rad]; NaN where held, and everywhere
+        when sigma is NaN.
     wall_time_s : float
     """
 
@@ -170,8 +189,8 @@ class RefinementResult:
     singular_values: np.ndarray
     condition_number: float
     sigma: float
-    covariance: np.ndarray
-    correlation: np.ndarray
+    covariance: np.ndarray | None
+    correlation: np.ndarray | None
     standard_uncertainty: np.ndarray
     wall_time_s: float
 
@@ -302,19 +321,43 @@ class _Problem:
         return sparse.csr_matrix((data, (rows, cols)), shape=(m, 3 * points.shape[0]))
 
 
-def _pairs(readings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pairs i < j of points at different poses, in :func:`scipy.spatial.distance.pdist` order.
+def measurement_pairs(readings, targets=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs i < j of points that are not the same measurement, in :func:`scipy.spatial.distance.pdist` order.
 
-    Two points measured at the same readings (the forward and return sweeps of a bidirectional
-    capture share their readings) have model distance 0 for any parameters: such a pair carries
-    no information about the parameters and is left out.
+    Two points at the same readings *and* on the same target (the forward and return sweeps of a
+    bidirectional capture share their readings) have model distance 0 for any parameters: such a
+    pair carries no information about the parameters and is left out. With per-joint reflectors
+    (``ReflectorMount(frame="joint")``) every circle has its own target, so two points of different
+    circles at the same readings are different targets and their pair is kept.
+
+    Parameters
+    ----------
+    readings : array_like, shape (n_points, n_joints)
+        Joint readings [rad].
+    targets : array_like of int, shape (n_points,), optional
+        Which target each point is on (the turning joint for per-joint reflectors, see
+        :func:`capture_target_index`); None: one target for all points (flange reflector).
+
+    Returns
+    -------
+    pair_i, pair_j : ndarray of int, shape (n_pairs,)
+        The kept pairs.
+    keep : ndarray of bool, shape (n_points (n_points - 1) / 2,)
+        Which entries of ``pdist`` order are kept.
     """
+    readings = np.asarray(readings, dtype=float)
     n = readings.shape[0]
-    _, pose = np.unique(readings, axis=0, return_inverse=True)
+    key = readings if targets is None else np.column_stack([readings, np.asarray(targets, dtype=float)])
+    _, pose = np.unique(key, axis=0, return_inverse=True)
     pose = pose.ravel()
     pair_i, pair_j = np.triu_indices(n, k=1)
     keep = pose[pair_i] != pose[pair_j]
     return pair_i[keep], pair_j[keep], keep
+
+
+def capture_target_index(capture: Capture, reflector: ReflectorMount) -> np.ndarray | None:
+    """Target of each point for :func:`measurement_pairs`: the circle for per-joint reflectors, else None."""
+    return capture_turning_joints(capture, reflector) if reflector.frame == "joint" else None
 
 
 def _check_free(free, robot, gauge_mask) -> tuple[np.ndarray | None, bool]:
@@ -399,6 +442,10 @@ def refine_parameters(
     Returns
     -------
     RefinementResult
+        When the capture leaves no degree of freedom for the noise (fewer residuals, or for
+        distances fewer independent ones, than free unknowns + 1) the fit is still returned, with
+        ``sigma = NaN``, ``covariance = correlation = None``, ``standard_uncertainty`` all NaN and a
+        ``message`` that says so with the counts (see the module notes).
 
     Raises
     ------
@@ -444,12 +491,12 @@ def refine_parameters(
             base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
     pair_i = pair_j = distances = pair_keep = None
     if criterion == "distances":
-        pair_i, pair_j, pair_keep = _pairs(capture.readings)
+        pair_i, pair_j, pair_keep = measurement_pairs(capture.readings, capture_target_index(capture, reflector))
         distances = pdist(measured)[pair_keep]
         if np.any(distances <= 0.0):
             k = int(np.flatnonzero(distances <= 0.0)[0])
             raise InputError(
-                f"{capture.source}: points {pair_i[k] + 1} and {pair_j[k] + 1} coincide at different poses; "
+                f"{capture.source}: points {pair_i[k] + 1} and {pair_j[k] + 1} coincide at different poses or targets; "
                 "the distances criterion needs distinct points"
             )
 
@@ -566,10 +613,17 @@ def refine_parameters(
         per = np.abs(residuals)
     scaled = jac * x_scale
     cond = conditioning(scaled)
-    covariance, sigma = _covariance(jac, x_scale, residuals, problem.noise_map(solution.x))
-    sd = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    covariance, sigma, dof = _covariance(jac, x_scale, residuals, problem.noise_map(solution.x))
     standard = np.full((n, 5), np.nan)
-    standard[free_mask] = sd[: problem.n_kinematic]
+    message = str(solution.message)
+    if covariance is None:
+        message = (
+            f"no degrees of freedom left to estimate the noise ({m} residuals, {x0.size} free unknowns, "
+            f"{dof:.3g} effective degrees of freedom): sigma is NaN and there is no covariance; "
+            f"measure more points. Solver: {message}"
+        )
+    else:
+        standard[free_mask] = np.sqrt(np.clip(np.diag(covariance), 0.0, None))[: problem.n_kinematic]
     refined = ParameterSet(robot=robot, values=values, identified=start.identified | free_mask)
     return RefinementResult(
         parameters=refined,
@@ -578,7 +632,7 @@ def refine_parameters(
         method=chosen_method,
         success=bool(solution.status > 0),
         status=int(solution.status),
-        message=str(solution.message),
+        message=message,
         nfev=int(solution.nfev),
         njev=int(solution.njev if solution.njev is not None else len(history)),
         free=_frozen(free_mask, bool),
@@ -597,15 +651,16 @@ def refine_parameters(
         singular_values=cond.singular_values,
         condition_number=cond.condition_number,
         sigma=sigma,
-        covariance=_frozen(covariance),
-        correlation=_frozen(correlation_from_covariance(covariance)),
+        covariance=None if covariance is None else _frozen(covariance),
+        correlation=None if covariance is None else _frozen(correlation_from_covariance(covariance)),
         standard_uncertainty=_frozen(standard),
         wall_time_s=time.perf_counter() - began,
     )
 
 
-def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray, float]:
-    """Linearised covariance (module notes) in unscaled units, and sigma per coordinate [mm]."""
+def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray | None, float, float]:
+    """Linearised covariance (module notes) in unscaled units, sigma per coordinate [mm], and the
+    degrees of freedom of the noise estimate; ``(None, nan, dof)`` when ``dof <= 0``."""
     m, p = jac.shape
     scaled = jac * x_scale
     _, s, vt = np.linalg.svd(triangular_factor(scaled), full_matrices=False)
@@ -613,15 +668,17 @@ def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray, float]:
     inverse = (vt[good].T / s[good] ** 2) @ vt[good]  # (Js^T Js)^+
     ssr = float(residuals @ residuals)
     if noise_map is None:
-        dof = m - int(good.sum())
-        sigma2 = ssr / dof if dof > 0 else np.nan
-        covariance = sigma2 * inverse
+        dof = float(m - int(good.sum()))
+        middle = None
     else:
         projected = np.asarray(noise_map.T @ scaled).T  # Js^T G, (p, 3 n_points)
         middle = projected @ projected.T
         trace_ggt = float(noise_map.multiply(noise_map).sum())
-        effective = trace_ggt - float(np.trace(inverse @ middle))
-        sigma2 = ssr / effective if effective > 0 else np.nan
-        covariance = sigma2 * inverse @ middle @ inverse
+        dof = trace_ggt - float(np.trace(inverse @ middle))
+    # relative floor: rounding leaves tr(GG^T) - tr(HGG^T) ~1e-12 tr(GG^T) when it is 0 in exact arithmetic
+    if dof <= 1e-9 * max(m, 1):
+        return None, float("nan"), dof
+    sigma2 = ssr / dof
+    covariance = sigma2 * inverse if middle is None else sigma2 * inverse @ middle @ inverse
     covariance = covariance * np.outer(x_scale, x_scale)
-    return covariance, float(np.sqrt(sigma2))
+    return covariance, float(np.sqrt(sigma2)), dof

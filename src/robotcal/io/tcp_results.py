@@ -165,5 +165,10 @@ def _finite_or_none(value) -> float | None:
 
 
 def write_tcp_json(path, result: TCPUncertainty, **kwargs) -> Path:
-    """Write ``tcp.json`` atomically (arguments as :func:`tcp_to_dict`)."""
-    return atomic_write_text(path, json.dumps(tcp_to_dict(result, **kwargs), indent=1) + "\n")
+    """Write ``tcp.json`` atomically (arguments as :func:`tcp_to_dict`).
+
+    Strict JSON, like the other writers: the ellipsoid figures that can be undefined (a singular
+    covariance) are written as ``null`` on purpose; any other non-finite number (e.g. in
+    ``provenance``) raises ``ValueError`` rather than being written as ``NaN``.
+    """
+    return atomic_write_text(path, json.dumps(tcp_to_dict(result, **kwargs), indent=1, allow_nan=False) + "\n")

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
+from robotcal.errors import InputError
 from robotcal.report.figures import new_figure, plt, save_figure
 from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
@@ -18,7 +19,7 @@ _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
 
 def _need_draws(result: TCPUncertainty, pose: int) -> np.ndarray:
     if result.draws is None:
-        raise ValueError("this figure needs the draws: call propagate_to_tcp(..., keep_draws=True)")
+        raise InputError("this figure needs the draws: call propagate_to_tcp(..., keep_draws=True)")
     return result.draws[:, pose] * _DEG
 
 

@@ -100,7 +100,7 @@ def random_poses(
         Readings [rad].
     """
     rng = np.random.default_rng(rng)
-    if not isinstance(n_poses, (int, np.integer)) or n_poses < 1:
+    if isinstance(n_poses, (bool, np.bool_)) or not isinstance(n_poses, (int, np.integer)) or n_poses < 1:
         raise InputError(f"`n_poses` must be a whole number >= 1; got {n_poses!r}")
     if not np.isfinite(margin_deg) or margin_deg < 0:
         raise InputError(f"`margin_deg` must be a finite number >= 0; got {margin_deg!r}")

@@ -85,7 +85,17 @@ def check_readings(robot: RobotModel, readings, *, name: str = "readings", sourc
     Warns
     -----
     JointLimitWarning
-        Readings outside the robot file's software limits (naming pose, joint and limits).
+        Readings outside the robot file's software limits (naming pose, joint and limits),
+        attributed to the caller of this function.
+    """
+    return _check_readings(robot, readings, name=name, source=source, stacklevel=3)
+
+
+def _check_readings(robot: RobotModel, readings, *, name: str, source: str, stacklevel: int) -> np.ndarray:
+    """:func:`check_readings` with the warning's ``stacklevel`` counted from this function.
+
+    ``stacklevel=3`` points at the caller of the public function that called this one
+    (:func:`check_readings` itself, or :func:`propagate_to_tcp`).
     """
     prefix = f"{source}: " if source else ""
     try:
@@ -115,7 +125,7 @@ def check_readings(robot: RobotModel, readings, *, name: str = "readings", sourc
         warnings.warn(
             f"{prefix}readings outside the joint limits of robot {robot.name!r}: " + "; ".join(messages) + tail,
             JointLimitWarning,
-            stacklevel=3,
+            stacklevel=stacklevel,
         )
     return values
 
@@ -554,7 +564,7 @@ def propagate_to_tcp(
     Thesis ch. 5.3, Table 5.8, Figs 5.17-5.20; JCGM 101:2008 §7.6-7.7; JCGM 102:2011 §6.2, §6.5.3, §7.7.
     """
     draws = _check_draws(robot, parameter_draws)
-    readings = check_readings(robot, readings)
+    readings = _check_readings(robot, readings, name="readings", source="", stacklevel=3)
     tool = check_tool(tool)
     coverage = check_coverage(coverage)
     if batch_size is not None and (int(batch_size) != batch_size or batch_size < 1):

@@ -11,11 +11,12 @@ import pytest
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.identification import identify_cpa
-from robotcal.identification.refine import _pairs, _Problem, refine_parameters
+from robotcal.identification.refine import _Problem, measurement_pairs, refine_parameters
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot
+from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
-from robotcal.simulation import simulate_capture
+from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses, simulate_poses, thesis_test2_plan
 
@@ -25,6 +26,25 @@ TRACKER = np.array([[0.0, 1.0, 0.0, 1800.0], [-1.0, 0.0, 0.0, 5.0], [0.0, 0.0, 1
 TRUTH = perturb_parameters(ROBOT, length_sd_mm=0.3, angle_sd_deg=0.05, rng=3)
 FULL_PLAN = thesis_test2_plan()
 SMALL_PLAN = dataclasses.replace(FULL_PLAN, points=np.array([12, 8, 10, 12, 8, 12]), bidirectional=False)
+# Thesis Table 5.1 style per-joint targets (one per circle, eq. 5-1), fewer points: circle i starts
+# where circle i-1 ended, so consecutive circles share one set of readings (on different targets)
+JOINT_PLAN = CapturePlan(
+    start=np.deg2rad([15.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+    sweep=np.deg2rad([45.0, 80.0, 100.0, 50.0, 200.0, 300.0]),
+    points=np.array([10, 10, 12, 10, 10, 12]),
+    reflector=ReflectorMount(
+        frame="joint",
+        positions=[
+            [100.0, 0.0, 0.0],
+            [200.0, 0.0, 0.0],
+            [0.0, 50.0, 0.0],
+            [20.0, 0.0, 0.0],
+            [0.0, 80.0, 0.0],
+            [0.0, 60.0, 0.0],
+        ],
+    ),
+    bidirectional=False,
+)
 # 1e-6 mm / 1e-6 deg: the issue's recovery tolerance for noise-free data
 TOLERANCE = np.array([1e-6, np.deg2rad(1e-6), 1e-6, np.deg2rad(1e-6), np.deg2rad(1e-6)])
 
@@ -46,7 +66,7 @@ def _problem(capture, start, criterion, free=None, base_free=True):
     free = ~ROBOT.structurally_fixed if free is None else free
     pair_i = pair_j = keep = distances = None
     if criterion == "distances":
-        pair_i, pair_j, keep = _pairs(capture.readings)
+        pair_i, pair_j, keep = measurement_pairs(capture.readings)
         distances = np.linalg.norm(capture.points[pair_i] - capture.points[pair_j], axis=1)
     return _Problem(
         start=start.values.copy(),
@@ -121,6 +141,83 @@ def test_noise_free_recovery_of_every_identifiable_parameter(criterion, start_ki
     assert result.cost_history[0] >= result.cost_history[-1]
     if criterion == "points":
         np.testing.assert_allclose(result.tracker_from_base, TRACKER, atol=1e-8)
+
+
+@pytest.mark.parametrize("criterion", ["points", "distances"])
+def test_noise_free_recovery_with_perturbed_joint6(criterion):
+    # J6's d, theta, a, alpha perturbed too; behind a flange target only three combinations of them
+    # are seen (the target's radius about axis 6, its phase and its height), so compare what the data
+    # determine: the predicted target at poses the refinement never saw.
+    values = TRUTH.values.copy()
+    values[5, :4] += [0.4, np.deg2rad(0.07), -0.3, np.deg2rad(0.05)]
+    truth = TRUTH.replace(values=values)
+    plan = FULL_PLAN if criterion == "points" else SMALL_PLAN
+    capture = _capture(plan, truth=truth)
+    result = _refine(capture, ParameterSet.nominal(ROBOT), plan.reflector, criterion=criterion)
+    assert result.success, result.message
+    assert result.held == ("J6.alpha",)
+    q = ROBOT.model_joint_variables(random_poses(ROBOT, 50, rng=5))
+    turning = np.zeros(50, int)
+    predicted = target_positions(result.parameters.values, q, turning, plan.reflector)
+    expected = target_positions(truth.values, q, turning, plan.reflector)
+    # noise-free, solver tolerance 1e-12: parameters to ~1e-11 mm/rad, lever arms ~1e3 mm
+    np.testing.assert_allclose(predicted, expected, rtol=0, atol=1e-9)
+    # and the visible combinations of J6 are right: the held alpha6 is absorbed by a6, theta6, d6
+    assert abs(result.parameters.values[5, 3] - ROBOT.nominal[5, 3]) == 0.0
+    assert np.any(np.abs(result.parameters.values[5, :3] - ROBOT.nominal[5, :3]) > 1e-3)
+
+
+@pytest.mark.parametrize("criterion", ["points", "distances"])
+def test_noise_free_recovery_with_per_joint_reflectors(criterion):
+    capture = _capture(JOINT_PLAN)
+    result = _refine(capture, ParameterSet.nominal(ROBOT), JOINT_PLAN.reflector, criterion=criterion)
+    assert result.success, result.message
+    assert result.gauge == ("J1.d", "J1.theta")
+    # circle 6's target turns with q6 in frame {5}: J6's own d, theta, a, alpha never enter
+    assert result.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")
+    difference = np.abs(result.parameters.difference(TRUTH))
+    assert np.all(difference[result.free] <= np.broadcast_to(TOLERANCE, difference.shape)[result.free])
+    if criterion == "distances":
+        # no pair is left out: no point is measured twice on the same target
+        assert result.n_residuals == capture.n_points * (capture.n_points - 1) // 2
+
+
+def test_pairs_of_different_targets_at_the_same_readings_are_kept():
+    capture = _capture(JOINT_PLAN)
+    readings = capture.readings
+    ends = np.cumsum(JOINT_PLAN.points)[:-1]
+    # the plan really shares readings between the end of circle i and the start of circle i+1
+    np.testing.assert_array_equal(readings[ends - 1], readings[ends])
+    _, _, keep = measurement_pairs(readings, capture.circle - 1)
+    assert keep.all()
+    _, _, flange_keep = measurement_pairs(readings)  # one target: the same readings are the same point
+    assert (~flange_keep).sum() == ends.size
+    # bidirectional twins on one target are still left out
+    twin_readings = np.vstack([readings, readings[:3]])
+    _, _, twin_keep = measurement_pairs(twin_readings, np.r_[capture.circle, capture.circle[:3]] - 1)
+    assert (~twin_keep).sum() == 3
+
+
+def test_distance_evaluation_keeps_pairs_of_different_targets():
+    from robotcal.identification.evaluation import distance_errors
+
+    capture = _capture(JOINT_PLAN)
+    errors = distance_errors(capture, ParameterSet.nominal(ROBOT), JOINT_PLAN.reflector)
+    assert errors.size == capture.n_points * (capture.n_points - 1) // 2
+
+
+@pytest.mark.parametrize("criterion", ["points", "distances"])
+def test_no_degrees_of_freedom_left_gives_nan_sigma_and_no_covariance(criterion):
+    # 6 flange points: 18 coordinates. Points: 18 residuals for up to 18 unknowns. Distances: 15
+    # distances, only 3*6 - 6 = 12 independent of a rigid motion, for more unknowns.
+    readings = random_poses(ROBOT, 6, rng=4)
+    capture, _ = simulate_poses(ROBOT, readings, FULL_PLAN.reflector, EXACT, TRACKER, true_parameters=TRUTH)
+    result = _refine(capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector, criterion=criterion)
+    assert np.isnan(result.sigma)
+    assert result.covariance is None and result.correlation is None
+    assert np.all(np.isnan(result.standard_uncertainty))
+    assert result.message.startswith("no degrees of freedom left to estimate the noise")
+    assert f"{result.n_residuals} residuals" in result.message
 
 
 def test_points_criterion_with_known_base_frees_d1_theta1():

@@ -41,6 +41,10 @@ def test_random_poses_validation():
         random_poses(kr5_robot(), 3)
     with pytest.raises(InputError, match="n_poses"):
         random_poses(_limited_robot(), 0)
+    with pytest.raises(InputError, match="n_poses"):
+        random_poses(_limited_robot(), True)  # a bool is not a count
+    with pytest.raises(InputError, match="n_poses"):
+        random_poses(_limited_robot(), np.True_)
     with pytest.raises(InputError, match="leaves no range"):
         random_poses(_limited_robot(), 3, margin_deg=200.0)
 

@@ -14,6 +14,7 @@ from robotcal.io import load_robot
 from robotcal.kinematics.forward import forward_kinematics, joint_frames
 from robotcal.uncertainty.statistics import summarize_draws
 from robotcal.uncertainty.tcp import (
+    check_readings,
     coverage_ellipsoid,
     propagate_to_tcp,
     tcp_coordinates,
@@ -188,8 +189,13 @@ def test_readings_outside_the_limits_warn_naming_the_pose():
     draws, _ = _gaussian_draws(50)
     readings = np.deg2rad(READINGS_DEG).copy()
     readings[1, 4] = np.deg2rad(125.0)
-    with pytest.warns(JointLimitWarning, match=r"pose 2: J5 = 125 deg outside \[-120, 120\] deg"):
+    with pytest.warns(JointLimitWarning, match=r"pose 2: J5 = 125 deg outside \[-120, 120\] deg") as record:
         propagate_to_tcp(ROBOT, draws, readings)
+    # the warning points at the caller of the public function (stacklevel), here this test file
+    assert [w.filename for w in record] == [__file__]
+    with pytest.warns(JointLimitWarning, match=r"pose 2: J5") as record:
+        check_readings(ROBOT, readings, name="trajectory")
+    assert [w.filename for w in record] == [__file__]
 
 
 def test_bad_draws_tool_and_coverage_are_refused():
