@@ -119,7 +119,10 @@ def main() -> None:
     exponent = float(np.polyfit(np.log(sizes), np.log(times), 1)[0])
     figures["scaling_exponent"] = exponent
     print("cost vs draws (2 workers): " + ", ".join(f"{s}: {t:.2f} s" for s, t in zip(sizes, times, strict=True)))
+    slope, intercept = np.polyfit(sizes, times, 1)
+    figures["linear_fit"] = {"fixed_s": float(intercept), "per_draw_us": float(slope * 1e6)}
     print(f"fitted exponent of time vs draws: {exponent:.3f} (1 = linear)")
+    print(f"linear fit: time = {intercept:.2f} s + {slope * 1e6:.1f} us x draws (the fixed part starts the workers)")
     memory = peak_memory_mb(args.draws, 2)
     figures["peak_rss_mb"] = {str(args.draws): memory}
     print(f"peak memory (max RSS, draws kept): {memory:.0f} MB at {args.draws} draws")
