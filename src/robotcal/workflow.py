@@ -240,6 +240,12 @@ def refine_scenario(capture: Capture, scenario: Scenario, start: ParameterSet, *
     )
 
 
+def _finite_or_none(value):
+    """JSON has no NaN/inf: an undefined figure (e.g. sigma with no degrees of freedom) is null."""
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
 def refine_provenance(result, capture: Capture, scenario: Scenario, start_source: str) -> dict:
     """What a parameter JSON records about a refinement (mm, deg), convergence history included."""
     names = scenario.robot.parameter_names
@@ -276,10 +282,16 @@ def refine_provenance(result, capture: Capture, scenario: Scenario, start_source
         "residual_rms_mm": result.residual_rms,
         "residual_mean_mm": result.residual_mean,
         "residual_max_mm": result.residual_max,
-        "sigma_mm": result.sigma,
-        "condition_number": result.condition_number,
-        "singular_values": result.singular_values.tolist(),
+        "sigma_mm": _finite_or_none(result.sigma),
+        "condition_number": _finite_or_none(result.condition_number),
+        "singular_values": [_finite_or_none(v) for v in result.singular_values],
         "standard_uncertainty": sd,
+        "correlation": None
+        if result.correlation is None
+        else {
+            "names": list(result.free_names),
+            "matrix": [[round(float(v), 12) for v in row] for row in result.correlation],
+        },
         "tracker_from_base": None if result.tracker_from_base is None else result.tracker_from_base.tolist(),
         "versions": versions(),
     }
@@ -406,7 +418,7 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
             f"({KUKA_CONTROLLER_ROBOT}) = readings {shown} deg of {robot.name}"
         )
     else:
-        notes.append(f"no TCP pose: give `tcp.pose_deg` (the Table 5.8 default is for the KR 5 sixx R650)")
+        notes.append("no TCP pose: give `tcp.pose_deg` (the Table 5.8 default is for the KR 5 sixx R650)")
     name = table.get("trajectory")
     builtin = name is None or name in builtin_trajectories()
     if name is None and not kuka_compatible:

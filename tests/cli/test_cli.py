@@ -177,12 +177,3 @@ def test_bad_capture_gives_error_and_no_output(tmp_path):
         assert result.exit_code == 2, (name, result.output)
         assert message in result.output.replace("\n", " "), (name, result.output)
         assert not out.exists(), name
-
-
-def test_demo_writes_capture_and_parameters(tmp_path):
-    result = invoke("demo", "--out", tmp_path / "demo")
-    assert result.exit_code == 0, result.output
-    assert (tmp_path / "demo" / "capture.csv").exists()
-    data = json.loads((tmp_path / "demo" / "parameters.json").read_text())
-    assert data["provenance"]["capture_seed"] == 1
-    assert len(data["identified"]) == 20

@@ -101,6 +101,7 @@ def test_workspace_map(tmp_path, draws_file):
     [
         (["--pose", "1,2,3,4,5"], "5 joint readings but robot 'kuka-kr5-sixx-r650-krc' has 6 joints"),
         (["--pose", "1,2,x,4,5,6"], "expected comma-separated numbers"),
+        (["--pose", "1,,2,3,4,5,6"], "an empty field"),
         (["--pose", "1,2,3,4,5,6", "--workspace", "3"], "exactly one of --pose, --trajectory and --workspace"),
         (["--pose", "1,2,3,4,5,6", "--tool", "1,2"], "--tool '1,2': expected 3 numbers"),
         (["--pose", "1,2,3,4,5,6", "--interval", "wide"], "--interval must be one of"),

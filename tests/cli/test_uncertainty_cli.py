@@ -31,9 +31,7 @@ def run_folder(tmp_path_factory):
 def test_writes_the_documented_files(run_folder):
     out, output = run_folder
     names = sorted(path.name for path in out.iterdir())
-    assert names == sorted(
-        ["parameters.csv", "parameters.json", "draws.npz"] + [f"hist_J{i}.png" for i in range(1, 6)]
-    )
+    assert names == sorted(["parameters.csv", "parameters.json", "draws.npz"] + [f"hist_J{i}.png" for i in range(1, 6)])
     assert "wrote" in output and "draws/s" in output
     with (out / "parameters.csv").open() as stream:
         rows = list(csv.DictReader(stream))
@@ -110,6 +108,8 @@ def test_interrupted_run_leaves_no_output_folder(tmp_path, monkeypatch):
 
     monkeypatch.setattr(uncertainty_cli, "write_uncertainty_folder", interrupted)
     out = tmp_path / "result"
-    result = runner.invoke(app, ["uncertainty", "thesis-laser-tracker", "-n", "100", "--workers", "1", "--out", str(out)])
+    result = runner.invoke(
+        app, ["uncertainty", "thesis-laser-tracker", "-n", "100", "--workers", "1", "--out", str(out)]
+    )
     assert result.exit_code == 130
     assert list(tmp_path.iterdir()) == []  # neither the folder nor its hidden partial sibling

@@ -28,8 +28,11 @@ _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
 
 
 def _numbers(text: str, option: str, count: int | None = None) -> np.ndarray:
+    parts = [part.strip() for part in text.replace(";", ",").split(",")]
+    if any(not part for part in parts):
+        raise InputError(f"{option} {text!r}: an empty field; expected comma-separated numbers")
     try:
-        values = np.array([float(part) for part in text.replace(";", ",").split(",") if part.strip()])
+        values = np.array([float(part) for part in parts])
     except ValueError:
         raise InputError(f"{option} {text!r}: expected comma-separated numbers") from None
     if count is not None and values.size != count:

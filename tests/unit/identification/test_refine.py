@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import warnings
 
 import numpy as np
@@ -13,12 +14,13 @@ from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputE
 from robotcal.identification import identify_cpa
 from robotcal.identification.refine import _Problem, measurement_pairs, refine_parameters
 from robotcal.instruments import Instrument
-from robotcal.io import load_robot
+from robotcal.io import load_robot, load_scenario
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses, simulate_poses, thesis_test2_plan
+from robotcal.workflow import refine_provenance
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
 EXACT = Instrument(name="exact", a_mm=0.0, b_mm_per_m=0.0)
@@ -218,6 +220,11 @@ def test_no_degrees_of_freedom_left_gives_nan_sigma_and_no_covariance(criterion)
     assert np.all(np.isnan(result.standard_uncertainty))
     assert result.message.startswith("no degrees of freedom left to estimate the noise")
     assert f"{result.n_residuals} residuals" in result.message
+    # the parameter JSON's provenance turns the undefined figures into null instead of failing
+    scenario = load_scenario("thesis-laser-tracker")
+    provenance = refine_provenance(result, capture, scenario, "nominal")
+    assert provenance["sigma_mm"] is None and provenance["correlation"] is None
+    json.dumps(provenance, allow_nan=False)
 
 
 def test_points_criterion_with_known_base_frees_d1_theta1():

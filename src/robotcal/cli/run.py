@@ -1,0 +1,633 @@
+"""``robotcal run SCENARIO --out DIR``: the whole calibration pipeline into one run folder.
+
+Stages (docs/results.md): simulate (truth, calibration and validation captures), identify (CPA),
+refine (points and distances criteria), evaluate, joints, uncertainty (Monte Carlo, draws kept),
+tcp (Table 5.8 pose, trajectory, workspace), report. Each stage calls the same functions as its
+stand-alone command and writes the same files, its folder built with
+:func:`robotcal.io.atomic.atomic_directory`; ``run.json`` is rewritten (atomically) after every
+stage, so a failed stage leaves the earlier stages' outputs and a record of what failed and why.
+
+Everything that can be checked is checked by :func:`prepare_run` before any computation.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import shutil
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from robotcal.capture import Capture
+from robotcal.cli import app
+from robotcal.cli._common import console, error_console, handle_errors
+from robotcal.cli.evaluate import evaluation_document, write_evaluation_folder
+from robotcal.cli.joints import compute_joints, write_joints_folder
+from robotcal.cli.tcp import compute_tcp, write_tcp_folder
+from robotcal.cli.uncertainty import compute_uncertainty, write_uncertainty_folder
+from robotcal.errors import InputError, RobotcalError
+from robotcal.io import load_scenario, read_capture, write_capture, write_parameters
+from robotcal.io.atomic import atomic_directory, atomic_write_text
+from robotcal.io.scenario import Scenario
+from robotcal.kinematics.model import ParameterSet
+from robotcal.uncertainty.montecarlo import MonteCarloSettings
+from robotcal.workflow import (
+    TCPTargets,
+    cpa_provenance,
+    evaluate_scenario,
+    identify_scenario,
+    refine_provenance,
+    refine_scenario,
+    resolve_seed,
+    scenario_truth,
+    simulate_scenario,
+    simulate_validation,
+    tcp_targets,
+    validation_reflector,
+    versions,
+)
+
+__all__ = ["RunPlan", "STAGES", "prepare_run", "execute_run", "run", "run_with_display"]
+
+#: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
+STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "report")
+#: What each stage writes under the run folder.
+OUTPUTS = {
+    "simulate": ("truth.json", "capture.csv", "validation.csv"),
+    "identify": ("cpa",),
+    "refine": ("refine",),
+    "evaluate": ("evaluation",),
+    "joints": ("joints",),
+    "uncertainty": ("uncertainty",),
+    "tcp": ("tcp",),
+    "report": ("report.html",),
+}
+#: Steps per stage for the progress display (the Monte Carlo counts draws instead).
+STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "report": 1}
+#: Offsets of the seeds derived from ``--seed N``: every random part of the run gets its own.
+SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4}
+
+StageProgress = Callable[[str, int, int | None, str], None]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RunPlan:
+    """A checked run: the scenario, the output folder, the seeds and the stage settings."""
+
+    scenario: Scenario
+    out: Path
+    seeds: dict
+    montecarlo: MonteCarloSettings
+    tcp: TCPTargets
+    backlash: bool
+    command: str
+
+
+def prepare_run(
+    scenario: str,
+    out: Path,
+    *,
+    seed: int | None = None,
+    draws: int | None = None,
+    workspace: int | None = None,
+    workers: int | None = None,
+    command: str = "robotcal run",
+) -> RunPlan:
+    """Load and check everything a run needs, before any computation; nothing is written.
+
+    Raises :class:`InputError` naming the file and key (scenario keys, validation target, TCP pose and
+    trajectory, Monte Carlo settings, output folder).
+    """
+    loaded = load_scenario(scenario)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder")
+    robot = loaded.robot
+    validation_reflector(loaded)  # a validation capture needs a flange target
+    table = loaded.validation or {"margin_deg": 5.0}
+    if not np.all(np.isfinite(robot.limits)):
+        raise InputError(
+            f"{loaded.source}: robot {robot.name!r} needs finite `limits_deg` on every joint for the random "
+            "validation poses"
+        )
+    if np.any(robot.limits[:, 1] - robot.limits[:, 0] <= 2 * np.deg2rad(table["margin_deg"])):
+        raise InputError(f"{loaded.source}: key `validation.margin_deg` leaves no room within the joint limits")
+    if seed is not None:
+        seeds = {name: seed + offset for name, offset in SEED_OFFSETS.items()}
+    else:
+        seeds = {
+            "capture": resolve_seed(loaded.seed),
+            "truth": resolve_seed((loaded.truth or {}).get("seed")),
+            "validation": resolve_seed((loaded.validation or {}).get("seed")),
+            "montecarlo": resolve_seed(loaded.montecarlo.get("seed")),
+            "workspace": None,
+        }
+    if loaded.truth is None:
+        seeds["truth"] = None
+    targets = tcp_targets(loaded)
+    if seeds["workspace"] is None:
+        seeds["workspace"] = targets.workspace_seed
+    if workspace is not None:
+        if workspace < 1:
+            raise InputError(f"--workspace must be a positive number of poses; got {workspace}")
+        targets = _replace_workspace(targets, workspace)
+    iterations = int(loaded.montecarlo["iterations"]) if draws is None else draws
+    try:
+        settings = MonteCarloSettings(
+            iterations=iterations,
+            coverage=float(loaded.montecarlo["coverage"]),
+            workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
+        )
+    except InputError as exc:
+        raise InputError(f"{loaded.source}: Monte Carlo settings: {exc}") from None
+    return RunPlan(
+        scenario=loaded,
+        out=out,
+        seeds=seeds,
+        montecarlo=settings,
+        tcp=targets,
+        backlash=bool(loaded.plan.bidirectional),
+        command=command,
+    )
+
+
+def _replace_workspace(targets: TCPTargets, poses: int) -> TCPTargets:
+    from dataclasses import replace
+
+    return replace(targets, workspace_poses=poses)
+
+
+def _scenario_echo(plan: RunPlan) -> dict:
+    scenario = plan.scenario
+    instrument = scenario.instrument
+    return {
+        "name": scenario.name,
+        "source": scenario.source,
+        "description": scenario.description,
+        "robot": scenario.robot.name,
+        "instrument": {
+            "name": instrument.name,
+            "a_um": instrument.a_mm * 1e3,
+            "b_um_per_m": instrument.b_mm_per_m * 1e3,
+            "noise": instrument.noise,
+        },
+        "settings": scenario.settings,
+    }
+
+
+class _Record:
+    """``run.json``: scenario echo, seeds, versions, per-stage status and time; written after each stage."""
+
+    def __init__(self, plan: RunPlan):
+        self.path = plan.out / "run.json"
+        self.data = {
+            "command": plan.command,
+            "scenario": _scenario_echo(plan),
+            "robot": plan.scenario.robot.name,
+            "seed": plan.seeds["capture"],
+            "seeds": plan.seeds,
+            "montecarlo": {
+                "draws": plan.montecarlo.iterations,
+                "coverage": plan.montecarlo.coverage,
+                "workers": plan.montecarlo.workers,
+                "simulated_robot": "the CPA result (cpa/parameters.json)",
+            },
+            "tcp": {
+                "pose": plan.tcp.pose_source,
+                "trajectory": plan.tcp.trajectory_source,
+                "workspace_poses": plan.tcp.workspace_poses,
+                "workspace_draws": plan.tcp.workspace_draws,
+                "workspace_seed": plan.seeds["workspace"],
+                "tool_mm": None if plan.tcp.tool_mm is None else plan.tcp.tool_mm.tolist(),
+            },
+            "notes": list(plan.tcp.notes),
+            "versions": versions(),
+            "started": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "status": "running",
+            "stages": {name: {"status": "pending", "seconds": None} for name in STAGES},
+        }
+
+    def stage(self, name: str, **entries) -> None:
+        self.data["stages"][name].update(entries)
+
+    def write(self) -> None:
+        atomic_write_text(self.path, json.dumps(self.data, indent=2, allow_nan=False, default=str) + "\n")
+
+
+def _clear_previous(out: Path) -> None:
+    """Remove the outputs of an earlier run into ``out`` (only the names a run writes)."""
+    for names in OUTPUTS.values():
+        for name in names:
+            path = out / name
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            elif path.exists() or path.is_symlink():
+                path.unlink()
+    (out / "run.json").unlink(missing_ok=True)
+
+
+def _relabel(capture: Capture, source: str, seed: int | None) -> Capture:
+    return Capture(
+        circle=capture.circle,
+        direction=capture.direction,
+        readings=capture.readings,
+        points=capture.points,
+        source=source,
+        seed=seed,
+    )
+
+
+def execute_run(plan: RunPlan, *, progress: StageProgress | None = None) -> dict:
+    """Run every stage of ``plan`` into ``plan.out``; returns the ``run.json`` data.
+
+    ``progress(stage, done, total, detail)`` is called as stages advance. A stage that raises stops
+    the run: ``run.json`` records the stage as failed with the message, and the exception propagates.
+    """
+    report = progress or (lambda stage, done, total, detail="": None)
+    scenario, out, seeds = plan.scenario, plan.out, plan.seeds
+    robot = scenario.robot
+    n = robot.n_joints
+    out.mkdir(parents=True, exist_ok=True)
+    _clear_previous(out)
+    record = _Record(plan)
+    record.write()
+    state: dict = {}
+    run_started = time.perf_counter()
+
+    def simulate_stage():
+        if scenario.truth is not None:
+            truth, truth_seed = scenario_truth(scenario, seed=seeds["truth"])
+            provenance = {
+                "method": "nominal plus normal deviations of the CPA-identifiable parameters (simulation.perturb)",
+                "scenario": {"name": scenario.name, "source": scenario.source},
+                "truth": scenario.truth,
+                "seed": truth_seed,
+                "versions": versions(),
+            }
+        else:
+            truth = ParameterSet.nominal(robot)
+            provenance = {
+                "method": "nominal parameters (the scenario has no [truth] table)",
+                "scenario": {"name": scenario.name, "source": scenario.source},
+                "versions": versions(),
+            }
+        write_parameters(out / "truth.json", truth, provenance)
+        report("simulate", 1, None, "truth")
+        calibration = simulate_scenario(scenario, seed=seeds["capture"], true_parameters=truth)
+        write_capture(out / "capture.csv", calibration.capture)
+        report("simulate", 2, None, f"{calibration.capture.n_points} points")
+        validation = simulate_validation(scenario, seed=seeds["validation"], true_parameters=truth)
+        write_capture(out / "validation.csv", validation.capture)
+        # the stages work on the files as written, exactly as the stand-alone commands read them
+        state["capture"] = _relabel(read_capture(out / "capture.csv", n_joints=n), "capture.csv", calibration.seed)
+        state["validation"] = _relabel(
+            read_capture(out / "validation.csv", n_joints=n), "validation.csv", validation.seed
+        )
+        return f"{calibration.capture.n_points} + {validation.capture.n_points} points"
+
+    def identify_stage():
+        capture = state["capture"]
+        result = identify_scenario(capture, scenario)
+        with atomic_directory(out / "cpa") as folder:
+            write_parameters(folder / "parameters.json", result.parameters, cpa_provenance(result, capture, scenario))
+        state["cpa"] = result.parameters
+        return f"{int(result.parameters.identified.sum())} parameters"
+
+    def refine_stage():
+        capture = state["capture"]
+        results = {}
+        for k, criterion in enumerate(("points", "distances")):
+            results[criterion] = refine_scenario(capture, scenario, state["cpa"], criterion=criterion)
+            report("refine", k + 1, None, criterion)
+        with atomic_directory(out / "refine") as folder:
+            for criterion, result in results.items():
+                write_parameters(
+                    folder / f"{criterion}.json",
+                    result.parameters,
+                    refine_provenance(result, capture, scenario, "cpa/parameters.json"),
+                )
+        state["refined"] = {criterion: result.parameters for criterion, result in results.items()}
+        state["histories"] = {
+            criterion: {
+                "criterion": criterion,
+                "cost_mm2": result.cost_history.tolist(),
+                "rms_mm": result.rms_history.tolist(),
+            }
+            for criterion, result in results.items()
+        }
+        return ", ".join(f"{c} RMS {r.rms_history[-1] * 1e3:.1f} um" for c, r in results.items())
+
+    def evaluate_stage():
+        sets = {"nominal": ParameterSet.nominal(robot), "cpa": state["cpa"], **state["refined"]}
+        captures = {"validation": state["validation"], "capture": state["capture"]}
+        rows = evaluate_scenario(scenario, captures, sets)
+        document = evaluation_document(
+            rows,
+            scenario,
+            parameter_files={
+                "cpa": "cpa/parameters.json",
+                "points": "refine/points.json",
+                "distances": "refine/distances.json",
+            },
+            capture_files={"validation": "validation.csv", "capture": "capture.csv"},
+            reference="nominal",
+            histories=state["histories"],
+            headline_after="points",
+        )
+        with atomic_directory(out / "evaluation") as folder:
+            write_evaluation_folder(folder, rows, document)
+        state["headline"] = document["headline"]
+        headline = document["headline"]
+        if headline:
+            return f"{headline['before_mean_mm']:.3f} -> {headline['after_mean_mm']:.4f} mm"
+        return ""
+
+    def joints_stage():
+        diagnostics, model = compute_joints(state["capture"], scenario, backlash=plan.backlash)
+        with atomic_directory(out / "joints") as folder:
+            write_joints_folder(folder, diagnostics, model, capture="capture.csv", scenario=scenario)
+        state["joint_notes"] = [*diagnostics.messages, *model.messages]
+        return "backlash and eccentricity" if plan.backlash else "eccentricity (one sweep direction)"
+
+    def uncertainty_stage():
+        total = plan.montecarlo.iterations
+
+        def draws_done(done: int, expected: int | None) -> None:
+            report("uncertainty", done, expected or total, "draws")
+
+        result = compute_uncertainty(
+            scenario, plan.montecarlo, seed=seeds["montecarlo"], true_parameters=state["cpa"], progress=draws_done
+        )
+        with atomic_directory(out / "uncertainty") as folder:
+            write_uncertainty_folder(folder, result, scenario, save_draws=True)
+        state["montecarlo"] = result
+        rate = result.n_draws / max(result.timings_s.get("draws", 0.0), 1e-9)
+        return f"{result.n_draws:,} draws, {rate:,.0f} draws/s"
+
+    def tcp_stage():
+        result = state["montecarlo"]
+        targets = plan.tcp
+        base = {
+            "draws_file": "uncertainty/draws.npz",
+            "draws_seed": result.seed,
+            "draws_in_file": result.n_draws,
+            "versions": versions(),
+        }
+        parts = []
+        for mode, readings, source in (
+            ("pose", targets.pose, targets.pose_source),
+            ("trajectory", targets.trajectory, targets.trajectory_source),
+        ):
+            if readings is None:
+                parts.append((mode, None, None, None))
+                continue
+            started = time.perf_counter()
+            tcp, _ = compute_tcp(robot, result.draws, mode, readings=readings, tool_mm=targets.tool_mm)
+            provenance = {**base, mode: source, "mode": mode, "seconds": round(time.perf_counter() - started, 3)}
+            parts.append((mode, tcp, None, provenance))
+            report("tcp", len(parts), None, mode)
+        started = time.perf_counter()
+        values = result.draws if targets.workspace_draws is None else result.draws[: targets.workspace_draws]
+        tcp, ws = compute_tcp(
+            robot,
+            values,
+            "workspace",
+            n_poses=targets.workspace_poses,
+            seed=seeds["workspace"],
+            tool_mm=targets.tool_mm,
+        )
+        provenance = {**base, "mode": "workspace", "seconds": round(time.perf_counter() - started, 3)}
+        if values.shape[0] < result.n_draws:
+            provenance["draws_used"] = int(values.shape[0])
+        parts.append(("workspace", tcp, ws, provenance))
+        with atomic_directory(out / "tcp") as folder:
+            for mode, tcp, ws, provenance in parts:
+                if tcp is None:
+                    continue
+                (folder / mode).mkdir()
+                write_tcp_folder(folder / mode, tcp, mode, workspace=ws, provenance=provenance)
+        state["tcp"] = {mode: (tcp, ws) for mode, tcp, ws, _ in parts if tcp is not None}
+        report("tcp", 3, None, "workspace")
+        return ", ".join(mode for mode, tcp, _, _ in parts if tcp is not None)
+
+    def report_stage():
+        from robotcal.report.html import build_report
+
+        built = build_report(out)
+        state["report"] = built
+        return f"{built.figures} figures"
+
+    functions = {
+        "simulate": simulate_stage,
+        "identify": identify_stage,
+        "refine": refine_stage,
+        "evaluate": evaluate_stage,
+        "joints": joints_stage,
+        "uncertainty": uncertainty_stage,
+        "tcp": tcp_stage,
+        "report": report_stage,
+    }
+    for name in STAGES:
+        record.stage(name, status="running")
+        record.write()
+        report(name, 0, None, "running")
+        started = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                detail = functions[name]()
+            except BaseException as exc:
+                seconds = round(time.perf_counter() - started, 3)
+                message = str(exc) if isinstance(exc, RobotcalError) else f"{type(exc).__name__}: {exc}"
+                record.stage(name, status="failed", seconds=seconds, error=message)
+                record.data.update(
+                    status="interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
+                    failed_stage=name,
+                    error=message,
+                    seconds=round(time.perf_counter() - run_started, 3),
+                )
+                record.write()
+                raise
+        messages = list(dict.fromkeys(str(w.message) for w in caught))
+        record.stage(
+            name,
+            status="done",
+            seconds=round(time.perf_counter() - started, 3),
+            outputs=[entry for entry in OUTPUTS[name] if (out / entry).exists()],
+            detail=detail,
+            **({"warnings": messages} if messages else {}),
+        )
+        if name == "report":
+            record.data.update(status="done", seconds=round(time.perf_counter() - run_started, 3))
+        record.write()
+        report(name, -1, None, detail)
+    # run.json changed after the report was built (its status and time): rebuild it so both agree
+    from robotcal.report.html import build_report
+
+    state["report"] = build_report(out)
+    record.data["finished"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    return {**record.data, "_state": state}
+
+
+def run_with_display(plan: RunPlan) -> dict:
+    """:func:`execute_run` under one Rich progress display (a task per stage; draws for the Monte Carlo)."""
+    columns = (
+        SpinnerColumn(finished_text="[green]✓[/green]"),
+        TextColumn("{task.fields[stage]:<12}"),
+        BarColumn(bar_width=30),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[unit]}"),
+        TimeElapsedColumn(),
+        TextColumn("[dim]{task.fields[detail]}[/dim]"),
+    )
+    with Progress(*columns, console=console, transient=False) as display:
+        tasks = {}
+        for name in STAGES:
+            total = plan.montecarlo.iterations if name == "uncertainty" else STEPS[name]
+            unit = "draws" if name == "uncertainty" else "steps"
+            tasks[name] = display.add_task(name, total=total, stage=name, unit=unit, detail="", start=False)
+
+        def update(stage: str, done: int, total: int | None, detail: str = "") -> None:
+            task = tasks[stage]
+            if done == 0 and detail == "running":
+                display.start_task(task)
+                return
+            if done < 0:  # stage finished
+                display.update(task, completed=display.tasks[task].total, detail=detail)
+                display.stop_task(task)
+                return
+            display.update(task, completed=done, detail=detail if stage != "uncertainty" else "")
+
+        try:
+            return execute_run(plan, progress=update)
+        except BaseException:
+            for task in display.tasks:
+                if task.started and not task.finished:
+                    display.update(task.id, detail="[red]failed[/red]")
+                    display.stop_task(task.id)
+            raise
+
+
+def _summary(data: dict) -> None:
+    state = data["_state"]
+    stages = Table(title="Stages", title_justify="left")
+    for column in ("stage", "status", "time (s)", "result"):
+        stages.add_column(column, justify="right" if column == "time (s)" else "left")
+    for name, entry in data["stages"].items():
+        stages.add_row(name, entry["status"], f"{entry['seconds']:.1f}", str(entry.get("detail") or ""))
+    console.print(stages)
+    warned = {message for entry in data["stages"].values() for message in entry.get("warnings", [])}
+    for message in (*sorted(warned), *data.get("notes", [])):  # recorded in run.json; the run went on
+        error_console.print(f"note: {message}", highlight=False)
+    headline = state.get("headline")
+    if headline:
+        console.print(
+            f"how good: mean validation error {headline['before_mean_mm']:.4f} mm (nominal) -> "
+            f"{headline['after_mean_mm']:.4f} mm (refined, points criterion)",
+            highlight=False,
+        )
+    mc = state.get("montecarlo")
+    if mc is not None:
+        lengths = mc.identified.copy()
+        lengths[:, [1, 3, 4]] = False
+        angles = mc.identified & ~lengths
+        console.print(
+            f"how sure: largest standard uncertainty of the CPA parameters {mc.summary.std_uncertainty[lengths].max():.4f} mm "
+            f"(lengths), {np.rad2deg(mc.summary.std_uncertainty[angles].max()):.4f} deg (angles); "
+            f"{mc.n_draws:,} draws",
+            highlight=False,
+        )
+    tcp = state.get("tcp", {})
+    if "pose" in tcp:
+        console.print(
+            f"TCP position uncertainty at the pose: {tcp['pose'][0].position_uncertainty[0]:.4f} mm",
+            highlight=False,
+        )
+    if "workspace" in tcp:
+        values = tcp["workspace"][0].position_uncertainty
+        p50, p95 = np.percentile(values, [50, 95])
+        console.print(
+            f"where: over {values.size} workspace poses the TCP position uncertainty is {p50:.4f} mm (median), "
+            f"{p95:.4f} mm (95th percentile), {values.max():.4f} mm (worst)",
+            highlight=False,
+        )
+
+
+def _command_line(command: str, *arguments, **options) -> str:
+    """The command as a user would type it, for ``run.json``."""
+    parts = ["robotcal", command, *(str(a) for a in arguments if a is not None)]
+    for name, value in options.items():
+        if value is not None:
+            parts += [f"--{name}", str(value)]
+    return " ".join(parts)
+
+
+def run_and_print(plan: RunPlan) -> dict:
+    """The ``run``/``demo`` command body: display, summary, and the report's path and total time."""
+    started = time.perf_counter()
+    console.rule(f"robotcal run {plan.scenario.name}: {plan.scenario.description}")
+    try:
+        data = run_with_display(plan)
+    except RobotcalError as exc:
+        record = json.loads((plan.out / "run.json").read_text(encoding="utf-8"))
+        stage = record.get("failed_stage", "?")
+        done = [name for name, entry in record["stages"].items() if entry["status"] == "done"]
+        raise RobotcalError(
+            f"stage {stage!r} failed: {exc}. Earlier stages ({', '.join(done) or 'none'}) are intact in "
+            f"{plan.out}; {plan.out / 'run.json'} records the failure"
+        ) from None
+    _summary(data)
+    report = data["_state"]["report"]
+    console.print(
+        f"wrote {report.path.resolve()} (open it in a browser) in {time.perf_counter() - started:.1f} s",
+        highlight=False,
+        soft_wrap=True,
+    )
+    return data
+
+
+@app.command("run")
+@handle_errors
+def run(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Run folder to write (stage outputs are replaced).")],
+    seed: Annotated[
+        int | None,
+        typer.Option(
+            min=0, help="Seed of the whole run (capture N, truth N+1, validation N+2, Monte Carlo N+3, workspace N+4)."
+        ),
+    ] = None,
+    draws: Annotated[
+        int | None,
+        typer.Option("--draws", min=1, help="Monte Carlo draws (default: the scenario's montecarlo.iterations)."),
+    ] = None,
+    workspace: Annotated[
+        int | None,
+        typer.Option("--workspace", min=1, help="Random workspace poses (default: tcp.workspace_poses, 1000)."),
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option("--workers", min=1, help="Monte Carlo worker processes (default: CPU count, at most 4)."),
+    ] = None,
+) -> None:
+    """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP) and write DIR/report.html."""
+    plan = prepare_run(
+        scenario,
+        out,
+        seed=seed,
+        draws=draws,
+        workspace=workspace,
+        workers=workers,
+        command=_command_line("run", scenario, out=out, seed=seed, draws=draws, workspace=workspace, workers=workers),
+    )
+    run_and_print(plan)
