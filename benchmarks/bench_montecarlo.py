@@ -29,22 +29,15 @@ import numpy as np
 
 from robotcal.identification.cpa import identify_cpa
 from robotcal.io import load_scenario
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+from robotcal.workflow import scenario_monte_carlo
 
 SCENARIO = "thesis-laser-tracker"
 
 
 def _problem():
     scenario = load_scenario(SCENARIO)
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        scenario.instrument,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_errors=scenario.joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario)
     return scenario, problem
 
 

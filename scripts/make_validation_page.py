@@ -18,22 +18,15 @@ import numpy as np
 import robotcal
 from robotcal.io import load_scenario
 from robotcal.io.atomic import atomic_write_text
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+from robotcal.workflow import scenario_monte_carlo
 
 ROOT = Path(__file__).resolve().parents[1]
 ANGLES = (1, 3, 4)
 
 
 def run(scenario, draws: int, seed: int, instrument=None):
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        scenario.instrument if instrument is None else instrument,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_errors=scenario.joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario, instrument=instrument)
     return run_monte_carlo(problem, MonteCarloSettings(iterations=draws, workers=2), seed=seed, linearised=False)
 
 

@@ -77,6 +77,23 @@ def simulate_scenario(
     return SimulationRun(capture=capture, exact_points=exact, seed=seed, true_parameters=true_parameters)
 
 
+def scenario_monte_carlo(scenario: Scenario, *, true_parameters: ParameterSet | None = None, instrument=None):
+    """The Monte Carlo problem of a scenario: its robot, plan, instrument (or ``instrument``), base frame,
+    joint errors, limits policy and CPA options (``prepare_monte_carlo``; every input check happens here)."""
+    from robotcal.uncertainty.montecarlo import prepare_monte_carlo
+
+    return prepare_monte_carlo(
+        scenario.robot,
+        scenario.plan,
+        scenario.instrument if instrument is None else instrument,
+        scenario.tracker_from_base,
+        options=scenario.identification,
+        true_parameters=true_parameters,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
+    )
+
+
 def identify_scenario(capture: Capture, scenario: Scenario) -> CPAResult:
     """CPA of ``capture`` with the scenario's robot, reflector, base frame and options."""
     return identify_cpa(

@@ -13,7 +13,8 @@ import robotcal.cli.uncertainty as uncertainty_cli
 from robotcal.cli import app
 from robotcal.io import load_scenario
 from robotcal.io.draws_npz import read_draws
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+from robotcal.workflow import scenario_monte_carlo
 
 runner = CliRunner()
 DESIGN_COLUMNS = ["name", "unit", "nominal", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max"]
@@ -47,15 +48,7 @@ def test_writes_the_documented_files(run_folder):
 def test_cli_numbers_equal_the_library(run_folder):
     out, _ = run_folder
     scenario = load_scenario("thesis-laser-tracker")
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        scenario.instrument,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_errors=scenario.joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario)
     library = run_monte_carlo(problem, MonteCarloSettings(iterations=2000, interval="shortest"), seed=9)
     with (out / "parameters.csv").open() as stream:
         rows = {row["name"]: row for row in csv.DictReader(stream)}

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from robotcal.io import load_scenario
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+from robotcal.workflow import scenario_monte_carlo
 
 TABLES = Path(__file__).resolve().parents[3] / "shared" / "data" / "thesis_tables.json"
 DRAWS = 20_000
@@ -26,15 +27,7 @@ def igps():
         pytest.skip(f"thesis tables not found at {TABLES}")
     published = json.loads(TABLES.read_text())["table_5_7_igps"]
     scenario = load_scenario("thesis-igps")
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        scenario.instrument,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_errors=scenario.joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=DRAWS, workers=2), seed=1, linearised=False)
     names = np.array(scenario.robot.parameter_names).reshape(scenario.robot.n_joints, 5)
     to_file = np.where(np.isin(np.arange(5), [1, 3, 4]), 180.0 / np.pi, 1.0)

@@ -23,10 +23,9 @@ from robotcal.uncertainty.montecarlo import (
     MonteCarloResult,
     MonteCarloSettings,
     ProgressCallback,
-    prepare_monte_carlo,
     run_monte_carlo,
 )
-from robotcal.workflow import resolve_seed, versions
+from robotcal.workflow import resolve_seed, scenario_monte_carlo, versions
 
 __all__ = ["uncertainty", "compute_uncertainty", "write_uncertainty_folder", "uncertainty_table"]
 
@@ -45,16 +44,7 @@ def compute_uncertainty(
     ``progress(done, total)`` is called after every block when given (``robotcal run`` drives its own
     display with it); else ``show_progress`` shows a progress bar of its own.
     """
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        scenario.instrument,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        true_parameters=true_parameters,
-        joint_errors=scenario.joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario, true_parameters=true_parameters)
     if progress is not None or not show_progress:
         return run_monte_carlo(problem, settings, seed=seed, progress=progress)
     total = None if settings.adaptive else settings.iterations

@@ -59,7 +59,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import sparse
@@ -557,21 +557,7 @@ def refine_parameters(
         warnings.warn(text + "; they are held at their start values", IdentifiabilityWarning, stacklevel=2)
     gauge = tuple(name for name, flag in zip(names, gauge_mask.ravel(), strict=True) if flag)
 
-    problem = _Problem(
-        start=start.values.copy(),
-        free=free_mask,
-        base_start=base_start,
-        base_free=base_free,
-        q=q,
-        turning=turning,
-        reflector=reflector,
-        measured=measured,
-        criterion=criterion,
-        pair_i=pair_i,
-        pair_j=pair_j,
-        pair_keep=pair_keep,
-        measured_distances=distances,
-    )
+    problem = replace(probe, free=free_mask)  # the same problem, only the identifiable columns free
     x0 = problem.x0()
     x_scale = np.concatenate([np.tile(kind_scale, (n, 1))[free_mask], all_scale[5 * n :][base_free]])
     free_names = tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag) + tuple(

@@ -16,23 +16,15 @@ from robotcal.uncertainty.montecarlo import (
     MonteCarloSettings,
     _block_generators,
     draw_block,
-    prepare_monte_carlo,
     run_monte_carlo,
 )
+from robotcal.workflow import scenario_monte_carlo
 
 
 @pytest.fixture(scope="module")
 def laser():
     scenario = load_scenario("thesis-laser-tracker")
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        scenario.instrument,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_errors=scenario.joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario)
     return scenario, problem
 
 
@@ -102,14 +94,7 @@ def test_summary_and_covariance_describe_the_draws(laser):
 def test_linearised_uncertainty_agrees_with_monte_carlo_at_low_noise(laser):
     scenario, _ = laser
     quiet = dataclasses.replace(scenario.instrument, a_mm=0.001, b_mm_per_m=0.0)  # 1 um: CPA is ~linear
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        quiet,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(scenario, instrument=quiet)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=8_000, block_size=4_000), seed=3)
     mask = result.identified
     ratio = result.summary.std_uncertainty[mask] / result.linearised.std_uncertainty[mask]
@@ -156,15 +141,7 @@ def test_random_joint_errors_are_redrawn_in_every_draw(laser):
     noise_sd[:, :3] = 0.01  # 10 um translational joint noise, no instrument noise
     joint_errors = dataclasses.replace(JointErrorModel.zeros(n), noise_sd=noise_sd)
     silent = dataclasses.replace(scenario.instrument, a_mm=0.0, b_mm_per_m=0.0)
-    problem = prepare_monte_carlo(
-        scenario.robot,
-        scenario.plan,
-        silent,
-        scenario.tracker_from_base,
-        options=scenario.identification,
-        joint_errors=joint_errors,
-        joint_limits=scenario.joint_limits,
-    )
+    problem = scenario_monte_carlo(dataclasses.replace(scenario, joint_errors=joint_errors), instrument=silent)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=200, block_size=100, batch_size=64), seed=4)
     assert np.all(result.summary.std_uncertainty[result.identified] > 0.0)
     again = run_monte_carlo(problem, MonteCarloSettings(iterations=200, block_size=100, batch_size=100), seed=4)
