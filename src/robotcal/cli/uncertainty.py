@@ -87,7 +87,8 @@ def uncertainty_table(result: MonteCarloResult) -> Table:
         title_justify="left",
     )
     for column in ("parameter", "unit", "nominal", "mean", "u", f"{coverage} low", f"{coverage} high", "u (GUM)", "§8"):
-        table.add_column(column, justify="left" if column in ("parameter", "unit") else "right")
+        # fold rather than truncate in a narrow terminal: a number cut to "335.0…" would mislead
+        table.add_column(column, justify="left" if column in ("parameter", "unit") else "right", overflow="fold")
     for row in uncertainty_rows(result):
         if not row["identified"]:
             continue
