@@ -1,6 +1,9 @@
-"""Turn pydantic validation errors into one clear :class:`InputError` naming the file and key."""
+"""Validation helpers of the I/O edge: pydantic errors and CSV cells become one clear :class:`InputError`
+naming the file, line and key or column."""
 
 from __future__ import annotations
+
+import math
 
 from pydantic import BaseModel, ValidationError
 
@@ -28,3 +31,18 @@ def validate_model(model: type[BaseModel], data: dict, source: str) -> BaseModel
                 message = "missing required key"
             problems.append(f"key `{_location(error['loc'])}`: {message}")
         raise InputError(f"{source}: " + "; ".join(problems)) from None
+
+
+def parse_finite(cell: str, where: str) -> float:
+    """A CSV cell as a finite float, else ``InputError("<where>: '<cell>' is not a (finite) number")``.
+
+    ``where`` names the place, e.g. ``"capture.csv: line 7, column `x`"``.
+    """
+    text = cell.strip()
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{where}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{where}: {text!r} is not a finite number")
+    return value

@@ -15,6 +15,7 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
+from robotcal.io._validation import parse_finite
 from robotcal.io.atomic import atomic_write_text
 
 __all__ = ["read_capture", "write_capture", "capture_to_csv"]
@@ -78,16 +79,7 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
         if len(row) != len(header):
             raise InputError(f"{path}: line {line} has {len(row)} fields; the header has {len(header)}")
         for column, position in enumerate(index):
-            cell = row[position].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                raise InputError(
-                    f"{path}: line {line}, column `{expected[column]}`: {cell!r} is not a number"
-                ) from None
-            if not np.isfinite(value):
-                raise InputError(f"{path}: line {line}, column `{expected[column]}`: {cell!r} is not a finite number")
-            data[line - 2, column] = value
+            data[line - 2, column] = parse_finite(row[position], f"{path}: line {line}, column `{expected[column]}`")
     if data.shape[0] == 0:
         raise InputError(f"{path}: no data rows")
     circle, direction = data[:, 0], data[:, 1]

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
+from robotcal.io._validation import parse_finite
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.builtins import data_path
 
@@ -97,18 +98,8 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
                 f"{path}: line {number} (pose {k + 1}) has {len(row)} fields; the header has {len(header)}"
             )
         for column, position in enumerate(index):
-            cell = row[position].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                raise InputError(
-                    f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`: {cell!r} is not a number"
-                ) from None
-            if not np.isfinite(value):
-                raise InputError(
-                    f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`: {cell!r} is not a finite number"
-                )
-            readings[k, column] = value
+            where = f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`"
+            readings[k, column] = parse_finite(row[position], where)
     if readings.shape[0] == 0:
         raise InputError(f"{path}: no poses after the header")
     return np.deg2rad(readings)
