@@ -1,7 +1,8 @@
 """Generate ``docs/validation.md``: robotcal's Monte Carlo against the thesis's Tables 5.6 and 5.7.
 
 Usage: ``python scripts/make_validation_page.py [--draws 100000] [--tables PATH] [--out docs/validation.md]``.
-The published tables are read from ``../shared/data/thesis_tables.json`` (transcribed as printed).
+The published tables are read from ``tests/data/thesis_tables.json`` (transcribed as printed; cited in
+``tests/data/README.md``).
 Nothing is tuned to the tables: each scenario is the built-in one, run with the thesis's 10^5 draws.
 """
 
@@ -86,7 +87,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=100_000)
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--tables", default=str(ROOT.parent / "shared" / "data" / "thesis_tables.json"))
+    parser.add_argument("--tables", default=str(ROOT / "tests" / "data" / "thesis_tables.json"))
     parser.add_argument("--out", default=str(ROOT / "docs" / "validation.md"))
     args = parser.parse_args()
     tables = json.loads(Path(args.tables).read_text())
@@ -108,9 +109,9 @@ def main() -> None:
         "",
         f"Generated with robotcal {robotcal.__version__}: {args.draws:,} draws per scenario (the thesis's 10^5,",
         f"ch. 5.2.3), seed {args.seed}, workers 2, {elapsed:.0f} s for the three runs. Published values from",
-        "`shared/data/thesis_tables.json` (Tables 5.6 and 5.7 as printed). Mean, standard uncertainty u and",
+        "`tests/data/thesis_tables.json` (Tables 5.6 and 5.7 of the thesis as printed). Mean, standard uncertainty u and",
         "the probabilistically symmetric 95 % interval per identified parameter; lengths in mm, angles in",
-        "degrees. J6's d, theta, a, alpha cannot be identified by CPA and are not listed (THESIS_NOTES).",
+        "degrees. J6's d, theta, a, alpha cannot be identified by CPA and are not listed (docs/conventions.md).",
         "",
         "Settings common to both scenarios (the built-in scenario files): the Table 5.1 capture plan",
         "(135 points, per-circle reflectors of eq. 5-1), `tracker_from_base` of Table 5.4 (nearest",
@@ -135,7 +136,7 @@ def main() -> None:
         "table, not in the method: the same pipeline reproduces Table 5.7 above, and the published",
         "laser-tracker spread is consistent with a standard deviation of about 5 um per coordinate:",
         "the thesis's other noise reading (ch. 5.2.1.1 item 6: normal with 2 sigma = A + B L) with the",
-        "distance term B L (about 5 um at the 2 m of Table 5.4) dropped, i.e. sigma = A/2 (THESIS_NOTES.md).",
+        "distance term B L (about 5 um at the 2 m of Table 5.4) dropped, i.e. sigma = A/2.",
         "The last two columns show this openly: the same scenario run with normal noise of sigma = 5 um",
         "(A = 10 um, B = 0, k = 2) instead of the stated instrument. They are a diagnosis, not a",
         "calibration of robotcal to the table; robotcal's result for the stated instrument (uniform",

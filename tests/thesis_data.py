@@ -5,10 +5,22 @@ Imported as ``thesis_data`` (``tests`` is on ``pythonpath``, see pyproject.toml)
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from robotcal.kinematics import RobotModel
+
+#: Published Tables 5.6-5.8 as printed, kept in the repository (source cited in tests/data/README.md).
+THESIS_TABLES = Path(__file__).parent / "data" / "thesis_tables.json"
+
+
+def thesis_tables() -> dict:
+    """The published tables (``tests/data/thesis_tables.json``) as a dict; see tests/data/README.md."""
+    return json.loads(THESIS_TABLES.read_text(encoding="utf-8"))
+
 
 #: Thesis Table 3.1, typed in [mm, deg]: columns d, theta (offset), a, alpha; J2 is Hayati (beta2 = 0).
 KR5_D_MM = [335.0, 0.0, 0.0, 295.0, 0.0, 80.0]
@@ -16,7 +28,7 @@ KR5_THETA_DEG = [0.0, 0.0, 90.0, 0.0, 180.0, 0.0]
 KR5_A_MM = [75.0, 270.0, 90.0, 0.0, 0.0, 0.0]
 KR5_ALPHA_DEG = [90.0, 0.0, 90.0, 90.0, 90.0, 0.0]
 KR5_HAYATI = [False, True, False, False, False, False]
-#: THESIS_NOTES "TCP": KUKA controller angles -> model joint variables.
+#: KUKA controller angles (thesis Table 5.8, docs/conventions.md) -> model joint variables.
 KUKA_SIGN = [-1, -1, -1, -1, 1, -1]
 
 #: Thesis Table 5.1 capture plan [deg, points per circle].

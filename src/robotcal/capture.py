@@ -1,6 +1,6 @@
 """The Capture: measured (or simulated) target positions with the joint readings of every point.
 
-This is the in-memory form of the capture CSV (``circle,direction,q1..qN,x,y,z``, DESIGN.md); it is
+This is the in-memory form of the capture CSV (``circle,direction,q1..qN,x,y,z``, docs/results.md); it is
 what the generator produces and what identification consumes. Readings in radians, points in mm in
 the tracker frame.
 """

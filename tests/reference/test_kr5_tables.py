@@ -1,30 +1,22 @@
 """Published numbers: the KR5 nominal TCP of thesis Table 5.8 (ch. 5.3).
 
-Source: ``shared/data/thesis_tables.json`` (Tables 5.6-5.8 transcribed as printed), which lies beside
-the repository. Per THESIS_NOTES ("TCP"): pose readings (60, 80, -45, 200, 125, 280) deg, controller
+Source: ``tests/data/thesis_tables.json`` (Tables 5.6-5.8 transcribed as printed; see tests/data/README.md). Per docs/conventions.md ("TCP"): pose readings (60, 80, -45, 200, 125, 280) deg, controller
 to model signs (-, -, -, -, +, -), and the published A, B, C are rotations about X, Y, Z.
 """
 
 from __future__ import annotations
-
-import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from robotcal.kinematics import forward_kinematics
-from thesis_data import KUKA_SIGN, kr5_robot
-
-TABLES = Path(__file__).parent / "../../../shared/data/thesis_tables.json"
+from thesis_data import KUKA_SIGN, kr5_robot, thesis_tables
 
 
 @pytest.fixture(scope="module")
 def tables():
-    if not TABLES.is_file():
-        pytest.skip(f"thesis tables not available at {TABLES.resolve()} (shared/data beside the repository)")
-    return json.loads(TABLES.read_text(encoding="utf-8"))
+    return thesis_tables()
 
 
 def _kr5():
@@ -60,7 +52,7 @@ def test_nominal_tcp_orientation_matches_table_5_8(tables):
 
 
 def test_identity_reading_signs_do_not_reproduce_table_5_8(tables):
-    # the reading signs are what makes the table reproducible (THESIS_NOTES): without them the
+    # the reading signs are what makes the table reproducible (docs/conventions.md): without them the
     # position is off by far more than the table's rounding
     robot = _kr5()
     q = np.deg2rad(tables["table_5_8_pose"])

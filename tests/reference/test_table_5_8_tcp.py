@@ -3,13 +3,10 @@
 tests/reference/test_kr5_tables.py checks the nominal flange of the typed-in Table 3.1 with scipy;
 this module checks what users get from ``robotcal.uncertainty.tcp`` with the shipped robot file
 ``kuka-kr5-sixx-r650-krc``: the nominal row of Table 5.8, with the published angles (rotations about
-X, Y, Z) equal to KUKA (C, B, A). Source: ``shared/data/thesis_tables.json`` (as printed).
+X, Y, Z) equal to KUKA (C, B, A). Source: ``tests/data/thesis_tables.json`` (as printed).
 """
 
 from __future__ import annotations
-
-import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,15 +15,12 @@ from robotcal.errors import JointLimitWarning
 from robotcal.geometry.euler import thesis_order
 from robotcal.io import load_robot
 from robotcal.uncertainty.tcp import propagate_to_tcp, tcp_coordinates
-
-TABLES = Path(__file__).parent / "../../../shared/data/thesis_tables.json"
+from thesis_data import thesis_tables
 
 
 @pytest.fixture(scope="module")
 def table():
-    if not TABLES.is_file():
-        pytest.skip(f"thesis tables not available at {TABLES.resolve()} (shared/data beside the repository)")
-    return json.loads(TABLES.read_text(encoding="utf-8"))
+    return thesis_tables()
 
 
 def test_nominal_row_of_table_5_8_from_the_builtin_robot(table):

@@ -6,26 +6,21 @@ circle 1) and Table 5.7 (mean, standard uncertainty, ... of every identified par
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from robotcal.io import load_scenario
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 from robotcal.workflow import scenario_monte_carlo
+from thesis_data import thesis_tables
 
-TABLES = Path(__file__).resolve().parents[3] / "shared" / "data" / "thesis_tables.json"
 DRAWS = 20_000
 PUBLISHED_DRAWS = 100_000  # the thesis's iteration count for Tables 5.6/5.7 (ch. 5.2.3)
 
 
 @pytest.fixture(scope="module")
 def igps():
-    if not TABLES.exists():
-        pytest.skip(f"thesis tables not found at {TABLES}")
-    published = json.loads(TABLES.read_text())["table_5_7_igps"]
+    published = thesis_tables()["table_5_7_igps"]
     scenario = load_scenario("thesis-igps")
     problem = scenario_monte_carlo(scenario)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=DRAWS, workers=2), seed=1, linearised=False)

@@ -9,7 +9,7 @@ matrix as the extrinsic rotations C about the fixed X, B about the fixed Y, A ab
 In ``scipy.spatial.transform.Rotation`` terms this is ``as_euler("ZYX")`` giving ``(A, B, C)``.
 
 The thesis's Table 5.8 lists the angles in X, Y, Z order (its "A, B, C" columns are the rotations
-about X, Y, Z, i.e. KUKA C, B, A; THESIS_NOTES "TCP"). :func:`thesis_order` reorders.
+about X, Y, Z, i.e. KUKA C, B, A; docs/conventions.md "TCP"). :func:`thesis_order` reorders.
 
 Angles in radians; ranges A, C in (-pi, pi], B in [-pi/2, pi/2]. At the gimbal lock
 (B = +-90 deg) only A -+ C is determined; robotcal then sets C = 0.

@@ -123,7 +123,7 @@ def signed_angle_about(from_vector, to_vector, axis) -> np.ndarray:
     """Right-handed angle [rad] from ``from_vector`` to ``to_vector`` about unit ``axis``, (-pi, pi].
 
     Both vectors are projected on the plane normal to ``axis`` first, so they need not be
-    perpendicular to it (eqs 4-92, 4-93 with the dot product, see THESIS_NOTES).
+    perpendicular to it (eqs 4-92, 4-93 with the dot product, see docs/conventions.md).
     """
     return np.arctan2(
         _dot(_cross(from_vector, to_vector), axis),
@@ -217,7 +217,7 @@ def analyse_hayati_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint
     - ``P_j = point_j``: the caller passes ``P_j^prev + d_j^nom S_j`` (eq. 4-60; d = 0 on a Hayati joint);
     - ``P_k``: intersection of axis k with the plane normal to ``S_j`` through ``P_j`` (eq. 4-64);
     - ``a_jk = (P_k - P_j)/|P_k - P_j|`` oriented to agree with ``normal_hint``; ``a = (P_k - P_j) . a_jk``;
-    - ``sin beta = S_k . a_jk``, ``cos beta = sqrt(1 - sin^2 beta)`` (eqs 4-99/4-100 as read in THESIS_NOTES);
+    - ``sin beta = S_k . a_jk``, ``cos beta = sqrt(1 - sin^2 beta)`` (eqs 4-99/4-100 as read in docs/conventions.md);
     - ``alpha'`` from the projection ``S_k^P = S_k - (S_k . a_jk) a_jk`` (eqs 4-76, 4-80, 4-81).
 
     These are exact for the frame ``Rz(theta) Tx(a) Rx(alpha) Ry(beta)`` of eq. 3-82.

@@ -14,7 +14,7 @@ Steps (algorithms 5.2.2.1 and 5.2.2.2):
    thesis generator's sequence (earlier joints resting where they ended) gives ``D = I``.
 3. The base frame (``tracker_from_base``) is given or registered (Horn) against the nominal model;
    it gives the robot origin (for d1) and the base x axis (for theta1), unless the theta1 reference
-   is taken from the circle-1 data (``base_axis="circle1"``, THESIS_NOTES).
+   is taken from the circle-1 data (``base_axis="circle1"``, docs/conventions.md).
 4. Adjacent axes (j, j+1) give the frame of joint j: skew / intersecting / parallel DH pairs by
    eqs 4-35/4-36, 4-44, 4-52, a Hayati pair by Solution 3 (4.4.4.3). Then d_j is the signed
    distance along S_j between the feet of the previous and next common normals (eq. 4-91, signed)
@@ -49,6 +49,39 @@ __all__ = ["CPAOptions", "CPAResult", "CPABatch", "identify_cpa", "identify_cpa_
 
 _D, _THETA, _A, _ALPHA, _BETA = range(5)
 
+#: Largest coordinate accepted in a capture [mm] (10 km): anything larger is a corrupt value, and
+#: squares of it overflow the fits.
+MAX_COORDINATE_MM = 1e7
+#: A circle whose points all lie within this distance of their mean [mm] did not move.
+STILL_POINTS_MM = 1e-6
+
+
+def point_rows(rows: np.ndarray, limit: int = 6) -> str:
+    """``"points 3, 4, 9 (CSV lines 4, 5, 10)"`` for 0-based capture rows (lines assume no blank lines)."""
+    rows = np.asarray(rows).ravel()
+    shown = ", ".join(str(r + 1) for r in rows[:limit]) + (", ..." if rows.size > limit else "")
+    lines = ", ".join(str(r + 2) for r in rows[:limit]) + (", ..." if rows.size > limit else "")
+    noun = "point" if rows.size == 1 else "points"
+    return f"{noun} {shown} (CSV line{'s' if rows.size > 1 else ''} {lines})"
+
+
+def _check_circle_points(points: np.ndarray, rows: np.ndarray, joint: int, src: str) -> None:
+    """Refuse a circle with unusable coordinates (non-finite, absurd magnitude, all points identical)."""
+    circle = points[rows]
+    bad = np.flatnonzero(~np.all(np.isfinite(circle), axis=-1) | np.any(np.abs(circle) > MAX_COORDINATE_MM, axis=-1))
+    if bad.size:
+        raise InputError(
+            f"{src}: circle {joint + 1}, {point_rows(rows[bad])}: a coordinate is not finite or beyond "
+            f"{MAX_COORDINATE_MM:g} mm (a corrupt value?)"
+        )
+    spread = np.max(np.linalg.norm(circle - circle.mean(axis=0), axis=-1))
+    if spread <= STILL_POINTS_MM:
+        raise DegenerateGeometryError(
+            f"{src}: circle {joint + 1}: all {rows.size} points (points {rows[0] + 1}..{rows[-1] + 1}) "
+            f"are the same point within {STILL_POINTS_MM:g} mm: the target did not move while J{joint + 1} turned "
+            "(a target on the axis, or a copied row?)"
+        )
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CPAOptions:
@@ -63,7 +96,7 @@ class CPAOptions:
         method from all measured points and the nominal model's predictions.
     base_axis : {"registration", "circle1"}
         Reference for theta1: the x axis of ``tracker_from_base``, or the circle-1 data (fitted
-        centre to the first point, turned back by that point's known angle; THESIS_NOTES). With a
+        centre to the first point, turned back by that point's known angle; docs/conventions.md). With a
         per-circle reflector that angle is exact (reading plus the target's azimuth in frame {0});
         with a flange reflector it is predicted by the nominal model, so theta1 then absorbs the
         deviations of the later joints (about 1e-3 rad for 0.5 mm / 0.2 deg deviations).
@@ -226,6 +259,7 @@ def prepare_cpa(
                 f"{src}: circle {joint + 1}: joint J{k + 1} moves by {np.rad2deg(spread[k]):.6g} deg while J{joint + 1} turns; "
                 f"only the turning joint may move within a circle"
             )
+        _check_circle_points(capture.points, rows, joint, src)
         indices.append(rows)
         configs[joint] = model_q[rows].mean(axis=0)
         reference_readings[joint] = capture.readings[rows[-1], joint]
@@ -283,7 +317,13 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
             raise DegenerateGeometryError(f"{structure.source}: circle {joint + 1} (J{joint + 1}): {exc}") from None
         normal = _oriented_axis(fit, circle_points, structure.model_q[rows, joint])
         fits.append(fit)
-        lines.append(PluckerLine.from_point_direction(fit.centre, normal))
+        try:
+            lines.append(PluckerLine.from_point_direction(fit.centre, normal))
+        except InputError as exc:
+            raise DegenerateGeometryError(
+                f"{structure.source}: circle {joint + 1} (J{joint + 1}, {point_rows(rows)}): no axis from the "
+                f"circle fit ({exc}); check these rows for repeated or corrupt points"
+            ) from None
     # 2. bring every axis to the reference configuration (product of exponentials)
     referenced = []
     for k, line in enumerate(lines):
@@ -352,7 +392,7 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
         values[..., j, _THETA] = signed_angle_about(previous_x, pair.normal, s_j) - structure.reference_q[j]
         cases.append(str(np.asarray(pair.case).reshape(-1)[0]))
         previous_point, previous_x = pair.point_k, pair.normal
-    # 5. angles within +-180 deg of nominal (THESIS_NOTES)
+    # 5. angles within +-180 deg of nominal (docs/conventions.md)
     angles = [_THETA, _ALPHA, _BETA]
     nominal_angles = robot.nominal[:, angles]
     values[..., angles] = nominal_angles + np.angle(np.exp(1j * (values[..., angles] - nominal_angles)))
@@ -402,7 +442,7 @@ def identify_cpa(
 
     References
     ----------
-    Thesis ch. 4.4-4.5, algorithms 5.2.2.1-5.2.2.2; THESIS_NOTES "CPA line geometry" and "Base frame".
+    Thesis ch. 4.4-4.5, algorithms 5.2.2.1-5.2.2.2; docs/conventions.md.
     """
     structure = prepare_cpa(capture, robot, reflector, options)
     batch = identify_cpa_batch(capture.points, structure, tracker_from_base)

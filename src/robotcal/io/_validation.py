@@ -1,13 +1,139 @@
 """Validation helpers of the I/O edge: pydantic errors and CSV cells become one clear :class:`InputError`
-naming the file, line and key or column."""
+naming the file, line and key or column.
+
+Every reader of a user file goes through :func:`read_text_file`, :func:`csv_rows` or
+:func:`parse_json_text`, so that hostile input (binary bytes, a line of 200,000 characters, JSON
+nested 100,000 deep, a 5,000-digit number) ends in one :class:`InputError` naming the file and
+never in a traceback or an unbounded allocation.
+"""
 
 from __future__ import annotations
 
+import csv
+import io
+import json
 import math
+from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
 
 from robotcal.errors import InputError
+
+#: Largest text input file read [bytes]: far above any capture (10^5 points ~ 20 MB) or scenario.
+MAX_FILE_BYTES = 512 * 1024 * 1024
+#: Longest CSV line accepted [characters]: a capture row of a 6-joint robot is ~150 characters.
+MAX_LINE_CHARS = 10_000
+#: Deepest JSON/TOML nesting accepted: robotcal's own files nest 4 levels.
+MAX_NESTING = 64
+
+
+def read_text_file(path, *, kind: str = "file") -> str:
+    """The UTF-8 text of ``path`` (a BOM is dropped); every failure is an :class:`InputError`.
+
+    Refused with a message naming the file: a missing file, a folder, an unreadable file, a file
+    over :data:`MAX_FILE_BYTES`, bytes that are not UTF-8 and text holding NUL characters (binary).
+    ``kind`` names what was expected ("capture CSV", "scenario TOML", ...).
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError(f"{path}: {size:,} bytes is too large for a {kind} (limit {MAX_FILE_BYTES:,})")
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a folder, not a {kind}") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            f"{path}: not a UTF-8 text file (byte {exc.start} is 0x{raw[exc.start]:02x}); expected a {kind}"
+        ) from None
+    if "\x00" in text:
+        raise InputError(f"{path}: holds NUL characters (a binary file?); expected a {kind}")
+    return text
+
+
+def csv_rows(text: str, path) -> list[tuple[int, list[str]]]:
+    """``(line number, cells)`` of every CSV record of ``text``; lines over :data:`MAX_LINE_CHARS` refused.
+
+    Line numbers are 1-based as an editor shows them (the line where the record starts).
+    """
+    for number, line in enumerate(text.splitlines(), start=1):
+        if len(line) > MAX_LINE_CHARS:
+            raise InputError(
+                f"{path}: line {number} is {len(line):,} characters long (limit {MAX_LINE_CHARS:,}); "
+                "is this the right file?"
+            )
+    reader = csv.reader(io.StringIO(text))
+    rows = []
+    try:
+        for row in reader:
+            rows.append((reader.line_num - (sum(cell.count("\n") for cell in row)), row))
+    except csv.Error as exc:
+        raise InputError(f"{path}: line {reader.line_num}: not valid CSV ({exc})") from None
+    return rows
+
+
+def check_nesting(text: str, source: str, *, kind: str) -> None:
+    """Refuse ``text`` whose brackets nest deeper than :data:`MAX_NESTING` (before a recursive parser sees it).
+
+    Brackets inside strings are counted too, which only over-estimates the depth.
+    """
+    depth = deepest = 0
+    for char in text:
+        if char in "[{":
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+                if deepest > MAX_NESTING:
+                    raise InputError(f"{source}: {kind} nested more than {MAX_NESTING} levels deep")
+        elif char in "]}":
+            depth -= 1
+
+
+def parse_json_text(text: str, source: str):
+    """``json.loads(text)`` with every failure (syntax, nesting, huge numbers) as an :class:`InputError`."""
+    check_nesting(text, source, kind="JSON")
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise InputError(f"{source}: not valid JSON: {exc}") from None
+
+
+def read_json_file(path, *, kind: str = "JSON file"):
+    """Parse a JSON file; every failure is an :class:`InputError` naming the file."""
+    return parse_json_text(read_text_file(path, kind=kind), str(path))
+
+
+def as_finite_float(value, where: str) -> float:
+    """A JSON/TOML number as a finite float (bool, text, huge integers refused), naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{where} must be a finite number; got {_short(value)}")
+    try:
+        result = float(value)
+    except OverflowError:
+        raise InputError(f"{where} must be a finite number; got an integer of ~{_digits(value)} digits") from None
+    if not math.isfinite(result):
+        raise InputError(f"{where} must be a finite number; got {_short(value)}")
+    return result
+
+
+def _digits(value: int) -> int:
+    return int(abs(value).bit_length() * math.log10(2)) + 1
+
+
+def _short(value) -> str:
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value).bit_length() > 200:
+        return f"an integer of ~{_digits(value)} digits"
+    try:
+        text = repr(value)
+    except ValueError:  # an integer past Python's int-to-str digit limit
+        return "a value that cannot be printed"
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _location(loc) -> str:

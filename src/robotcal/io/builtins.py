@@ -7,6 +7,7 @@ from importlib import resources
 from pathlib import Path
 
 from robotcal.errors import InputError
+from robotcal.io._validation import check_nesting, read_text_file
 
 __all__ = ["data_path", "builtin_names", "read_toml"]
 
@@ -24,12 +25,11 @@ def builtin_names(kind: str) -> list[str]:
 def read_toml(path) -> dict:
     """Parse a TOML file, turning I/O and syntax errors into :class:`InputError` naming the file."""
     path = Path(path)
+    text = read_text_file(path, kind="TOML file")
+    check_nesting(text, str(path), kind="TOML")
     try:
-        with path.open("rb") as stream:
-            return tomllib.load(stream)
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found") from None
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: invalid TOML: {exc}") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    except (ValueError, RecursionError) as exc:  # e.g. an integer past Python's digit limit
+        raise InputError(f"{path}: invalid TOML: {exc}") from None

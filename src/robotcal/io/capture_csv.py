@@ -1,4 +1,4 @@
-"""Capture CSV: ``circle,direction,q1..qN,x,y,z`` (DESIGN.md "Files").
+"""Capture CSV: ``circle,direction,q1..qN,x,y,z`` (docs/results.md).
 
 One row per measured point; ``circle`` = joint turned (1-based; 0 for a free pose on no circle, such
 as a validation capture), ``direction`` = +1/-1, joint
@@ -15,7 +15,7 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
-from robotcal.io._validation import parse_finite
+from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
 
 __all__ = ["read_capture", "write_capture", "capture_to_csv"]
@@ -52,18 +52,16 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
         Expected number of joint columns (the robot's joint count).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read: {exc}") from None
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [row for row in rows if any(cell.strip() for cell in row)]
+    text = read_text_file(path, kind="capture CSV")
+    records = [(number, row) for number, row in csv_rows(text, path) if any(cell.strip() for cell in row)]
+    rows = [row for _, row in records]
     if not rows:
         raise InputError(f"{path}: empty file; expected a header `circle,direction,q1..qN,x,y,z`")
     header = [cell.strip().lower() for cell in rows[0]]
-    joint_columns = sorted((c for c in header if c.startswith("q") and c[1:].isdigit()), key=lambda c: int(c[1:]))
+    joint_columns = sorted(
+        (c for c in header if c.startswith("q") and c[1:].isascii() and c[1:].isdigit() and len(c) < 8),
+        key=lambda c: int(c[1:]),
+    )
     count = len(joint_columns)
     expected = ["circle", "direction", *[f"q{i + 1}" for i in range(count)], "x", "y", "z"]
     missing = [c for c in expected if c not in header]
@@ -75,27 +73,28 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
         raise InputError(f"{path}: {count} joint columns (q1..q{count}) but the robot has {n_joints} joints")
     index = [header.index(c) for c in expected]
     data = np.empty((len(rows) - 1, len(expected)))
-    for line, row in enumerate(rows[1:], start=2):
+    lines = np.array([number for number, _ in records[1:]], dtype=int)
+    for k, (line, row) in enumerate(records[1:]):
         if len(row) != len(header):
             raise InputError(f"{path}: line {line} has {len(row)} fields; the header has {len(header)}")
         for column, position in enumerate(index):
-            data[line - 2, column] = parse_finite(row[position], f"{path}: line {line}, column `{expected[column]}`")
+            data[k, column] = parse_finite(row[position], f"{path}: line {line}, column `{expected[column]}`")
     if data.shape[0] == 0:
         raise InputError(f"{path}: no data rows")
     circle, direction = data[:, 0], data[:, 1]
     for name, values in (("circle", circle), ("direction", direction)):
         bad = np.flatnonzero(values != np.round(values))
         if bad.size:
-            raise InputError(f"{path}: line {bad[0] + 2}, column `{name}`: must be a whole number")
+            raise InputError(f"{path}: line {lines[bad[0]]}, column `{name}`: must be a whole number")
     bad = np.flatnonzero((circle < 0) | (circle > count))
     if bad.size:
         raise InputError(
-            f"{path}: line {bad[0] + 2}, column `circle`: {circle[bad[0]]:g} is not a joint number 1..{count} "
+            f"{path}: line {lines[bad[0]]}, column `circle`: {circle[bad[0]]:g} is not a joint number 1..{count} "
             "(or 0 for a point on no circle)"
         )
     bad = np.flatnonzero(~np.isin(direction, (-1.0, 1.0)))
     if bad.size:
-        raise InputError(f"{path}: line {bad[0] + 2}, column `direction`: must be +1 or -1")
+        raise InputError(f"{path}: line {lines[bad[0]]}, column `direction`: must be +1 or -1")
     return Capture(
         circle=circle.astype(int),
         direction=direction.astype(int),

@@ -1,4 +1,4 @@
-"""Scenario TOML: robot, instrument, capture plan and identification options (DESIGN.md "Files").
+"""Scenario TOML: robot, instrument, capture plan and identification options (docs/results.md).
 
 Every key is documented in ``docs/scenario.md``. Lengths in mm, angles in degrees, instrument terms
 in micrometres (``a_um``, ``b_um_per_m``); unknown keys are errors, so a typo never goes unnoticed.
@@ -163,9 +163,10 @@ class Scenario:
 
 
 def _rigid(matrix, source: str) -> np.ndarray:
-    array = np.asarray(matrix, dtype=float) if np.shape(matrix) == (4, 4) else None
-    if array is None:
-        raise InputError(f"{source}: key `tracker_from_base` must be a 4x4 matrix; got shape {np.shape(matrix)}")
+    rows = [len(row) for row in matrix]
+    if rows != [4, 4, 4, 4]:
+        raise InputError(f"{source}: key `tracker_from_base` must be a 4x4 matrix; got rows of lengths {rows}")
+    array = np.asarray(matrix, dtype=float)
     rotation = array[:3, :3]
     deviation = float(np.max(np.abs(rotation.T @ rotation - np.eye(3)))) if np.all(np.isfinite(array)) else np.inf
     if 1e-6 < deviation <= REPAIRABLE_DEVIATION and np.linalg.det(rotation) > 0:
@@ -216,7 +217,10 @@ def scenario_from_dict(
 ) -> Scenario:
     """Validate a parsed scenario and build its core objects; errors name ``source`` and the key."""
     spec: ScenarioFile = validate_model(ScenarioFile, data, source)
-    robot = load_robot(spec.robot, relative_to=base_dir)
+    try:
+        robot = load_robot(spec.robot, relative_to=base_dir)
+    except InputError as exc:
+        raise InputError(f"{source}: key `robot`: {exc}") from None
     n = robot.n_joints
     capture = spec.capture
     for key in ("sweep_deg", "points"):
@@ -224,13 +228,19 @@ def scenario_from_dict(
             raise InputError(
                 f"{source}: key `capture.{key}` has {len(getattr(capture, key))} values; robot {robot.name!r} has {n} joints"
             )
-    start = np.asarray(capture.start_deg, dtype=float)
+    try:
+        start = np.asarray(capture.start_deg, dtype=float)
+    except ValueError:  # rows of unequal length
+        raise InputError(f"{source}: key `capture.start_deg` must have {n} values or {n} rows of {n}") from None
     if start.shape not in ((n,), (n, n)):
         raise InputError(
             f"{source}: key `capture.start_deg` must have {n} values or {n} rows of {n}; got shape {start.shape}"
         )
     if capture.reflector_mm is not None:
-        reflector_array = np.asarray(capture.reflector_mm, dtype=float)
+        try:
+            reflector_array = np.asarray(capture.reflector_mm, dtype=float)
+        except ValueError:  # rows of unequal length
+            raise InputError(f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]") from None
         if reflector_array.shape != (n, 3):
             raise InputError(
                 f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}"

@@ -1,4 +1,4 @@
-"""TCP uncertainty result files: ``tcp.csv`` and ``tcp.json`` (docs/results.md, DESIGN.md "TCP CSV").
+"""TCP uncertainty result files: ``tcp.csv`` and ``tcp.json`` (docs/results.md).
 
 ``tcp.csv``: one row per pose and coordinate, columns ``pose, name, unit, nominal, mean,
 std_uncertainty, coverage_low, coverage_high, min, max, lpu_std_uncertainty``; ``name`` is X, Y, Z

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.io._validation import parse_finite
+from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.builtins import data_path
 
@@ -62,22 +62,20 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
     the wrong number of fields, a value that is not a finite number (NaN, empty, text).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read: {exc}") from None
+    text = read_text_file(path, kind="pose CSV")
     lines = [
         (number, row)
-        for number, row in enumerate(csv.reader(io.StringIO(text)), start=1)
+        for number, row in csv_rows(text, path)
         if any(cell.strip() for cell in row) and not row[0].lstrip().startswith("#")
     ]
     if not lines:
         raise InputError(f"{path}: empty file; expected a header with q1..qN (joint readings in deg)")
     header_line, header_row = lines[0]
     header = [cell.strip().lower() for cell in header_row]
-    joints = sorted((c for c in header if c.startswith("q") and c[1:].isdigit()), key=lambda c: int(c[1:]))
+    joints = sorted(
+        (c for c in header if c.startswith("q") and c[1:].isascii() and c[1:].isdigit() and len(c) < 8),
+        key=lambda c: int(c[1:]),
+    )
     count = len(joints)
     expected = [f"q{i + 1}" for i in range(count)]
     if count == 0 or joints != expected:

@@ -36,7 +36,7 @@ def link_transforms(parameters, q) -> np.ndarray:
     """Link transforms ``A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)``.
 
     With beta = 0 this is the DH matrix of eq. 3-72; with d = 0 the Hayati matrix of eq. 3-82
-    (read as the factor product, THESIS_NOTES). The model fixes the unused parameter at 0, so a
+    (read as the factor product, docs/conventions.md). The model fixes the unused parameter at 0, so a
     single formula serves both joint types.
 
     Parameters

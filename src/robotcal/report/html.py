@@ -32,6 +32,7 @@ import numpy as np
 
 import robotcal
 from robotcal.errors import InputError, RobotcalError
+from robotcal.io._validation import parse_json_text
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS
 from robotcal.report.viewer3d import asset_text, render_viewer, viewer_scene
@@ -153,6 +154,29 @@ class _Run:
     def path(self, relative: str) -> Path:
         return self.root / relative
 
+    def _linked(self, relative) -> str | None:
+        """Why ``relative`` may not be read: a symbolic link on its way, or a target outside the run folder."""
+        current = self.root
+        for part in Path(relative).parts:
+            current = current / part
+            if current.is_symlink():
+                return "refused: a symbolic link (the report reads only files inside the run folder)"
+        try:
+            inside = (self.root / relative).resolve().is_relative_to(self.root.resolve())
+        except (OSError, RuntimeError):
+            inside = False
+        return None if inside else "refused: resolves outside the run folder"
+
+    def readable(self, relative: str) -> Path | None:
+        """The path of a regular file inside the run folder, else None (a link or escape is noted)."""
+        why = self._linked(relative)
+        if why is not None:
+            if self.path(relative).exists() or self.path(relative).is_symlink():
+                self.problem(relative, why)
+            return None
+        path = self.path(relative)
+        return path if path.is_file() else None
+
     def exists(self, relative: str) -> bool:
         return self.path(relative).exists()
 
@@ -165,10 +189,13 @@ class _Run:
         """Parsed JSON object, or None when the file is missing or unreadable (noted)."""
         if relative not in self._json:
             data = None
-            path = self.path(relative)
-            if path.is_file():
+            path = self.readable(relative)
+            if path is not None:
                 try:
-                    data = json.loads(path.read_text(encoding="utf-8"))
+                    data = parse_json_text(path.read_text(encoding="utf-8"), relative)
+                except InputError as exc:
+                    self.problem(relative, f"not a readable JSON file ({str(exc).removeprefix(relative + ': ')})")
+                    data = None
                 except (OSError, ValueError) as exc:
                     self.problem(relative, f"not a readable JSON file ({exc})")
                 else:
@@ -182,8 +209,8 @@ class _Run:
         """``(header, rows)`` of a CSV file, or None when missing or unreadable (noted)."""
         if relative not in self._csv:
             table = None
-            path = self.path(relative)
-            if path.is_file():
+            path = self.readable(relative)
+            if path is not None:
                 try:
                     with path.open(newline="", encoding="utf-8") as stream:
                         rows = [row for row in csv.reader(stream) if row]
@@ -207,7 +234,7 @@ class _Run:
         base = self.path(folder)
         if not base.is_dir():
             return []
-        return sorted(str(p.relative_to(self.root)) for p in base.glob(pattern) if p.is_file())
+        return sorted(str(p.relative_to(self.root)) for p in base.glob(pattern) if p.is_file() or p.is_symlink())
 
 
 # --------------------------------------------------------------------------------------------------
@@ -413,8 +440,11 @@ def _figures_html(run: _Run, folder: str, *, captions: dict | None = None, patte
     )
     parts = []
     for relative in names:
+        path = run.readable(relative)
+        if path is None:
+            continue
         try:
-            data = run.path(relative).read_bytes()
+            data = path.read_bytes()
         except OSError as exc:
             parts.append(run.problem(relative, str(exc)))
             continue
@@ -1006,9 +1036,12 @@ def _provenance(run: _Run) -> tuple[str, bool]:
         )
     )
     rows = []
-    for path in sorted(p for p in run.root.rglob("*") if p.is_file()):
+    for path in sorted(p for p in run.root.rglob("*") if p.is_file() or p.is_symlink()):
         relative = path.relative_to(run.root)
         if relative.name == REPORT_NAME or any(part.startswith(".") for part in relative.parts):
+            continue
+        if run._linked(relative) is not None:
+            rows.append([f"<code>{_e(relative)}</code>", "", _e(run._linked(relative))])
             continue
         try:
             digest = hashlib.sha256(path.read_bytes()).hexdigest()

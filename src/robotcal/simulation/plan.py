@@ -4,7 +4,7 @@ Two ways to say where circles start, both in controller readings:
 
 - ``start`` of shape ``(n_joints,)`` (the thesis generator, Table 5.1): circle i turns joint i from
   ``start_i`` to ``start_i + sweep_i`` inclusive in ``points_i`` equal steps; afterwards joint i rests
-  where its circle ended while the later joints turn (THESIS_NOTES, "Synthetic generator").
+  where its circle ended while the later joints turn (docs/conventions.md).
 - ``start`` of shape ``(n_joints, n_joints)`` (real tests, Table 4.2): row i is the full configuration
   from which circle i starts; joint i then turns from ``start[i, i]`` by ``sweep_i``.
 
