@@ -154,7 +154,14 @@ def main() -> None:
         "```",
         "",
     ]
-    atomic_write_text(args.out, "\n".join(page))
+    text = "\n".join(page)
+    # keep the coverage section written by scripts/make_coverage_section.py (a separate, longer study)
+    previous = args.out.read_text(encoding="utf-8") if args.out.exists() else ""
+    start, end = "<!-- coverage:start -->", "<!-- coverage:end -->"
+    if start in previous and end in previous:
+        kept = previous[previous.index(start) : previous.index(end) + len(end)]
+        text = text.rstrip("\n") + "\n\n" + kept + "\n"
+    atomic_write_text(args.out, text)
     print(f"wrote {args.out} in {elapsed:.1f} s")
 
 
