@@ -1,6 +1,6 @@
 """Robot TOML files: ``name``, ``joints = [{d, theta, a, alpha, beta, hayati, limits_deg, ...}]``.
 
-Lengths in mm and angles in degrees (DESIGN.md "Files"). Optional per joint: ``reading_sign`` (+1 or
+Lengths in mm and angles in degrees (docs/results.md). Optional per joint: ``reading_sign`` (+1 or
 -1) and ``reading_offset_deg``, mapping controller readings to model joint variables
 (``q = reading_sign * reading + reading_offset``); both default to the identity map.
 """
@@ -32,6 +32,7 @@ class JointEntry(BaseModel):
     limits_deg: tuple[float, float] = (-360.0, 360.0)
     reading_sign: int = 1
     reading_offset_deg: float = 0.0
+    capsule_radius_mm: float | None = Field(default=None, ge=0)  # link i as a capsule F_{i-1}-F_i (planning.cell)
 
     @field_validator("reading_sign")
     @classmethod

@@ -1,0 +1,269 @@
+"""``robotcal plan check|optimise SCENARIO``: the capture plan in the cell, and a better plan (docs/planning.md).
+
+Exit status of ``plan check``: 0 feasible, 1 infeasible (a point fails a check), 2 input errors.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.table import Table
+
+from robotcal.cli import app
+from robotcal.cli._common import console, handle_errors
+
+__all__ = ["plan_app", "check_table"]
+
+plan_app = typer.Typer(help="Capture planning: check a plan in the cell, optimise it.", no_args_is_help=True)
+app.add_typer(plan_app, name="plan")
+
+#: Exit status of `plan check` when the plan is infeasible (2 is reserved for input errors).
+INFEASIBLE_EXIT = 1
+
+_Scenario = Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")]
+_Acceptance = Annotated[
+    float | None,
+    typer.Option("--acceptance-deg", help="Reflector acceptance half-angle [deg] (default: the instrument preset's)."),
+]
+_NoAcceptance = Annotated[
+    bool, typer.Option("--no-acceptance", help="Skip the acceptance check (an active target follows the tracker).")
+]
+_Aim = Annotated[str, typer.Option(help="Where each circle's target faces the tracker: middle | start.")]
+_Force = Annotated[bool, typer.Option("--force", help="Replace an output not written by robotcal.")]
+
+
+def check_table(check) -> Table:
+    table = Table(title="Cell check per circle (forward sweep)", title_justify="left")
+    for column in ("circle", "points", "feasible", "planned (deg)", "usable (deg)", "first blocked", "why"):
+        table.add_column(column, justify="left" if column == "why" else "right", overflow="fold")
+    for c in check.circles:
+        usable = "none" if c.usable_deg is None else f"{c.usable_deg[0]:.1f} .. {c.usable_deg[1]:.1f}"
+        table.add_row(
+            str(c.circle),
+            str(c.points),
+            str(c.feasible_points),
+            f"{c.start_deg:.1f} .. {c.end_deg:.1f}",
+            usable,
+            "" if c.first_failure is None else str(c.first_failure),
+            ", ".join(c.first_reasons),
+        )
+    return table
+
+
+def _write_folder(out: Path | None, inputs, force: bool, command: str, write) -> None:
+    if out is None:
+        return
+    from robotcal.io.output import result_folder
+
+    with result_folder(out, inputs=inputs, force=force, command=command) as folder:
+        write(folder)
+
+
+@plan_app.command("check")
+@handle_errors
+def check(
+    scenario: _Scenario,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Folder for plan_check.json/.csv/.png.")] = None,
+    acceptance_deg: _Acceptance = None,
+    no_acceptance: _NoAcceptance = False,
+    aim: _Aim = "middle",
+    force: _Force = False,
+) -> None:
+    """Check every capture point: joint limits, measuring range, reflector acceptance, line of sight."""
+    from robotcal.io import load_scenario
+    from robotcal.io.output import existing_inputs
+    from robotcal.planning.cell import REASONS, check_plan
+    from robotcal.planning.scenario import cell_from_scenario
+
+    loaded = load_scenario(scenario)
+    cell, notes = cell_from_scenario(loaded, acceptance_deg=acceptance_deg, no_acceptance=no_acceptance, aim=aim)
+    result = check_plan(loaded.robot, loaded.plan, cell)
+    console.print(check_table(result))
+    for note in notes:
+        console.print(f"note: {note}", highlight=False)
+
+    def write(folder: Path) -> None:
+        from robotcal.report.planning import check_document, plot_check, write_check_files
+
+        document = check_document(result, scenario=loaded.source, cell=cell, notes=notes)
+        write_check_files(folder, result, document)
+        plot_check(result, folder / "plan_check.png", acceptance_deg=document["cell"]["acceptance_deg"])
+
+    _write_folder(out, existing_inputs(loaded.source), force, "robotcal plan check", write)
+    bad = int((~result.ok).sum())
+    counts = ", ".join(f"{reason} {int(result.failures[:, k].sum())}" for k, reason in enumerate(REASONS))
+    console.print(f"points failing each check: {counts}", highlight=False)
+    if bad:
+        console.print(f"infeasible: {bad} of {result.ok.size} points fail a check", highlight=False)
+        raise typer.Exit(code=INFEASIBLE_EXIT)
+    console.print("feasible: every point passes every check")
+
+
+def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, workers: int) -> float:
+    """Workspace p95 TCP position uncertainty [mm] of ``plan`` by a Monte Carlo of ``iterations`` draws."""
+    import dataclasses
+
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+    from robotcal.uncertainty.workspace import workspace_uncertainty
+    from robotcal.workflow import scenario_monte_carlo
+
+    variant = dataclasses.replace(scenario, plan=plan, joint_errors=None, joint_limits="ignore")
+    settings = MonteCarloSettings(iterations=iterations, block_size=min(iterations, 10_000), workers=workers)
+    result = run_monte_carlo(scenario_monte_carlo(variant), settings, seed=seed, linearised=False)
+    workspace = workspace_uncertainty(scenario.robot, result.draws, readings=readings)
+    return float(np.percentile(workspace.position_uncertainty, 95.0))
+
+
+@plan_app.command("optimise")
+@handle_errors
+def optimise(
+    scenario: _Scenario,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for optimised.toml, comparison.json/.csv, figure.")],
+    budget: Annotated[int | None, typer.Option(help="Points per direction in all (default: the scenario's).")] = None,
+    objective: Annotated[str, typer.Option(help="p95-tcp | max-u | d-opt | e-opt.")] = "p95-tcp",
+    generations: Annotated[int, typer.Option(min=1, help="Search generations.")] = 60,
+    population: Annotated[int, typer.Option(min=1, help="Mutants per generation.")] = 8,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of the search and of the workspace sample.")] = 0,
+    workspace_poses: Annotated[int, typer.Option("--workspace-poses", min=10, help="Workspace sample size.")] = 200,
+    confirm_draws: Annotated[
+        int, typer.Option("--confirm-draws", min=100, help="Monte Carlo draws confirming baseline and winner.")
+    ] = 10_000,
+    acceptance_deg: _Acceptance = None,
+    no_acceptance: _NoAcceptance = False,
+    aim: _Aim = "middle",
+    workers: Annotated[int, typer.Option(min=1, help="Local worker processes for the candidates.")] = 1,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
+    ] = None,
+    force: _Force = False,
+) -> None:
+    """Search start angles, sweeps, points per circle and reflector positions for a lower uncertainty,
+    within the cell check; confirm baseline and winner by Monte Carlo; write the optimised scenario."""
+    from robotcal.io import load_scenario
+    from robotcal.io.output import check_output_folder, existing_inputs
+    from robotcal.planning.cell import check_plan
+    from robotcal.planning.optimise import PlanProblem, optimise_plan, workspace_readings
+    from robotcal.planning.scenario import cell_from_scenario, dump_toml, scenario_document
+
+    loaded = load_scenario(scenario)
+    inputs = existing_inputs(loaded.source)
+    check_output_folder(out, inputs=inputs, force=force)
+    cell, notes = cell_from_scenario(loaded, acceptance_deg=acceptance_deg, no_acceptance=no_acceptance, aim=aim)
+    readings = workspace_readings(loaded.robot, workspace_poses, seed)
+    problem = PlanProblem(
+        robot=loaded.robot,
+        instrument=loaded.instrument,
+        tracker_from_base=loaded.tracker_from_base,
+        options=loaded.identification,
+        cell=cell,
+        workspace_q=loaded.robot.model_joint_variables(readings),
+        objective=objective,
+    )
+    result = optimise_plan(
+        loaded.plan,
+        problem,
+        budget=budget,
+        generations=generations,
+        population=population,
+        seed=seed,
+        workers=workers,
+        scheduler=scheduler,
+    )
+    feasible = check_plan(loaded.robot, result.plan, cell).feasible
+    mc_workers = min(os.cpu_count() or 1, 2)
+    confirmed = {
+        "baseline": _monte_carlo_p95(
+            loaded, loaded.plan, readings, iterations=confirm_draws, seed=seed + 1, workers=mc_workers
+        ),
+        "optimised": _monte_carlo_p95(
+            loaded, result.plan, readings, iterations=confirm_draws, seed=seed + 1, workers=mc_workers
+        ),
+    }
+    ratio = confirmed["baseline"] / confirmed["optimised"]
+    document, _, _, _ = scenario_document(scenario)
+    capture = dict(document["capture"])
+    capture.update(
+        start_deg=[round(float(v), 6) for v in np.rad2deg(result.plan.start)],
+        sweep_deg=[round(float(v), 6) for v in np.rad2deg(result.plan.sweep)],
+        points=[int(v) for v in result.plan.points],
+        reflector_mm=[[round(float(v), 4) for v in row] for row in result.plan.reflector.positions],
+        joint_limits="error",
+    )
+    capture.pop("flange_reflector_mm", None)
+    optimised_document = dict(document, capture=capture)
+    optimised_document["description"] = f"Plan optimised by robotcal plan optimise ({objective}) from {loaded.name}"
+    if "robot" in optimised_document and not Path(str(document["robot"])).is_absolute():
+        robot_text = str(document["robot"])
+        candidate = Path(loaded.source).parent / robot_text
+        if candidate.exists():
+            optimised_document["robot"] = str(candidate.resolve())
+    comparison = {
+        "scenario": loaded.source,
+        "objective": objective,
+        "budget": int(result.plan.points.sum()),
+        "seed": seed,
+        "executor": result.executor,
+        "evaluations": result.evaluations,
+        "feasible_evaluations": result.feasible_evaluations,
+        "baseline_feasible": result.baseline_feasible,
+        "optimised_feasible": feasible,
+        "linearised": {"baseline": result.baseline_figures, "optimised": result.best},
+        "monte_carlo_p95_tcp_mm": confirmed | {"draws": confirm_draws, "improvement": ratio},
+        "notes": notes,
+    }
+    table = Table(title=f"Plan optimisation ({objective})", title_justify="left")
+    for column in ("plan", "feasible", "p95 TCP lin. (mm)", "p95 TCP MC (mm)", "max u", "points"):
+        table.add_column(column, justify="right")
+    table.add_row(
+        "baseline",
+        str(result.baseline_feasible),
+        f"{result.baseline_figures['p95-tcp']:.4f}",
+        f"{confirmed['baseline']:.4f}",
+        f"{result.baseline_figures['max-u']:.4g}",
+        str(int(loaded.plan.points.sum())),
+    )
+    table.add_row(
+        "optimised",
+        str(feasible),
+        f"{result.best['p95-tcp']:.4f}",
+        f"{confirmed['optimised']:.4f}",
+        f"{result.best['max-u']:.4g}",
+        str(int(result.plan.points.sum())),
+    )
+
+    def write(folder: Path) -> None:
+        from robotcal.io.atomic import atomic_write_text
+        from robotcal.report.planning import plot_optimisation
+
+        header = f"robotcal plan optimise {loaded.name} --objective {objective} --seed {seed}"
+        atomic_write_text(folder / "optimised.toml", dump_toml(optimised_document, header))
+        atomic_write_text(folder / "comparison.json", json.dumps(comparison, indent=2, default=float) + "\n")
+        rows = ["plan,feasible,p95_tcp_linearised_mm,p95_tcp_monte_carlo_mm,max_u"]
+        rows.append(
+            f"baseline,{result.baseline_feasible},{result.baseline_figures['p95-tcp']:.6g},{confirmed['baseline']:.6g},"
+            f"{result.baseline_figures['max-u']:.6g}"
+        )
+        rows.append(
+            f"optimised,{feasible},{result.best['p95-tcp']:.6g},{confirmed['optimised']:.6g},{result.best['max-u']:.6g}"
+        )
+        atomic_write_text(folder / "comparison.csv", "\n".join(rows) + "\n")
+        plot_optimisation(
+            result.history,
+            result.baseline_figures[objective],
+            confirmed if objective == "p95-tcp" else {},
+            folder / "optimisation.png",
+            objective=objective,
+        )
+
+    _write_folder(out, inputs, force, "robotcal plan optimise", write)
+    console.print(table)
+    console.print(
+        f"Monte Carlo ({confirm_draws} draws): workspace p95 TCP position uncertainty {confirmed['baseline']:.4f} -> "
+        f"{confirmed['optimised']:.4f} mm ({ratio:.1f}x lower); {result.evaluations} candidates on {result.executor}",
+        highlight=False,
+    )

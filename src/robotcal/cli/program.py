@@ -1,0 +1,61 @@
+"""``robotcal program SCENARIO --language krl|rapid|urscript --dwell S --out F``: the capture as a robot program."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from robotcal.cli import app
+from robotcal.cli._common import console, handle_errors
+
+__all__ = ["program"]
+
+
+@app.command()
+@handle_errors
+def program(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Program file to write.")],
+    language: Annotated[str, typer.Option(help="krl (KUKA) | rapid (ABB) | urscript (Universal Robots).")] = "krl",
+    dwell: Annotated[float, typer.Option(help="Dwell at every measuring point [s].")] = 2.0,
+    controller: Annotated[
+        str | None,
+        typer.Option(
+            help="Robot file with the controller's reading signs/offsets and limits (e.g. kuka-kr5-sixx-r650-krc); "
+            "default: the scenario's robot."
+        ),
+    ] = None,
+    bidirectional: Annotated[
+        bool | None,
+        typer.Option(
+            "--bidirectional/--one-way", help="Return sweeps (default: the scenario's capture.bidirectional)."
+        ),
+    ] = None,
+    speed: Annotated[float, typer.Option(help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
+    name: Annotated[str, typer.Option(help="Program name.")] = "robotcal_capture",
+    force: Annotated[bool, typer.Option("--force", help="Replace a file not written by robotcal.")] = False,
+) -> None:
+    """Write the capture plan as joint moves with a dwell and a comment per point (thesis 4.5.2)."""
+    import dataclasses
+
+    from robotcal.io import load_robot, load_scenario
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.io.output import existing_inputs, result_file
+    from robotcal.planning.program import controller_readings, write_program
+
+    loaded = load_scenario(scenario)
+    plan = loaded.plan if bidirectional is None else dataclasses.replace(loaded.plan, bidirectional=bidirectional)
+    target = None if controller is None else load_robot(controller)
+    circle, direction, readings = plan.readings()
+    angles = controller_readings(readings, loaded.robot, target)
+    header = (
+        f"robotcal capture program: scenario {loaded.name} ({loaded.source})\n"
+        f"controller readings of robot {(target or loaded.robot).name}; {circle.size} points, dwell {dwell:g} s"
+    )
+    text = write_program(circle, direction, angles, language=language, dwell_s=dwell, name=name,
+                         speed_percent=speed, header=header)  # fmt: skip
+    with result_file(out, inputs=existing_inputs(loaded.source), force=force) as path:
+        atomic_write_text(path, text)
+    console.print(f"wrote {out}: {circle.size} {language} joint moves, dwell {dwell:g} s", highlight=False)

@@ -1,0 +1,92 @@
+"""``robotcal sensitivity SCENARIO --vary KEY=V1,V2,...``: Monte Carlo per combination, Cpk (thesis 5.2.4)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from robotcal.cli import app
+from robotcal.cli._common import console, handle_errors
+
+__all__ = ["sensitivity"]
+
+
+@app.command()
+@handle_errors
+def sensitivity(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    vary: Annotated[
+        list[str],
+        typer.Option(
+            "--vary",
+            help="KEY=V1,V2,... (repeatable): e.g. capture.sweep_deg.4=15,40,90,180, capture.points=10,40,100, "
+            "montecarlo.iterations=1000,10000. A 1-based index selects a list element; a scalar fills a list.",
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for sensitivity.csv/.json and figures.")],
+    iterations: Annotated[
+        int | None, typer.Option("--iterations", "-n", help="Draws per case (default: the scenario's).")
+    ] = None,
+    seed: Annotated[int, typer.Option(min=0, help="Seed shared by every case (common random numbers).")] = 1,
+    length_limit: Annotated[float, typer.Option("--length-limit-mm", help="Cpk limits for lengths [mm].")] = 0.1,
+    angle_limit: Annotated[
+        float, typer.Option("--angle-limit-deg", help="Cpk limits for angles [deg] (0.1 mm at 573 mm).")
+    ] = 0.01,
+    workers: Annotated[int, typer.Option(min=1, help="Local worker processes for the cases.")] = 1,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace a folder not written by robotcal.")] = False,
+) -> None:
+    """Mean, u and Cpk (eq. 5-5) of every parameter against the varied capture conditions (Figs 5.14-5.16)."""
+    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.planning.scenario import scenario_document
+    from robotcal.planning.sensitivity import parse_vary, run_sensitivity, study_rows
+
+    document, base_dir, name, source = scenario_document(scenario)
+    inputs = existing_inputs(source)
+    check_output_folder(out, inputs=inputs, force=force)
+    study = run_sensitivity(
+        document,
+        base_dir,
+        name,
+        source,
+        parse_vary(vary),
+        seed=seed,
+        iterations=iterations,
+        length_limit_mm=length_limit,
+        angle_limit_deg=angle_limit,
+        workers=workers,
+        scheduler=scheduler,
+    )
+    rows = study_rows(study)
+    summary = {
+        "scenario": source,
+        "keys": list(study.keys),
+        "seed": seed,
+        "length_limit_mm": length_limit,
+        "angle_limit_deg": angle_limit,
+        "executor": study.executor,
+        "cases": [dict(case.values, draws=case.n_draws) for case in study.cases],
+    }
+    with result_folder(out, inputs=inputs, force=force, command="robotcal sensitivity") as folder:
+        from robotcal.report.planning import plot_sensitivity, write_sensitivity_files
+
+        write_sensitivity_files(folder, rows, summary)
+        plot_sensitivity(rows, study.keys, folder)
+    table = Table(title="Lowest Cpk per case (eq. 5-5)", title_justify="left")
+    for column in (*study.keys, "worst parameter", "Cpk", "u"):
+        table.add_column(column, justify="right")
+    for number in range(1, len(study.cases) + 1):
+        case_rows = [r for r in rows if r["case"] == number]
+        worst = min(case_rows, key=lambda r: r["cpk"])
+        table.add_row(
+            *[str(worst[k]) for k in study.keys],
+            worst["name"],
+            f"{worst['cpk']:.3g}",
+            f"{worst['std_uncertainty']:.3g} {worst['unit']}",
+        )
+    console.print(table)

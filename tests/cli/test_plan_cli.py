@@ -1,0 +1,132 @@
+"""CLI of the planning commands: plan check (exit 0/1/2), program, sensitivity, plan optimise."""
+
+from __future__ import annotations
+
+import json
+import re
+import textwrap
+
+import numpy as np
+from typer.testing import CliRunner
+
+from robotcal.cli import app
+from robotcal.planning.cell import check_plan
+from robotcal.planning.scenario import cell_from_scenario
+
+runner = CliRunner()
+
+#: Another robot: a column (J1) and an arm (J2), no capsule radii in the file (defaults), a plan
+#: that passes every check with the tracker 2 m away.
+TWO_JOINT_ROBOT = """
+name = "two-joint"
+[[joints]]
+d = 1000.0
+limits_deg = [-180.0, 180.0]
+[[joints]]
+a = 400.0
+limits_deg = [-90.0, 90.0]
+"""
+TWO_JOINT_SCENARIO = """
+robot = "two.toml"
+tracker_from_base = [[1,0,0,-2000.0],[0,1,0,0],[0,0,1,-1000.0],[0,0,0,1]]
+[instrument]
+a_um = 10.0
+b_um_per_m = 2.5
+[capture]
+start_deg = [-40.0, -60.0]
+sweep_deg = [80.0, {sweep2}]
+points = [5, 5]
+reflector_mm = [[300.0, 0.0, 500.0], [400.0, 0.0, 0.0]]
+"""
+
+
+def _two_joint(tmp_path, sweep2=120.0):
+    (tmp_path / "two.toml").write_text(TWO_JOINT_ROBOT)
+    path = tmp_path / "cell.toml"
+    path.write_text(textwrap.dedent(TWO_JOINT_SCENARIO.format(sweep2=sweep2)))
+    return path
+
+
+def test_plan_check_thesis_plan_is_infeasible(tmp_path):
+    out = tmp_path / "check"
+    result = runner.invoke(app, ["plan", "check", "thesis-laser-tracker", "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    assert "joint limit 40" in result.output
+    document = json.loads((out / "plan_check.json").read_text())
+    assert document["feasible"] is False and document["failures"]["joint limit"] == 40
+    assert document["circles"][5]["first_reasons"][0] == "joint limit J5"
+    assert (out / "plan_check.png").stat().st_size > 1000
+    rows = (out / "plan_check.csv").read_text().splitlines()
+    assert len(rows) == 136 and rows[0].startswith("circle,direction,q1_deg")
+
+
+def test_plan_check_another_robot_feasible_and_cli_equals_library(tmp_path):
+    path = _two_joint(tmp_path)
+    out = tmp_path / "check"
+    result = runner.invoke(app, ["plan", "check", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "no capsule_radius_mm" in result.output
+    from robotcal.io import load_scenario
+
+    scenario = load_scenario(path)
+    cell, _ = cell_from_scenario(scenario)
+    library = check_plan(scenario.robot, scenario.plan, cell)
+    rows = (out / "plan_check.csv").read_text().splitlines()[1:]
+    clearance = np.array([float(row.split(",")[6]) for row in rows])
+    np.testing.assert_allclose(clearance, library.clearance, atol=1e-3)  # written with 3 decimals
+    # a sweep past J2's 90 deg limit: infeasible (exit 1); a missing file: input error (exit 2)
+    assert runner.invoke(app, ["plan", "check", str(_two_joint(tmp_path, sweep2=170.0))]).exit_code == 1
+    assert runner.invoke(app, ["plan", "check", str(tmp_path / "missing.toml")]).exit_code == 2
+
+
+def test_program_cli_round_trip(tmp_path):
+    path = _two_joint(tmp_path)
+    out = tmp_path / "capture.src"
+    result = runner.invoke(app, ["program", str(path), "--language", "krl", "--dwell", "3", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    moves = [
+        [float(v) for v in re.findall(r"A\d (-?[\d.]+)", line)]
+        for line in out.read_text().splitlines()
+        if "PTP {" in line
+    ]
+    expected = [[-40 + 20 * k, -60] for k in range(5)] + [[40, -60 + 30 * k] for k in range(5)]
+    np.testing.assert_allclose(moves, expected, atol=1e-6)
+    assert (
+        runner.invoke(app, ["program", str(path), "--language", "rapid", "--out", str(tmp_path / "x.mod")]).exit_code
+        == 2
+    )
+
+
+def test_sensitivity_cli(tmp_path):
+    out = tmp_path / "sens"
+    result = runner.invoke(
+        app,
+        ["sensitivity", "thesis-laser-tracker", "--vary", "capture.sweep_deg.4=15,90", "-n", "200", "--out", str(out)],
+    )
+    assert result.exit_code == 0, result.output
+    document = json.loads((out / "sensitivity.json").read_text())
+    assert [case["capture.sweep_deg.4"] for case in document["cases"]] == [15, 90]
+    d4 = {row["capture.sweep_deg.4"]: row for row in document["rows"] if row["name"] == "J4.d"}
+    assert d4[90]["std_uncertainty"] < d4[15]["std_uncertainty"]  # Fig. 5.15: a wider J4 angle, a lower u
+    assert (out / "sensitivity_capture_sweep_deg_4.png").exists()
+    assert (out / "sensitivity.csv").read_text().startswith("case,capture.sweep_deg.4,name")
+
+
+def test_plan_optimise_cli(tmp_path):
+    out = tmp_path / "opt"
+    result = runner.invoke(
+        app,
+        ["plan", "optimise", "thesis-laser-tracker", "--out", str(out), "--generations", "1", "--population", "2",
+         "--confirm-draws", "200", "--workspace-poses", "20", "--no-acceptance"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    comparison = json.loads((out / "comparison.json").read_text())
+    assert comparison["optimised_feasible"] is True
+    assert comparison["monte_carlo_p95_tcp_mm"]["optimised"] > 0
+    # the optimised scenario loads and its plan passes the check
+    from robotcal.io import load_scenario
+
+    scenario = load_scenario(out / "optimised.toml")
+    cell, _ = cell_from_scenario(scenario, no_acceptance=True)
+    assert check_plan(scenario.robot, scenario.plan, cell).feasible
+    assert int(scenario.plan.points.sum()) == 135

@@ -1,0 +1,82 @@
+"""Robot programs: parse every program back and check each angle against the plan and the limits."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from robotcal.errors import InputError
+from robotcal.io import load_robot
+from robotcal.planning.program import controller_readings, write_program
+from robotcal.planning.scenario import scenario_document, scenario_from_document, set_key
+
+#: KUKA counts A1-A4 and A6 opposite to the DH z axes (THESIS_NOTES, Table 5.8).
+KUKA_SIGNS = np.array([-1.0, -1.0, -1.0, -1.0, 1.0, -1.0])
+
+
+def _feasible_thesis_plan():
+    """Table 5.1 with J5 turned 100 deg instead of 200 (within +-120), both directions."""
+    document, base, name, source = scenario_document("thesis-noise-free")
+    document = set_key(set_key(document, "capture.sweep_deg.5", 100.0), "capture.bidirectional", True)
+    return scenario_from_document(document, base, name, source)
+
+
+def _parse(text: str, language: str):
+    if language == "krl":
+        moves = [
+            [float(v) for v in re.findall(r"A\d+ (-?[\d.]+)", line)] for line in text.splitlines() if "PTP {" in line
+        ]
+        dwell = [float(v) for v in re.findall(r"WAIT SEC ([\d.]+)", text)]
+        return np.deg2rad(moves), dwell
+    if language == "rapid":
+        moves = [[float(v) for v in m.split(",")] for m in re.findall(r"MoveAbsJ \[\[([^\]]+)\]", text)]
+        dwell = [float(v) for v in re.findall(r"WaitTime ([\d.]+);", text)]
+        return np.deg2rad(moves), dwell
+    moves = [[float(v) for v in m.split(",")] for m in re.findall(r"movej\(\[([^\]]+)\]", text)]
+    dwell = [float(v) for v in re.findall(r"sleep\(([\d.]+)\)", text)]
+    return np.array(moves), dwell
+
+
+@pytest.mark.parametrize("language", ["krl", "rapid", "urscript"])
+def test_program_round_trip_in_kuka_controller_convention(language):
+    scenario = _feasible_thesis_plan()
+    controller = load_robot("kuka-kr5-sixx-r650-krc")
+    circle, direction, readings = scenario.plan.readings()
+    angles = controller_readings(readings, scenario.robot, controller)
+    # independent truth: model readings times KUKA's signs (the model robot file has the identity map)
+    np.testing.assert_allclose(angles, readings * KUKA_SIGNS, atol=1e-12)
+    text = write_program(circle, direction, angles, language=language, dwell_s=1.5)
+    moves, dwell = _parse(text, language)
+    assert moves.shape == readings.shape == (270, 6)
+    # 6 decimals of a degree (KRL, RAPID) or 9 of a radian (URScript) are written
+    tolerance = 0.6e-6 if language == "urscript" else np.deg2rad(0.6e-6)
+    np.testing.assert_allclose(moves, readings * KUKA_SIGNS, atol=tolerance)
+    assert dwell == [1.5] * 270
+    low, high = controller.limits[:, 0], controller.limits[:, 1]
+    assert np.all((moves >= low - tolerance) & (moves <= high + tolerance))
+    comments = re.findall(r"circle (\d) (forward|return) point (\d+)", text)
+    assert len(comments) == 270
+    assert comments[0] == ("1", "forward", "1") and comments[15] == ("1", "return", "1")
+    assert comments[-1] == ("6", "return", "30")
+
+
+def test_program_refuses_readings_beyond_the_limits():
+    document, base, name, source = scenario_document("thesis-noise-free")  # J5 to 200 deg
+    scenario = scenario_from_document(document, base, name, source)
+    _, _, readings = scenario.plan.readings()
+    with pytest.raises(InputError, match=r"A5 = 125.000 deg is outside the limits \[-120, 120\]"):
+        controller_readings(readings, scenario.robot, load_robot("kuka-kr5-sixx-r650-krc"))
+
+
+def test_program_validation():
+    readings = np.zeros((3, 7))
+    with pytest.raises(InputError, match="6-axis"):
+        write_program([1, 1, 1], [1, 1, 1], readings, language="rapid", dwell_s=1.0)
+    with pytest.raises(InputError, match="unknown language"):
+        write_program([1, 1, 1], [1, 1, 1], readings, language="val3", dwell_s=1.0)
+    with pytest.raises(InputError, match="dwell"):
+        write_program([1, 1, 1], [1, 1, 1], readings, language="krl", dwell_s=-1.0)
+    text = write_program([1, 1, 1], [1, 1, 1], readings, language="krl", dwell_s=0.0)
+    assert text.count("PTP {A1 0.000000") == 3 and "A7 0.000000" in text
