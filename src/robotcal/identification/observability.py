@@ -47,8 +47,9 @@ def select_identifiable(scaled_jacobian, candidates, *, tolerance: float = 1e-7)
     """Greedy, ordered rank-revealing selection of the columns the data can determine.
 
     Columns are taken in the order given; a column is kept when the part of it orthogonal to the
-    columns kept so far is larger than ``tolerance`` times its own norm (and the column is not
-    zero). A parameter whose effect on the residuals is a combination of earlier parameters' (a
+    columns kept so far is larger than ``tolerance`` times its own norm, and the column itself is
+    larger than ``tolerance`` times the largest candidate column (a unit change that moves the
+    points by less than that is not determined by any realistic data). A parameter whose effect on the residuals is a combination of earlier parameters' (a
     gauge freedom, a joint that never moves, joint n's offsets behind a per-joint reflector) is
     therefore held, and the earlier ones stay free: the order says which of a dependent group is
     kept.
@@ -75,7 +76,7 @@ def select_identifiable(scaled_jacobian, candidates, *, tolerance: float = 1e-7)
     basis = np.empty((jacobian.shape[0], 0))
     keep = np.zeros(jacobian.shape[1], dtype=bool)
     for column in np.flatnonzero(candidates):
-        if norms[column] <= 1e-12 * max(largest, 1e-300):
+        if norms[column] <= tolerance * max(largest, 1e-300):
             continue
         vector = jacobian[:, column] / norms[column]
         for _ in range(2):  # Gram-Schmidt twice: orthogonal to working precision

@@ -5,8 +5,11 @@ minimises the residual over all measured points. Two objectives:
 
 ``criterion="points"`` (eq. 4-101, the classic criterion)
     residuals ``T(x_b) p_k(x) - m_k`` (x, y, z per point, vector residuals, not the distance per
-    point of eq. 4-101's summand), with the parameters x *and* the robot-to-tracker transform
-    ``tracker_from_base`` (6 dof, ``T = T_0 [Rz(rz) Ry(ry) Rx(rx) | t]``) estimated together.
+    point of eq. 4-101's summand). The robot-to-tracker transform ``tracker_from_base``
+    (``T = T_0 [Rz(rz) Ry(ry) Rx(rx) | t]``, 6 corrections ``base.*``) is either held at the given
+    ``T_0`` (a scenario's ``base_frame = "given"``: the default when ``tracker_from_base`` is
+    passed) or estimated with the parameters (``estimate_base=True``, or no ``tracker_from_base``:
+    ``T_0`` from a Horn registration).
 ``criterion="distances"`` (eq. 4-102, the thesis's registration-free criterion)
     residuals ``|p_i(x) - p_j(x)| - |m_i - m_j|`` for every pair i < j of measured points
     (n(n-1)/2 residuals, less the pairs that are the same measurement: same readings on the same
@@ -15,25 +18,66 @@ minimises the residual over all measured points. Two objectives:
 Both are solved by ``scipy.optimize.least_squares`` (``method="lm"``, MINPACK; ``"trf"`` where
 there are fewer residuals than unknowns) with an explicit ``x_scale`` (1 mm for lengths and
 translations, ``1/L`` rad for angles, L the RMS radius of the measured point cloud about its
-centroid, so that a unit step of any variable moves the points by about 1 mm) and the exact
-analytic Jacobian (:func:`robotcal.kinematics.jacobian.target_jacobian`).
+centroid, so that a unit step of any variable moves the points by about 1 mm), the exact
+analytic Jacobian (:func:`robotcal.kinematics.jacobian.target_jacobian`) and
+``ftol = xtol = gtol = 1e-12``: on noise-free data every determined parameter is recovered to
+about 1e-11 mm / 1e-11 deg in 1-4 Jacobian evaluations from the nominal or the CPA start. The
+final cost is never above the start's: should the solver end higher, the start is returned with
+``success=False`` and a message saying so.
 
-Gauge freedoms and identifiability
-----------------------------------
-* d1 and theta1 (a translation along and a rotation about the first joint axis, i.e. a rigid
-  motion of the base frame that the first joint does not see) are exactly equivalent to moving the
-  whole predicted point cloud. The distances criterion cannot see them at all; the points criterion
-  sees them only together with ``tracker_from_base``. Both criteria therefore hold d1 and theta1 at
-  the start value (the CPA result, which fixes them from the base frame) and say so in ``gauge``.
-  With ``estimate_base=False`` (points criterion, tracker transform known and held) they are free.
-* Every other parameter is checked at the start point by a rank-revealing, ordered selection on
-  the column-scaled Jacobian (:func:`robotcal.identification.observability.select_identifiable`):
-  parameters the data cannot determine (joint n's offsets behind per-joint reflectors, one of
-  joint n's d, theta, a, alpha behind a flange reflector, anything tied to a joint that never
-  moves) are **held at their start value with an** :class:`~robotcal.errors.IdentifiabilityWarning`
-  naming them (and any joint whose reading never changes) when the free set is automatic
-  (``free=None``), and raise :class:`~robotcal.errors.IdentifiabilityError` listing them when the
-  caller gave the free set explicitly or asked for ``on_unidentifiable="raise"``.
+Which quantities are free: decided by the data
+----------------------------------------------
+Nothing is held by a list. At the start, every candidate -- each parameter the model does not fix
+(beta of a DH joint, d of a Hayati joint) plus, when the base frame is estimated, the six ``base.*``
+corrections -- enters one rank-revealing, ordered selection on the column-scaled Jacobian of the
+actual residuals (:func:`robotcal.identification.observability.select_identifiable`). The order is
+a documented choice: **base corrections first**, then the parameters joint by joint in the order
+d, theta, a, alpha, beta. Of a group of columns that are dependent, the earlier ones stay free and
+the later ones are held at their start value: a parameter that is equivalent to a base motion is
+held and the base correction kept (the base frame is the instrument's pose, the parameters are the
+robot's; CPA fixes d1 and theta1 from the base frame). What is held is reported:
+
+* ``gauge``: held parameters whose whole effect on the data is a rigid motion of the point cloud
+  (tested on the data: the parameter's column of ``d points / d x`` lies in the span of the six
+  rigid-motion fields of the predicted points) while the criterion cannot tell a rigid motion from
+  a base-frame one (base estimated, or distances).
+* ``held``: the other held quantities (the data determine no combination that includes them).
+* ``confounded``: free quantities that take up the effect of held ones, so that only their
+  combination is determined: the support of the null space of the full candidate Jacobian, taken
+  at a generic point near the start (every candidate moved by up to one ``x_scale`` unit, fixed
+  seed) because special start values hide second-order couplings (a flange target at height h
+  above a nominal alpha_n = 0 moves d_n by ``h (1 - cos alpha_n)`` when alpha_n is held).
+
+The cases (thesis layout = per-joint reflectors, reflector i fixed in frame {i-1} and turned by
+q_i, eq. 5-1):
+
+* **Per-joint reflectors.** Circle 1's points ``T Rz(q1) r1`` do not depend on d1 or theta1,
+  while circles 2..n move with them, so d1 and theta1 change the shape of the point cloud: they
+  are **free** with every criterion and base-frame mode (given, registered/estimated, distances).
+* **J6 (joint n) behind its own reflector.** Circle n's target turns with q_n in frame {n-1}:
+  joint n's d, theta, a, alpha enter no point; their columns are zero and they are ``held``.
+* **Flange target, base estimated (points) or distances.** d1 (a translation along z0) and
+  theta1 (a rotation about z0) move every point alike: they are a ``gauge``, held at the start
+  value; with the points criterion the base corrections are ``confounded`` with them.
+  Also, the target is 3 numbers in frame {n} for joint n's four d, theta, a, alpha: the last,
+  alpha_n, is ``held`` and d_n, theta_n, a_n are ``confounded``.
+* **Base given / held (points, ``estimate_base=False``).** Nothing absorbs a rigid motion, so d1
+  and theta1 are free for every target layout.
+* **A joint that never moves** (``still_joints``). Its frame is rigidly attached to the previous
+  one; whatever only that rotation would separate is held: e.g. J6 never turning behind a flange
+  target leaves J5's alpha and J6's d, theta, a, alpha held and J5's d, theta, a confounded; behind
+  per-joint targets J5's d, theta, a, alpha go too (they move circle 6 only). A still J1 behind a
+  flange target with a free base makes J1's a and alpha a gauge as well, with whatever else then
+  moves the whole cloud rigidly (from the nominal start, where axes 2 and 3 are parallel: J2's theta
+  and J3's d).
+* **Base corrections the data cannot determine** (e.g. a target on axis 6 turned by J6 alone:
+  every point is the same point, no base rotation is seen) are held at the start transform and
+  listed in ``held`` as ``base.*`` names.
+
+Held quantities raise an :class:`~robotcal.errors.IdentifiabilityWarning` naming them (and any
+joint whose reading never changes) when the free set is automatic (``free=None``), and an
+:class:`~robotcal.errors.IdentifiabilityError` listing them (gauge first) when the caller gave
+the free set explicitly or asked for ``on_unidentifiable="raise"``.
 
 Uncertainty
 -----------
@@ -98,6 +142,8 @@ BASE_NAMES = ("base.tx", "base.ty", "base.tz", "base.rx", "base.ry", "base.rz")
 _D, _THETA = 0, 1
 _PAIR_CHUNK = 32768
 _STILL_RAD = 1e-9
+_SAMPLE_ROWS = 8192  # residuals sampled for the null space at the generic point
+_SUPPORT = 1e-8  # a null vector's entry (unit columns) above this ties a free quantity to a held one
 
 
 def _frozen(array, dtype=float):
@@ -119,10 +165,13 @@ class RefinementResult:
     criterion : {"points", "distances"}
     method : {"lm", "trf"}
     success : bool
+        SciPy's success, and False when the solver ended above the start's cost (then the start is
+        returned).
     status : int
         SciPy's termination status.
     message : str
-        SciPy's message; prefixed with an explanation when sigma could not be estimated.
+        SciPy's message; prefixed with an explanation when sigma could not be estimated or when
+        the start was returned.
     nfev, njev : int
         Residual and Jacobian evaluations.
     free : ndarray of bool, shape (n_joints, 5)
@@ -130,15 +179,27 @@ class RefinementResult:
     base_free : ndarray of bool, shape (6,)
         ``tracker_from_base`` corrections estimated (all False for distances).
     gauge : tuple of str
-        Parameters held because the criterion cannot see them (d1, theta1; see module notes).
+        Parameters held because their effect on the data is a rigid motion of the whole point cloud,
+        which the criterion cannot tell from a base-frame motion: a free base frame absorbs it (points
+        criterion, ``tracker_from_base`` estimated) or pairwise distances do not see it. Found by the
+        rank test at the start, not from a list: d1 and theta1 behind a flange target with a free
+        base or with distances; empty with per-joint targets or a held base (module notes).
     held : tuple of str
-        Parameters held because the data cannot determine them (see module notes).
+        Other parameters (and ``base.*`` corrections) held because the data cannot determine them:
+        a joint behind its own per-joint target, one of joint n's d, theta, a, alpha behind a flange
+        target, parameters tied by a joint that never moves (module notes). Disjoint from ``gauge``.
+    confounded : tuple of str
+        Free quantities (parameter or ``base.*`` names) whose estimate depends on the values at which
+        ``gauge``/``held`` ones are held (they take up their effect): only the combination is
+        determined. The free quantities not listed are determined by the data alone.
     still_joints : tuple of str
         Joints whose reading never changes in the capture.
     free_names : tuple of str
         Names of the estimated quantities, in the order of the covariance rows.
     x_scale : ndarray, shape (n_free,)
         Characteristic scale of each unknown [mm | rad].
+    start_cost : float
+        SciPy cost ``0.5 * sum(r^2)`` [mm^2] at the start; the final cost is never above it.
     cost_history : ndarray, shape (n_iterations + 1,)
         SciPy cost ``0.5 * sum(r^2)`` [mm^2] at the start and after every iteration (each Jacobian
         evaluation happens at an accepted iterate), ending with the final cost.
@@ -177,9 +238,11 @@ class RefinementResult:
     base_free: np.ndarray
     gauge: tuple[str, ...]
     held: tuple[str, ...]
+    confounded: tuple[str, ...]
     still_joints: tuple[str, ...]
     free_names: tuple[str, ...]
     x_scale: np.ndarray
+    start_cost: float
     cost_history: np.ndarray
     rms_history: np.ndarray
     n_residuals: int
@@ -221,6 +284,23 @@ def _base_delta(x_base: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[np.nd
     rotation = r_z @ r_y @ r_x
     derivatives = (r_z @ r_y @ r_x @ k_x, r_z @ r_y @ k_y @ r_x, r_z @ k_z @ r_y @ r_x)
     return rotation, np.array([tx, ty, tz]), derivatives
+
+
+def _unit(diff: np.ndarray) -> np.ndarray:
+    """Rows of ``diff (m, 3)`` normalised; 0 where a model distance is 0 (|x| has no derivative there)."""
+    norm = np.linalg.norm(diff, axis=1, keepdims=True)
+    return np.divide(diff, norm, out=np.zeros_like(diff), where=norm > 0.0)
+
+
+def _pair_jacobian(points, jac, pair_i, pair_j) -> np.ndarray:
+    """``d |p_i - p_j| / d x`` ``(n_pairs, n_x)`` from the points and their Jacobian ``(n_points, 3, n_x)``."""
+    out = np.empty((pair_i.size, jac.shape[-1]))
+    for start in range(0, pair_i.size, _PAIR_CHUNK):
+        i = pair_i[start : start + _PAIR_CHUNK]
+        j = pair_j[start : start + _PAIR_CHUNK]
+        unit = _unit(points[i] - points[j])
+        out[start : start + i.size] = np.einsum("pc,pck->pk", unit, jac[i]) - np.einsum("pc,pck->pk", unit, jac[j])
+    return out
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -295,14 +375,16 @@ class _Problem:
         if self.criterion == "points":
             return (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
         residuals = pdist(points)[self.pair_keep] - self.measured_distances
-        out = np.empty((self.pair_i.size, jac.shape[-1]))
-        for start in range(0, self.pair_i.size, _PAIR_CHUNK):
-            i = self.pair_i[start : start + _PAIR_CHUNK]
-            j = self.pair_j[start : start + _PAIR_CHUNK]
-            diff = points[i] - points[j]
-            unit = diff / np.linalg.norm(diff, axis=1, keepdims=True)
-            out[start : start + i.size] = np.einsum("pc,pck->pk", unit, jac[i]) - np.einsum("pc,pck->pk", unit, jac[j])
-        return residuals, out
+        return residuals, _pair_jacobian(points, jac, self.pair_i, self.pair_j)
+
+    def jacobian_sample(self, x, rows: int) -> np.ndarray:
+        """Jacobian at x on about ``rows`` evenly strided residuals (every pair, or point, k-th)."""
+        values, x_base = self.unpack(x)
+        points, jac = self.point_jacobian(values, x_base)
+        if self.criterion == "points":
+            return jac.reshape(-1, jac.shape[-1])
+        stride = max(1, self.pair_i.size // rows)
+        return _pair_jacobian(points, jac, self.pair_i[::stride], self.pair_j[::stride])
 
     def noise_map(self, x) -> sparse.csr_matrix | None:
         """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
@@ -310,8 +392,7 @@ class _Problem:
             return None
         values, _ = self.unpack(x)
         points = target_positions(values, self.q, self.turning, self.reflector)
-        diff = points[self.pair_i] - points[self.pair_j]
-        unit = diff / np.linalg.norm(diff, axis=1, keepdims=True)
+        unit = _unit(points[self.pair_i] - points[self.pair_j])
         m = self.pair_i.size
         rows = np.repeat(np.arange(m), 6)
         cols = np.concatenate(
@@ -360,9 +441,9 @@ def capture_target_index(capture: Capture, reflector: ReflectorMount) -> np.ndar
     return capture_turning_joints(capture, reflector) if reflector.frame == "joint" else None
 
 
-def _check_free(free, robot, gauge_mask) -> tuple[np.ndarray | None, bool]:
+def _check_free(free, robot) -> np.ndarray | None:
     if free is None:
-        return None, False
+        return None
     if isinstance(free, (list, tuple)) and all(isinstance(name, str) for name in free):
         names = robot.parameter_names
         unknown = [name for name in free if name not in names]
@@ -379,15 +460,102 @@ def _check_free(free, robot, gauge_mask) -> tuple[np.ndarray | None, bool]:
     if np.any(fixed):
         names = [n for n, flag in zip(robot.parameter_names, fixed.ravel(), strict=True) if flag]
         raise InputError(f"`free` frees parameters the model fixes at 0: {', '.join(names)}")
-    gauge = mask & gauge_mask
-    if np.any(gauge):
-        names = [n for n, flag in zip(robot.parameter_names, gauge.ravel(), strict=True) if flag]
-        raise IdentifiabilityError(
-            f"{', '.join(names)} cannot be refined with this criterion: they are a rigid motion of the base "
-            "(the points criterion absorbs them into tracker_from_base; the distances criterion cannot see them)",
-            parameters=names,
-        )
-    return mask, True
+    return mask
+
+
+def _rigid_motion_fields(points: np.ndarray, angle_scale: float) -> np.ndarray:
+    """Orthonormal basis ``(3 n_points, <= 6)`` of the velocity fields of the rigid motions of ``points``.
+
+    Translations ``e_k`` and rotations ``e_k x (p - centroid)`` (scaled by ``angle_scale``); a
+    parameter whose effect on the points lies in this span moves the whole cloud rigidly.
+    """
+    centred = points - points.mean(axis=0)
+    fields = np.zeros((points.shape[0], 3, 6))
+    for k in range(3):
+        axis = np.zeros(3)
+        axis[k] = 1.0
+        fields[:, k, k] = 1.0
+        fields[:, :, 3 + k] = np.cross(axis, centred) * angle_scale
+    matrix = fields.reshape(-1, 6)
+    u, s, _ = np.linalg.svd(matrix, full_matrices=False)
+    return u[:, s > s[0] * 1e-12]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Selection:
+    """Outcome of the rank test on the full candidate set (module notes)."""
+
+    free: np.ndarray  # (n, 5) bool: parameters estimated
+    base_free: np.ndarray  # (6,) bool: base corrections estimated
+    held: np.ndarray  # (n, 5) bool: candidate parameters held, gauge ones included
+    base_held: np.ndarray  # (6,) bool: candidate base corrections held
+    gauge: np.ndarray  # (n, 5) bool: held because they move the whole point cloud rigidly
+    confounded: np.ndarray  # (5 n + 6,) bool: free quantities tied to a held one
+
+
+def _select_free(
+    probe: _Problem, candidates: np.ndarray, all_scale: np.ndarray, kind_scale: np.ndarray, tolerance: float
+) -> _Selection:
+    """Rank test at the start on every candidate column (parameters and base corrections together).
+
+    Columns are taken base corrections first, then the parameters joint by joint in the order
+    d, theta, a, alpha, beta (:func:`select_identifiable`): of a dependent group the earlier ones
+    stay free, so a parameter equivalent to a base motion is held and the base correction kept.
+    """
+    n = probe.free.shape[0]
+    n_base = int(probe.base_free.sum())
+    _, jac_all = probe.evaluate(probe.x0())  # columns: the 5 n parameters, then the candidate base ones
+    scale = np.concatenate([np.tile(kind_scale, n), all_scale[5 * n :][probe.base_free]])
+    scaled = triangular_factor(jac_all * scale)
+    chosen = np.r_[candidates.ravel(), np.ones(n_base, dtype=bool)]
+    order = np.r_[np.arange(5 * n, 5 * n + n_base), np.arange(5 * n)]
+    keep = np.zeros(chosen.size, dtype=bool)
+    keep[order] = select_identifiable(scaled[:, order], chosen[order], tolerance=tolerance)
+    held_all = chosen & ~keep
+
+    # free quantities whose estimate depends on a held one: the support of the null space, taken at
+    # a generic point near the start (every candidate moved by up to one scale unit, a fixed seed):
+    # at the start itself special values (alpha = 0, a target on an axis) can hide a coupling that
+    # is of second order there but still moves the free parameter once the held one is off its truth
+    norms = np.linalg.norm(scaled, axis=0)
+    live = chosen & (norms > tolerance * max(float(norms[chosen].max(initial=0.0)), 1e-300))  # as the selection
+    confounded = np.zeros(chosen.size, dtype=bool)
+    n_null = int(live.sum() - keep.sum())
+    if n_null > 0:
+        generic = probe.x0() + np.where(chosen, np.random.default_rng(0).uniform(-1.0, 1.0, chosen.size), 0.0) * scale
+        # (a strided sample of the pairs: the null space of a few thousand generic rows is that of all)
+        moved = triangular_factor(probe.jacobian_sample(generic, _SAMPLE_ROWS) * scale)[:, live]
+        _, _, vt = np.linalg.svd(moved / np.linalg.norm(moved, axis=0), full_matrices=True)
+        support = np.abs(vt[-n_null:]).max(axis=0) > _SUPPORT
+        confounded[np.flatnonzero(live)[support]] = True
+        confounded &= keep
+
+    # gauge: held parameters whose effect is a (non-zero) rigid motion of the whole point cloud,
+    # which a free base frame absorbs and pairwise distances do not see
+    gauge = np.zeros((n, 5), dtype=bool)
+    held = held_all[: 5 * n].reshape(n, 5)
+    if np.any(held) and (n_base or probe.criterion == "distances"):
+        values, _ = probe.unpack(probe.x0())
+        points, point_jac = target_jacobian(values, probe.q, probe.turning, probe.reflector)
+        columns = point_jac.reshape(-1, 5 * n) * np.tile(kind_scale, n)
+        basis = _rigid_motion_fields(points, float(kind_scale[1]))
+        size = np.linalg.norm(columns, axis=0)
+        outside = np.linalg.norm(columns - basis @ (basis.T @ columns), axis=0)
+        rigid = (size > 1e-12 * max(float(size.max()), 1e-300)) & (outside <= tolerance * size)
+        gauge = held & rigid.reshape(n, 5)
+    base_keep = np.zeros(6, dtype=bool)
+    base_keep[probe.base_free] = keep[5 * n :]
+    base_held = probe.base_free & ~base_keep
+    base_confounded = np.zeros(6, dtype=bool)
+    base_confounded[probe.base_free] = confounded[5 * n :]
+    return _Selection(
+        free=keep[: 5 * n].reshape(n, 5),
+        base_free=base_keep,
+        held=held,
+        base_held=base_held,
+        gauge=gauge,
+        confounded=np.r_[confounded[: 5 * n], base_confounded],
+    )
 
 
 def refine_parameters(
@@ -397,7 +565,7 @@ def refine_parameters(
     *,
     criterion: str = "points",
     tracker_from_base=None,
-    estimate_base: bool = True,
+    estimate_base: bool | None = None,
     free=None,
     on_unidentifiable: str = "fix",
     method: str = "auto",
@@ -417,23 +585,25 @@ def refine_parameters(
     reflector : ReflectorMount
         Where the target sat.
     criterion : {"points", "distances"}
-        Eq. 4-101 (point positions with ``tracker_from_base`` estimated) or eq. 4-102 (all
-        pairwise distances); see the module notes.
+        Eq. 4-101 (point positions in the tracker frame) or eq. 4-102 (all pairwise distances);
+        see the module notes.
     tracker_from_base : array_like, shape (4, 4), optional
-        Start (or, with ``estimate_base=False``, fixed) base frame for the points criterion;
-        registered by Horn's method from the start parameters when omitted. Ignored by distances.
-    estimate_base : bool
-        Points criterion: estimate the 6 dof of ``tracker_from_base`` (then d1 and theta1 are held,
-        being equivalent to it); False holds the transform and frees d1 and theta1.
+        Points criterion: the base frame, held unless ``estimate_base`` (then the start of its
+        estimate); registered by Horn's method from the start parameters when omitted (and then
+        always estimated). Ignored by distances.
+    estimate_base : bool, optional
+        Points criterion: estimate the base-frame corrections (those the data determine) together
+        with the parameters. None (default): estimate only when ``tracker_from_base`` is not
+        given. False needs ``tracker_from_base``.
     free : None, sequence of str, or ndarray of bool, shape (n_joints, 5)
-        Parameters to estimate. None: every parameter the model and the criterion allow and the data
-        determine (see module notes).
+        Parameters to estimate. None: every parameter the model allows and the data determine
+        (see module notes).
     on_unidentifiable : {"fix", "raise"}
         With ``free=None``: hold undeterminable parameters with a warning, or raise.
     method : {"auto", "lm", "trf"}
         ``auto``: ``"lm"`` when there are at least as many residuals as unknowns, else ``"trf"``.
     max_nfev : int, optional
-        Residual-evaluation limit (SciPy's default when None).
+        Residual-evaluation limit (default ``100 * (n_unknowns + 1)``, SciPy's for ``"lm"``).
     tolerance : float
         ``ftol = xtol = gtol`` of ``least_squares``.
     rank_tolerance : float
@@ -445,7 +615,8 @@ def refine_parameters(
         When the capture leaves no degree of freedom for the noise (fewer residuals, or for
         distances fewer independent ones, than free unknowns + 1) the fit is still returned, with
         ``sigma = NaN``, ``covariance = correlation = None``, ``standard_uncertainty`` all NaN and a
-        ``message`` that says so with the counts (see the module notes).
+        ``message`` that says so with the counts (see the module notes). When the solver ends at a
+        higher cost than the start, the start is returned with ``success=False``.
 
     Raises
     ------
@@ -464,6 +635,10 @@ def refine_parameters(
         raise InputError(f"`method` must be 'auto', 'lm' or 'trf'; got {method!r}")
     if on_unidentifiable not in ("fix", "raise"):
         raise InputError(f"`on_unidentifiable` must be 'fix' or 'raise'; got {on_unidentifiable!r}")
+    if estimate_base not in (None, True, False):
+        raise InputError(f"`estimate_base` must be None, True or False; got {estimate_base!r}")
+    if criterion == "points" and estimate_base is False and tracker_from_base is None:
+        raise InputError("`estimate_base=False` holds the base frame: give `tracker_from_base`")
     if capture.n_joints != n:
         raise InputError(
             f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints"
@@ -475,12 +650,9 @@ def refine_parameters(
     q = robot.model_joint_variables(capture.readings)
     measured = np.asarray(capture.points, dtype=float)
     names = robot.parameter_names
-    use_base = criterion == "points" and estimate_base
-    gauge_mask = np.zeros((n, 5), dtype=bool)
-    if criterion == "distances" or use_base:
-        gauge_mask[0, [_D, _THETA]] = True
-    gauge_mask &= ~robot.structurally_fixed
-    explicit_mask, explicit = _check_free(free, robot, gauge_mask)
+    use_base = criterion == "points" and (tracker_from_base is None if estimate_base is None else estimate_base)
+    explicit_mask = _check_free(free, robot)
+    explicit = explicit_mask is not None
 
     base_start = None
     if criterion == "points":
@@ -507,14 +679,13 @@ def refine_parameters(
     kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
     all_scale = np.concatenate([np.tile(kind_scale, n), [1.0, 1.0, 1.0, angle_scale, angle_scale, angle_scale]])
 
-    # identifiability at the start, every candidate column free
-    candidates = ~robot.structurally_fixed & ~gauge_mask if explicit_mask is None else explicit_mask
-    base_free = np.full(6, use_base)
+    # identifiability at the start: every candidate parameter and base correction at once
+    candidates = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     probe = _Problem(
         start=start.values.copy(),
         free=np.ones((n, 5), dtype=bool),
         base_start=base_start,
-        base_free=base_free,
+        base_free=np.full(6, use_base),
         q=q,
         turning=turning,
         reflector=reflector,
@@ -525,40 +696,23 @@ def refine_parameters(
         pair_keep=pair_keep,
         measured_distances=distances,
     )
-    _, jac_all = probe.evaluate(probe.x0())
-    column_scale = all_scale[: jac_all.shape[1]]
-    order = np.r_[np.flatnonzero(base_free) + 5 * n, np.arange(5 * n)]  # base corrections first
-    chosen = np.r_[candidates.ravel(), base_free]
-    keep = np.zeros(5 * n + 6, dtype=bool)
-    keep_ordered = select_identifiable(
-        (jac_all * column_scale)[:, order] if order.size else jac_all,
-        chosen[order],
-        tolerance=rank_tolerance,
+    selection = _select_free(probe, candidates, all_scale, kind_scale, rank_tolerance)
+    free_mask, base_free = selection.free, selection.base_free
+    gauge = tuple(name for name, flag in zip(names, selection.gauge.ravel(), strict=True) if flag)
+    held_mask = selection.held & ~selection.gauge
+    held = tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag) + tuple(
+        BASE_NAMES[k] for k in np.flatnonzero(selection.base_held)
     )
-    keep[order] = keep_ordered
-    free_mask = keep[: 5 * n].reshape(n, 5)
-    if use_base and not np.all(keep[5 * n :]):
-        lost = [BASE_NAMES[k] for k in np.flatnonzero(~keep[5 * n :])]
-        raise IdentifiabilityError(
-            f"{capture.source}: the capture cannot determine tracker_from_base ({', '.join(lost)}); "
-            "measure more spread-out points or give the base frame and estimate_base=False",
-            parameters=lost,
-        )
-    held_mask = candidates & ~free_mask
-    held = tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
-    if held:
-        detail = f"; joints that never move in the capture: {', '.join(still)}" if still else ""
-        text = (
-            f"{capture.source}: the {criterion} criterion cannot determine {', '.join(held)} from this capture "
-            f"(rank-deficient column-scaled Jacobian at the start){detail}"
-        )
-        if explicit or on_unidentifiable == "raise":
-            raise IdentifiabilityError(text, parameters=held)
-        warnings.warn(text + "; they are held at their start values", IdentifiabilityWarning, stacklevel=2)
-    gauge = tuple(name for name, flag in zip(names, gauge_mask.ravel(), strict=True) if flag)
+    confounded = tuple(name for name, flag in zip(names + BASE_NAMES, selection.confounded, strict=True) if flag)
+    if gauge or held:
+        _report_held(capture, criterion, use_base, gauge, held, still, explicit or on_unidentifiable == "raise")
 
-    problem = replace(probe, free=free_mask)  # the same problem, only the identifiable columns free
+    problem = replace(probe, free=free_mask, base_free=base_free)  # only the identifiable columns free
     x0 = problem.x0()
+    if x0.size == 0:
+        raise IdentifiabilityError(
+            f"{capture.source}: no parameter can be refined from this capture", parameters=gauge + held
+        )
     x_scale = np.concatenate([np.tile(kind_scale, (n, 1))[free_mask], all_scale[5 * n :][base_free]])
     free_names = tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag) + tuple(
         BASE_NAMES[k] for k in np.flatnonzero(base_free)
@@ -572,8 +726,8 @@ def refine_parameters(
 
     m = capture.n_points * 3 if criterion == "points" else pair_i.size
     chosen_method = ("lm" if m >= x0.size else "trf") if method == "auto" else method
-    if x0.size == 0:
-        raise IdentifiabilityError(f"{capture.source}: no parameter can be refined from this capture", parameters=held)
+    start_residuals = problem.residuals(x0)
+    start_cost = 0.5 * float(start_residuals @ start_residuals)
     solution = least_squares(
         problem.residuals,
         x0,
@@ -586,22 +740,31 @@ def refine_parameters(
         max_nfev=max_nfev,
     )
     final_cost = float(solution.cost)
+    x_final = np.asarray(solution.x, dtype=float)
+    success = bool(solution.status > 0)
+    message = str(solution.message)
+    if not np.isfinite(final_cost) or final_cost > start_cost:
+        # never hand back something worse than what came in (module notes)
+        message = (
+            f"the solver ended at a higher cost ({final_cost:.6g} mm^2) than the start ({start_cost:.6g} mm^2); "
+            f"the start is returned. Solver: {message}"
+        )
+        x_final, final_cost, success = x0, start_cost, False
     if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
         history.append(final_cost)
     cost_history = np.asarray(history)
-    values, x_base = problem.unpack(solution.x)
+    values, x_base = problem.unpack(x_final)
 
     # statistics at the solution
-    residuals, jac = problem.evaluate(solution.x)
+    residuals, jac = problem.evaluate(x_final)
     if criterion == "points":
         per = np.linalg.norm(residuals.reshape(-1, 3), axis=1)
     else:
         per = np.abs(residuals)
     scaled = jac * x_scale
     cond = conditioning(scaled)
-    covariance, sigma, dof = _covariance(jac, x_scale, residuals, problem.noise_map(solution.x))
+    covariance, sigma, dof = _covariance(jac, x_scale, residuals, problem.noise_map(x_final))
     standard = np.full((n, 5), np.nan)
-    message = str(solution.message)
     if covariance is None:
         message = (
             f"no degrees of freedom left to estimate the noise ({m} residuals, {x0.size} free unknowns, "
@@ -616,7 +779,7 @@ def refine_parameters(
         tracker_from_base=None if base_start is None else _frozen(problem.tracker(x_base)),
         criterion=criterion,
         method=chosen_method,
-        success=bool(solution.status > 0),
+        success=success,
         status=int(solution.status),
         message=message,
         nfev=int(solution.nfev),
@@ -625,9 +788,11 @@ def refine_parameters(
         base_free=_frozen(base_free, bool),
         gauge=gauge,
         held=held,
+        confounded=confounded,
         still_joints=still,
         free_names=free_names,
         x_scale=_frozen(x_scale),
+        start_cost=start_cost,
         cost_history=_frozen(cost_history),
         rms_history=_frozen(np.sqrt(2.0 * cost_history / m)),
         n_residuals=int(m),
@@ -642,6 +807,28 @@ def refine_parameters(
         standard_uncertainty=_frozen(standard),
         wall_time_s=time.perf_counter() - began,
     )
+
+
+def _report_held(capture, criterion, use_base, gauge, held, still, strict) -> None:
+    """Warn about (or, ``strict``, raise for) the quantities the rank test holds."""
+    parts = []
+    if gauge:
+        why = (
+            "a free base frame absorbs them (tracker_from_base is estimated)"
+            if use_base
+            else "pairwise distances do not see them"
+        )
+        parts.append(f"{', '.join(gauge)} move the whole point cloud rigidly, a rigid motion of the base: {why}")
+    if held:
+        detail = f"; joints that never move in the capture: {', '.join(still)}" if still else ""
+        parts.append(
+            f"the {criterion} criterion cannot determine {', '.join(held)} from this capture "
+            f"(rank-deficient column-scaled Jacobian at the start){detail}"
+        )
+    text = f"{capture.source}: " + "; ".join(parts)
+    if strict:
+        raise IdentifiabilityError(text, parameters=gauge + held)
+    warnings.warn(text + "; they are held at their start values", IdentifiabilityWarning, stacklevel=3)
 
 
 def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray | None, float, float]:

@@ -171,13 +171,17 @@ def test_noise_free_recovery_with_perturbed_joint6(criterion):
 
 @pytest.mark.parametrize("criterion", ["points", "distances"])
 def test_noise_free_recovery_with_per_joint_reflectors(criterion):
-    capture = _capture(JOINT_PLAN)
+    # d1 and theta1 perturbed too: circle 1 does not move with them while circles 2-6 do, so they
+    # are no gauge here, with a free base (points, no tracker given) or with distances
+    truth = perturb_parameters(ROBOT, length_sd_mm=0.3, angle_sd_deg=0.05, rng=3, include_base=True)
+    capture = _capture(JOINT_PLAN, truth=truth)
     result = _refine(capture, ParameterSet.nominal(ROBOT), JOINT_PLAN.reflector, criterion=criterion)
     assert result.success, result.message
-    assert result.gauge == ("J1.d", "J1.theta")
+    assert result.gauge == () and result.confounded == ()
+    assert result.free[0, 0] and result.free[0, 1]
     # circle 6's target turns with q6 in frame {5}: J6's own d, theta, a, alpha never enter
     assert result.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")
-    difference = np.abs(result.parameters.difference(TRUTH))
+    difference = np.abs(result.parameters.difference(truth))
     assert np.all(difference[result.free] <= np.broadcast_to(TOLERANCE, difference.shape)[result.free])
     if criterion == "distances":
         # no pair is left out: no point is measured twice on the same target
