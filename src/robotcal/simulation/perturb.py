@@ -14,7 +14,7 @@ def perturbable_mask(robot: RobotModel, *, include_base: bool = False) -> np.nda
     """``(n_joints, 5)`` bool: parameters both CPA and the refinement can identify.
 
     Every parameter the model does not fix, of joints 1..n-1 (joint n's d, theta, a, alpha are
-    invisible to CPA, THESIS_NOTES), except d of a DH joint whose next axis is nominally parallel
+    invisible to CPA, docs/conventions.md), except d of a DH joint whose next axis is nominally parallel
     (alpha = 0 or 180 deg; CPA holds it) and, unless ``include_base``, d1 and theta1 (a rigid
     motion of the base: the refinement treats them as gauge, see
     :mod:`robotcal.identification.refine`).
