@@ -15,9 +15,10 @@ def perturbable_mask(robot: RobotModel, *, include_base: bool = False) -> np.nda
 
     Every parameter the model does not fix, of joints 1..n-1 (joint n's d, theta, a, alpha are
     invisible to CPA, docs/conventions.md), except d of a DH joint whose next axis is nominally parallel
-    (alpha = 0 or 180 deg; CPA holds it) and, unless ``include_base``, d1 and theta1 (a rigid
-    motion of the base: the refinement treats them as gauge, see
-    :mod:`robotcal.identification.refine`).
+    (alpha = 0 or 180 deg; CPA holds it) and, unless ``include_base``, d1 and theta1. Those two are a
+    rigid motion of the base only for a flange target with an estimated base frame; with per-joint
+    reflectors or a given base the data determine them (see :mod:`robotcal.identification.refine`),
+    and a truth that moves them (``include_base=True``) is the stricter test.
     """
     mask = ~robot.structurally_fixed.copy()
     mask[-1] = False
