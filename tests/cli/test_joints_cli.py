@@ -62,7 +62,7 @@ def test_joints_writes_tables_and_figures_with_the_library_numbers(tmp_path):
         "summary.csv", "points.csv", "backlash.csv", "harmonics.json", "backlash_vectors.png", "backlash_xyz.png",
         "backlash_magnitude.png", "eccentricity_axial.png", "eccentricity_radial.png",
     }  # fmt: skip
-    assert {p.name for p in out.iterdir()} == expected
+    assert {p.name for p in out.iterdir()} == expected | {".robotcal"}  # the output-policy marker
     for name in expected:
         if name.endswith(".png"):
             assert (out / name).read_bytes().startswith(PNG)
@@ -100,6 +100,6 @@ def test_one_directional_capture_gets_a_clear_message(tmp_path):
     result = invoke("joints", capture, "--scenario", scenario, "--out", out, "--no-backlash", "--order", "1")
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == {
-        "summary.csv", "points.csv", "harmonics.json", "eccentricity_axial.png", "eccentricity_radial.png",
+        ".robotcal", "summary.csv", "points.csv", "harmonics.json", "eccentricity_axial.png", "eccentricity_radial.png",
     }  # fmt: skip
     assert _rows(out / "summary.csv")[0]["backlash_mean_mm"] == ""

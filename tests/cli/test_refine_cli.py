@@ -80,7 +80,7 @@ def test_refine_and_evaluate_end_to_end(tmp_path):
         folder,
     )
     assert result.exit_code == 0, result.output
-    assert {p.name for p in folder.iterdir()} == {"evaluation.csv", "evaluation.json", "convergence.png"}
+    assert {p.name for p in folder.iterdir()} == {".robotcal", "evaluation.csv", "evaluation.json", "convergence.png"}
     rows = list(csv.DictReader((folder / "evaluation.csv").open()))
     assert [r["parameter_set"] for r in rows[:4]] == ["nominal", "cpa", "points", "distances"]
     for row in rows:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,9 +18,9 @@ from robotcal.io.robots import load_robot
 from robotcal.io.scenario import scenario_from_dict
 from robotcal.uncertainty.tcp import tcp_coordinates
 from robotcal.workflow import TABLE_5_8_READINGS_DEG, tcp_targets
+from thesis_data import thesis_tables
 
 runner = CliRunner()
-TABLES = Path(__file__).parent / "../../../shared/data/thesis_tables.json"
 STAGE_FILES = [
     "run.json",
     "truth.json",
@@ -77,7 +76,9 @@ def test_run_writes_every_stage_and_the_report(run_folder):
     assert set(record["versions"]) >= {"robotcal", "numpy", "scipy"}
     assert "report.html" in output and "how good" in output
     # no hidden temporary folders of atomic_directory are left behind
-    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]
+    # (only the output-policy marker), and the lock file beside the folder is gone
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == [".robotcal"]
+    assert not [p.name for p in out.parent.iterdir() if p.name.endswith(".robotcal-lock")]
 
 
 def test_run_outputs_match_the_stand_alone_conventions(run_folder):
@@ -116,9 +117,8 @@ def test_tcp_pose_is_table_5_8_in_model_readings(run_folder):
     got = [nominal[k] for k in "XYZ"] + list(np.deg2rad([nominal[k] for k in "ABC"]))
     np.testing.assert_allclose(got[:3], expected[:3], rtol=0, atol=1e-6)  # tcp.csv keeps >= 9 digits
     np.testing.assert_allclose(got[3:], expected[3:], rtol=0, atol=1e-9)
-    if TABLES.exists():
-        published = json.loads(TABLES.read_text())["table_5_8"]["nominal"]
-        np.testing.assert_allclose(got[:3], published[:3], rtol=0, atol=1e-3)  # printed to 4 decimals
+    published = thesis_tables()["table_5_8"]["nominal"]
+    np.testing.assert_allclose(got[:3], published[:3], rtol=0, atol=1e-3)  # printed to 4 decimals
     targets = tcp_targets(load_scenario("kr5-demo"))
     np.testing.assert_allclose(np.rad2deg(targets.pose[0]), [-60, -80, 45, -200, 125, -280], atol=1e-12)
     assert targets.trajectory.shape == (75, 6)
@@ -136,7 +136,11 @@ def test_rerun_replaces_stage_folders(tmp_path, monkeypatch):
         raise InputError("stop here")
 
     monkeypatch.setattr(run_cli, "evaluate_scenario", fail)
+    # not robotcal's folder (no marker): refused, untouched
     result = invoke("run", "kr5-demo", "--draws", 2000, "--out", stale)
+    assert result.exit_code == 2 and "--force" in result.output
+    assert (stale / "cpa" / "stale.txt").exists()
+    result = invoke("run", "kr5-demo", "--draws", 2000, "--out", stale, "--force")
     assert result.exit_code == 2
     assert not (stale / "cpa" / "stale.txt").exists() and (stale / "cpa" / "parameters.json").exists()
     assert (stale / "mine.txt").read_text() == "kept"

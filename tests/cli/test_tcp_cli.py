@@ -45,7 +45,7 @@ def test_pose_writes_csv_json_and_figures_with_library_numbers(tmp_path, draws_f
     out = tmp_path / "pose"
     result = invoke("tcp", "--draws", draws_file, "--pose", ",".join(map(str, POSE_DEG)), "--out", out)
     assert result.exit_code == 0, result.output
-    assert {p.name for p in out.iterdir()} == {"tcp.csv", "tcp.json", "scatter.png", "histograms.png"}
+    assert {p.name for p in out.iterdir()} == {".robotcal", "tcp.csv", "tcp.json", "scatter.png", "histograms.png"}
     rows = _rows(out / "tcp.csv")
     assert tuple(rows[0]) == TCP_CSV_COLUMNS
     assert [r["name"] for r in rows] == ["X", "Y", "Z", "A", "B", "C"]

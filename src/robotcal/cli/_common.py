@@ -1,8 +1,15 @@
-"""Shared CLI plumbing: consoles, error and warning display, parameter tables."""
+"""Shared CLI plumbing: consoles, error and warning display, signals, limits, parameter tables.
+
+User text (paths, CSV cells, robot and scenario names, exception messages) reaches the terminal
+literally: both consoles are created with ``markup=False``, so square brackets are never read as Rich
+markup; styled parts are built as :class:`rich.text.Text` (:func:`styled`).
+"""
 
 from __future__ import annotations
 
 import functools
+import os
+import signal
 import sys
 import warnings
 
@@ -10,20 +17,76 @@ import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
-from robotcal.errors import RobotcalError
+from robotcal.errors import InputError, RobotcalError
 from robotcal.kinematics.model import PARAMETER_KINDS, ParameterSet
 
-console = Console()
-error_console = Console(stderr=True, soft_wrap=True)  # messages stay on one line
+console = Console(markup=False)
+error_console = Console(stderr=True, soft_wrap=True, markup=False)  # messages stay on one line
+
+#: Seeds are integers in ``[0, SEED_BOUND)``: numpy's ``SeedSequence`` takes any non-negative integer,
+#: but seeds are recorded in files as signed 64-bit integers (``draws.npz``), so 2^63 is the bound.
+SEED_BOUND = 2**63
+#: Help of every command's ``--force`` (docs/cli.md, "Output safety").
+FORCE_HELP = (
+    "Replace an existing output that robotcal did not write (never an input of the command, "
+    "the home folder, / or the current folder)."
+)
+#: Exit status after SIGINT (Ctrl-C) and SIGTERM: 128 + the signal number, as shells report them.
+EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
+#: Memory assumed available when ``/proc/meminfo`` cannot be read [bytes].
+FALLBACK_MEMORY = 4 * 2**30
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised in the main thread by the SIGTERM handler so that every cleanup (``finally``, context
+    managers, pool shutdown) runs as for Ctrl-C; a :class:`KeyboardInterrupt` so code that handles an
+    interrupt handles this too."""
+
+
+def styled(text: str, style: str) -> Text:
+    """``text`` (printed literally) in ``style``."""
+    return Text(str(text), style=style)
+
+
+def _line(label: str, style: str, message) -> Text:
+    line = Text(label, style=style)
+    line.append(f" {message}")
+    return line
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    error_console.print(f"[yellow]warning:[/yellow] {message}", highlight=False)
+    error_console.print(_line("warning:", "yellow", message), highlight=False)
+
+
+def _on_sigterm(signum, frame):
+    if os.getpid() != _MAIN_PID[0]:  # a forked worker: die as the signal asks
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+        return
+    # one interrupt is enough: a second signal must not break the cleanup the first one started
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise Terminated()
+
+
+_MAIN_PID = [os.getpid()]
+
+
+def install_signal_handlers() -> None:
+    """SIGTERM raises :class:`Terminated` in the main thread (exit 143 after cleanup); SIGINT keeps
+    Python's :class:`KeyboardInterrupt` (exit 130). Called by the ``robotcal`` entry point."""
+    _MAIN_PID[0] = os.getpid()
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        return  # started in the background with SIGINT ignored: keep it so
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def handle_errors(function):
-    """Run a command: robotcal errors become a one-line message and exit status 2, never a traceback."""
+    """Run a command: robotcal errors become a one-line message and exit status 2, never a traceback;
+    an interrupt exits 130 (Ctrl-C) or 143 (SIGTERM) after the cleanup has run."""
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
@@ -32,15 +95,76 @@ def handle_errors(function):
         try:
             return function(*args, **kwargs)
         except RobotcalError as exc:
-            error_console.print(f"[red]error:[/red] {exc}", highlight=False)
+            error_console.print(_line("error:", "red", exc), highlight=False)
             raise typer.Exit(code=2) from None
-        except KeyboardInterrupt:
-            error_console.print("[red]interrupted[/red]")
-            sys.exit(130)
+        except MemoryError:
+            error_console.print(
+                _line("error:", "red", "out of memory; use fewer draws, poses or points (or --batch-size)"),
+                highlight=False,
+            )
+            raise typer.Exit(code=2) from None
+        except KeyboardInterrupt as exc:
+            terminated = isinstance(exc, Terminated)
+            error_console.print(styled("terminated" if terminated else "interrupted", "red"))
+            sys.exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
         finally:
             warnings.showwarning = previous
 
     return wrapper
+
+
+def available_memory() -> int:
+    """Bytes available to a new allocation: ``MemAvailable`` of ``/proc/meminfo``, else
+    :data:`FALLBACK_MEMORY`."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as stream:
+            for line in stream:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return FALLBACK_MEMORY
+
+
+def _gib(value: float) -> str:
+    return f"{value / 2**30:.1f} GiB"
+
+
+def check_memory(what: str, estimate: float, way_out: str) -> None:
+    """Refuse, before any work, a problem whose estimated memory exceeds 80 % of the available memory.
+
+    Raises :class:`InputError` with the estimate, the memory available and ``way_out``.
+    """
+    available = available_memory()
+    if estimate > 0.8 * available:
+        raise InputError(f"{what} needs about {_gib(estimate)} of memory but {_gib(available)} is available; {way_out}")
+
+
+def monte_carlo_bytes(n_draws: int, n_joints: int, n_points: int, *, batch_size: int, workers: int) -> float:
+    """Memory estimate of a Monte Carlo [bytes]: the kept draws (n_draws, n_joints, 5) float64 twice
+    (draws and the sorted copy of the statistics) plus each worker's block of simulated points
+    (batch_size, n_points, 3) with ~20 arrays of intermediates."""
+    kept = 2.0 * n_draws * n_joints * 5 * 8
+    block = 20.0 * min(batch_size, n_draws) * max(n_points, 1) * 3 * 8
+    return kept + max(workers, 1) * block
+
+
+#: Memory per workspace or trajectory pose (readings, nominal and summary arrays) [bytes], generous.
+BYTES_PER_POSE = 4096
+
+
+def pairs_bytes(n_points: int, n_free: int = 0) -> float:
+    """Memory estimate of a pairwise-distances problem over ``n_points`` points [bytes]: pair indices,
+    two ``pdist`` vectors and the mask (~50 B per pair), plus a Jacobian column per free parameter
+    (three copies in the solver)."""
+    pairs = n_points * (n_points - 1) / 2
+    return pairs * (50.0 + 3 * 8.0 * n_free)
+
+
+def seed_option_check(seed: int | None, option: str = "--seed", *, headroom: int = 0) -> None:
+    """Seeds are integers in ``[0, SEED_BOUND - headroom)``."""
+    if seed is not None and not 0 <= seed < SEED_BOUND - headroom:
+        raise InputError(f"{option} must be an integer in [0, {SEED_BOUND - headroom}); got {seed}")
 
 
 def _display(kind: str, value: float) -> float:
@@ -68,7 +192,7 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
                     f"{_display(kind, difference[i, k]):+.3e}",
                 )
             else:
-                shown, diff = "[dim]nominal[/dim]", ""
+                shown, diff = styled("nominal", "dim"), ""
             table.add_row(f"J{i + 1}.{kind}", unit, f"{_display(kind, nominal.values[i, k]):.6f}", shown, diff)
     return table
 

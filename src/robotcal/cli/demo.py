@@ -8,8 +8,8 @@ from typing import Annotated
 import typer
 
 from robotcal.cli import app
-from robotcal.cli._common import handle_errors
-from robotcal.cli.run import _command_line, prepare_run, run_and_print
+from robotcal.cli._common import FORCE_HELP, SEED_BOUND, handle_errors
+from robotcal.cli.run import SEED_OFFSETS, _command_line, prepare_run, run_and_print
 
 DEMO_SCENARIO = "kr5-demo"
 
@@ -19,11 +19,17 @@ DEMO_SCENARIO = "kr5-demo"
 def demo(
     out: Annotated[Path, typer.Option("--out", "-o", help="Run folder for the demo's files.")] = Path("robotcal-demo"),
     seed: Annotated[
-        int | None, typer.Option(min=0, help="Seed of the whole run (default: the scenario's seeds).")
+        int | None,
+        typer.Option(
+            min=0,
+            max=SEED_BOUND - 1 - max(SEED_OFFSETS.values()),
+            help="Seed of the whole run (default: the scenario's seeds).",
+        ),
     ] = None,
     draws: Annotated[
         int | None, typer.Option("--draws", min=1, help="Monte Carlo draws (default: 100,000, the scenario's).")
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """The whole calibration of a simulated KUKA KR 5 sixx R650 with a perturbed "true" robot: writes
     OUT/report.html (run `robotcal run kr5-demo --out OUT`)."""
@@ -33,5 +39,6 @@ def demo(
         seed=seed,
         draws=draws,
         command=_command_line("demo", out=out, seed=seed, draws=draws),
+        force=force,
     )
     run_and_print(plan)

@@ -12,10 +12,10 @@ import typer
 from rich.table import Table
 
 from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
+from robotcal.cli._common import FORCE_HELP, check_memory, console, handle_errors, pairs_bytes
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_capture, read_parameters
-from robotcal.io.atomic import atomic_directory
+from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 from robotcal.kinematics.model import ParameterSet
 from robotcal.workflow import evaluate_scenario, versions
 
@@ -139,9 +139,13 @@ def evaluate(
     nominal: Annotated[
         bool, typer.Option("--nominal/--no-nominal", help="Include the nominal parameters first, as the reference.")
     ] = True,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
+    inputs = existing_inputs(scenario, *params, *capture)
+    check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
+    inputs += existing_inputs(loaded.source)
     robot = loaded.robot
     used: set[str] = set()
     sets: dict[str, ParameterSet] = {}
@@ -161,6 +165,12 @@ def evaluate(
     capture_labels: set[str] = set()
     for path in capture:
         captures[_label(path, capture_labels)] = read_capture(path, n_joints=robot.n_joints)
+    largest = max((c.n_points for c in captures.values()), default=0)
+    check_memory(
+        f"the distances view of a capture of {largest} points",
+        pairs_bytes(largest),
+        "evaluate on a capture with fewer points",
+    )
     rows = evaluate_scenario(loaded, captures, sets)
     document = evaluation_document(
         rows,
@@ -170,7 +180,7 @@ def evaluate(
         reference=next(iter(sets)),
         histories=histories,
     )
-    with atomic_directory(out) as folder:
+    with result_folder(out, inputs=inputs, force=force, command="robotcal evaluate") as folder:
         write_evaluation_folder(folder, rows, document)
     for capture_name in captures:
         for view in ("points", "distances"):

@@ -8,8 +8,12 @@ from typing import Annotated
 import typer
 
 from robotcal.cli import app
-from robotcal.cli._common import circle_table, console, handle_errors, parameter_table
+from robotcal.cli._common import FORCE_HELP, circle_table, console, handle_errors, parameter_table
+from robotcal.identification.cpa import point_rows
+from robotcal.identification.plausibility import OUTLIER_MAD, OUTLIER_U
+from robotcal.identification.plausibility import reject_outliers as drop_outliers
 from robotcal.io import load_scenario, read_capture, write_parameters
+from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.kinematics.model import ParameterSet
 from robotcal.workflow import cpa_provenance, identify_scenario
 
@@ -22,12 +26,39 @@ def identify(
         str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot, reflector, base frame, options.")
     ],
     out: Annotated[Path, typer.Option("--out", "-o", help="Parameter JSON to write.")],
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    reject_outliers: Annotated[
+        bool,
+        typer.Option(
+            "--reject-outliers",
+            help="Drop points far off their fitted circle before CPA: residual above 4 U(L) of the instrument "
+            "and above median + 5 x 1.4826 MAD of the circle; refit and repeat once; at most 30 % of a circle. "
+            "The removed rows are recorded in the parameter JSON's provenance.",
+        ),
+    ] = False,
 ) -> None:
     """Identify the kinematic parameters by Circle Point Analysis and print nominal / identified / difference."""
+    inputs = existing_inputs(capture, scenario)
+    check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
+    inputs += existing_inputs(loaded.source)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    removed = None
+    if reject_outliers:
+        measured, removed = drop_outliers(measured, loaded.instrument, circle_fit=loaded.identification.circle_fit)
     result = identify_scenario(measured, loaded)
-    write_parameters(out, result.parameters, cpa_provenance(result, measured, loaded))
+    provenance = cpa_provenance(result, measured, loaded)
+    if removed is not None:
+        provenance["outliers_rejected"] = {
+            "rule": f"residual > {OUTLIER_U:g} U(L) and > median + {OUTLIER_MAD:g} x 1.4826 MAD per circle, twice",
+            "points": [int(row) + 1 for row in removed],
+            "csv_lines": [int(row) + 2 for row in removed],
+        }
+    with result_file(out, inputs=inputs, force=force):
+        write_parameters(out, result.parameters, provenance)
+    if removed is not None:
+        summary = point_rows(removed) if removed.size else "none"
+        console.print(f"outliers rejected: {removed.size} ({summary})", highlight=False, markup=False)
     console.print(
         parameter_table(ParameterSet.nominal(loaded.robot), result.parameters, f"CPA parameters of {loaded.robot.name}")
     )

@@ -15,10 +15,11 @@ from rich.table import Table
 
 from robotcal.capture import Capture
 from robotcal.cli import app
-from robotcal.cli._common import console, error_console, handle_errors
+from robotcal.cli._common import FORCE_HELP, console, error_console, handle_errors
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
 from robotcal.io import load_scenario, read_capture
-from robotcal.io.atomic import atomic_directory, atomic_write_text
+from robotcal.io.atomic import atomic_write_text
+from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 from robotcal.workflow import versions
 
 SUMMARY_COLUMNS = (
@@ -182,14 +183,18 @@ def joints(
     match_tolerance_deg: Annotated[
         float, typer.Option(min=0.0, help="Largest reading difference of a forward/return pair [deg].")
     ] = 1e-3,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Backlash and axial/radial eccentricity per joint (thesis ch. 4.6), with a harmonic model."""
+    inputs = existing_inputs(capture, scenario)
+    check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
+    inputs += existing_inputs(loaded.source)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     diagnostics, model = compute_joints(
         measured, loaded, order=order, backlash=backlash, match_tolerance_deg=match_tolerance_deg
     )
-    with atomic_directory(out) as folder:
+    with result_folder(out, inputs=inputs, force=force, command="robotcal joints") as folder:
         files = write_joints_folder(folder, diagnostics, model, capture=capture, scenario=loaded, scale=scale)
     console.print(_table(diagnostics))
     for note in (*diagnostics.messages, *model.messages):

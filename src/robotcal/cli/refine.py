@@ -1,4 +1,4 @@
-"""``robotcal refine CAPTURE.csv --scenario S --start PARAMS.json --criterion points|distances --out REFINED.json``."""
+"""``robotcal refine CAPTURE.csv --scenario S --start PARAMS.json --criterion points|distances --out REFINED.json [--estimate-base]``."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import typer
 from rich.table import Table
 
 from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors, parameter_table
+from robotcal.cli._common import FORCE_HELP, check_memory, console, handle_errors, pairs_bytes, parameter_table
 from robotcal.io import load_scenario, read_capture, read_parameters, write_parameters
+from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.kinematics.model import ParameterSet
 from robotcal.workflow import refine_provenance, refine_scenario
 
@@ -33,18 +34,44 @@ def refine(
     strict: Annotated[
         bool, typer.Option("--strict", help="Fail instead of holding parameters the data cannot determine.")
     ] = False,
+    estimate_base: Annotated[
+        bool,
+        typer.Option(
+            "--estimate-base",
+            help="Points criterion: estimate tracker_from_base with the parameters even when the scenario "
+            'gives it (base_frame = "given" holds it by default).',
+        ),
+    ] = False,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7)."""
     if criterion not in ("points", "distances"):
         raise typer.BadParameter(f"must be 'points' or 'distances'; got {criterion!r}", param_hint="--criterion")
+    if estimate_base and criterion != "points":
+        raise typer.BadParameter("applies to the points criterion only", param_hint="--estimate-base")
+    inputs = existing_inputs(capture, scenario, start)
+    check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
+    inputs += existing_inputs(loaded.source)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    if criterion == "distances":
+        check_memory(
+            f"the distances criterion on {measured.n_points} points",
+            pairs_bytes(measured.n_points, 5 * loaded.robot.n_joints),
+            "use the points criterion or a capture with fewer points",
+        )
     initial = read_parameters(start, loaded.robot) if start is not None else ParameterSet.nominal(loaded.robot)
     result = refine_scenario(
-        measured, loaded, initial, criterion=criterion, on_unidentifiable="raise" if strict else "fix"
+        measured,
+        loaded,
+        initial,
+        criterion=criterion,
+        on_unidentifiable="raise" if strict else "fix",
+        **({"estimate_base": True} if estimate_base else {}),
     )
     source = str(start) if start is not None else "nominal"
-    write_parameters(out, result.parameters, refine_provenance(result, measured, loaded, source))
+    with result_file(out, inputs=inputs, force=force):
+        write_parameters(out, result.parameters, refine_provenance(result, measured, loaded, source))
     console.print(parameter_table(initial, result.parameters, f"Refined parameters ({criterion}) vs start"))
     summary = Table(title="Refinement", title_justify="left", show_header=False)
     summary.add_row("criterion", criterion)
@@ -57,8 +84,11 @@ def refine(
     summary.add_row("mean / max residual [mm]", f"{result.residual_mean:.4g} / {result.residual_max:.4g}")
     summary.add_row("noise per coordinate sigma [mm]", f"{result.sigma:.3g}")
     summary.add_row("condition number (scaled)", f"{result.condition_number:.4g}")
-    summary.add_row("held (gauge)", ", ".join(result.gauge) or "-")
+    if result.tracker_from_base is not None:
+        summary.add_row("base frame", "estimated" if result.base_free.any() else "held (scenario's tracker_from_base)")
+    summary.add_row("held (gauge: a base motion)", ", ".join(result.gauge) or "-")
     summary.add_row("held (not determined)", ", ".join(result.held) or "-")
+    summary.add_row("free, tied to held ones", ", ".join(result.confounded) or "-")
     summary.add_row("time [s]", f"{result.wall_time_s:.2f}")
     console.print(summary)
     console.print(f"wrote {out}", highlight=False)

@@ -9,8 +9,19 @@ from typing import Annotated
 import typer
 
 from robotcal.cli import app
-from robotcal.cli._common import console, error_console, handle_errors
+from robotcal.cli._common import FORCE_HELP, _line, console, error_console, handle_errors
+from robotcal.errors import InputError
+from robotcal.io.output import result_file
 from robotcal.report.html import REPORT_NAME, build_report
+
+
+def _run_files(run_dir: Path) -> list[Path]:
+    """Every file the report may read (the inputs no ``--out`` may replace): the run folder's files and
+    the targets of its links, except the folder's own ``report.html``."""
+    if not run_dir.is_dir():
+        return []
+    own = run_dir / REPORT_NAME
+    return [path for path in run_dir.rglob("*") if path.is_file() and path != own]
 
 
 @app.command()
@@ -20,12 +31,17 @@ def report(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help=f"HTML file to write [default: DIR/{REPORT_NAME}].")
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Build the self-contained HTML calibration report of a run folder, from the saved results only."""
     started = time.perf_counter()
-    result = build_report(run_dir, out)
+    if not run_dir.exists():
+        raise InputError(f"{run_dir}: run folder not found")  # before the lock makes the folder
+    target = out if out is not None else run_dir / REPORT_NAME
+    with result_file(target, inputs=_run_files(run_dir), force=force):
+        result = build_report(run_dir, out)
     for problem in result.problems:
-        error_console.print(f"[yellow]warning:[/yellow] {problem}", highlight=False)
+        error_console.print(_line("warning:", "yellow", problem), highlight=False)
     missing = [s.title for s in result.sections if not s.present]
     size_kib = len(result.html.encode("utf-8")) / 1024
     console.print(

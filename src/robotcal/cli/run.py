@@ -30,7 +30,18 @@ from rich.table import Table
 
 from robotcal.capture import Capture
 from robotcal.cli import app
-from robotcal.cli._common import console, error_console, handle_errors
+from robotcal.cli._common import (
+    BYTES_PER_POSE,
+    FORCE_HELP,
+    SEED_BOUND,
+    Terminated,
+    check_memory,
+    console,
+    error_console,
+    handle_errors,
+    monte_carlo_bytes,
+    pairs_bytes,
+)
 from robotcal.cli.evaluate import evaluation_document, write_evaluation_folder
 from robotcal.cli.joints import compute_joints, write_joints_folder
 from robotcal.cli.tcp import compute_tcp, write_tcp_folder
@@ -38,6 +49,7 @@ from robotcal.cli.uncertainty import compute_uncertainty, write_uncertainty_fold
 from robotcal.errors import InputError, RobotcalError
 from robotcal.io import load_scenario, read_capture, write_capture, write_parameters
 from robotcal.io.atomic import atomic_directory, atomic_write_text
+from robotcal.io.output import check_output_folder, existing_inputs, output_lock, write_marker
 from robotcal.io.scenario import Scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
@@ -91,6 +103,8 @@ class RunPlan:
     tcp: TCPTargets
     backlash: bool
     command: str
+    force: bool = False
+    inputs: tuple = ()
 
 
 def prepare_run(
@@ -102,16 +116,20 @@ def prepare_run(
     workspace: int | None = None,
     workers: int | None = None,
     command: str = "robotcal run",
+    force: bool = False,
 ) -> RunPlan:
     """Load and check everything a run needs, before any computation; nothing is written.
 
     Raises :class:`InputError` naming the file and key (scenario keys, validation target, TCP pose and
-    trajectory, Monte Carlo settings, output folder).
+    trajectory, Monte Carlo settings, seeds, the memory each stage needs, output folder: the output
+    policy of :mod:`robotcal.io.output`).
     """
-    loaded = load_scenario(scenario)
+    inputs = existing_inputs(scenario)
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
+    check_output_folder(out, inputs=inputs, force=force)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(loaded.source)
+    check_output_folder(out, inputs=inputs, force=force)
     robot = loaded.robot
     validation_reflector(loaded)  # a validation capture needs a flange target
     table = loaded.validation or {"margin_deg": 5.0}
@@ -134,6 +152,9 @@ def prepare_run(
         }
     if loaded.truth is None:
         seeds["truth"] = None
+    for name, value in seeds.items():
+        if value is not None and not 0 <= value < SEED_BOUND:
+            raise InputError(f"{loaded.source}: the {name} seed {value} is outside [0, 2^63)")
     targets = tcp_targets(loaded)
     if seeds["workspace"] is None:
         seeds["workspace"] = targets.workspace_seed
@@ -150,6 +171,8 @@ def prepare_run(
         )
     except InputError as exc:
         raise InputError(f"{loaded.source}: Monte Carlo settings: {exc}") from None
+    _check_tcp(loaded, targets, settings)
+    _check_memory(loaded, targets, settings, table)
     return RunPlan(
         scenario=loaded,
         out=out,
@@ -158,6 +181,52 @@ def prepare_run(
         tcp=targets,
         backlash=bool(loaded.plan.bidirectional),
         command=command,
+        force=force,
+        inputs=tuple(inputs),
+    )
+
+
+def _check_tcp(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings) -> None:
+    """The ``[tcp]`` stage's settings, checked before the run starts."""
+    if targets.tool_mm is not None and not np.all(np.isfinite(targets.tool_mm)):
+        raise InputError(
+            f"{loaded.source}: key `tcp.tool_mm` must hold 3 finite numbers [mm]; got {targets.tool_mm.tolist()}"
+        )
+    smallest = int(np.ceil(1.0 / (1.0 - settings.coverage))) + 1
+    used = settings.iterations if targets.workspace_draws is None else min(targets.workspace_draws, settings.iterations)
+    if used < smallest:
+        raise InputError(
+            f"{loaded.source}: key `tcp.workspace_draws` = {targets.workspace_draws} is too few for a "
+            f"{settings.coverage:g} coverage interval: at least {smallest}"
+        )
+
+
+def _check_memory(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings, validation: dict) -> None:
+    """Estimate the memory of the large stages up front (:func:`robotcal.cli._common.check_memory`)."""
+    robot = loaded.robot
+    n_points = int(loaded.plan.points.sum()) * (2 if loaded.plan.bidirectional else 1)
+    check_memory(
+        f"a Monte Carlo of {settings.iterations:,} draws",
+        monte_carlo_bytes(
+            settings.iterations, robot.n_joints, n_points, batch_size=settings.batch_size, workers=settings.workers
+        ),
+        "use fewer --draws",
+    )
+    check_memory(
+        f"a workspace map of {targets.workspace_poses:,} poses",
+        targets.workspace_poses * float(BYTES_PER_POSE),
+        "use fewer --workspace poses (tcp.workspace_poses)",
+    )
+    poses = int(validation.get("poses", 100))
+    check_memory(
+        f"a validation capture of {poses:,} poses (with its distances view)",
+        poses * float(BYTES_PER_POSE) + pairs_bytes(poses),
+        "lower `validation.poses` in the scenario",
+    )
+    check_memory(
+        f"the distances criterion on {n_points:,} points",
+        pairs_bytes(n_points, 5 * robot.n_joints),
+        "use fewer points per circle in the scenario's capture plan",
     )
 
 
@@ -253,14 +322,47 @@ def execute_run(plan: RunPlan, *, progress: StageProgress | None = None) -> dict
     ``progress(stage, done, total, detail)`` is called as stages advance. A stage that raises stops
     the run: ``run.json`` records the stage as failed with the message, and the exception propagates.
     """
+    with output_lock(plan.out):
+        # checked again under the lock: another process may have written the folder since prepare_run
+        check_output_folder(plan.out, inputs=plan.inputs, force=plan.force)
+        return _execute_locked(plan, progress)
+
+
+def _execute_locked(plan: RunPlan, progress: StageProgress | None) -> dict:
     report = progress or (lambda stage, done, total, detail="": None)
     scenario, out, seeds = plan.scenario, plan.out, plan.seeds
     robot = scenario.robot
     n = robot.n_joints
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot create the folder: {exc.strerror or exc}") from None
+    write_marker(out, command=plan.command)
     _clear_previous(out)
     record = _Record(plan)
     record.write()
+    try:
+        return _stages(plan, record, report, out, seeds, scenario, robot, n)
+    except BaseException as exc:
+        if record.data["status"] == "running":  # interrupted between stages
+            record.data.update(status=_status(exc), error=_message(exc))
+            record.write()
+        raise
+
+
+def _status(exc: BaseException) -> str:
+    return "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+
+
+def _message(exc: BaseException) -> str:
+    if isinstance(exc, Terminated):
+        return "terminated (SIGTERM)"
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted (SIGINT, Ctrl-C)"
+    return str(exc) if isinstance(exc, RobotcalError) else f"{type(exc).__name__}: {exc}"
+
+
+def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
     state: dict = {}
     run_started = time.perf_counter()
 
@@ -448,10 +550,14 @@ def execute_run(plan: RunPlan, *, progress: StageProgress | None = None) -> dict
                 detail = functions[name]()
             except BaseException as exc:
                 seconds = round(time.perf_counter() - started, 3)
-                message = str(exc) if isinstance(exc, RobotcalError) else f"{type(exc).__name__}: {exc}"
-                record.stage(name, status="failed", seconds=seconds, error=message)
+                message = _message(exc)
+                record.stage(name, status=_status(exc), seconds=seconds, error=message)
+                try:
+                    exc.robotcal_stage = name  # run_and_print names the stage in its message
+                except AttributeError:
+                    pass
                 record.data.update(
-                    status="interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
+                    status=_status(exc),
                     failed_stage=name,
                     error=message,
                     seconds=round(time.perf_counter() - run_started, 3),
@@ -483,12 +589,12 @@ def run_with_display(plan: RunPlan) -> dict:
     """:func:`execute_run` under one Rich progress display (a task per stage; draws for the Monte Carlo)."""
     columns = (
         SpinnerColumn(finished_text="[green]✓[/green]"),
-        TextColumn("{task.fields[stage]:<12}"),
+        TextColumn("{task.fields[stage]:<12}", markup=False),
         BarColumn(bar_width=30),
         MofNCompleteColumn(),
-        TextColumn("{task.fields[unit]}"),
+        TextColumn("{task.fields[unit]}", markup=False),
         TimeElapsedColumn(),
-        TextColumn("[dim]{task.fields[detail]}[/dim]"),
+        TextColumn("{task.fields[detail]}", style="dim", markup=False),
     )
     with Progress(*columns, console=console, transient=False) as display:
         tasks = {}
@@ -513,7 +619,7 @@ def run_with_display(plan: RunPlan) -> dict:
         except BaseException:
             for task in display.tasks:
                 if task.started and not task.finished:
-                    display.update(task.id, detail="[red]failed[/red]")
+                    display.update(task.id, detail="failed")
                     display.stop_task(task.id)
             raise
 
@@ -579,6 +685,8 @@ def run_and_print(plan: RunPlan) -> dict:
     try:
         data = run_with_display(plan)
     except RobotcalError as exc:
+        if not hasattr(exc, "robotcal_stage"):
+            raise  # refused before any stage ran (output policy, lock)
         record = json.loads((plan.out / "run.json").read_text(encoding="utf-8"))
         stage = record.get("failed_stage", "?")
         done = [name for name, entry in record["stages"].items() if entry["status"] == "done"]
@@ -600,11 +708,15 @@ def run_and_print(plan: RunPlan) -> dict:
 @handle_errors
 def run(
     scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Run folder to write (stage outputs are replaced).")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Run folder to write (a run folder of robotcal's is replaced).")
+    ],
     seed: Annotated[
         int | None,
         typer.Option(
-            min=0, help="Seed of the whole run (capture N, truth N+1, validation N+2, Monte Carlo N+3, workspace N+4)."
+            min=0,
+            max=SEED_BOUND - 1 - max(SEED_OFFSETS.values()),
+            help="Seed of the whole run (capture N, truth N+1, validation N+2, Monte Carlo N+3, workspace N+4).",
         ),
     ] = None,
     draws: Annotated[
@@ -619,6 +731,7 @@ def run(
         int | None,
         typer.Option("--workers", min=1, help="Monte Carlo worker processes (default: CPU count, at most 4)."),
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP) and write DIR/report.html."""
     plan = prepare_run(
@@ -629,5 +742,6 @@ def run(
         workspace=workspace,
         workers=workers,
         command=_command_line("run", scenario, out=out, seed=seed, draws=draws, workspace=workspace, workers=workers),
+        force=force,
     )
     run_and_print(plan)

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
+from robotcal.cli._common import BYTES_PER_POSE, FORCE_HELP, SEED_BOUND, check_memory, console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters, write_capture, write_parameters
+from robotcal.io.output import existing_inputs, result_file
 from robotcal.workflow import scenario_truth, simulate_scenario, simulate_validation, versions
 
 
@@ -22,7 +24,9 @@ def simulate(
     seed: Annotated[
         int | None,
         typer.Option(
-            min=0, help="Seed of the random draws (default: the scenario's capture.seed, or validation.seed)."
+            min=0,
+            max=SEED_BOUND - 1,
+            help="Seed of the random draws (default: the scenario's capture.seed, or validation.seed).",
         ),
     ] = None,
     true_params: Annotated[
@@ -41,11 +45,28 @@ def simulate(
             "--validation", help="Simulate a validation capture at random poses ([validation] table) instead."
         ),
     ] = False,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Simulate the scenario's capture and write it as a capture CSV."""
     loaded = load_scenario(scenario)
     if true_params is not None and truth_out is not None:
         raise InputError("give either --true-params (an existing truth) or --truth-out (a new perturbed truth)")
+    inputs = existing_inputs(scenario, loaded.source, true_params)
+    if validation:
+        poses = int((loaded.validation or {}).get("poses", 100))
+        check_memory(
+            f"a validation capture of {poses:,} poses",
+            poses * float(BYTES_PER_POSE),
+            "lower `validation.poses` in the scenario",
+        )
+    with ExitStack() as outputs:
+        if truth_out is not None:
+            outputs.enter_context(result_file(truth_out, inputs=[*inputs, out], force=force, option="--truth-out"))
+        outputs.enter_context(result_file(out, inputs=[*inputs, *([truth_out] if truth_out else [])], force=force))
+        _simulate(loaded, out, seed, true_params, truth_out, validation)
+
+
+def _simulate(loaded, out, seed, true_params, truth_out, validation) -> None:
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     if truth_out is not None:
         truth, truth_seed = scenario_truth(loaded)

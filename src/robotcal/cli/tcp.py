@@ -13,10 +13,17 @@ import typer
 from rich.table import Table
 
 from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
+from robotcal.cli._common import (
+    BYTES_PER_POSE,
+    FORCE_HELP,
+    SEED_BOUND,
+    check_memory,
+    console,
+    handle_errors,
+)
 from robotcal.errors import InputError, JointLimitWarning
-from robotcal.io.atomic import atomic_directory
 from robotcal.io.draws_npz import ParameterDraws, read_draws
+from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 from robotcal.io.tcp_results import write_tcp_csv, write_tcp_json
 from robotcal.io.trajectory_csv import load_trajectory
 from robotcal.uncertainty.statistics import INTERVAL_KINDS
@@ -165,10 +172,13 @@ def tcp(
     tool: Annotated[str | None, typer.Option("--tool", help='TCP offset on the flange "x,y,z" [mm].')] = None,
     coverage: Annotated[float, typer.Option("--coverage", help="Coverage probability.")] = 0.95,
     interval: Annotated[str, typer.Option("--interval", help="Coverage interval: symmetric | shortest.")] = "symmetric",
-    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the --workspace pose sample.")] = 0,
+    seed: Annotated[
+        int, typer.Option("--seed", min=0, max=SEED_BOUND - 1, help="Seed of the --workspace pose sample.")
+    ] = 0,
     max_draws: Annotated[
         int | None, typer.Option("--max-draws", min=2, help="Use only the first N draws (quicker maps).")
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """TCP position (X, Y, Z) and KUKA orientation (A, B, C) uncertainty at a pose, along a trajectory, or over the workspace."""
     started = time.perf_counter()
@@ -176,7 +186,16 @@ def tcp(
         raise InputError("give exactly one of --pose, --trajectory and --workspace")
     if interval not in INTERVAL_KINDS:
         raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
+    if workspace is not None:
+        check_memory(
+            f"--workspace {workspace}",
+            workspace * float(BYTES_PER_POSE),
+            "ask for fewer workspace poses (a map of 10^3-10^4 poses is usually enough)",
+        )
+    inputs = existing_inputs(draws, run, trajectory)
+    check_output_folder(out, inputs=inputs, force=force)
     source = _draws_path(draws, run)
+    inputs += existing_inputs(source)
     loaded = read_draws(source)
     robot = loaded.robot
     values = _subset(loaded, max_draws)
@@ -205,7 +224,7 @@ def tcp(
     )
     provenance["mode"] = mode
     provenance["seconds"] = round(time.perf_counter() - started, 3)
-    with atomic_directory(out) as folder:
+    with result_folder(out, inputs=inputs, force=force, command="robotcal tcp") as folder:
         write_tcp_folder(folder, result, mode, interval=interval, workspace=ws, provenance=provenance)
 
     if mode == "pose":

@@ -76,6 +76,7 @@ def atomic_directory(path, *, overwrite: bool = True) -> Iterator[Path]:
         temp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=parent))
     except OSError as exc:
         raise InputError(f"cannot create folder {path}: {exc.strerror or exc}") from None
+    backup = None
     try:
         yield temp
         os.chmod(temp, 0o777 & ~_umask())
@@ -83,9 +84,15 @@ def atomic_directory(path, *, overwrite: bool = True) -> Iterator[Path]:
             backup = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old", dir=parent))
             os.replace(path, backup / path.name)
             os.replace(temp, path)
-            shutil.rmtree(backup, ignore_errors=True)
         else:
             os.replace(temp, path)
     except BaseException:
+        # an error or an interrupt between the two renames: put the old folder back
+        if backup is not None and not path.exists() and (backup / path.name).exists():
+            os.replace(backup / path.name, path)
         shutil.rmtree(temp, ignore_errors=True)
+        if backup is not None:
+            shutil.rmtree(backup, ignore_errors=True)
         raise
+    if backup is not None:
+        shutil.rmtree(backup, ignore_errors=True)
