@@ -8,6 +8,7 @@ from robotcal.diagnostics.harmonics import (
     fit_harmonic_series,
     fit_harmonics,
 )
+from robotcal.diagnostics.iso9283 import Iso9283Result, iso_plan_readings, iso_test_positions, pose_characteristics
 from robotcal.diagnostics.joints import (
     CircleDiagnostics,
     JointDiagnostics,
@@ -23,11 +24,15 @@ __all__ = [
     "CircleGeometry",
     "HarmonicFit",
     "HarmonicModel",
+    "Iso9283Result",
     "JointDiagnostics",
     "JointSummary",
     "analyze_joints",
     "fit_harmonic_series",
     "fit_harmonics",
+    "iso_plan_readings",
+    "iso_test_positions",
     "lash_state",
     "local_frame",
+    "pose_characteristics",
 ]

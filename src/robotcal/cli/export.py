@@ -1,0 +1,112 @@
+"""``robotcal export PARAMS --format json|urdf|ur-yaml|dh|mdh --out F``: the calibrated model out (docs/export.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from robotcal.cli import app
+from robotcal.cli._common import FORCE_HELP, console, handle_errors
+from robotcal.errors import InputError
+from robotcal.io import atomic_write_text, load_robot, load_scenario, read_parameters, write_parameters
+from robotcal.io._validation import read_json_file
+from robotcal.io.builtins import builtin_names
+from robotcal.io.export import (
+    EXPORT_FORMATS,
+    dh_table,
+    mdh_table,
+    parameters_to_ur_yaml,
+    parameters_to_urdf,
+    table_to_csv,
+    table_to_markdown,
+)
+from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.kinematics.model import ParameterSet
+
+ROBOT_HELP = "Robot name or TOML of the parameters (default: the robot named in PARAMS, if built-in)."
+SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (instead of --robot)."
+
+
+def parse_vector(text: str | None, option: str, count: int = 3):
+    """``"x,y,z"`` -> list of floats, or :class:`InputError` naming the option."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"{option} must be {count} comma-separated numbers; got {text!r}") from None
+    if len(values) != count or not all(v == v and abs(v) != float("inf") for v in values):
+        raise InputError(f"{option} must be {count} finite comma-separated numbers; got {text!r}")
+    return values
+
+
+def load_parameter_set(params: Path, robot: str | None, scenario: str | None) -> tuple[ParameterSet, list[Path]]:
+    """Read a parameter JSON for the robot of ``--robot``, ``--scenario`` or the JSON's own robot name."""
+    if robot is not None and scenario is not None:
+        raise InputError("give --robot or --scenario, not both")
+    inputs = existing_inputs(params, robot, scenario)
+    if scenario is not None:
+        loaded = load_scenario(scenario)
+        model = loaded.robot
+        inputs += existing_inputs(loaded.source)
+    elif robot is not None:
+        model = load_robot(robot)
+    else:
+        data = read_json_file(Path(params), kind="parameter JSON")
+        name = data.get("robot") if isinstance(data, dict) else None
+        if not isinstance(name, str) or name not in builtin_names("robots"):
+            raise InputError(
+                f"{params}: robot {name!r} is not a built-in robot; name its robot file with --robot or --scenario"
+            )
+        model = load_robot(name)
+    return read_parameters(params, model), inputs
+
+
+@app.command()
+@handle_errors
+def export(
+    params: Annotated[Path, typer.Argument(help="Parameter JSON (of identify / refine).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="File to write (.md for a Markdown dh/mdh table).")],
+    format: Annotated[str, typer.Option("--format", "-f", help="json | urdf | ur-yaml | dh | mdh.")] = "json",
+    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
+    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
+    tool: Annotated[str | None, typer.Option("--tool", help='URDF tool0 frame on the flange "x,y,z" [mm].')] = None,
+    joint_variable: Annotated[
+        str,
+        typer.Option(
+            "--joint-variable",
+            help="URDF joint value: reading (controller reading; sign/offset folded in) | model (model variable q).",
+        ),
+    ] = "reading",
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+) -> None:
+    """Write the calibrated model as JSON, URDF, UR calibration YAML or a DH / MDH table (exact, else an error)."""
+    if format not in EXPORT_FORMATS:
+        raise InputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}; got {format!r}")
+    tool_mm = parse_vector(tool, "--tool")
+    if tool_mm is not None and format != "urdf":
+        raise InputError("--tool is written only by --format urdf")
+    parameters, inputs = load_parameter_set(params, robot, scenario)
+    check_output_file(out, inputs=inputs, force=force)
+    markdown = Path(out).suffix.lower() in (".md", ".markdown")
+    if format == "urdf":
+        text = parameters_to_urdf(parameters, tool=tool_mm, joint_variable=joint_variable)
+    elif format == "ur-yaml":
+        text = parameters_to_ur_yaml(parameters)
+    elif format in ("dh", "mdh"):
+        rows = dh_table(parameters) if format == "dh" else mdh_table(parameters)
+        title = f"{'DH' if format == 'dh' else 'Modified DH'} table of {parameters.robot.name} [mm, deg]"
+        text = table_to_markdown(rows, title=title) if markdown else table_to_csv(rows)
+    else:
+        text = None
+    with result_file(out, inputs=inputs, force=force):
+        if text is None:
+            provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
+            write_parameters(out, parameters, provenance if isinstance(provenance, dict) else {})
+        else:
+            atomic_write_text(out, text)
+    console.print(f"wrote {out} ({format})", highlight=False)

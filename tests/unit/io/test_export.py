@@ -1,0 +1,206 @@
+"""Model export: URDF (loaded by yourdfpy), UR calibration YAML, DH / MDH tables, each checked by an
+independent forward-kinematics composer against robotcal's forward_kinematics."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+import pytest
+
+from robotcal.errors import InputError
+from robotcal.io import load_robot
+from robotcal.io.export import (
+    UR_JOINT_NAMES,
+    dh_table,
+    mdh_table,
+    parameters_to_ur_yaml,
+    parameters_to_urdf,
+    table_to_csv,
+    table_to_markdown,
+)
+from robotcal.kinematics.forward import forward_kinematics
+from robotcal.kinematics.model import ParameterSet
+
+# FK agreement: the exports write floats round-trip exact (repr), so only double rounding of ~10
+# matrix products on ~1000 mm lengths remains (~1e-12 mm); the issue's bound is 1e-9 mm / 1e-9 rad.
+TOL_MM = 1e-9
+TOL_RAD = 1e-9
+
+
+def _perturbed(name: str, seed: int, *, zero_beta: bool = False) -> ParameterSet:
+    robot = load_robot(name)
+    rng = np.random.default_rng(seed)
+    scale = np.array([0.5, 0.01, 0.5, 0.01, 0.01])  # mm / rad, a calibrated-looking deviation
+    values = robot.nominal + rng.normal(size=robot.nominal.shape) * scale * ~robot.structurally_fixed
+    if zero_beta:
+        values[:, 4] = 0.0
+    return ParameterSet(robot=robot, values=values)
+
+
+# independent elementary transforms (not robotcal's)
+def _rz(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def _rx(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
+
+
+def _ry(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0, s, 0], [0, 1.0, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1]])
+
+
+def _tr(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def _rpy(x, y, z, roll, pitch, yaw):
+    return _tr(x, y, z) @ _rz(yaw) @ _ry(pitch) @ _rx(roll)
+
+
+def _assert_same_pose(actual_mm, expected_mm):
+    np.testing.assert_allclose(actual_mm[..., :3, 3], expected_mm[..., :3, 3], rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(actual_mm[..., :3, :3], expected_mm[..., :3, :3], rtol=0, atol=TOL_RAD)
+
+
+@pytest.mark.parametrize("joint_variable", ["reading", "model"])
+def test_urdf_matches_forward_kinematics_in_yourdfpy(tmp_path, joint_variable):
+    yourdfpy = pytest.importorskip("yourdfpy")
+    # krc robot: reading signs -1 and offsets; J2 Hayati with a non-zero beta (an origin rpy)
+    parameters = _perturbed("kuka-kr5-sixx-r650-krc", 3)
+    assert abs(parameters.values[1, 4]) > 1e-4 and np.any(parameters.robot.reading_sign < 0)
+    tool = np.array([12.5, -3.0, 80.0])
+    path = tmp_path / "robot.urdf"
+    path.write_text(parameters_to_urdf(parameters, tool=tool, joint_variable=joint_variable))
+    urdf = yourdfpy.URDF.load(str(path), load_meshes=False, load_collision_meshes=False)
+    n_poses = 1000 if joint_variable == "reading" else 100
+    rng = np.random.default_rng(5)
+    readings = rng.uniform(-np.pi, np.pi, (n_poses, 6))
+    q = parameters.robot.model_joint_variables(readings)
+    values = readings if joint_variable == "reading" else q
+    flange = []
+    for row in values:
+        urdf.update_cfg(row)
+        flange.append(urdf.get_transform("flange", "base_link"))
+    flange = np.array(flange)
+    flange[:, :3, 3] *= 1000.0  # URDF lengths are metres
+    tool0 = urdf.get_transform("tool0", "flange")
+    expected = forward_kinematics(parameters.values, q)
+    _assert_same_pose(flange, expected)
+    np.testing.assert_allclose(tool0[:3, 3] * 1000.0, tool, rtol=0, atol=TOL_MM)
+    np.testing.assert_allclose(tool0[:3, :3], np.eye(3), rtol=0, atol=TOL_RAD)
+
+
+def test_urdf_names_links_and_limits():
+    parameters = _perturbed("kuka-kr5-sixx-r650-krc", 4)
+    text = parameters_to_urdf(parameters, prefix="kr5_")
+    for name in ["kr5_base_link", "kr5_link_6", "kr5_flange", "kr5_joint_1", "kr5_flange_joint"]:
+        assert f'"{name}"' in text
+    assert "tool0" not in text
+    lower, upper = parameters.robot.limits[0]
+    assert f'lower="{float(lower)!r}" upper="{float(upper)!r}"' in text
+
+
+def _compose_ur_yaml(text: str, readings) -> np.ndarray:
+    """Independent reader: each entry an origin xyz/rpy [m, rad], joint about +z (ur_description)."""
+    entries: dict[str, dict[str, float]] = {}
+    current = None
+    for line in text.splitlines():
+        if line.startswith("#") or not line.strip() or line.strip() == "kinematics:":
+            continue
+        key, value = (part.strip() for part in line.split(":", 1))
+        if not value:
+            current = entries.setdefault(key, {})
+        else:
+            current[key] = float(value)
+    assert list(entries) == list(UR_JOINT_NAMES)
+    out = []
+    for row in readings:
+        m = np.eye(4)
+        for joint, r in zip(UR_JOINT_NAMES, row, strict=True):
+            e = entries[joint]
+            m = m @ _rpy(e["x"] * 1000, e["y"] * 1000, e["z"] * 1000, e["roll"], e["pitch"], e["yaw"]) @ _rz(r)
+        out.append(m)
+    return np.array(out)
+
+
+def test_ur_yaml_matches_forward_kinematics():
+    # the plain KR 5 (readings = model variables) with J6's a, alpha at 0: the format can hold it
+    parameters = _perturbed("kuka-kr5-sixx-r650", 6)
+    values = parameters.values.copy()
+    values[5, 2:] = 0.0
+    parameters = parameters.replace(values=values)
+    readings = np.random.default_rng(7).uniform(-np.pi, np.pi, (1000, 6))
+    composed = _compose_ur_yaml(parameters_to_ur_yaml(parameters), readings)
+    _assert_same_pose(composed, forward_kinematics(parameters.values, readings))
+
+
+def test_ur_yaml_refuses_what_it_cannot_hold():
+    parameters = _perturbed("kuka-kr5-sixx-r650", 6)
+    values = parameters.values.copy()
+    values[5, 2] = 0.3  # a flange offset after wrist_3
+    values[5, 3] = 0.0
+    with pytest.raises(InputError, match=r"J6\.a != 0"):
+        parameters_to_ur_yaml(parameters.replace(values=values))
+    with pytest.raises(InputError, match="reading_sign = -1"):
+        parameters_to_ur_yaml(_perturbed("kuka-kr5-sixx-r650-krc", 6))
+
+
+def _rows(text: str) -> list[dict]:
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+def test_dh_table_is_exact():
+    parameters = _perturbed("kuka-kr5-sixx-r650-krc", 8, zero_beta=True)
+    rows = _rows(table_to_csv(dh_table(parameters)))
+    readings = np.random.default_rng(9).uniform(-np.pi, np.pi, (200, 6))
+    composed = []
+    for pose in readings:
+        m = np.eye(4)
+        for row, r in zip(rows, pose, strict=True):
+            q = int(row["reading_sign"]) * r + np.radians(float(row["reading_offset_deg"]))
+            theta, alpha = np.radians(float(row["theta_deg"])), np.radians(float(row["alpha_deg"]))
+            m = m @ _rz(theta + q) @ _tr(0, 0, float(row["d_mm"])) @ _tr(float(row["a_mm"]), 0, 0) @ _rx(alpha)
+        composed.append(m)
+    q = parameters.robot.model_joint_variables(readings)
+    # the table's angles pass through degrees (x pi/180 twice): a few ulp of 1 rad, ~1e-13 mm at 600 mm
+    _assert_same_pose(np.array(composed), forward_kinematics(parameters.values, q))
+
+
+def test_mdh_table_is_exact():
+    parameters = _perturbed("kuka-kr5-sixx-r650-krc", 10, zero_beta=True)
+    rows = _rows(table_to_csv(mdh_table(parameters)))
+    assert [r["joint"] for r in rows] == ["J1", "J2", "J3", "J4", "J5", "J6", "flange"]
+    readings = np.random.default_rng(11).uniform(-np.pi, np.pi, (200, 6))
+    composed = []
+    for pose in readings:
+        m = np.eye(4)
+        for k, row in enumerate(rows):
+            q = 0.0
+            if k < 6:
+                q = int(row["reading_sign"]) * pose[k] + np.radians(float(row["reading_offset_deg"]))
+            alpha, theta = np.radians(float(row["alpha_prev_deg"])), np.radians(float(row["theta_deg"]))
+            m = m @ _rx(alpha) @ _tr(float(row["a_prev_mm"]), 0, 0) @ _rz(theta + q) @ _tr(0, 0, float(row["d_mm"]))
+        composed.append(m)
+    q = parameters.robot.model_joint_variables(readings)
+    _assert_same_pose(np.array(composed), forward_kinematics(parameters.values, q))
+
+
+@pytest.mark.parametrize("table", [dh_table, mdh_table])
+def test_tables_refuse_beta_naming_the_joint(table):
+    parameters = _perturbed("kuka-kr5-sixx-r650-krc", 12)
+    with pytest.raises(InputError, match=r"J2\.beta"):
+        table(parameters)
+
+
+def test_markdown_table_has_a_row_per_joint():
+    parameters = _perturbed("kuka-kr5-sixx-r650", 13, zero_beta=True)
+    text = table_to_markdown(dh_table(parameters), title="DH")
+    assert text.count("\n| J") == 6 and text.startswith("# DH")
