@@ -32,7 +32,8 @@ def run_folder(tmp_path_factory):
 def test_writes_the_documented_files(run_folder):
     out, output = run_folder
     names = sorted(path.name for path in out.iterdir())
-    assert names == sorted(["parameters.csv", "parameters.json", "draws.npz"] + [f"hist_J{i}.png" for i in range(1, 6)])
+    expected = [".robotcal", "parameters.csv", "parameters.json", "draws.npz"] + [f"hist_J{i}.png" for i in range(1, 6)]
+    assert names == sorted(expected)  # .robotcal: the output-policy marker
     assert "wrote" in output and "draws/s" in output
     with (out / "parameters.csv").open() as stream:
         rows = list(csv.DictReader(stream))

@@ -12,14 +12,27 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
+from robotcal.cli._common import (
+    FORCE_HELP,
+    SEED_BOUND,
+    _line,
+    check_memory,
+    console,
+    handle_errors,
+    monte_carlo_bytes,
+    seed_option_check,
+    styled,
+)
+from robotcal.errors import InputError
+from robotcal.identification.refine import CRITERIA
 from robotcal.io import load_scenario, read_parameters
-from robotcal.io.atomic import atomic_directory
 from robotcal.io.draws_npz import write_draws
+from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 from robotcal.io.scenario import Scenario
 from robotcal.io.uncertainty_files import uncertainty_rows, write_uncertainty_csv, write_uncertainty_json
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.montecarlo import (
+    MODELS,
     MonteCarloResult,
     MonteCarloSettings,
     ProgressCallback,
@@ -38,13 +51,17 @@ def compute_uncertainty(
     true_parameters: ParameterSet | None = None,
     show_progress: bool = True,
     progress: ProgressCallback | None = None,
+    model: str = "cpa",
+    criterion: str = "points",
 ) -> MonteCarloResult:
     """Prepare (all input checks happen here, before any draw) and run the Monte Carlo.
+
+    ``model="refined"`` draws capture -> CPA -> refinement (``criterion``), the deployed model.
 
     ``progress(done, total)`` is called after every block when given (``robotcal run`` drives its own
     display with it); else ``show_progress`` shows a progress bar of its own.
     """
-    problem = scenario_monte_carlo(scenario, true_parameters=true_parameters)
+    problem = scenario_monte_carlo(scenario, true_parameters=true_parameters, model=model, criterion=criterion)
     if progress is not None or not show_progress:
         return run_monte_carlo(problem, settings, seed=seed, progress=progress)
     total = None if settings.adaptive else settings.iterations
@@ -75,15 +92,23 @@ def write_uncertainty_folder(folder: Path, result: MonteCarloResult, scenario: S
     write_uncertainty_csv(folder / "parameters.csv", result)
     write_uncertainty_json(folder / "parameters.json", result, scenario=echo, versions=versions())
     if save_draws:
-        write_draws(folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed)
+        write_draws(
+            folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed, model=result.model
+        )
     write_histograms(result, folder)
+
+
+def _model_name(result: MonteCarloResult) -> str:
+    if result.model == "refined":
+        return f"refined model (CPA + {result.criterion} refinement)"
+    return "CPA model"
 
 
 def uncertainty_table(result: MonteCarloResult) -> Table:
     """Identified parameters: mean, u, interval, linearised u and the JCGM 101 §8 verdict."""
     coverage = f"{result.settings.coverage:.0%}"
     table = Table(
-        title=f"Monte Carlo uncertainty ({result.n_draws:,} draws, seed {result.seed}, {result.settings.interval} {coverage} interval)",
+        title=f"Monte Carlo uncertainty, {_model_name(result)} ({result.n_draws:,} draws, seed {result.seed}, {result.settings.interval} {coverage} interval)",
         title_justify="left",
     )
     for column in ("parameter", "unit", "nominal", "mean", "u", f"{coverage} low", f"{coverage} high", "u (GUM)", "§8"):
@@ -93,7 +118,7 @@ def uncertainty_table(result: MonteCarloResult) -> Table:
         if not row["identified"]:
             continue
         agrees = row.get("lpu_agrees")
-        verdict = "" if agrees is None else ("[green]agrees[/green]" if agrees else "[yellow]differs[/yellow]")
+        verdict = "" if agrees is None else (styled("agrees", "green") if agrees else styled("differs", "yellow"))
         table.add_row(
             row["name"],
             row["unit"],
@@ -123,7 +148,12 @@ def uncertainty(
     ndig: Annotated[int, typer.Option(help="Adaptive mode: significant digits of u that must be stable.")] = 2,
     max_draws: Annotated[int, typer.Option("--max-draws", help="Adaptive mode: upper limit of draws.")] = 2_000_000,
     seed: Annotated[
-        int | None, typer.Option(help="Seed (default: the scenario's montecarlo.seed, else fresh entropy; recorded).")
+        int | None,
+        typer.Option(
+            min=0,
+            max=SEED_BOUND - 1,
+            help="Seed (default: the scenario's montecarlo.seed, else fresh entropy; recorded).",
+        ),
     ] = None,
     coverage: Annotated[
         float | None, typer.Option(help="Coverage probability in (0, 1) (default: the scenario's, 0.95).")
@@ -142,9 +172,36 @@ def uncertainty(
         Path | None,
         typer.Option("--true-params", help="Parameter JSON of the 'real' robot to simulate (default: nominal)."),
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    model: Annotated[
+        str,
+        typer.Option(
+            "--model",
+            help="What each draw computes: cpa (capture -> CPA, the thesis's study) | refined (capture -> CPA -> "
+            "refinement, the deployed parameters).",
+        ),
+    ] = "cpa",
+    criterion: Annotated[
+        str, typer.Option("--criterion", help="Refinement objective of --model refined: points | distances.")
+    ] = "points",
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--scheduler",
+            help="Dask scheduler address (tcp://host:8786) to run the blocks on (default: ROBOTCAL_SCHEDULER, "
+            "else local worker processes). Needs robotcal[distributed].",
+        ),
+    ] = None,
 ) -> None:
-    """Monte Carlo (GUM Supplement 1) uncertainty of every CPA parameter, with the linearised comparison."""
+    """Monte Carlo (GUM Supplement 1) uncertainty of the CPA or refined parameters, with the linearised comparison."""
+    if model not in MODELS:
+        raise InputError(f"--model must be one of {', '.join(MODELS)}; got {model!r}")
+    if criterion not in CRITERIA:
+        raise InputError(f"--criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
+    inputs = existing_inputs(scenario, true_params)
+    check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
+    inputs += existing_inputs(loaded.source)
     table = loaded.montecarlo
     settings = MonteCarloSettings(
         iterations=int(table["iterations"]) if iterations is None else iterations,
@@ -155,11 +212,27 @@ def uncertainty(
         max_draws=max_draws,
         batch_size=batch_size,
         workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
+        scheduler=scheduler,
+    )
+    n_draws = settings.max_draws if settings.adaptive else settings.iterations
+    check_memory(
+        f"a Monte Carlo of {n_draws:,} draws",
+        monte_carlo_bytes(
+            n_draws,
+            loaded.robot.n_joints,
+            int(loaded.plan.points.sum()) * (2 if loaded.plan.bidirectional else 1),
+            batch_size=settings.batch_size,
+            workers=settings.workers,
+        ),
+        "use fewer draws (--iterations, or --max-draws in adaptive mode) or a smaller --batch-size",
     )
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     run_seed = resolve_seed(seed, table.get("seed"))
-    result = compute_uncertainty(loaded, settings, seed=run_seed, true_parameters=truth)
-    with atomic_directory(out) as folder:
+    seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")  # checked before any draw
+    result = compute_uncertainty(
+        loaded, settings, seed=run_seed, true_parameters=truth, model=model, criterion=criterion
+    )
+    with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty") as folder:
         write_uncertainty_folder(folder, result, loaded, save_draws=save_draws)
     console.print(uncertainty_table(result))
     timings = result.timings_s
@@ -180,5 +253,5 @@ def uncertainty(
             highlight=False,
         )
     if result.adaptive is not None and not result.adaptive.stable:
-        console.print(f"[yellow]warning:[/yellow] {result.adaptive.reason}", highlight=False)
+        console.print(_line("warning:", "yellow", result.adaptive.reason), highlight=False)
     console.print(f"wrote {out}", highlight=False)

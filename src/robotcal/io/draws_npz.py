@@ -9,6 +9,7 @@ Keys (format ``robotcal-draws/1``):
 ``identified``   (n_params,) bool, True where CPA determines the parameter (others stay nominal)
 ``robot_json``   0-d str, the robot file (``robot_to_dict``) as JSON, so the file is self-contained
 ``seed``         0-d int64, the Monte Carlo seed
+``model``        0-d str, ``"cpa"`` or ``"refined"``: the model the draws belong to (optional; absent = cpa)
 ``format``       0-d str
 """
 
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
+from robotcal.io._validation import parse_json_text
 from robotcal.io.atomic import atomic_write_bytes
 from robotcal.io.robots import robot_from_dict, robot_to_dict
 from robotcal.kinematics.model import PARAMETER_KINDS, RobotModel
@@ -75,8 +77,8 @@ class ParameterDraws:
         return self.values.shape[0]
 
 
-def write_draws(path, robot: RobotModel, values, identified, *, seed: int) -> Path:
-    """Write draws ``values (n_draws, n_joints, 5)`` [mm, rad] to ``path`` atomically."""
+def write_draws(path, robot: RobotModel, values, identified, *, seed: int, model: str = "cpa") -> Path:
+    """Write draws ``values (n_draws, n_joints, 5)`` [mm, rad] of ``model`` to ``path`` atomically."""
     values = np.asarray(values, dtype=float)
     n = robot.n_joints
     if values.ndim != 3 or values.shape[1:] != (n, 5):
@@ -91,6 +93,7 @@ def write_draws(path, robot: RobotModel, values, identified, *, seed: int) -> Pa
         identified=np.asarray(identified, dtype=bool).reshape(-1),
         robot_json=np.array(json.dumps(robot_to_dict(robot))),
         seed=np.array(int(seed), dtype=np.int64),
+        model=np.array(str(model)),
         format=np.array(FORMAT),
     )
     return atomic_write_bytes(path, buffer.getvalue())
@@ -101,28 +104,43 @@ def read_draws(path) -> ParameterDraws:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such draws file (write one with `robotcal uncertainty --save-draws`)")
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"{path}: not a readable .npz file (not a zip archive; write one with `--save-draws`)")
     try:
         with np.load(path, allow_pickle=False) as archive:
             contents = {key: archive[key] for key in archive.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         raise InputError(f"{path}: not a readable .npz file ({exc})") from None
     missing = [key for key in ("values", "names", "identified", "robot_json", "seed", "format") if key not in contents]
     if missing:
         raise InputError(f"{path}: missing key(s) {', '.join(missing)}; is this a robotcal draws file?")
     if str(contents["format"]) != FORMAT:
         raise InputError(f"{path}: format {str(contents['format'])!r} is not {FORMAT!r}")
-    robot = robot_from_dict(json.loads(str(contents["robot_json"])), f"{path}:robot_json")
-    names = [str(name) for name in contents["names"]]
+    try:
+        robot_text = str(contents["robot_json"].item()) if contents["robot_json"].size == 1 else None
+        seed = int(contents["seed"].item()) if contents["seed"].size == 1 else None
+    except (TypeError, ValueError, OverflowError):
+        robot_text = seed = None
+    if robot_text is None or seed is None:
+        raise InputError(
+            f"{path}: keys `robot_json` and `seed` must each hold one value; is this a robotcal draws file?"
+        )
+    robot = robot_from_dict(parse_json_text(robot_text, f"{path}: key `robot_json`"), f"{path}: key `robot_json`")
+    names = [str(name) for name in np.ravel(contents["names"])]
     if names != list(robot.parameter_names):
         raise InputError(f"{path}: `names` do not match the robot's parameters {robot.parameter_names[:2]}...")
-    flat = np.asarray(contents["values"], dtype=float)
+    try:
+        flat = np.asarray(contents["values"], dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{path}: `values` must hold numbers; got dtype {contents['values'].dtype}") from None
     if flat.ndim != 2 or flat.shape[1] != robot.n_joints * 5 or flat.shape[0] < 1:
         raise InputError(f"{path}: `values` must have shape (n_draws, {robot.n_joints * 5}); got {flat.shape}")
     if not np.all(np.isfinite(flat)):
         row = int(np.nonzero(~np.isfinite(flat))[0][0])
         raise InputError(f"{path}: `values` holds a non-finite number in draw {row}")
     values = _to_core_units(flat.reshape(-1, robot.n_joints, 5))
-    identified = np.asarray(contents["identified"], dtype=bool).reshape(robot.n_joints, 5)
-    return ParameterDraws(
-        robot=robot, values=values, identified=identified, seed=int(contents["seed"]), source=str(path)
-    )
+    identified = np.asarray(contents["identified"])
+    if identified.dtype != bool or identified.size != robot.n_joints * 5:
+        raise InputError(f"{path}: `identified` must hold {robot.n_joints * 5} booleans; got {identified.shape}")
+    identified = identified.reshape(robot.n_joints, 5)
+    return ParameterDraws(robot=robot, values=values, identified=identified, seed=seed, source=str(path))

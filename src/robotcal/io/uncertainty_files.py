@@ -1,4 +1,4 @@
-"""Monte Carlo result files: ``parameters.csv`` and ``parameters.json`` (docs/results.md, DESIGN.md
+"""Monte Carlo result files: ``parameters.csv`` and ``parameters.json`` (docs/results.md
 "Uncertainty CSV"). Core results are in mm and rad; these files are in mm and degrees."""
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ __all__ = [
 ]
 
 FORMAT = "robotcal-uncertainty/1"
-#: DESIGN.md's columns first (other tools rely on them), then robotcal's extensions.
+#: The original design's columns first (other tools rely on them), then robotcal's extensions.
 CSV_COLUMNS = (
     "name",
     "unit",
@@ -47,7 +47,15 @@ CSV_COLUMNS = (
     "lpu_coverage_low",
     "lpu_coverage_high",
     "lpu_agrees",
+    "model",
 )
+#: Text (not numeric) columns of ``parameters.csv``.
+_TEXT_COLUMNS = ("name", "unit", "model")
+_METHODS = {
+    "cpa": "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of simulated capture + CPA (thesis ch. 5.2.3)",
+    "refined": "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of simulated capture + CPA + least-squares "
+    "refinement, {criterion} criterion (thesis ch. 5.2.3, 4.5.7): the deployed model",
+}
 
 
 def _scale(result: MonteCarloResult) -> np.ndarray:
@@ -90,7 +98,7 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
     units = parameter_units(result.robot)
     identified = result.identified.reshape(-1)
     for index, name in enumerate(result.robot.parameter_names):
-        row = {"name": name, "unit": units[index], "identified": bool(identified[index])}
+        row = {"name": name, "unit": units[index], "identified": bool(identified[index]), "model": result.model}
         row.update({key: float(values[index]) for key, values in columns.items()})
         if linear is not None:
             row["lpu_agrees"] = bool(linear.agrees.reshape(-1)[index])
@@ -131,7 +139,7 @@ def read_uncertainty_csv(path) -> list[dict]:
     for line, raw in enumerate(reader, start=2):
         row = {}
         for key, value in raw.items():
-            if key in ("name", "unit"):
+            if key in _TEXT_COLUMNS:
                 row[key] = value
             elif value in ("true", "false"):
                 row[key] = value == "true"
@@ -177,7 +185,10 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict, ve
         "format": FORMAT,
         "robot": result.robot.name,
         "units": {"length": "mm", "angle": "deg"},
-        "method": "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of simulated capture + CPA (thesis ch. 5.2.3)",
+        "method": _METHODS[result.model].format(criterion=result.criterion),
+        "model": result.model,
+        "criterion": result.criterion,
+        "failed_draws": result.n_failed,
         "seed": result.seed,
         "draws": result.n_draws,
         "coverage": settings.coverage,
@@ -200,7 +211,10 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict, ve
         "linearised": None
         if result.linearised is None
         else {
-            "method": "GUM law of propagation, Jacobian of CPA by central differences over the measured coordinates",
+            "method": "GUM law of propagation, Jacobian of CPA by central differences over the measured coordinates"
+            if result.model == "cpa"
+            else "GUM law of propagation of the least-squares refinement at the noise-free solution, "
+            "(J^T J)^-1 J^T G U_x G^T J (J^T J)^-1 (CPA's central differences for identified parameters it holds)",
             "step_mm": result.linearised.step_mm,
             "covariance": _matrix_in_file_units(result, result.linearised.covariance, scaled=True),
             "validation": "JCGM 101 §8.2: both interval ends within the numerical tolerance of ndig digits",

@@ -3,14 +3,18 @@
 The noise-free capture is simulated once. Every draw adds instrument noise (and, where the scenario's
 joint error model has a random part, redraws the joint errors), runs CPA, and keeps the parameters.
 Draws are vectorised: a batch of ``batch_size`` noisy captures goes through one
-``identify_cpa_batch`` call.
+``identify_cpa_batch`` call. With ``model="refined"`` every draw is then refined from its own CPA
+estimate by the batched least-squares refinement of :mod:`robotcal.uncertainty.refined` (the
+deployed model); draws that do not converge are counted and left out of the statistics.
 
 Reproducibility: draws are organised in fixed blocks of ``block_size`` (10^4 by default, the block
 of JCGM 101 §7.9). Block ``b`` draws from its own generators, seeded by
 ``SeedSequence(seed, spawn_key=(b,))``, instrument noise and joint-error noise from separate
 children; a block is consumed in draw order whatever the batch size, and blocks are independent of
-which worker computes them. The same seed therefore gives the same draws for any ``batch_size`` and
-any number of ``workers``.
+which worker computes them. The same seed therefore gives the same draws for any ``batch_size``, any
+number of ``workers`` and any backend (:func:`robotcal.execution.open_executor`: serial, local
+processes, Dask): a lone draw is computed as a batch of two, since numpy reduces a stack of one with
+other loops than a larger stack (last-bit differences, up to 3e-11 mm before this was done).
 
 References
 ----------
@@ -21,11 +25,10 @@ the GUM uncertainty framework); thesis ch. 5.2.3 (Tables 5.6 and 5.7).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
-import multiprocessing
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -34,6 +37,7 @@ from scipy.stats import norm
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError, RobotcalError
+from robotcal.execution import open_executor
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform
 from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
 from robotcal.instruments import Instrument
@@ -41,6 +45,7 @@ from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.generator import JointErrorModel, simulate_capture
 from robotcal.simulation.plan import CapturePlan
+from robotcal.uncertainty.refined import RefinedModel, prepare_refined_model, refine_batch, refined_covariance
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
     SampleSummary,
@@ -61,6 +66,11 @@ __all__ = [
     "linearised_uncertainty",
     "draw_block",
 ]
+
+#: What a draw computes: capture -> CPA, or capture -> CPA -> refinement.
+MODELS = ("cpa", "refined")
+#: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
+REFINE_BATCH = 500
 
 #: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.
 DEFAULT_BLOCK_SIZE = 10_000
@@ -92,8 +102,14 @@ class MonteCarloProblem:
     structure
         The CPA structure shared by all draws (``prepare_cpa``).
     noise_free_values : ndarray, shape (n_joints, 5)
-        CPA of the noise-free capture [mm, rad]: the model value ``f(x)`` at the input estimates,
-        used by the linearised comparison.
+        The model value ``f(x)`` at the input estimates [mm, rad]: CPA of the noise-free capture
+        (``model="cpa"``) or its refinement (``model="refined"``); used by the linearised comparison.
+    identified : ndarray of bool, shape (n_joints, 5)
+        Parameters the model determines from the data (the others keep their nominal value).
+    model : {"cpa", "refined"}
+        What every draw computes: capture -> CPA, or capture -> CPA -> refinement (the deployed model).
+    refined : RefinedModel or None
+        The refinement's structure (free set, base handling, scale), ``model="refined"`` only.
     """
 
     robot: RobotModel
@@ -108,6 +124,8 @@ class MonteCarloProblem:
     structure: object
     noise_free_values: np.ndarray
     identified: np.ndarray
+    model: str = "cpa"
+    refined: RefinedModel | None = None
 
     @property
     def n_points(self) -> int:
@@ -124,6 +142,8 @@ def prepare_monte_carlo(
     true_parameters: ParameterSet | None = None,
     joint_errors: JointErrorModel | None = None,
     joint_limits: str = "warn",
+    model: str = "cpa",
+    criterion: str = "points",
 ) -> MonteCarloProblem:
     """Simulate the noise-free capture once and check that CPA can identify it.
 
@@ -136,7 +156,16 @@ def prepare_monte_carlo(
         As for :func:`robotcal.simulation.generator.simulate_capture`.
     options : CPAOptions, optional
         CPA options (circle fit, base frame, theta1 reference).
+    model : {"cpa", "refined"}
+        ``"refined"``: every draw is refined after CPA (thesis ch. 4.5.7), starting from its own CPA
+        estimate; the free set and the base handling are those ``refine_parameters`` chooses on the
+        noise-free capture (points criterion: the base frame is held when ``options.base_frame`` is
+        ``"given"``, else its 6 corrections are estimated).
+    criterion : {"points", "distances"}
+        Refinement objective (eq. 4-101 or 4-102), ``model="refined"`` only.
     """
+    if model not in MODELS:
+        raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
     options = CPAOptions() if options is None else options
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     true_parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
@@ -164,6 +193,18 @@ def prepare_monte_carlo(
     )
     structure = prepare_cpa(capture, robot, plan.reflector, options)
     reference = identify_cpa_batch(exact, structure, tracker_from_base)
+    values, identified, refined = reference.values, reference.identified, None
+    if model == "refined":
+        start = ParameterSet(robot=robot, values=reference.values, identified=reference.identified)
+        refined = prepare_refined_model(
+            capture,
+            start,
+            plan.reflector,
+            criterion=criterion,
+            tracker_from_base=reference.tracker_from_base,
+            estimate_base=options.base_frame != "given",
+        )
+        values, identified = refined.reference_values, reference.identified | refined.free
     return MonteCarloProblem(
         robot=robot,
         true_parameters=true_parameters,
@@ -175,8 +216,10 @@ def prepare_monte_carlo(
         joint_errors=joint_errors if noisy_joints else None,
         options=options,
         structure=structure,
-        noise_free_values=reference.values,
-        identified=reference.identified,
+        noise_free_values=values,
+        identified=identified,
+        model=model,
+        refined=refined,
     )
 
 
@@ -206,6 +249,9 @@ class MonteCarloSettings:
         Draws per seeded block (the reproducibility unit; also the adaptive block size).
     workers : int
         Processes that compute blocks in parallel (1: in this process).
+    scheduler : str or None
+        Dask scheduler address; None reads ``ROBOTCAL_SCHEDULER``, else local execution
+        (:func:`robotcal.execution.open_executor`). Results do not depend on it.
     keep_draws : bool
         Keep every draw in the result (needed for histograms, ``draws.npz`` and the TCP stage).
     """
@@ -219,6 +265,7 @@ class MonteCarloSettings:
     batch_size: int = 2_000
     block_size: int = DEFAULT_BLOCK_SIZE
     workers: int = 1
+    scheduler: str | None = None
     keep_draws: bool = True
 
     def __post_init__(self):
@@ -312,7 +359,14 @@ class MonteCarloResult:
     linearised : LinearisedResult or None
     timings_s : dict
     success : bool
+        False when the adaptive mode did not stabilise or more than 0.1 % of the draws failed.
     message : str
+    model : {"cpa", "refined"}
+        The model the draws belong to (capture -> CPA, or capture -> CPA -> refinement).
+    criterion : {"points", "distances"} or None
+        The refinement objective (``model="refined"``).
+    n_failed : int
+        Draws whose refinement did not converge: counted here, left out of every statistic.
     """
 
     robot: RobotModel
@@ -331,6 +385,9 @@ class MonteCarloResult:
     timings_s: dict = field(default_factory=dict)
     success: bool = True
     message: str = ""
+    model: str = "cpa"
+    criterion: str | None = None
+    n_failed: int = 0
 
     def interval(self) -> tuple[np.ndarray, np.ndarray]:
         """The coverage interval chosen in the settings, ``(low, high)`` of shape (n_joints, 5)."""
@@ -372,7 +429,14 @@ def _noise(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -
 
 
 def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, batch_size: int) -> np.ndarray:
-    """Parameters of the ``n_draws`` draws of block ``block``, shape ``(n_draws, n_joints, 5)`` [mm, rad]."""
+    """Parameters of the ``n_draws`` draws of block ``block``, shape ``(n_draws, n_joints, 5)`` [mm, rad].
+
+    A draw whose refinement did not converge (``model="refined"``) is a row of NaN: the driver
+    counts and drops it. The noise is drawn draw by draw from the block's generators, and every
+    computation on a batch is per draw, so a draw's value does not depend on ``batch_size``; a lone
+    draw is computed as a batch of two (itself twice), because numpy reduces a stack of one with
+    other loops than a larger stack (last-bit differences).
+    """
     instrument_rng, joint_rng = _block_generators(seed, block)
     values = np.empty((n_draws, problem.robot.n_joints, 5))
     for start, count in _chunks(n_draws, batch_size):
@@ -380,13 +444,27 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
             exact = _noisy_exact_points(problem, count, joint_rng)
         else:
             exact = problem.exact_points
-        points = exact + _noise(problem, count, instrument_rng)
+        points = np.broadcast_to(exact + _noise(problem, count, instrument_rng), (count, problem.n_points, 3))
+        if count == 1:
+            points = np.concatenate([points, points])
         try:
             batch = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
+            result = batch.values
+            if problem.refined is not None:
+                result = _refine_draws(problem.refined, points, batch)
         except RobotcalError as exc:
             raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
-        values[start : start + count] = batch.values
+        values[start : start + count] = result[:count]
     return values
+
+
+def _refine_draws(model: RefinedModel, points: np.ndarray, batch) -> np.ndarray:
+    """Refine every CPA draw of ``batch`` from its own estimate, ``REFINE_BATCH`` draws at a time."""
+    out = np.empty(batch.values.shape)
+    for start, count in _chunks(points.shape[0], REFINE_BATCH):
+        part = slice(start, start + count)
+        out[part] = refine_batch(model, points[part], batch.values[part], batch.tracker_from_base[part]).values
+    return out
 
 
 def _chunks(n_draws: int, batch_size: int) -> list[tuple[int, int]]:
@@ -408,30 +486,23 @@ def _block_sizes(total: int, block_size: int) -> list[int]:
     return [block_size] * full + ([rest] if rest else [])
 
 
-class _BlockRunner:
-    """Computes blocks in this process or in a pool of forked workers."""
+def _draw_task(problem: MonteCarloProblem, seed: int, batch_size: int, item: tuple[int, int]) -> np.ndarray:
+    """One block ``item = (block, size)``: a top-level function, so that any backend can run it."""
+    block, size = item
+    return draw_block(problem, seed, block, size, batch_size)
 
-    def __init__(self, problem: MonteCarloProblem, seed: int, settings: MonteCarloSettings):
-        self.problem, self.seed, self.settings = problem, seed, settings
-        self.pool = None
-        if settings.workers > 1:
-            context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
-            self.pool = ProcessPoolExecutor(max_workers=settings.workers, mp_context=context)
+
+class _BlockRunner:
+    """Computes blocks on an :class:`robotcal.execution.Executor` (serial, local processes or Dask)."""
+
+    def __init__(self, problem: MonteCarloProblem, seed: int, settings: MonteCarloSettings, executor):
+        self.task = functools.partial(_draw_task, problem, seed, settings.batch_size)
+        self.executor = executor
 
     def map(self, blocks: list[tuple[int, int]]):
         """Yield ``(block, values)`` in block order."""
-        args = (self.problem, self.seed)
-        if self.pool is None:
-            for block, size in blocks:
-                yield block, draw_block(*args, block, size, self.settings.batch_size)
-            return
-        futures = [self.pool.submit(draw_block, *args, block, size, self.settings.batch_size) for block, size in blocks]
-        for (block, _), future in zip(blocks, futures, strict=True):
-            yield block, future.result()
-
-    def close(self):
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
+        for (block, _), values in zip(blocks, self.executor.map(self.task, blocks), strict=True):
+            yield block, values
 
 
 # ------------------------------------------------------------------------------------ statistics
@@ -537,25 +608,24 @@ def run_monte_carlo(
     seed = int(seed)
     started = time.perf_counter()
     identified = problem.identified
-    runner = _BlockRunner(problem, seed, settings)
     capacity = settings.max_draws if settings.adaptive else settings.iterations
     # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
-    store = np.empty((capacity, problem.robot.n_joints, 5))
+    store = _Store(np.empty((capacity, problem.robot.n_joints, 5)))
     adaptive_record = None
-    try:
+    with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
+        runner = _BlockRunner(problem, seed, settings, executor)
         if not settings.adaptive:
             blocks = list(enumerate(_block_sizes(settings.iterations, settings.block_size)))
-            done = 0
             for _, values in runner.map(blocks):
-                store[done : done + values.shape[0]] = values
-                done += values.shape[0]
+                store.add(values)
                 if progress is not None:
-                    progress(done, settings.iterations)
+                    progress(store.computed, settings.iterations)
         else:
-            adaptive_record, done = _run_adaptive(runner, settings, identified, store, progress)
-    finally:
-        runner.close()
-    draws = store[:done]
+            adaptive_record = _run_adaptive(runner, settings, identified, store, progress)
+    done = store.done
+    draws = store.values[:done]
+    if done < 2:
+        raise RobotcalError(f"only {done} of {store.computed} draws converged: no statistics can be made")
     draw_time = time.perf_counter() - started
     summary_start = time.perf_counter()
     summary = summarize_draws(draws, settings.coverage)
@@ -568,10 +638,16 @@ def run_monte_carlo(
         timings["linearised"] = time.perf_counter() - linear_start
     timings["total"] = time.perf_counter() - started
     message = f"{draws.shape[0]} draws"
-    success = True
+    if store.failed:
+        message += (
+            f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
+            f"({store.failed / store.computed:.2%})"
+        )
+    success = store.failed <= 0.001 * store.computed
+
     if adaptive_record is not None:
         message += f"; adaptive: {adaptive_record.reason}"
-        success = adaptive_record.stable
+        success = success and adaptive_record.stable
     return MonteCarloResult(
         robot=problem.robot,
         settings=settings,
@@ -589,30 +665,50 @@ def run_monte_carlo(
         timings_s=timings,
         success=success,
         message=message,
+        model=problem.model,
+        criterion=None if problem.refined is None else problem.refined.criterion,
+        n_failed=store.failed,
     )
 
 
-def _run_adaptive(runner: _BlockRunner, settings, identified, store, progress) -> tuple[AdaptiveRecord, int]:
+class _Store:
+    """Draws kept so far; a draw that failed (NaN row: a refinement that did not converge) is counted, not kept."""
+
+    def __init__(self, values: np.ndarray):
+        self.values, self.done, self.computed, self.failed = values, 0, 0, 0
+
+    def add(self, values: np.ndarray) -> np.ndarray:
+        good = np.isfinite(values).all(axis=(1, 2))
+        kept = values if good.all() else values[good]
+        self.values[self.done : self.done + kept.shape[0]] = kept
+        self.done += kept.shape[0]
+        self.computed += values.shape[0]
+        self.failed += int((~good).sum())
+        return kept
+
+
+def _run_adaptive(runner: _BlockRunner, settings, identified, store: _Store, progress) -> AdaptiveRecord:
     """Blocks of ``block_size`` until stable (JCGM 101 §7.9.4), computed ``workers`` at a time.
 
     Stability is checked after each block in block order, so the stopping block, and hence the
-    result, do not depend on the number of workers (blocks computed past it are discarded).
-    Returns the record and the number of draws kept in ``store``.
+    result, do not depend on the number of workers (blocks computed past it are discarded). Draws
+    that failed are left out of their block's estimates. The kept draws are in ``store``.
     """
     size = settings.block_size
     max_blocks = settings.max_draws // size
     estimates: list[np.ndarray] = []
     moments = _PooledMoments()
     next_block = 0
+    workers = max(settings.workers, getattr(runner.executor, "workers", 1))
     while next_block < max_blocks:
-        wave = [(b, size) for b in range(next_block, min(next_block + settings.workers, max_blocks))]
+        wave = [(b, size) for b in range(next_block, min(next_block + workers, max_blocks))]
         next_block += len(wave)
         for block, values in runner.map(wave):
-            store[block * size : (block + 1) * size] = values
-            estimates.append(_block_estimates(values, identified, settings.coverage, settings.interval))
-            moments.add(_flat_identified(values, identified))
+            kept = store.add(values)
+            estimates.append(_block_estimates(kept, identified, settings.coverage, settings.interval))
+            moments.add(_flat_identified(kept, identified))
             if progress is not None:
-                progress((block + 1) * size, None)
+                progress(store.computed, None)
             if len(estimates) < 2:
                 continue
             stable, stability, tolerance = _adaptive_check(estimates, moments.std(), settings.ndig)
@@ -621,13 +717,11 @@ def _run_adaptive(runner: _BlockRunner, settings, identified, store, progress) -
                     f"stable after {block + 1} blocks of {size}: mean, u and both {settings.interval} "
                     f"interval ends within the numerical tolerance of ndig = {settings.ndig}"
                 )
-                record = AdaptiveRecord(
+                return AdaptiveRecord(
                     blocks=block + 1, stable=True, reason=reason, tolerance=tolerance, stability=stability
                 )
-                return record, (block + 1) * size
     reason = f"max_draws = {settings.max_draws} reached before the results were stable to ndig = {settings.ndig}"
-    record = AdaptiveRecord(blocks=max_blocks, stable=False, reason=reason, tolerance=tolerance, stability=stability)
-    return record, max_blocks * size
+    return AdaptiveRecord(blocks=max_blocks, stable=False, reason=reason, tolerance=tolerance, stability=stability)
 
 
 # ------------------------------------------------------------------------------------ linearised
@@ -650,6 +744,10 @@ def linearised_uncertainty(
     CPA call, with a step of 1e-3 mm (CPA is exact to ~1e-12 mm, so the truncation and rounding
     errors are ~1e-6 and ~1e-9 relative). Only instrument noise enters U_x (independent coordinates);
     a random joint-error part, if the scenario has one, is not linearised (the Monte Carlo covers it).
+    For the refined model (``problem.refined``) the estimated parameters take the refinement's
+    first-order covariance at the noise-free solution, ``(J^T J)^-1 J^T G U_x G^T J (J^T J)^-1``
+    (:func:`robotcal.uncertainty.refined.refined_covariance`): the least-squares estimator
+    linearised in the measured coordinates, whatever start CPA gives it.
 
     When ``summary`` is given, the JCGM 101 §8.2 comparison is made: the linearised interval
     ``f(x) -+ k_p u`` against the Monte Carlo interval chosen in ``settings``, endpoint by endpoint,
@@ -657,19 +755,9 @@ def linearised_uncertainty(
     """
     settings = MonteCarloSettings() if settings is None else settings
     step = 1e-3
-    n_points = problem.n_points
-    n_inputs = 3 * n_points
-    perturbation = np.zeros((2 * n_inputs, n_points, 3))
-    index = np.arange(n_inputs)
-    perturbation[index, index // 3, index % 3] = step
-    perturbation[n_inputs + index, index // 3, index % 3] = -step
-    values = identify_cpa_batch(
-        problem.exact_points + perturbation, problem.structure, problem.tracker_from_base
-    ).values
-    flat = values.reshape(2 * n_inputs, -1)
-    jacobian = ((flat[:n_inputs] - flat[n_inputs:]) / (2.0 * step)).T  # (n_params, n_inputs)
-    variance = _input_variance(problem).reshape(-1)
-    covariance = (jacobian * variance) @ jacobian.T
+    covariance = _cpa_covariance(problem, step)
+    if problem.refined is not None:
+        covariance = _refined_full_covariance(problem, covariance)
     n_joints = problem.robot.n_joints
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n_joints, 5)
     k = float(norm.ppf(0.5 + settings.coverage / 2.0))
@@ -694,3 +782,36 @@ def linearised_uncertainty(
         tolerance=tolerance,
         step_mm=step,
     )
+
+
+def _refined_full_covariance(problem: MonteCarloProblem, cpa_covariance: np.ndarray) -> np.ndarray:
+    """Joint-major covariance of the refined model: the refinement's linearised covariance for the
+    parameters it estimates (:func:`robotcal.uncertainty.refined.refined_covariance`, exact to first
+    order); CPA's for identified parameters the refinement holds at their CPA value (their
+    cross-covariance with the refined ones is left out)."""
+    model = problem.refined
+    free_cov = refined_covariance(model, problem.exact_points, _input_variance(problem))
+    mask = model.free.reshape(-1)
+    index = np.flatnonzero(mask)
+    covariance = cpa_covariance.copy()
+    covariance[mask, :] = 0.0
+    covariance[:, mask] = 0.0
+    covariance[np.ix_(index, index)] = free_cov[: index.size, : index.size]
+    return covariance
+
+
+def _cpa_covariance(problem: MonteCarloProblem, step: float) -> np.ndarray:
+    """``J U_x J^T`` of CPA, J by central differences over the measured coordinates [mm, rad]."""
+    n_points = problem.n_points
+    n_inputs = 3 * n_points
+    perturbation = np.zeros((2 * n_inputs, n_points, 3))
+    index = np.arange(n_inputs)
+    perturbation[index, index // 3, index % 3] = step
+    perturbation[n_inputs + index, index // 3, index % 3] = -step
+    values = identify_cpa_batch(
+        problem.exact_points + perturbation, problem.structure, problem.tracker_from_base
+    ).values
+    flat = values.reshape(2 * n_inputs, -1)
+    jacobian = ((flat[:n_inputs] - flat[n_inputs:]) / (2.0 * step)).T  # (n_params, n_inputs)
+    variance = _input_variance(problem).reshape(-1)
+    return (jacobian * variance) @ jacobian.T

@@ -1,0 +1,118 @@
+"""Benchmark of the refined-model Monte Carlo (capture -> CPA -> refinement per draw) on the demo capture.
+
+Plain script: ``python benchmarks/bench_refined_montecarlo.py [--draws 100000] [--loop 200] [--workers 2]``.
+Prints, side by side in one run (scenario ``kr5-demo``: 270 points, points criterion, base frame given):
+
+- the per-draw loop: batched CPA, then ``refine_parameters`` (SciPy ``least_squares``, analytic
+  Jacobian) draw after draw from each draw's CPA estimate, over ``--loop`` draws: s/draw;
+- the batched engine (``run_monte_carlo`` with ``model="refined"``) with 1 worker over ``--loop`` x 10
+  draws and with ``--workers`` workers over ``--draws`` draws: draws/s, wall time, failed draws,
+  and the Jacobian evaluations per draw; CPU time per draw of both paths (the pool's workers included),
+  which is what to compare on a machine shared with other jobs (the load average is printed);
+- the speed-up of the batched engine over the loop (same core count: 1 worker vs the loop) and the
+  extrapolated loop time for ``--draws`` draws.
+
+Targets (issue 11, DESIGN.md): 100,000 draws <= 120 s on 2 cores; >= 20x the per-draw loop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+import warnings
+
+import numpy as np
+
+from robotcal.errors import IdentifiabilityWarning
+from robotcal.identification.cpa import identify_cpa_batch
+from robotcal.identification.refine import refine_parameters
+from robotcal.io import load_scenario
+from robotcal.kinematics.model import ParameterSet
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, run_monte_carlo
+from robotcal.uncertainty.refined import refine_batch
+from robotcal.workflow import scenario_monte_carlo
+
+SCENARIO = "kr5-demo"
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its reaped children (the pool's workers)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def per_draw_loop(problem, n_draws: int, cpu: dict | None = None) -> float:
+    """Seconds per draw of CPA (batched) + a loop of ``refine_parameters`` over the draws."""
+    cpu_start = _cpu()
+    rng, _ = _block_generators(1, 0)
+    points = problem.exact_points + _noise(problem, n_draws, rng)
+    began = time.perf_counter()
+    cpa = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifiabilityWarning)
+        for k in range(n_draws):
+            refine_parameters(
+                problem.capture.with_points(points[k]),
+                ParameterSet(robot=problem.robot, values=cpa.values[k]),
+                problem.structure.reflector,
+                tracker_from_base=problem.tracker_from_base,
+                estimate_base=False,
+            )
+    if cpu is not None:
+        cpu["loop_cpu_ms_per_draw"] = round((_cpu() - cpu_start) / n_draws * 1e3, 2)
+    return (time.perf_counter() - began) / n_draws
+
+
+def iterations_per_draw(problem, n_draws: int = 500) -> dict:
+    rng, _ = _block_generators(2, 0)
+    points = problem.exact_points + _noise(problem, n_draws, rng)
+    cpa = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
+    batch = refine_batch(problem.refined, points, cpa.values, cpa.tracker_from_base)
+    counts = np.bincount(batch.iterations)
+    return {str(k): int(c) for k, c in enumerate(counts) if c}
+
+
+def engine(problem, n_draws: int, workers: int) -> dict:
+    settings = MonteCarloSettings(iterations=n_draws, workers=workers, block_size=min(10_000, n_draws))
+    began, cpu_start = time.perf_counter(), _cpu()
+    result = run_monte_carlo(problem, settings, seed=1, linearised=False)
+    wall = time.perf_counter() - began
+    cpu = _cpu() - cpu_start
+    return {
+        "cpu_ms_per_draw": round(cpu / n_draws * 1e3, 3),
+        "draws": n_draws,
+        "workers": workers,
+        "wall_s": round(wall, 2),
+        "draws_per_s": round(n_draws / wall, 1),
+        "failed": result.n_failed,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--draws", type=int, default=100_000)
+    parser.add_argument("--loop", type=int, default=200)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    began = time.perf_counter()
+    problem = scenario_monte_carlo(load_scenario(SCENARIO), model="refined")
+    report = {"scenario": SCENARIO, "points": problem.n_points, "prepare_s": round(time.perf_counter() - began, 3)}
+    loop = per_draw_loop(problem, args.loop, report)
+    report["loop_s_per_draw"] = round(loop, 5)
+    report["loop_extrapolated_s"] = round(loop * args.draws, 1)
+    report["jacobian_evaluations_per_draw"] = iterations_per_draw(problem)
+    single = engine(problem, 10 * args.loop, 1)
+    report["engine_1_worker"] = single
+    report["speedup_1_core"] = round(single["draws_per_s"] * loop, 1)
+    full = engine(problem, args.draws, args.workers)
+    report[f"engine_{args.workers}_workers"] = full
+    report["speedup_vs_loop_on_1_core"] = round(full["draws_per_s"] * loop, 1)
+    report["cpu_time_speedup"] = round(report["loop_cpu_ms_per_draw"] / full["cpu_ms_per_draw"], 1)
+    report["load_average"] = [round(x, 2) for x in os.getloadavg()]
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
