@@ -13,6 +13,7 @@ import numpy as np
 import robotcal
 from robotcal.capture import Capture
 from robotcal.identification.cpa import CPAResult, identify_cpa
+from robotcal.identification.plausibility import check_capture
 from robotcal.io.scenario import Scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_capture
@@ -28,6 +29,7 @@ __all__ = [
     "refine_scenario",
     "refine_provenance",
     "evaluate_scenario",
+    "validation_consistency",
 ]
 
 
@@ -77,9 +79,17 @@ def simulate_scenario(
     return SimulationRun(capture=capture, exact_points=exact, seed=seed, true_parameters=true_parameters)
 
 
-def scenario_monte_carlo(scenario: Scenario, *, true_parameters: ParameterSet | None = None, instrument=None):
+def scenario_monte_carlo(
+    scenario: Scenario,
+    *,
+    true_parameters: ParameterSet | None = None,
+    instrument=None,
+    model: str = "cpa",
+    criterion: str = "points",
+):
     """The Monte Carlo problem of a scenario: its robot, plan, instrument (or ``instrument``), base frame,
-    joint errors, limits policy and CPA options (``prepare_monte_carlo``; every input check happens here)."""
+    joint errors, limits policy and CPA options (``prepare_monte_carlo``; every input check happens here).
+    ``model="refined"`` refines every draw after CPA with ``criterion`` (the deployed model)."""
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo
 
     return prepare_monte_carlo(
@@ -91,11 +101,23 @@ def scenario_monte_carlo(scenario: Scenario, *, true_parameters: ParameterSet | 
         true_parameters=true_parameters,
         joint_errors=scenario.joint_errors,
         joint_limits=scenario.joint_limits,
+        model=model,
+        criterion=criterion,
     )
 
 
-def identify_scenario(capture: Capture, scenario: Scenario) -> CPAResult:
-    """CPA of ``capture`` with the scenario's robot, reflector, base frame and options."""
+def identify_scenario(capture: Capture, scenario: Scenario, *, check: bool = True) -> CPAResult:
+    """CPA of ``capture`` with the scenario's robot, reflector, base frame and options.
+
+    With ``check`` (default) the capture first passes the plausibility checks of
+    :func:`robotcal.identification.plausibility.check_capture` (units, readings in radians, radii,
+    duplicated rows, outliers against the instrument's U): an :class:`InputError` where the result
+    would certainly be wrong, a ``PlausibilityWarning`` where it may be.
+    """
+    if check:
+        check_capture(
+            capture, scenario.robot, scenario.plan.reflector, scenario.instrument, options=scenario.identification
+        )
     return identify_cpa(
         capture,
         scenario.robot,
@@ -240,8 +262,10 @@ def simulate_validation(
 def refine_scenario(capture: Capture, scenario: Scenario, start: ParameterSet, *, criterion: str = "points", **options):
     """Refine ``start`` on ``capture`` with the scenario's robot and target (thesis ch. 4.5.7).
 
-    The points criterion starts from the scenario's ``tracker_from_base`` when
-    ``[identification].base_frame = "given"``, else from a Horn registration. ``options`` go to
+    Points criterion: with ``[identification].base_frame = "given"`` the scenario's
+    ``tracker_from_base`` is **held** (as CPA holds it), unless ``estimate_base=True`` is passed
+    (then it is the start of the estimate); with ``"registered"`` the base frame is estimated from a
+    Horn registration start. ``options`` go to
     :func:`robotcal.identification.refine.refine_parameters`.
     """
     from robotcal.identification.refine import refine_parameters
@@ -283,8 +307,12 @@ def refine_provenance(result, capture: Capture, scenario: Scenario, start_source
         "residuals": result.n_residuals,
         "scenario": {"name": scenario.name, "source": scenario.source},
         "free": list(result.free_names),
+        "base_frame": None
+        if result.tracker_from_base is None
+        else ("estimated" if bool(np.any(result.base_free)) else "held"),
         "gauge": list(result.gauge),
         "held": list(result.held),
+        "confounded": list(result.confounded),
         "still_joints": list(result.still_joints),
         "success": result.success,
         "message": result.message,
@@ -322,12 +350,96 @@ def evaluate_scenario(scenario: Scenario, captures: dict, parameter_sets: dict):
     return evaluate_parameters(captures, parameter_sets, reflectors)
 
 
+def validation_consistency(
+    scenario: Scenario, validation: Capture, estimate: ParameterSet, draws: np.ndarray, *, model: str
+) -> dict:
+    """Does the stated uncertainty explain the error observed at the validation points?
+
+    The check a metrologist asks for: at every validation pose the Monte Carlo draws of ``model``
+    give the covariance of the predicted target position, so the RMS position uncertainty predicted
+    by the calibration is ``sqrt(mean_p tr V_p)``; the instrument adds ``3 sigma_p^2`` per point
+    (sigma from its U(L), uniform: U/sqrt(3), normal: U/k). If the model explains the data, the RMS of
+    the observed errors ``|T p(estimate) - m|`` is close to ``sqrt(mean_p (tr V_p + 3 sigma_p^2))``;
+    a larger observed RMS points to what the model does not hold (joint errors such as backlash,
+    eccentricity, or a wrong instrument level).
+
+    The base frame is the scenario's ``tracker_from_base`` when ``[identification] base_frame = "given"``,
+    else a Horn registration of the predictions on the measurements (which absorbs part of the error).
+
+    Parameters
+    ----------
+    validation : Capture
+        Free poses (circle = 0) measured with the validation flange target [mm].
+    estimate : ParameterSet
+        The deployed parameters [mm, rad].
+    draws : ndarray, shape (n_draws, n_joints, 5)
+        Monte Carlo draws of the same model [mm, rad].
+    model : str
+        Name of the model, recorded.
+
+    Returns
+    -------
+    dict
+        JSON-ready figures in mm (``predicted_rms_mm``, ``instrument_rms_mm``, ``expected_rms_mm``,
+        ``observed_rms_mm``, ``ratio``), the base-frame mode and the counts.
+    """
+    from robotcal.geometry.registration import register_points
+    from robotcal.kinematics.forward import target_positions
+    from robotcal.uncertainty.tcp import tcp_coordinates
+
+    robot = scenario.robot
+    reflector = validation_reflector(scenario)
+    q = robot.model_joint_variables(validation.readings)
+    measured = np.asarray(validation.points, dtype=float)
+    turning = np.zeros(validation.n_points, dtype=int)
+    predicted = target_positions(estimate.values, q, turning, reflector)
+    if scenario.identification.base_frame == "given":
+        tracker_from_base, base = np.asarray(scenario.tracker_from_base), "given"
+    else:
+        tracker_from_base, base = register_points(predicted, measured).transform, "registered"
+    in_tracker = predicted @ tracker_from_base[:3, :3].T + tracker_from_base[:3, 3]
+    observed = np.linalg.norm(in_tracker - measured, axis=1)
+    chunk = max(1, 2_000_000 // max(validation.n_points, 1))
+    mean = np.zeros((validation.n_points, 3))
+    second = np.zeros((validation.n_points, 3))
+    for start in range(0, draws.shape[0], chunk):
+        positions = tcp_coordinates(draws[start : start + chunk], q, tool=reflector.positions[0])[..., :3]
+        offset = positions - predicted  # centred near the estimate: no cancellation in the sums
+        mean += offset.sum(axis=0)
+        second += (offset**2).sum(axis=0)
+    n = draws.shape[0]
+    mean /= n
+    traces = ((second - n * mean**2) / (n - 1)).sum(axis=1)
+    instrument = 3.0 * scenario.instrument.standard_uncertainty(measured) ** 2
+    predicted_rms = float(np.sqrt(np.mean(traces)))
+    instrument_rms = float(np.sqrt(np.mean(instrument)))
+    expected_rms = float(np.sqrt(np.mean(traces + instrument)))
+    observed_rms = float(np.sqrt(np.mean(observed**2)))
+    return {
+        "model": model,
+        "poses": int(validation.n_points),
+        "draws": int(n),
+        "base_frame": base,
+        "predicted_rms_mm": predicted_rms,
+        "instrument_rms_mm": instrument_rms,
+        "expected_rms_mm": expected_rms,
+        "observed_rms_mm": observed_rms,
+        "observed_mean_mm": float(observed.mean()),
+        "ratio": observed_rms / expected_rms if expected_rms > 0 else None,
+        "method": (
+            "predicted = sqrt(mean over poses of tr V_p), V_p the covariance of the validation target position "
+            "over the Monte Carlo draws; instrument = sqrt(mean of 3 sigma_p^2) from U(L); expected = "
+            "sqrt(predicted^2 + instrument^2); observed = RMS of |T p(estimate) - measured|"
+        ),
+    }
+
+
 # --- TCP targets of `robotcal run` (thesis ch. 5.3) ------------------------------------------------
 
 #: Robot whose readings are KUKA controller angles; the thesis's Table 5.8 pose and the built-in
 #: trajectories are given in its readings.
 KUKA_CONTROLLER_ROBOT = "kuka-kr5-sixx-r650-krc"
-#: Thesis Table 5.8 pose, KUKA controller readings A1..A6 [deg] (the text's "68" is a misprint: THESIS_NOTES).
+#: Thesis Table 5.8 pose, KUKA controller readings A1..A6 [deg] (the text's "68" is a misprint: docs/conventions.md).
 TABLE_5_8_READINGS_DEG = (60.0, 80.0, -45.0, 200.0, 125.0, 280.0)
 #: Built-in 75-pose trajectory of the TCP stage (docs/tcp.md), KUKA controller readings.
 DEFAULT_TRAJECTORY = "kr5-sweep-75"

@@ -12,6 +12,7 @@ Everything that can be checked is checked by :func:`prepare_run` before any comp
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import json
 import os
@@ -65,6 +66,7 @@ from robotcal.workflow import (
     simulate_scenario,
     simulate_validation,
     tcp_targets,
+    validation_consistency,
     validation_reflector,
     versions,
 )
@@ -80,12 +82,15 @@ OUTPUTS = {
     "refine": ("refine",),
     "evaluate": ("evaluation",),
     "joints": ("joints",),
-    "uncertainty": ("uncertainty",),
+    "uncertainty": ("uncertainty", "uncertainty-refined"),
     "tcp": ("tcp",),
     "report": ("report.html",),
 }
 #: Steps per stage for the progress display (the Monte Carlo counts draws instead).
 STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "report": 1}
+#: Refined-model Monte Carlo draws of a run unless ``--refined-draws`` says otherwise (at most the CPA
+#: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
+REFINED_DRAWS = 20_000
 #: Offsets of the seeds derived from ``--seed N``: every random part of the run gets its own.
 SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4}
 
@@ -100,6 +105,7 @@ class RunPlan:
     out: Path
     seeds: dict
     montecarlo: MonteCarloSettings
+    refined_montecarlo: MonteCarloSettings
     tcp: TCPTargets
     backlash: bool
     command: str
@@ -115,6 +121,7 @@ def prepare_run(
     draws: int | None = None,
     workspace: int | None = None,
     workers: int | None = None,
+    refined_draws: int | None = None,
     command: str = "robotcal run",
     force: bool = False,
 ) -> RunPlan:
@@ -171,6 +178,14 @@ def prepare_run(
         )
     except InputError as exc:
         raise InputError(f"{loaded.source}: Monte Carlo settings: {exc}") from None
+    if refined_draws is not None and refined_draws < 1:
+        raise InputError(f"--refined-draws must be a positive number of draws; got {refined_draws}")
+    try:
+        refined_settings = dataclasses.replace(
+            settings, iterations=min(iterations, REFINED_DRAWS) if refined_draws is None else refined_draws
+        )
+    except InputError as exc:
+        raise InputError(f"--refined-draws: {exc}") from None
     _check_tcp(loaded, targets, settings)
     _check_memory(loaded, targets, settings, table)
     return RunPlan(
@@ -178,6 +193,7 @@ def prepare_run(
         out=out,
         seeds=seeds,
         montecarlo=settings,
+        refined_montecarlo=refined_settings,
         tcp=targets,
         backlash=bool(loaded.plan.bidirectional),
         command=command,
@@ -462,25 +478,47 @@ def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
         return "backlash and eccentricity" if plan.backlash else "eccentricity (one sweep direction)"
 
     def uncertainty_stage():
-        total = plan.montecarlo.iterations
+        total = plan.montecarlo.iterations + plan.refined_montecarlo.iterations
 
-        def draws_done(done: int, expected: int | None) -> None:
-            report("uncertainty", done, expected or total, "draws")
+        def cpa_done(done: int, expected: int | None) -> None:
+            report("uncertainty", done, total, "draws")
 
+        def refined_done(done: int, expected: int | None) -> None:
+            report("uncertainty", plan.montecarlo.iterations + done, total, "draws")
+
+        # the thesis's Monte Carlo (ch. 5.2.3): capture -> CPA, around the CPA estimate
         result = compute_uncertainty(
-            scenario, plan.montecarlo, seed=seeds["montecarlo"], true_parameters=state["cpa"], progress=draws_done
+            scenario, plan.montecarlo, seed=seeds["montecarlo"], true_parameters=state["cpa"], progress=cpa_done
         )
         with atomic_directory(out / "uncertainty") as folder:
             write_uncertainty_folder(folder, result, scenario, save_draws=True)
         state["montecarlo"] = result
-        rate = result.n_draws / max(result.timings_s.get("draws", 0.0), 1e-9)
-        return f"{result.n_draws:,} draws, {rate:,.0f} draws/s"
+        # the deployed model: capture -> CPA -> refinement (points), around the refined estimate; the
+        # same seed, so both Monte Carlos see the same instrument noise draw for draw
+        refined = compute_uncertainty(
+            scenario,
+            plan.refined_montecarlo,
+            seed=seeds["montecarlo"],
+            true_parameters=state["refined"]["points"],
+            progress=refined_done,
+            model="refined",
+            criterion="points",
+        )
+        with atomic_directory(out / "uncertainty-refined") as folder:
+            write_uncertainty_folder(folder, refined, scenario, save_draws=True)
+        state["montecarlo_refined"] = refined
+        rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in (result, refined)]
+        return (
+            f"CPA {result.n_draws:,} draws ({rates[0]:,.0f}/s), refined {refined.n_draws:,} draws ({rates[1]:,.0f}/s)"
+        )
 
     def tcp_stage():
-        result = state["montecarlo"]
+        # the TCP uncertainty of the deployed (refined) model
+        result = state["montecarlo_refined"]
         targets = plan.tcp
         base = {
-            "draws_file": "uncertainty/draws.npz",
+            "model": "refined (CPA + points refinement), Monte Carlo",
+            "draws_file": "uncertainty-refined/draws.npz",
             "draws_seed": result.seed,
             "draws_in_file": result.n_draws,
             "versions": versions(),
@@ -512,13 +550,24 @@ def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
         if values.shape[0] < result.n_draws:
             provenance["draws_used"] = int(values.shape[0])
         parts.append(("workspace", tcp, ws, provenance))
+        consistency = validation_consistency(
+            scenario,
+            state["validation"],
+            state["refined"]["points"],
+            result.draws,
+            model="refined (CPA + points refinement)",
+        )
+        consistency["draws_file"] = "uncertainty-refined/draws.npz"
+        consistency["validation_file"] = "validation.csv"
         with atomic_directory(out / "tcp") as folder:
+            (folder / "consistency.json").write_text(json.dumps(consistency, indent=2) + "\n", encoding="utf-8")
             for mode, tcp, ws, provenance in parts:
                 if tcp is None:
                     continue
                 (folder / mode).mkdir()
                 write_tcp_folder(folder / mode, tcp, mode, workspace=ws, provenance=provenance)
         state["tcp"] = {mode: (tcp, ws) for mode, tcp, ws, _ in parts if tcp is not None}
+        state["consistency"] = consistency
         report("tcp", 3, None, "workspace")
         return ", ".join(mode for mode, tcp, _, _ in parts if tcp is not None)
 
@@ -599,7 +648,11 @@ def run_with_display(plan: RunPlan) -> dict:
     with Progress(*columns, console=console, transient=False) as display:
         tasks = {}
         for name in STAGES:
-            total = plan.montecarlo.iterations if name == "uncertainty" else STEPS[name]
+            total = (
+                plan.montecarlo.iterations + plan.refined_montecarlo.iterations
+                if name == "uncertainty"
+                else STEPS[name]
+            )
             unit = "draws" if name == "uncertainty" else "steps"
             tasks[name] = display.add_task(name, total=total, stage=name, unit=unit, detail="", start=False)
 
@@ -642,21 +695,31 @@ def _summary(data: dict) -> None:
             f"{headline['after_mean_mm']:.4f} mm (refined, points criterion)",
             highlight=False,
         )
-    mc = state.get("montecarlo")
-    if mc is not None:
+    for key, label in (("montecarlo_refined", "refined (deployed) model"), ("montecarlo", "CPA model")):
+        mc = state.get(key)
+        if mc is None:
+            continue
         lengths = mc.identified.copy()
         lengths[:, [1, 3, 4]] = False
         angles = mc.identified & ~lengths
         console.print(
-            f"how sure: largest standard uncertainty of the CPA parameters {mc.summary.std_uncertainty[lengths].max():.4f} mm "
+            f"how sure, {label}: largest standard uncertainty {mc.summary.std_uncertainty[lengths].max():.4f} mm "
             f"(lengths), {np.rad2deg(mc.summary.std_uncertainty[angles].max()):.4f} deg (angles); "
             f"{mc.n_draws:,} draws",
+            highlight=False,
+        )
+    check = state.get("consistency")
+    if check:
+        console.print(
+            f"consistency at the {check['poses']} validation poses: predicted RMS position uncertainty "
+            f"{check['predicted_rms_mm']:.4f} mm, with the instrument {check['expected_rms_mm']:.4f} mm; "
+            f"observed RMS error {check['observed_rms_mm']:.4f} mm",
             highlight=False,
         )
     tcp = state.get("tcp", {})
     if "pose" in tcp:
         console.print(
-            f"TCP position uncertainty at the pose: {tcp['pose'][0].position_uncertainty[0]:.4f} mm",
+            f"TCP position uncertainty at the pose (refined model): {tcp['pose'][0].position_uncertainty[0]:.4f} mm",
             highlight=False,
         )
     if "workspace" in tcp:
@@ -731,6 +794,14 @@ def run(
         int | None,
         typer.Option("--workers", min=1, help="Monte Carlo worker processes (default: CPU count, at most 4)."),
     ] = None,
+    refined_draws: Annotated[
+        int | None,
+        typer.Option(
+            "--refined-draws",
+            min=1,
+            help=f"Draws of the refined-model Monte Carlo (default: {REFINED_DRAWS:,}, at most --draws).",
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP) and write DIR/report.html."""
@@ -741,7 +812,17 @@ def run(
         draws=draws,
         workspace=workspace,
         workers=workers,
-        command=_command_line("run", scenario, out=out, seed=seed, draws=draws, workspace=workspace, workers=workers),
+        refined_draws=refined_draws,
+        command=_command_line(
+            "run",
+            scenario,
+            out=out,
+            seed=seed,
+            draws=draws,
+            workspace=workspace,
+            workers=workers,
+            refined_draws=refined_draws,
+        ),
         force=force,
     )
     run_and_print(plan)

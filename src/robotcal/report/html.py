@@ -63,6 +63,7 @@ _STAGES = (
     ("evaluate", "evaluation"),
     ("joints", "joints"),
     ("uncertainty", "uncertainty"),
+    ("uncertainty", "uncertainty-refined"),
     ("tcp", "tcp"),
 )
 
@@ -522,9 +523,9 @@ def _evaluation_means(run: _Run):
     return before, after, label
 
 
-def _largest_uncertainties(run: _Run) -> dict:
-    """Largest standard uncertainty among the identified lengths and angles of uncertainty/parameters.csv."""
-    table = run.csv("uncertainty/parameters.csv")
+def _largest_uncertainties(run: _Run, relative: str = "uncertainty/parameters.csv") -> dict:
+    """Largest standard uncertainty among the identified lengths and angles of a Monte Carlo's parameters.csv."""
+    table = run.csv(relative)
     found = {}
     if table is None:
         return found
@@ -556,6 +557,12 @@ def _ellipsoid_note(data) -> str:
         return ""
     share = f"{_fmt(coverage * 100, '.3g')} % " if coverage else ""
     return f"; largest semi-axis of the {share}ellipsoid {_length(max(_number(a) for a in axes))}"
+
+
+def _model_note(data) -> str:
+    """``"; refined model ..."``: the model whose draws a tcp.json was computed from, or ``""``."""
+    model = _lookup(data, "provenance.model") if isinstance(data, dict) else None
+    return f"; {_e(model)}" if isinstance(model, str) and model else ""
 
 
 def _card(question: str, label: str, value: str, detail: str = "") -> str:
@@ -650,7 +657,11 @@ def _summary(run: _Run) -> tuple[str, bool]:
                 f"circle J{worst + 1}; {len(rms)} circles fitted by CPA",
             )
         )
-    largest = _largest_uncertainties(run)
+    # the deployed model's uncertainty first (refined, uncertainty-refined/), CPA's beside it
+    refined_largest = _largest_uncertainties(run, "uncertainty-refined/parameters.csv")
+    cpa_largest = _largest_uncertainties(run)
+    largest = refined_largest or cpa_largest
+    model = "refined model (deployed)" if refined_largest else "CPA model"
     for unit, label in (
         ("mm", "largest standard uncertainty, lengths"),
         ("deg", "largest standard uncertainty, angles"),
@@ -658,7 +669,12 @@ def _summary(run: _Run) -> tuple[str, bool]:
         if unit in largest:
             name, u = largest[unit]
             shown = _length(u) if unit == "mm" else f"{_fmt(u, '.3g')}°"
-            cards.append(_card("How sure are we?", label, shown, f"{_e(name)}, Monte Carlo (GUM-S1)"))
+            detail = f"{_e(name)}, {model}, Monte Carlo (GUM-S1)"
+            if refined_largest and unit in cpa_largest:
+                cpa_name, cpa_u = cpa_largest[unit]
+                cpa_shown = _length(cpa_u) if unit == "mm" else f"{_fmt(cpa_u, '.3g')}°"
+                detail += f"; CPA alone: {cpa_shown} ({_e(cpa_name)})"
+            cards.append(_card("How sure are we?", label, shown, detail))
         else:
             cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
     pose = _pose_uncertainties(run, "tcp/pose/tcp.csv")
@@ -670,6 +686,7 @@ def _summary(run: _Run) -> tuple[str, bool]:
                 "TCP position uncertainty at the pose",
                 _length(u),
                 f"√(u_X² + u_Y² + u_Z²), pose {_e(name)}"
+                + _model_note(run.json("tcp/pose/tcp.json"))
                 + (f" (of {len(pose)})" if len(pose) > 1 else "")
                 + _ellipsoid_note(run.json("tcp/pose/tcp.json")),
             )
@@ -685,7 +702,8 @@ def _summary(run: _Run) -> tuple[str, bool]:
                 "Where can I trust it?",
                 "TCP position uncertainty over the workspace",
                 f"{_length(p50)} / {_length(p95)}",
-                f"median / 95th percentile of {len(values)} poses; worst {_length(values.max())}",
+                f"median / 95th percentile of {len(values)} poses; worst {_length(values.max())}"
+                + _model_note(run.json("tcp/workspace/tcp.json")),
             )
         )
     else:
@@ -700,7 +718,29 @@ def _summary(run: _Run) -> tuple[str, bool]:
                 "Where can I trust it?",
                 "TCP uncertainty along the trajectory",
                 f"≤ {_length(values.max())}",
-                f"largest of {len(values)} poses; smallest {_length(values.min())}",
+                f"largest of {len(values)} poses; smallest {_length(values.min())}"
+                + _model_note(run.json("tcp/trajectory/tcp.json")),
+            )
+        )
+    check = run.json("tcp/consistency.json")
+    expected, observed = (_number(_lookup(check or {}, key)) for key in ("expected_rms_mm", "observed_rms_mm"))
+    if expected is not None and observed is not None:
+        predicted = _number(_lookup(check, "predicted_rms_mm"))
+        instrument = _number(_lookup(check, "instrument_rms_mm"))
+        ratio = observed / expected if expected > 0 else float("nan")
+        verdict = (
+            "the stated uncertainty explains the error"
+            if ratio <= 1.5
+            else "the error exceeds what the parameter uncertainty and the instrument explain: the rest is what "
+            "the kinematic model does not hold (joint errors such as backlash and eccentricity, see Joints)"
+        )
+        cards.append(
+            _card(
+                "Does the uncertainty explain the error?",
+                "validation RMS error, expected → observed",
+                f"{_length(expected)} → {_length(observed)}",
+                f"expected = √(predicted² + instrument²) = √({_length(predicted)}² + {_length(instrument)}²) at "
+                f"{_e(_lookup(check, 'poses'))} validation poses ({_e(_lookup(check, 'model'))}); {verdict}",
             )
         )
 
@@ -937,7 +977,14 @@ def _stage_generic(run: _Run, folder: str, *, first_csv=(), first_png=(), csv_ti
 def _evaluation(run: _Run) -> tuple[str, bool]:
     if not run.exists("evaluation"):
         return _not_run("evaluation/"), False
-    return _stage_generic(run, "evaluation", first_csv=("evaluation.csv",), first_png=("convergence.png",)), True
+    note = _note(
+        "The points criterion (eq. 4-101) uses the known base frame and is the deployed result. The distances "
+        "criterion (eq. 4-102) is registration-free: it ignores the base frame and every absolute position, so "
+        "from the same capture it determines the parameters less precisely (on the demo capture its standard "
+        "uncertainties are about 3.5 times those of the points criterion) and can end worse than CPA on the "
+        "validation poses. Use it when the base frame is unknown."
+    )
+    return note + _stage_generic(run, "evaluation", first_csv=("evaluation.csv",), first_png=("convergence.png",)), True
 
 
 def _joints(run: _Run) -> tuple[str, bool]:
@@ -947,17 +994,35 @@ def _joints(run: _Run) -> tuple[str, bool]:
 
 
 def _montecarlo(run: _Run) -> tuple[str, bool]:
-    if not run.exists("uncertainty"):
+    if not run.exists("uncertainty") and not run.exists("uncertainty-refined"):
         return _not_run("uncertainty/"), False
-    data = run.json("uncertainty/parameters.json")
     parts = [
-        _facts_html(data, caption="<code>uncertainty/parameters.json</code>", skip=("figures", "versions", "scenario")),
-        _figures_html(run, "uncertainty", pattern="hist_*.png"),
-        _figures_html(run, "uncertainty", pattern="[!h]*.png"),
-        _csv_html(run, "uncertainty/parameters.csv", title="Parameter statistics of the Monte Carlo draws"),
+        _note(
+            "Two Monte Carlos of the same capture. The refined model is the one a user deploys: every draw runs "
+            "CPA and then the points-criterion refinement, simulated around the refined estimate; the TCP "
+            "figures use its draws. The CPA model is the thesis's (ch. 5.2.3): every draw runs CPA alone, "
+            "simulated around the CPA estimate. Both use the same seed, so they see the same instrument noise."
+        )
     ]
-    others = [r for r in run.files("uncertainty", "*.csv") if r != "uncertainty/parameters.csv"]
-    parts.extend(_csv_html(run, r) for r in others)
+    for folder, title in (
+        ("uncertainty-refined", "Refined model (deployed)"),
+        ("uncertainty", "CPA model (thesis ch. 5.2.3)"),
+    ):
+        parts.append(f"<h3>{_e(title)}: <code>{_e(folder)}/</code></h3>")
+        if not run.exists(folder):
+            parts.append(_not_run(folder + "/"))
+            continue
+        data = run.json(f"{folder}/parameters.json")
+        parts += [
+            _facts_html(
+                data, caption=f"<code>{folder}/parameters.json</code>", skip=("figures", "versions", "scenario")
+            ),
+            _figures_html(run, folder, pattern="hist_*.png"),
+            _figures_html(run, folder, pattern="[!h]*.png"),
+            _csv_html(run, f"{folder}/parameters.csv", title="Parameter statistics of the Monte Carlo draws"),
+        ]
+        others = [r for r in run.files(folder, "*.csv") if r != f"{folder}/parameters.csv"]
+        parts.extend(_csv_html(run, r) for r in others)
     return "".join(parts), True
 
 
