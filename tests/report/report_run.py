@@ -27,6 +27,11 @@ U_TCP_MM = 0.010
 WORKSPACE_U_MM = (0.005, 0.010, 0.020, 0.040, 0.080)
 #: Synthetic semi-axes of the 95 % TCP position ellipsoid at the pose [mm].
 ELLIPSOID_MM = (0.01, 0.03, 0.02)
+#: Synthetic standard uncertainties of the refined (deployed) model, uncertainty-refined/parameters.csv.
+U_REFINED_LENGTH_MM = 0.0021
+U_REFINED_ANGLE_DEG = 0.0007
+#: Synthetic validation consistency check (tcp/consistency.json) [mm]: 30 and 16 um give 34 um expected.
+CONSISTENCY_MM = {"predicted_rms_mm": 0.030, "instrument_rms_mm": 0.016, "observed_rms_mm": 0.091}
 
 
 def _write_csv(path: Path, header: list[str], rows: list[list]) -> None:
@@ -186,6 +191,34 @@ def make_run_folder(root: Path) -> Path:
         rows,
     )
     (uncertainty / "parameters.json").write_text(json.dumps({"seed": 11, "draws": 1000, "coverage": 0.95}))
+    header = ["name", "unit", "nominal", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max"]
+    refined_rows = []
+    for row in rows:
+        u = (U_REFINED_ANGLE_DEG if row[1] == "deg" else U_REFINED_LENGTH_MM) if row[-1] else 0.0
+        refined_rows.append(
+            [*row[:4], u, row[3] - 2 * u, row[3] + 2 * u, row[3] - 4 * u, row[3] + 4 * u, row[-1], "refined"]
+        )
+    _write_csv(root / "uncertainty-refined" / "parameters.csv", [*header, "identified", "model"], refined_rows)
+    (root / "uncertainty-refined" / "parameters.json").write_text(
+        json.dumps({"seed": 11, "draws": 500, "coverage": 0.95, "model": "refined", "criterion": "points"})
+    )
+    expected = float(np.hypot(CONSISTENCY_MM["predicted_rms_mm"], CONSISTENCY_MM["instrument_rms_mm"]))
+    (root / "tcp").mkdir(exist_ok=True)
+    (root / "tcp" / "consistency.json").write_text(
+        json.dumps(
+            {**CONSISTENCY_MM, "expected_rms_mm": expected, "poses": 100, "model": "refined (CPA + points refinement)"}
+        )
+    )
+    plan = root / "plan"
+    _write_csv(
+        plan / "plan_check.csv",
+        ["circle", "direction", "joint limit", "range", "acceptance", "line of sight", "ok"],
+        [[1, 1, 0, 0, 0, 0, 1], [5, 1, 1, 0, 0, 0, 0]],
+    )
+    (plan / "plan_check.json").write_text(json.dumps({"feasible": False, "points": 2, "failing": 1}))
+    _write_csv(
+        plan / "sensitivity" / "sensitivity.csv", ["case", "capture.sweep_deg.4", "name", "cpk"], [[1, 15, "J4.a", 0.1]]
+    )
     _figure(uncertainty / "hist_J1.d.png", "J1.d", "J1.d (mm)", "draws")
     _write_csv(root / "tcp" / "pose" / "tcp.csv", TCP_HEADER, _tcp_rows("table-5.8", U_TCP_MM))
     _figure(root / "tcp" / "pose" / "ellipsoid.png", "Ellipsoid", "X (mm)", "Y (mm)")

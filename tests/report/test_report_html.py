@@ -10,7 +10,16 @@ import shutil
 
 import numpy as np
 import pytest
-from report_run import ELLIPSOID_MM, U_ANGLE_DEG, U_LENGTH_MM, U_TCP_MM, WORKSPACE_U_MM
+from report_run import (
+    CONSISTENCY_MM,
+    ELLIPSOID_MM,
+    U_ANGLE_DEG,
+    U_LENGTH_MM,
+    U_REFINED_ANGLE_DEG,
+    U_REFINED_LENGTH_MM,
+    U_TCP_MM,
+    WORKSPACE_U_MM,
+)
 
 from robotcal.errors import InputError
 from robotcal.report.html import REPORT_NAME, _fmt, _label, _length, build_report, render_report
@@ -23,6 +32,7 @@ SECTION_IDS = [
     "montecarlo",
     "tcp",
     "workspace",
+    "planning",
     "view3d",
     "provenance",
 ]
@@ -77,8 +87,14 @@ def test_headline_numbers(run_folder):
     assert "nominal → points" in page
     # tcp/pose/tcp.json: largest semi-axis of the ellipsoid
     assert f"largest semi-axis of the 95 % ellipsoid {max(ELLIPSOID_MM) * 1e3:.3g} µm" in page
-    # largest identified standard uncertainties written by conftest
-    assert f"{U_LENGTH_MM * 1e3:.3g} µm" in page and f"{U_ANGLE_DEG:.3g}°" in page
+    # largest identified standard uncertainties: the deployed (refined) model's, CPA's beside them
+    assert f"{U_REFINED_LENGTH_MM * 1e3:.3g} µm" in page and f"{U_REFINED_ANGLE_DEG:.3g}°" in page
+    assert "refined model (deployed)" in page
+    assert f"CPA alone: {U_LENGTH_MM * 1e3:.3g} µm" in page and f"CPA alone: {U_ANGLE_DEG:.3g}°" in page
+    # consistency: expected = sqrt(30^2 + 16^2) = 34 um against the observed 91 um, with the verdict
+    expected = math.hypot(CONSISTENCY_MM["predicted_rms_mm"], CONSISTENCY_MM["instrument_rms_mm"]) * 1e3
+    assert f"{expected:.3g} µm → {CONSISTENCY_MM['observed_rms_mm'] * 1e3:.3g} µm" in page
+    assert "the kinematic model does not hold" in page
     # TCP at the pose: u_X = u_Y = u_Z = U_TCP_MM, so u_pos = sqrt(3) U_TCP_MM
     assert f"{math.sqrt(3) * U_TCP_MM * 1e3:.3g} µm" in page
     # workspace: u_pos = sqrt(3) u per pose; median of 5 values is the 3rd; the 95th percentile by
@@ -149,7 +165,7 @@ def test_rebuild_gives_the_same_page(run_folder):
 
 
 def test_missing_stages_give_notes_not_errors(run_folder):
-    for name in ("evaluation", "joints", "uncertainty", "tcp", "refine"):
+    for name in ("evaluation", "joints", "uncertainty", "uncertainty-refined", "tcp", "refine", "plan"):
         shutil.rmtree(run_folder / name)
     for name in ("run.json", "truth.json", "validation.csv"):
         (run_folder / name).unlink()
@@ -163,6 +179,7 @@ def test_missing_stages_give_notes_not_errors(run_folder):
         "montecarlo": False,
         "tcp": False,
         "workspace": False,
+        "planning": False,
         "view3d": True,
         "provenance": True,
     }

@@ -74,7 +74,7 @@ from robotcal.workflow import (
 __all__ = ["RunPlan", "STAGES", "prepare_run", "execute_run", "run", "run_with_display"]
 
 #: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
-STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "report")
+STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "report")
 #: What each stage writes under the run folder.
 OUTPUTS = {
     "simulate": ("truth.json", "capture.csv", "validation.csv"),
@@ -84,10 +84,15 @@ OUTPUTS = {
     "joints": ("joints",),
     "uncertainty": ("uncertainty", "uncertainty-refined"),
     "tcp": ("tcp",),
+    "plan": ("plan",),
     "report": ("report.html",),
 }
 #: Steps per stage for the progress display (the Monte Carlo counts draws instead).
-STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "report": 1}
+STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "plan": 2, "report": 1}
+#: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
+PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
+PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)
+PLAN_SENSITIVITY_DRAWS = 2_000
 #: Refined-model Monte Carlo draws of a run unless ``--refined-draws`` says otherwise (at most the CPA
 #: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
 REFINED_DRAWS = 20_000
@@ -571,6 +576,54 @@ def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
         report("tcp", 3, None, "workspace")
         return ", ".join(mode for mode, tcp, _, _ in parts if tcp is not None)
 
+    def plan_stage():
+        # the capture plan in the cell (thesis 4.5.2) and how its J4 sweep drives the uncertainty (5.2.4)
+        from robotcal.planning.cell import check_plan
+        from robotcal.planning.scenario import cell_from_scenario, scenario_document
+        from robotcal.planning.sensitivity import run_sensitivity, study_rows
+        from robotcal.report.planning import (
+            check_document,
+            plot_check,
+            plot_sensitivity,
+            write_check_files,
+            write_sensitivity_files,
+        )
+
+        cell, notes = cell_from_scenario(scenario)
+        check = check_plan(robot, scenario.plan, cell)
+        report("plan", 1, None, "cell check")
+        document, base_dir, name, source = scenario_document(scenario.source)
+        study = run_sensitivity(
+            document,
+            base_dir,
+            name,
+            source,
+            [(PLAN_SENSITIVITY_KEY, list(PLAN_SENSITIVITY_VALUES))],
+            seed=seeds["montecarlo"],
+            iterations=min(PLAN_SENSITIVITY_DRAWS, plan.montecarlo.iterations),
+        )
+        rows = study_rows(study)
+        with atomic_directory(out / "plan") as folder:
+            check_json = check_document(check, scenario=scenario.source, cell=cell, notes=notes)
+            write_check_files(folder, check, check_json)
+            plot_check(check, folder / "plan_check.png", acceptance_deg=check_json["cell"]["acceptance_deg"])
+            (folder / "sensitivity").mkdir()
+            summary = {
+                "scenario": scenario.source,
+                "keys": list(study.keys),
+                "seed": seeds["montecarlo"],
+                "length_limit_mm": study.length_limit_mm,
+                "angle_limit_deg": study.angle_limit_deg,
+                "cases": [dict(case.values, draws=case.n_draws) for case in study.cases],
+                "model": "CPA (thesis ch. 5.2.4)",
+            }
+            write_sensitivity_files(folder / "sensitivity", rows, summary)
+            plot_sensitivity(rows, study.keys, folder / "sensitivity")
+        bad = int((~check.ok).sum())
+        state["plan_notes"] = notes
+        verdict = "feasible in the cell" if bad == 0 else f"{bad} of {check.ok.size} points fail a cell check"
+        return f"{verdict}; sensitivity to the J4 sweep, {len(study.cases)} cases"
+
     def report_stage():
         from robotcal.report.html import build_report
 
@@ -586,6 +639,7 @@ def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
         "joints": joints_stage,
         "uncertainty": uncertainty_stage,
         "tcp": tcp_stage,
+        "plan": plan_stage,
         "report": report_stage,
     }
     for name in STAGES:

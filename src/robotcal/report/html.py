@@ -65,6 +65,7 @@ _STAGES = (
     ("uncertainty", "uncertainty"),
     ("uncertainty", "uncertainty-refined"),
     ("tcp", "tcp"),
+    ("plan", "plan"),
 )
 
 #: Captions of the figures the stages are known to write (others get one from the file name, or from
@@ -1045,6 +1046,31 @@ def _workspace(run: _Run) -> tuple[str, bool]:
     return _stage_generic(run, "tcp/workspace", first_csv=("tcp.csv",)), True
 
 
+def _planning(run: _Run) -> tuple[str, bool]:
+    if not run.exists("plan"):
+        return _not_run("plan/"), False
+    parts = [
+        "<h3>The capture plan in the cell (thesis 4.5.2)</h3>",
+        _note(
+            "Every capture point checked against the joint limits of the robot file, the instrument's range, "
+            "the reflector's acceptance angle and the line of sight from the tracker, past the robot's links "
+            "modelled as capsules (docs/planning.md). A synthetic plan may fail these checks and still be a "
+            "valid study; a plan for a real cell must pass them."
+        ),
+        _stage_generic(run, "plan", first_csv=("plan_check.csv",), first_png=("plan_check.png",)),
+        "<h3>Sensitivity to the angle joint 4 covers (thesis 5.2.4, Fig. 5.15)</h3>",
+        _note(
+            "One CPA Monte Carlo per J4 sweep, all with the same seed; Cpk is eq. 5-5 with the limits in "
+            "<code>plan/sensitivity/</code>'s JSON. The thesis plan turns J4's 20 mm target through 50 deg."
+        ),
+    ]
+    if run.exists("plan/sensitivity"):
+        parts.append(_stage_generic(run, "plan/sensitivity"))
+    else:
+        parts.append(_not_run("plan/sensitivity/"))
+    return "".join(parts), True
+
+
 def _view3d(run: _Run) -> tuple[str, bool]:
     if not run.exists("capture.csv"):
         return _not_run("capture.csv"), False
@@ -1139,6 +1165,7 @@ _SECTIONS = (
     ("montecarlo", "Monte Carlo uncertainty", _montecarlo),
     ("tcp", "TCP uncertainty", _tcp),
     ("workspace", "Workspace map", _workspace),
+    ("planning", "Capture planning", _planning),
     ("view3d", "3-D view of the capture", _view3d),
     ("provenance", "Provenance", _provenance),
 )
