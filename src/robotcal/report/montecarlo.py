@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from robotcal.report.figures import new_figure, save_figure
 from robotcal.uncertainty.montecarlo import MonteCarloResult
@@ -36,14 +37,26 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             continue
         n_cols = min(3, columns.size)
         n_rows = math.ceil(columns.size / n_cols)
-        figure, axes = new_figure(n_rows, n_cols, width_in=3.3 * n_cols, height_in=2.6 * n_rows + 0.4, squeeze=False)
+        width, height = 3.3 * n_cols, 2.6 * n_rows + 0.4
+        # fixed margins [in] instead of constrained layout, which costs about half the drawing time
+        figure, axes = new_figure(n_rows, n_cols, width_in=width, height_in=height, squeeze=False, layout=None)
+        figure.subplots_adjust(
+            left=0.62 / width,
+            right=1.0 - 0.3 / width,
+            bottom=0.95 / height,
+            top=1.0 - 0.3 / height,
+            wspace=0.7 / (3.3 - 0.7),
+            hspace=0.75 / (2.6 - 0.75),
+        )
         for panel, column in enumerate(columns):
             axis = axes[panel // n_cols][panel % n_cols]
             is_angle = kinds[column] in ("theta", "alpha", "beta")
             scale = 180.0 / math.pi if is_angle else 1.0
             unit = "deg" if is_angle else "mm"
             values = result.draws[:, joint, column] * scale
-            axis.hist(values, bins=_bins(values.size), density=True, color="#8fb4d9", edgecolor="none")
+            # counts by numpy, drawn as one filled step artist (ax.hist makes a patch per bin: ~3x slower)
+            density, edges = np.histogram(values, bins=_bins(values.size), density=True)
+            axis.stairs(density, edges, fill=True, color="#8fb4d9", linewidth=0)
             mean = result.summary.mean[joint, column] * scale
             axis.axvline(mean, color="#1f4e79", lw=1.5, label="mean")
             axis.axvline(
@@ -67,11 +80,13 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             axis.set_xlabel(f"J{joint + 1}.{kinds[column]} [{unit}]")
             axis.set_ylabel(f"density [1/{unit}]")
             axis.ticklabel_format(axis="x", useOffset=False)
+            axis.xaxis.set_major_locator(MaxNLocator(4))  # fewer tick labels: quicker layout, no overlaps
+            axis.yaxis.set_major_locator(MaxNLocator(4))
             axis.tick_params(axis="x", labelrotation=20)
         for panel in range(columns.size, n_rows * n_cols):
             axes[panel // n_cols][panel % n_cols].axis("off")
         handles, labels = axes[0][0].get_legend_handles_labels()
         figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
-        figure.legend(handles, labels, loc="outside lower center", ncols=4, fontsize="small", frameon=False)
+        figure.legend(handles, labels, loc="lower center", ncols=4, fontsize="small", frameon=False)
         written.append(save_figure(figure, folder / f"hist_J{joint + 1}.png"))
     return written

@@ -70,7 +70,8 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
     low, high = result.summary.interval("symmetric")
     for k, ax in enumerate(axes.ravel()):
         f = _DEG[k]
-        ax.hist(draws[:, k], bins=bins, color="tab:blue", alpha=0.75)
+        counts, edges = np.histogram(draws[:, k], bins=bins)  # one step artist, not a patch per bin
+        ax.stairs(counts, edges, fill=True, color="tab:blue", alpha=0.75, linewidth=0)
         ax.axvline(result.nominal[pose, k] * f, color="black", linewidth=1.2, label="nominal")
         ax.axvline(result.summary.mean[pose, k] * f, color="tab:red", linewidth=1.2, label="mean")
         for bound in (low[pose, k], high[pose, k]):

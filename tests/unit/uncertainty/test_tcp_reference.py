@@ -1,0 +1,122 @@
+"""The vectorised TCP propagation against a plain composition of the reference routines.
+
+``propagate_to_tcp`` restructures the kinematics (column slabs, the first joint applied
+analytically, ``arctan`` instead of ``atan2``) and the statistics (one sort per chunk, draws laid
+out last). The truth here is the straightforward route it replaced: ``forward_kinematics`` (4x4
+frames, eq. 3-84) -> ``kuka_abc_from_matrix`` -> ``wrap_angle_near`` the nominal -> the GUM-S1
+summary of :func:`summarize_draws`, ``np.cov`` and :func:`coverage_ellipsoid`.
+
+Tolerances: every quantity is the same arithmetic up to summation order and ulp-level differences
+of ``arctan(y/x)`` vs ``atan2``; on coordinates of ~10^3 mm and 10^3 draws that is < 1e-12 mm or
+rad, and interval ends are order statistics (the same draw, so the same 1e-12). ``1e-10`` absolute
+(mm, rad) is the contract and leaves two decades of margin; covariances are compared with a
+relative 1e-9 (sums of products of centred values ~1e-2 mm).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robotcal.geometry.euler import kuka_abc_from_matrix, wrap_angle_near
+from robotcal.io import load_robot
+from robotcal.kinematics.forward import forward_kinematics
+from robotcal.uncertainty.statistics import summarize_draws
+from robotcal.uncertainty.tcp import coverage_ellipsoid, propagate_to_tcp
+from robotcal.uncertainty.workspace import workspace_uncertainty
+
+ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
+ATOL = 1e-10  # mm and rad
+FIELDS = ("mean", "std_uncertainty", "symmetric_low", "symmetric_high", "shortest_low", "shortest_high")
+
+
+def _draws(n_draws, seed=0):
+    rng = np.random.default_rng(seed)
+    free = ~ROBOT.structurally_fixed
+    scale = np.where(np.isin(np.arange(5), [1, 3, 4]), 2e-4, 0.05)
+    return ROBOT.nominal + rng.standard_normal((n_draws, 6, 5)) * scale * free
+
+
+def _readings(n_poses, seed=3):
+    rng = np.random.default_rng(seed)
+    readings = rng.uniform(ROBOT.limits[:, 0], ROBOT.limits[:, 1], size=(n_poses, 6)) * 0.9
+    readings[0] = np.deg2rad([41.0, -60.0, 100.0, 30.0, 40.0, 20.0])  # nominal A = -179.95 deg
+    return readings
+
+
+def _reference_coordinates(draws, readings, tool):
+    """``(n_draws, n_poses, 6)`` by 4x4 frames, the definition the fast path must reproduce."""
+    q = ROBOT.model_joint_variables(readings)
+    frames = forward_kinematics(draws, q)  # (M, P, 4, 4)
+    position = frames[..., :3, :3] @ tool + frames[..., :3, 3]
+    nominal_frames = forward_kinematics(ROBOT.nominal, q)
+    nominal_abc = kuka_abc_from_matrix(nominal_frames)
+    abc = wrap_angle_near(kuka_abc_from_matrix(frames), nominal_abc)
+    return np.concatenate([position, abc], axis=-1)
+
+
+@pytest.mark.parametrize(
+    ("coverage", "tool", "max_bytes", "batch_size"),
+    [
+        (0.95, None, 64 * 2**20, None),  # one chunk, default batches
+        (0.9, [10.0, -5.0, 80.0], 48 * 400 * 3, 70),  # 3 poses per chunk, ragged batches of draws
+        (0.3, [0.0, 0.0, 5.0], 48 * 400 * 4, 1000),  # q < M - q: intervals from the middle of the draws
+    ],
+)
+def test_propagation_equals_the_plain_composition(coverage, tool, max_bytes, batch_size):
+    draws, readings = _draws(400), _readings(8)
+    tool_mm = np.zeros(3) if tool is None else np.asarray(tool)
+    result = propagate_to_tcp(
+        ROBOT, draws, readings, tool=tool, coverage=coverage, max_bytes=max_bytes, batch_size=batch_size
+    )
+    coords = _reference_coordinates(draws, readings, tool_mm)
+    expected = summarize_draws(coords, coverage)
+    for name in (*FIELDS, "minimum", "maximum"):
+        np.testing.assert_allclose(getattr(result.summary, name), getattr(expected, name), rtol=0, atol=ATOL)
+    covariance = np.stack([np.cov(coords[:, p], rowvar=False) for p in range(coords.shape[1])])
+    np.testing.assert_allclose(result.covariance, covariance, rtol=1e-9, atol=1e-18)
+    ellipsoid = coverage_ellipsoid(coords[..., :3], coverage)
+    np.testing.assert_allclose(result.ellipsoid.semi_axes, ellipsoid.semi_axes, rtol=1e-9)
+    np.testing.assert_array_equal(result.ellipsoid.fraction_inside, ellipsoid.fraction_inside)
+    np.testing.assert_allclose(result.ellipsoid.monte_carlo_scale, ellipsoid.monte_carlo_scale, rtol=1e-9)
+    # at A = -179.95 deg some draws pass +180 deg: wrapped near the nominal, they are not split by 2 pi
+    assert np.rad2deg(result.summary.maximum[0, 3]) > -179.9 and np.rad2deg(result.summary.minimum[0, 3]) < -180.0
+    assert abs(result.summary.mean[0, 3] - result.nominal[0, 3]) < 1e-3
+
+
+def test_kept_draws_equal_the_plain_composition():
+    draws, readings = _draws(300, seed=4), _readings(2, seed=5)
+    result = propagate_to_tcp(ROBOT, draws, readings, keep_draws=True, batch_size=64)
+    np.testing.assert_allclose(result.draws, _reference_coordinates(draws, readings, np.zeros(3)), rtol=0, atol=ATOL)
+
+
+def test_gimbal_lock_draws_take_the_exact_branch():
+    """At B = -90 deg the fast arctan formulas are undefined; those draws use kuka_abc_from_matrix."""
+    nominal = ROBOT.nominal.copy()
+    draws = np.repeat(nominal[None], 50, axis=0)  # identical draws: every one exactly at the lock
+    q = np.zeros((1, 6))
+    frame = forward_kinematics(nominal, q)[0]
+    if abs(abs(frame[2, 0]) - 1.0) > 1e-12:
+        # find a wrist angle that puts the flange's x axis along the base Z axis (B = -+90 deg)
+        candidates = np.deg2rad(np.arange(-180.0, 180.0, 0.5))
+        grid = np.zeros((candidates.size, 6))
+        grid[:, 4] = candidates
+        r20 = forward_kinematics(nominal, grid)[:, 2, 0]
+        best = int(np.argmax(np.abs(r20)))
+        if abs(abs(r20[best]) - 1.0) > 1e-9:
+            pytest.skip("no exact gimbal-lock pose on the 0.5 deg grid for this robot")
+        q = grid[best : best + 1]
+    readings = (q - ROBOT.reading_offset) / ROBOT.reading_sign
+    result = propagate_to_tcp(ROBOT, draws, readings)
+    np.testing.assert_allclose(result.summary.mean[0, 3:], result.nominal[0, 3:], rtol=0, atol=ATOL)
+
+
+def test_workspace_equals_the_plain_composition():
+    draws = _draws(200, seed=6)
+    ws = workspace_uncertainty(ROBOT, draws, 40, rng=9, max_bytes=48 * 200 * 7)
+    coords = _reference_coordinates(draws, ws.tcp.readings, np.zeros(3))
+    expected = summarize_draws(coords, 0.95)
+    np.testing.assert_allclose(ws.tcp.summary.shortest_low, expected.shortest_low, rtol=0, atol=ATOL)
+    np.testing.assert_allclose(ws.tcp.std_uncertainty, expected.std_uncertainty, rtol=0, atol=ATOL)
+    u = np.sqrt(np.einsum("mpi,mpi->p", *(2 * [coords[..., :3] - coords[..., :3].mean(axis=0)])) / 199)
+    np.testing.assert_allclose(ws.position_uncertainty, u, rtol=1e-9)
