@@ -385,7 +385,7 @@ def validation_consistency(
     """
     from robotcal.geometry.registration import register_points
     from robotcal.kinematics.forward import target_positions
-    from robotcal.uncertainty.tcp import tcp_coordinates
+    from robotcal.uncertainty.tcp import propagate_to_tcp
 
     robot = scenario.robot
     reflector = validation_reflector(scenario)
@@ -399,17 +399,11 @@ def validation_consistency(
         tracker_from_base, base = register_points(predicted, measured).transform, "registered"
     in_tracker = predicted @ tracker_from_base[:3, :3].T + tracker_from_base[:3, 3]
     observed = np.linalg.norm(in_tracker - measured, axis=1)
-    chunk = max(1, 2_000_000 // max(validation.n_points, 1))
-    mean = np.zeros((validation.n_points, 3))
-    second = np.zeros((validation.n_points, 3))
-    for start in range(0, draws.shape[0], chunk):
-        positions = tcp_coordinates(draws[start : start + chunk], q, tool=reflector.positions[0])[..., :3]
-        offset = positions - predicted  # centred near the estimate: no cancellation in the sums
-        mean += offset.sum(axis=0)
-        second += (offset**2).sum(axis=0)
+    # the Monte Carlo covariance of the target position at every validation pose (the same propagation
+    # as the TCP stage, with the validation target as the tool)
+    spread = propagate_to_tcp(robot, draws, validation.readings, tool=reflector.positions[0])
+    traces = np.trace(spread.covariance[:, :3, :3], axis1=1, axis2=2)
     n = draws.shape[0]
-    mean /= n
-    traces = ((second - n * mean**2) / (n - 1)).sum(axis=1)
     instrument = 3.0 * scenario.instrument.standard_uncertainty(measured) ** 2
     predicted_rms = float(np.sqrt(np.mean(traces)))
     instrument_rms = float(np.sqrt(np.mean(instrument)))

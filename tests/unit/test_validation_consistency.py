@@ -1,0 +1,56 @@
+"""workflow.validation_consistency: predicted vs observed error at the validation poses (issue 11)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from robotcal.instruments import Instrument
+from robotcal.io import load_scenario
+from robotcal.kinematics.forward import target_positions
+from robotcal.simulation.perturb import perturb_parameters
+from robotcal.workflow import simulate_validation, validation_consistency, validation_reflector
+
+
+@pytest.fixture(scope="module")
+def case():
+    scenario = load_scenario("kr5-demo")
+    noise_free = dataclasses.replace(scenario, instrument=Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0))
+    truth = perturb_parameters(scenario.robot, length_sd_mm=0.2, angle_sd_deg=0.05, rng=4)
+    validation = simulate_validation(noise_free, seed=3, true_parameters=truth).capture
+    return scenario, noise_free, truth, validation
+
+
+def test_closed_form_for_a_base_rotation_spread(case):
+    _, noise_free, truth, validation = case
+    # draws that differ from the truth only by theta1 ~ N(0, s^2): to first order the validation target
+    # moves by r_p * dtheta, r_p its distance from the first joint axis (base z), so the predicted RMS
+    # position uncertainty is s * sqrt(mean r_p^2); the second-order term is (s r)^2 / 2 ~ 1e-8 mm here
+    s = 1e-5
+    rng = np.random.default_rng(0)
+    draws = np.repeat(truth.values[None], 4000, axis=0)
+    draws[:, 0, 1] += rng.normal(0.0, s, 4000)
+    result = validation_consistency(noise_free, validation, truth, draws, model="test")
+    q = noise_free.robot.model_joint_variables(validation.readings)
+    points = target_positions(truth.values, q, np.zeros(validation.n_points, int), validation_reflector(noise_free))
+    radius2 = points[:, 0] ** 2 + points[:, 1] ** 2
+    sample_s = draws[:, 0, 1].std(ddof=1)  # the draws' own spread, so the check is exact, not statistical
+    np.testing.assert_allclose(result["predicted_rms_mm"], sample_s * np.sqrt(radius2.mean()), rtol=1e-4)
+    # noise-free capture of the truth, evaluated at the truth, base frame given: no observed error, no
+    # instrument contribution
+    assert result["observed_rms_mm"] == pytest.approx(0.0, abs=1e-9)
+    assert result["instrument_rms_mm"] == 0.0
+    assert result["expected_rms_mm"] == pytest.approx(result["predicted_rms_mm"])
+    assert result["base_frame"] == "given" and result["poses"] == validation.n_points
+
+
+def test_instrument_term_is_the_uniform_noise_variance(case):
+    scenario, _, truth, validation = case
+    draws = np.repeat(truth.values[None], 100, axis=0)  # no parameter spread
+    result = validation_consistency(scenario, validation, truth, draws, model="test")
+    # uniform +-U per coordinate: variance U^2/3 per coordinate, 3 coordinates -> U^2 per point
+    bound = scenario.instrument.error_bound(np.asarray(validation.points))
+    assert result["predicted_rms_mm"] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(result["instrument_rms_mm"], np.sqrt(np.mean(bound**2)), rtol=1e-12)
