@@ -12,7 +12,7 @@ Prints, side by side in one run:
 - peak memory (max RSS of a fresh process, draws kept) at ``--draws``, and at 10^6 draws with
   ``--million`` (about a minute).
 
-Targets (issue 3, DESIGN.md): >= 30x the per-draw loop; 100,000 draws <= 3 s on 2 cores; linear cost;
+Targets (issue 3, docs/uncertainty.md): >= 30x the per-draw loop; 100,000 draws <= 3 s on 2 cores; linear cost;
 < 1 GB at 10^6 draws.
 """
 

@@ -4,7 +4,7 @@ Plain script: ``python benchmarks/bench_refine.py [--repeat N]`` prints, per cri
 the iterations (Jacobian evaluations), residual evaluations, wall time (best of N) and the mean
 validation error before/after. Synthetic data: a perturbed KR 5 sixx R650 (0.3 mm / 0.05 deg),
 laser-tracker noise (A = 10 um, B = 2.5 um/m, uniform), 100 random validation poses.
-Targets (DESIGN.md): < 50 Jacobian evaluations; points < 2 s, distances < 10 s on 2 cores.
+Targets (docs/refinement.md): < 50 Jacobian evaluations; points < 2 s, distances < 10 s on 2 cores.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ Prints, side by side in one run (scenario ``kr5-demo``: 270 points, points crite
 - the speed-up of the batched engine over the loop (same core count: 1 worker vs the loop) and the
   extrapolated loop time for ``--draws`` draws.
 
-Targets (issue 11, DESIGN.md): 100,000 draws <= 120 s on 2 cores; >= 20x the per-draw loop.
+Targets (issue 11, docs/uncertainty.md): 100,000 draws <= 120 s on 2 cores; >= 20x the per-draw loop.
 """
 
 from __future__ import annotations

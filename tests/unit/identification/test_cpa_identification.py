@@ -34,7 +34,7 @@ NOISE_FREE = Instrument(a_mm=0.0, b_mm_per_m=0.0)
 KUKA_SIGN = np.array(thesis_data.KUKA_SIGN)
 D, THETA, A, ALPHA, BETA = range(5)
 
-#: The 20 parameters CPA identifies on the KR5 (THESIS_NOTES): d1, d3..d5, theta1..5, a1..5, alpha1..5, beta2
+#: The 20 parameters CPA identifies on the KR5 (docs/conventions.md): d1, d3..d5, theta1..5, a1..5, alpha1..5, beta2
 IDENTIFIABLE = np.zeros((6, 5), dtype=bool)
 IDENTIFIABLE[[0, 2, 3, 4], D] = True
 IDENTIFIABLE[:5, [THETA, A, ALPHA]] = True
@@ -243,7 +243,7 @@ def test_round_trip_ignores_row_order():
 
 def test_registered_base_frame_identifies_all_but_d1_theta1():
     # the registration against the nominal model absorbs part of the robot's deviations into the base
-    # frame, so d1 and theta1 are off; the other 18 only depend on the axes (THESIS_NOTES "Base frame")
+    # frame, so d1 and theta1 are off; the other 18 only depend on the axes (docs/conventions.md, base frame)
     robot, truth, reflector, tracker_from_base, capture = _scenario(600)
     options = CPAOptions(base_frame="registered")
     result = identify_cpa(capture, robot, reflector, options=options)

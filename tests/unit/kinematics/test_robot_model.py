@@ -95,7 +95,7 @@ def test_reading_map_closed_form_and_round_trip():
 
 
 def test_thesis_tcp_reading_map():
-    # THESIS_NOTES: readings (60, 80, -45, 200, 125, 280) with signs (-,-,-,-,+,-) are model
+    # docs/conventions.md: readings (60, 80, -45, 200, 125, 280) with signs (-,-,-,-,+,-) are model
     # q = (-60, -80, 45, -200, 125, -280) deg
     robot = _robot(reading_sign=[-1, -1, -1, -1, 1, -1])
     q = robot.model_joint_variables(np.deg2rad([60.0, 80.0, -45.0, 200.0, 125.0, 280.0]))

@@ -12,7 +12,7 @@ from robotcal.io import load_robot
 from robotcal.planning.program import controller_readings, write_program
 from robotcal.planning.scenario import scenario_document, scenario_from_document, set_key
 
-#: KUKA counts A1-A4 and A6 opposite to the DH z axes (THESIS_NOTES, Table 5.8).
+#: KUKA counts A1-A4 and A6 opposite to the DH z axes (docs/conventions.md, Table 5.8).
 KUKA_SIGNS = np.array([-1.0, -1.0, -1.0, -1.0, 1.0, -1.0])
 
 

@@ -50,7 +50,7 @@ def test_table_5_1_readings():
     np.testing.assert_array_equal(direction, 1)
     # linspace vs start + k * step: rounding of angles up to 5 rad (~1e-15)
     np.testing.assert_allclose(readings, np.deg2rad(expected_deg), rtol=0, atol=1e-14)
-    # the last point is the final configuration q_F of Table 5.1 (THESIS_NOTES), endpoints inclusive
+    # the last point is the final configuration q_F of Table 5.1 (docs/conventions.md), endpoints inclusive
     np.testing.assert_allclose(np.rad2deg(readings[-1]), [60.0, 80.0, 100.0, 50.0, 200.0, 300.0], rtol=0, atol=1e-12)
     end = np.deg2rad(START_DEG + SWEEP_DEG)
     for i in range(6):

@@ -80,7 +80,7 @@ def test_perturbation_touches_only_identifiable_parameters():
     changed = truth.values != robot.nominal
     mask = perturbable_mask(robot)
     assert not np.any(changed & ~mask)
-    assert mask.sum() == 18  # 20 CPA-identifiable (THESIS_NOTES) less the base gauge d1, theta1
+    assert mask.sum() == 18  # 20 CPA-identifiable (docs/conventions.md) less the base gauge d1, theta1
     assert not mask[-1].any() and not mask[0, :2].any()
     assert perturbable_mask(robot, include_base=True).sum() == 20
     np.testing.assert_array_equal(

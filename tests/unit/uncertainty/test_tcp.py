@@ -35,7 +35,7 @@ TOOL = np.array([15.0, -20.0, 120.0])
 
 def _free(robot=ROBOT):
     free = ~robot.structurally_fixed
-    free[-1, :4] = False  # joint 6 is not identified by CPA (THESIS_NOTES)
+    free[-1, :4] = False  # joint 6 is not identified by CPA (docs/conventions.md)
     return free
 
 
