@@ -11,15 +11,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 
 __all__ = ["Capture"]
-
-
-def _frozen(array, dtype=float) -> np.ndarray:
-    array = np.array(array, dtype=dtype)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

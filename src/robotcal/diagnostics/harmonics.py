@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.diagnostics.joints import JointDiagnostics, local_frame
 from robotcal.errors import InputError
 
@@ -43,12 +44,6 @@ __all__ = [
 QUANTITIES = ("axial", "radial", "backlash_axial", "backlash_radial", "backlash_tangential")
 #: ``format`` key of the exported JSON document.
 HARMONICS_FORMAT = "robotcal-joint-harmonics/1"
-
-
-def _frozen(value) -> np.ndarray:
-    array = np.array(value, dtype=float)
-    array.setflags(write=False)
-    return array
 
 
 def _design(theta: np.ndarray, order: int) -> np.ndarray:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import forward_kinematics
 
@@ -39,12 +40,6 @@ __all__ = [
 #: Cycles of the standard's pose test.
 ISO_CYCLES = 30
 _FRACTION = 0.1  # P2..P5 at 10 % of the diagonal from the corners
-
-
-def _frozen(array) -> np.ndarray:
-    array = np.array(array, dtype=float)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

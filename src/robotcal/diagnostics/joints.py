@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.fits import fit_circle_3d
@@ -40,12 +41,6 @@ __all__ = [
 #: Largest difference between a forward and a return reading that still counts as the same
 #: commanded angle [rad] (1e-3 deg: controllers and CSV exports round readings to ~1e-4 deg).
 DEFAULT_MATCH_TOLERANCE = float(np.deg2rad(1e-3))
-
-
-def _frozen(value, dtype=float) -> np.ndarray:
-    array = np.array(value, dtype=dtype)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

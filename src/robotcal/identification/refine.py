@@ -110,6 +110,7 @@ from scipy import sparse
 from scipy.optimize import least_squares
 from scipy.spatial.distance import pdist
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.geometry.registration import register_points
@@ -144,12 +145,6 @@ _PAIR_CHUNK = 32768
 _STILL_RAD = 1e-9
 _SAMPLE_ROWS = 8192  # residuals sampled for the null space at the generic point
 _SUPPORT = 1e-8  # a null vector's entry (unit columns) above this ties a free quantity to a held one
-
-
-def _frozen(array, dtype=float):
-    array = np.array(array, dtype=dtype)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

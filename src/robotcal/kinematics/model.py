@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 
 __all__ = [
@@ -29,12 +30,6 @@ PARAMETER_KINDS = ("d", "theta", "a", "alpha", "beta")
 #: Kinds measured in mm (the others are angles).
 LENGTH_KINDS = ("d", "a")
 _D, _BETA = 0, 4
-
-
-def _frozen(array, dtype=float) -> np.ndarray:
-    array = np.array(array, dtype=dtype)
-    array.setflags(write=False)
-    return array
 
 
 def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np.ndarray:

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z
@@ -71,12 +72,6 @@ _K = (
 #: Pairs handled at once by the distances criterion (fixed, so that sums do not depend on the batch size;
 #: with ``REFINE_BATCH`` = 500 draws one chunk's arrays take ~12 MB each).
 _PAIR_CHUNK = 512
-
-
-def _frozen(array, dtype=float):
-    array = np.array(array, dtype=dtype)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
