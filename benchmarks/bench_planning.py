@@ -19,7 +19,7 @@ from robotcal.execution import open_executor
 from robotcal.io import load_scenario
 from robotcal.kinematics.model import ReflectorMount
 from robotcal.planning.cell import check_plan
-from robotcal.planning.optimise import PlanProblem, _score, workspace_readings
+from robotcal.planning.optimise import PlanProblem, _score
 from robotcal.planning.scenario import cell_from_scenario
 
 
@@ -45,15 +45,7 @@ def main() -> None:
     args = parser.parse_args()
     scenario = load_scenario("thesis-laser-tracker")
     cell, _ = cell_from_scenario(scenario, no_acceptance=True)
-    readings = workspace_readings(scenario.robot, 200, 0)
-    problem = PlanProblem(
-        robot=scenario.robot,
-        instrument=scenario.instrument,
-        tracker_from_base=scenario.tracker_from_base,
-        options=scenario.identification,
-        cell=cell,
-        workspace_q=scenario.robot.model_joint_variables(readings),
-    )
+    problem, _ = PlanProblem.from_scenario(scenario, cell, workspace_poses=200, seed=0)
     plans = _plans(scenario, args.plans)
     started = time.perf_counter()
     for plan in plans:

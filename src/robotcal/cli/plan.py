@@ -147,22 +147,15 @@ def optimise(
     from robotcal.io import load_scenario
     from robotcal.io.output import check_output_folder, existing_inputs
     from robotcal.planning.cell import check_plan
-    from robotcal.planning.optimise import PlanProblem, optimise_plan, workspace_readings
+    from robotcal.planning.optimise import PlanProblem, optimise_plan
     from robotcal.planning.scenario import cell_from_scenario, dump_toml, scenario_document
 
     loaded = load_scenario(scenario)
     inputs = existing_inputs(loaded.source)
     check_output_folder(out, inputs=inputs, force=force)
     cell, notes = cell_from_scenario(loaded, acceptance_deg=acceptance_deg, no_acceptance=no_acceptance, aim=aim)
-    readings = workspace_readings(loaded.robot, workspace_poses, seed)
-    problem = PlanProblem(
-        robot=loaded.robot,
-        instrument=loaded.instrument,
-        tracker_from_base=loaded.tracker_from_base,
-        options=loaded.identification,
-        cell=cell,
-        workspace_q=loaded.robot.model_joint_variables(readings),
-        objective=objective,
+    problem, readings = PlanProblem.from_scenario(
+        loaded, cell, workspace_poses=workspace_poses, seed=seed, objective=objective
     )
     result = optimise_plan(
         loaded.plan,

@@ -55,6 +55,22 @@ class PlanProblem:
     workspace_q: np.ndarray  # model joint variables (n_poses, n_joints) [rad]
     objective: str = "p95-tcp"
 
+    @classmethod
+    def from_scenario(cls, scenario, cell: CellModel, *, workspace_poses: int, seed: int, objective: str = "p95-tcp"):
+        """The problem of a scenario's robot, instrument, tracker and CPA options in ``cell``, scored over
+        ``workspace_poses`` seeded workspace poses; returns ``(problem, workspace readings [rad])``."""
+        readings = workspace_readings(scenario.robot, workspace_poses, seed)
+        problem = cls(
+            robot=scenario.robot,
+            instrument=scenario.instrument,
+            tracker_from_base=scenario.tracker_from_base,
+            options=scenario.identification,
+            cell=cell,
+            workspace_q=scenario.robot.model_joint_variables(readings),
+            objective=objective,
+        )
+        return problem, readings
+
 
 def workspace_readings(robot: RobotModel, n_poses: int, seed: int) -> np.ndarray:
     """Seeded workspace sample (readings uniform within the limits) [rad]."""

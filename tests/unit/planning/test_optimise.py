@@ -8,23 +8,14 @@ import pytest
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
 from robotcal.planning.cell import check_plan
-from robotcal.planning.optimise import PlanProblem, evaluate_plan, optimise_plan, reflector_on_link, workspace_readings
+from robotcal.planning.optimise import PlanProblem, evaluate_plan, optimise_plan, reflector_on_link
 from robotcal.planning.scenario import cell_from_scenario
 
 
 def _problem(objective="p95-tcp", poses=60):
     scenario = load_scenario("thesis-laser-tracker")
     cell, _ = cell_from_scenario(scenario, no_acceptance=True)
-    readings = workspace_readings(scenario.robot, poses, 0)
-    problem = PlanProblem(
-        robot=scenario.robot,
-        instrument=scenario.instrument,
-        tracker_from_base=scenario.tracker_from_base,
-        options=scenario.identification,
-        cell=cell,
-        workspace_q=scenario.robot.model_joint_variables(readings),
-        objective=objective,
-    )
+    problem, readings = PlanProblem.from_scenario(scenario, cell, workspace_poses=poses, seed=0, objective=objective)
     return scenario, problem, readings
 
 
