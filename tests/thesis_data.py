@@ -35,6 +35,10 @@ KUKA_SIGN = [-1, -1, -1, -1, 1, -1]
 TABLE_5_1_START_DEG = np.array([15.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 TABLE_5_1_SWEEP_DEG = np.array([45.0, 80.0, 100.0, 50.0, 200.0, 300.0])
 TABLE_5_1_POINTS = np.array([15, 20, 30, 15, 25, 30])
+#: Thesis Table 5.1 targets, one per circle, in DH frame {i-1} turned by joint i (eq. 5-1) [mm].
+TABLE_5_1_REFLECTORS_MM = np.array(
+    [[100.0, 0.0, 0.0], [200.0, 0.0, 0.0], [0.0, 50.0, 0.0], [20.0, 0.0, 0.0], [0.0, 80.0, 0.0], [0.0, 60.0, 0.0]]
+)
 
 #: Thesis Table 4.2: row i is the configuration where circle i starts [deg].
 TABLE_4_2_DEG = np.array(

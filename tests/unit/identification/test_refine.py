@@ -21,6 +21,7 @@ from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses, simulate_poses, thesis_test2_plan
 from robotcal.workflow import refine_provenance
+from thesis_data import TABLE_5_1_REFLECTORS_MM
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
 EXACT = Instrument(name="exact", a_mm=0.0, b_mm_per_m=0.0)
@@ -36,14 +37,7 @@ JOINT_PLAN = CapturePlan(
     points=np.array([10, 10, 12, 10, 10, 12]),
     reflector=ReflectorMount(
         frame="joint",
-        positions=[
-            [100.0, 0.0, 0.0],
-            [200.0, 0.0, 0.0],
-            [0.0, 50.0, 0.0],
-            [20.0, 0.0, 0.0],
-            [0.0, 80.0, 0.0],
-            [0.0, 60.0, 0.0],
-        ],
+        positions=TABLE_5_1_REFLECTORS_MM,
     ),
     bidirectional=False,
 )

@@ -27,20 +27,14 @@ from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturbable_mask
 from robotcal.workflow import identify_scenario, refine_provenance, refine_scenario, simulate_scenario
+from thesis_data import TABLE_5_1_REFLECTORS_MM
 
 ROBOT = load_robot("kuka-kr5-sixx-r650")
 EXACT = Instrument(name="exact", a_mm=0.0, b_mm_per_m=0.0)
 TRACKER = np.array([[0.0, 1.0, 0.0, 1800.0], [-1.0, 0.0, 0.0, 5.0], [0.0, 0.0, 1.0, 600.0], [0.0, 0.0, 0.0, 1.0]])
 JOINT = ReflectorMount(
     frame="joint",
-    positions=[
-        [100.0, 0.0, 0.0],
-        [200.0, 0.0, 0.0],
-        [0.0, 50.0, 0.0],
-        [20.0, 0.0, 0.0],
-        [0.0, 80.0, 0.0],
-        [0.0, 60.0, 0.0],
-    ],
+    positions=TABLE_5_1_REFLECTORS_MM,
 )
 FLANGE = ReflectorMount(frame="flange", positions=[60.0, 40.0, 30.0])
 # noise-free: the solver stops at ~1e-12 (mm, rad); 1e-9 mm / 1e-9 deg is the bound
