@@ -15,7 +15,7 @@ Lengths in mm, angles in radians in every array here; the I/O layer writes degre
 Memory stays bounded for any number of draws and poses: poses are handled in chunks whose six
 coordinates for every draw fit in ``max_bytes``, and within a chunk the draws go through the
 kinematics ``batch_size`` at a time. Only the 6 coordinates per draw and pose of one chunk are held
-(plus ``B_i^T``, 16 numbers per joint and draw), never the 4x4 frames of all draws and poses.
+(and the link transforms ``B_i`` of one batch), never the 4x4 frames of all draws and poses.
 
 Speed (``benchmarks/bench_tcp.py``): the chunk holds the draws *last*, ``(poses, 6, draws)``, so one
 vectorised sort per chunk gives every order statistic of both coverage intervals and the min/max
@@ -255,10 +255,10 @@ def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos_b = np.sqrt(r00 * r00 + r10 * r10)
         np.arctan(r10 / r00, out=out[0])
-        out[0] += np.where(r00 < 0.0, np.pi, 0.0)
+        out[0] += np.where(np.signbit(r00), np.pi, 0.0)  # signbit: -0.0 too
         np.arctan(-r20 / cos_b, out=out[1])
         np.arctan(r21 / r22, out=out[2])
-        out[2] += np.where(r22 < 0.0, np.pi, 0.0)
+        out[2] += np.where(np.signbit(r22), np.pi, 0.0)
     locked = cos_b < GIMBAL_TOLERANCE
     if np.any(locked):
         rotation = np.moveaxis(block[:, :3], (1, 2), (-1, -2))  # (m, P, 3, 3) with [.., r, c]
@@ -713,11 +713,6 @@ def propagate_to_tcp(
         batch_size = max(1, _BLOCK_FRAMES // pose_chunk)
     batch_size = int(batch_size)
 
-    # B_i^T of every draw, once for all pose chunks: 16 n_joints floats per draw
-    links_t = np.empty((n_draws, draws.shape[1], 4, 4))
-    for first in range(0, n_draws, _BLOCK_FRAMES):
-        rows = slice(first, first + _BLOCK_FRAMES)
-        links_t[rows] = np.swapaxes(_pose_independent_links(draws[rows]), -1, -2)
     summaries, ellipsoids, covariances = [], [], []
     kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
     for start in range(0, n_poses, pose_chunk):
@@ -727,7 +722,9 @@ def propagate_to_tcp(
 
         def fill(first: int, poses=poses, coords=coords) -> None:
             rows = slice(first, min(first + batch_size, n_draws))
-            block = _chain_columns(links_t[rows], cos_q[poses], sin_q[poses])
+            # B_i^T of this batch only, so that memory stays bounded by the batch and the pose chunk
+            links_t = np.swapaxes(_pose_independent_links(draws[rows]), -1, -2)
+            block = _chain_columns(links_t, cos_q[poses], sin_q[poses])
             local = block[:, 3] + np.einsum("mkrp,k->mrp", block[:, :3], tool)  # (m, 3, P), before Rz(q_1)
             c1, s1 = cos_q[poses, 0], sin_q[poses, 0]
             target = coords[:, :, rows]  # a view: the draws of this batch

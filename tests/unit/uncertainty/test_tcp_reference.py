@@ -120,3 +120,15 @@ def test_workspace_equals_the_plain_composition():
     np.testing.assert_allclose(ws.tcp.std_uncertainty, expected.std_uncertainty, rtol=0, atol=ATOL)
     u = np.sqrt(np.einsum("mpi,mpi->p", *(2 * [coords[..., :3] - coords[..., :3].mean(axis=0)])) / 199)
     np.testing.assert_allclose(ws.position_uncertainty, u, rtol=1e-9)
+
+
+def test_abc_fast_path_keeps_the_quadrant_of_a_negative_zero():
+    # atan2(1, -0.0) = +90 deg: arctan(y / x) + pi * (x < 0) gave -90 deg for x = -0.0 (review finding)
+    from robotcal.geometry.euler import kuka_abc_from_matrix
+    from robotcal.uncertainty.tcp import _abc_near
+
+    rotation = np.array([[-0.0, -1.0, 0.0], [1.0, -0.0, 0.0], [0.0, 0.0, 1.0]])  # Rz(90 deg), r00 = -0.0
+    block = np.zeros((1, 4, 3, 1))
+    block[0, :3, :, 0] = rotation.T  # column k of R in block[:, k]
+    fast = _abc_near(block, np.zeros(1), np.zeros((1, 3)))[:, 0, 0]
+    np.testing.assert_allclose(fast, kuka_abc_from_matrix(rotation), atol=1e-15)
