@@ -26,11 +26,35 @@ from robotcal.io.output import (
     is_robotcal_folder,
     output_lock,
     result_folder,
+    write_marker,
 )
 from robotcal.kinematics.model import ParameterSet
 from robotcal.workflow import simulate_scenario
 
 runner = CliRunner()
+
+
+def test_a_user_file_added_to_a_robotcal_folder_is_never_replaced_without_force(tmp_path):
+    # review finding: a marked folder used to be replaced whole, whatever else the user had put in it
+    out = tmp_path / "res"
+    with result_folder(out, command="test") as folder:
+        (folder / "a.txt").write_text("1")
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match=r"files robotcal did not write \(notes.txt\)"):
+        check_output_folder(out)
+    result = runner.invoke(app, ["uncertainty", "thesis-laser-tracker", "-n", "200", "--out", str(out)])
+    assert result.exit_code == 2 and (out / "notes.txt").read_text() == "mine"
+    check_output_folder(out, force=True)  # consent
+    check_output_folder(out, keeps_other_files=True)  # run replaces only its own entries
+
+
+def test_a_run_folder_marker_lists_only_the_runs_entries(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    write_marker(out, command="robotcal run", files=["run.json", "capture.csv"])  # as `run` marks its folder
+    with pytest.raises(InputError, match="notes.txt"):
+        check_output_folder(out)
 
 
 def test_a_robotcal_folder_is_replaced_atomically_and_a_user_folder_only_with_force(tmp_path):

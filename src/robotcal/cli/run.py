@@ -138,10 +138,10 @@ def prepare_run(
     """
     inputs = existing_inputs(scenario)
     out = Path(out)
-    check_output_folder(out, inputs=inputs, force=force)
+    check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
     loaded = load_scenario(scenario)
     inputs += existing_inputs(loaded.source)
-    check_output_folder(out, inputs=inputs, force=force)
+    check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
     robot = loaded.robot
     validation_reflector(loaded)  # a validation capture needs a flange target
     table = loaded.validation or {"margin_deg": 5.0}
@@ -345,7 +345,7 @@ def execute_run(plan: RunPlan, *, progress: StageProgress | None = None) -> dict
     """
     with output_lock(plan.out):
         # checked again under the lock: another process may have written the folder since prepare_run
-        check_output_folder(plan.out, inputs=plan.inputs, force=plan.force)
+        check_output_folder(plan.out, inputs=plan.inputs, force=plan.force, keeps_other_files=True)
         return _execute_locked(plan, progress)
 
 
@@ -358,7 +358,7 @@ def _execute_locked(plan: RunPlan, progress: StageProgress | None) -> dict:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out {out}: cannot create the folder: {exc.strerror or exc}") from None
-    write_marker(out, command=plan.command)
+    write_marker(out, command=plan.command, files=["run.json", *(name for names in OUTPUTS.values() for name in names)])
     _clear_previous(out)
     record = _Record(plan)
     record.write()

@@ -41,6 +41,7 @@ __all__ = [
     "check_output_folder",
     "check_output_file",
     "existing_inputs",
+    "foreign_entries",
     "is_robotcal_folder",
     "is_robotcal_file",
     "output_lock",
@@ -113,16 +114,33 @@ def _check_location(path: Path, option: str) -> Path:
     return resolved
 
 
-def is_robotcal_folder(path) -> bool:
-    """Whether ``path`` is a folder carrying robotcal's marker file :data:`MARKER`."""
+def _marker(path) -> dict | None:
+    """The marker document of the folder ``path``, or None when it has no valid one."""
     marker = Path(path) / MARKER
     if not marker.is_file() or marker.is_symlink():
-        return False
+        return None
     try:
         data = json.loads(marker.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return False
-    return isinstance(data, dict) and data.get("written_by") == "robotcal"
+    except (OSError, ValueError, RecursionError):
+        return None
+    return data if isinstance(data, dict) and data.get("written_by") == "robotcal" else None
+
+
+def is_robotcal_folder(path) -> bool:
+    """Whether ``path`` is a folder carrying robotcal's marker file :data:`MARKER`."""
+    return _marker(path) is not None
+
+
+def foreign_entries(path) -> list[str]:
+    """Entries of the robotcal folder ``path`` that robotcal did not write: not in its marker's ``files``.
+
+    A marker without a ``files`` list (written before the list existed) vouches for the whole folder.
+    """
+    data = _marker(path)
+    if data is None or not isinstance(data.get("files"), list):
+        return []
+    written = {str(name) for name in data["files"]} | {MARKER}
+    return sorted(entry.name for entry in Path(path).iterdir() if entry.name not in written)
 
 
 def is_robotcal_file(path) -> bool:
@@ -168,12 +186,15 @@ def is_robotcal_file(path) -> bool:
     return False
 
 
-def check_output_folder(out, *, inputs: Iterable = (), force: bool = False, option: str = "--out") -> Path:
+def check_output_folder(
+    out, *, inputs: Iterable = (), force: bool = False, option: str = "--out", keeps_other_files: bool = False
+) -> Path:
     """Check that the result folder ``out`` may be (re)written; returns its resolved path.
 
     Raises :class:`InputError` when ``out`` is a forbidden location, a file, an input of the command or
-    a folder containing one (never allowed), or an existing non-empty folder without robotcal's
-    marker (allowed with ``force``).
+    a folder containing one (never allowed), an existing non-empty folder without robotcal's marker, or
+    a robotcal folder holding files robotcal did not write (both allowed with ``force``; the second
+    also for a command that ``keeps_other_files``, as ``run`` does: it replaces only its own entries).
     """
     resolved = _check_location(out, option)
     for source in inputs:
@@ -190,6 +211,13 @@ def check_output_folder(out, *, inputs: Iterable = (), force: bool = False, opti
             raise InputError(
                 f"{option} {out}: the folder exists and was not written by robotcal (no {MARKER} marker); "
                 "choose another output folder, empty it, or pass --force to replace it"
+            )
+        foreign = [] if force or keeps_other_files else foreign_entries(resolved)
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
+            raise InputError(
+                f"{option} {out}: the folder holds files robotcal did not write ({shown}) and would be replaced "
+                "whole; move them, choose another output folder, or pass --force"
             )
     return resolved
 
@@ -298,11 +326,17 @@ def _held(lock: Path, out, option: str) -> Iterator[Path]:
             lock.unlink()
 
 
-def write_marker(folder, *, command: str) -> Path:
-    """Write robotcal's marker :data:`MARKER` into ``folder``."""
+def write_marker(folder, *, command: str, files: Iterable[str] | None = None) -> Path:
+    """Write robotcal's marker :data:`MARKER` into ``folder``, listing the entries robotcal wrote there.
+
+    ``files``: the top-level names robotcal writes into the folder (a run folder names them up front);
+    default the folder's entries now (a result folder is complete when its marker is written).
+    """
     import robotcal
 
-    document = {"written_by": "robotcal", "version": robotcal.__version__, "command": command}
+    folder = Path(folder)
+    names = sorted(entry.name for entry in folder.iterdir() if entry.name != MARKER) if files is None else sorted(files)
+    document = {"written_by": "robotcal", "version": robotcal.__version__, "command": command, "files": names}
     return atomic_write_text(Path(folder) / MARKER, json.dumps(document) + "\n")
 
 
