@@ -183,8 +183,10 @@ def prepare_run(
         )
     except InputError as exc:
         raise InputError(f"{loaded.source}: Monte Carlo settings: {exc}") from None
-    if refined_draws is not None and refined_draws < 1:
-        raise InputError(f"--refined-draws must be a positive number of draws; got {refined_draws}")
+    if refined_draws is not None and not 1 <= refined_draws <= iterations:
+        raise InputError(
+            f"--refined-draws must be between 1 and the Monte Carlo draws ({iterations:,}); got {refined_draws}"
+        )
     try:
         refined_settings = dataclasses.replace(
             settings, iterations=min(iterations, REFINED_DRAWS) if refined_draws is None else refined_draws
@@ -192,7 +194,7 @@ def prepare_run(
     except InputError as exc:
         raise InputError(f"--refined-draws: {exc}") from None
     _check_tcp(loaded, targets, settings)
-    _check_memory(loaded, targets, settings, table)
+    _check_memory(loaded, targets, settings, table)  # the refined Monte Carlo has at most as many draws
     return RunPlan(
         scenario=loaded,
         out=out,
@@ -291,6 +293,13 @@ class _Record:
                 "coverage": plan.montecarlo.coverage,
                 "workers": plan.montecarlo.workers,
                 "simulated_robot": "the CPA result (cpa/parameters.json)",
+            },
+            "montecarlo_refined": {
+                "draws": plan.refined_montecarlo.iterations,
+                "model": "refined",
+                "criterion": "points",
+                "simulated_robot": "the refined result (refine/points.json)",
+                "seed": "the same as montecarlo",
             },
             "tcp": {
                 "pose": plan.tcp.pose_source,
@@ -495,9 +504,6 @@ def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
         result = compute_uncertainty(
             scenario, plan.montecarlo, seed=seeds["montecarlo"], true_parameters=state["cpa"], progress=cpa_done
         )
-        with atomic_directory(out / "uncertainty") as folder:
-            write_uncertainty_folder(folder, result, scenario, save_draws=True)
-        state["montecarlo"] = result
         # the deployed model: capture -> CPA -> refinement (points), around the refined estimate; the
         # same seed, so both Monte Carlos see the same instrument noise draw for draw
         refined = compute_uncertainty(
@@ -509,8 +515,12 @@ def _stages(plan, record, report, out, seeds, scenario, robot, n) -> dict:
             model="refined",
             criterion="points",
         )
+        # both folders written only once both are computed: a failure or an interrupt while computing leaves neither
+        with atomic_directory(out / "uncertainty") as folder:
+            write_uncertainty_folder(folder, result, scenario, save_draws=True)
         with atomic_directory(out / "uncertainty-refined") as folder:
             write_uncertainty_folder(folder, refined, scenario, save_draws=True)
+        state["montecarlo"] = result
         state["montecarlo_refined"] = refined
         rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in (result, refined)]
         return (
