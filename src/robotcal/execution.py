@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import re
 import signal
 import sys
 from collections.abc import Callable, Iterable, Iterator
@@ -121,9 +122,15 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Iterator
                 f"a Dask scheduler was given ({scheduler}) but Dask is not installed: "
                 "pip install 'robotcal[distributed]'"
             ) from None
+        # tcp/tls/ucx://host:port, or an in-process cluster's inproc:// address
+        if not (re.fullmatch(r"(tcp|tls|ucx)://[^\s/:]+:\d+", scheduler) or scheduler.startswith("inproc://")):
+            raise InputError(
+                f"--scheduler / ROBOTCAL_SCHEDULER: {scheduler!r} is not a Dask scheduler address "
+                "(expected e.g. tcp://host:8786)"
+            )
         try:
             client = Client(scheduler, set_as_default=False, timeout="10s")
-        except OSError as exc:
+        except (OSError, ValueError, TypeError) as exc:
             raise InputError(f"cannot connect to the Dask scheduler {scheduler}: {exc}") from None
         try:
             count = len(client.scheduler_info().get("workers", {})) or 1

@@ -118,3 +118,11 @@ def test_same_seed_bit_identical_statistics_serial_processes_and_dask(monkeypatc
         np.testing.assert_array_equal(other.summary.std_uncertainty, serial.summary.std_uncertainty)
         np.testing.assert_array_equal(other.summary.symmetric_low, serial.summary.symmetric_low)
         np.testing.assert_array_equal(other.covariance, serial.covariance)
+
+
+@pytest.mark.parametrize("address", ["not an address", "http://host:8786", "myhost", "tcp://host"])
+def test_a_malformed_scheduler_address_is_an_input_error(address):
+    # review finding: ValueError tracebacks from distributed.Client for these
+    with pytest.raises(InputError, match="not a Dask scheduler address"):
+        with open_executor(scheduler=address):
+            pass

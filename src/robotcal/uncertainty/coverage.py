@@ -197,8 +197,14 @@ def coverage_study(
     robot = scenario.robot
     if tcp_readings is None:
         tcp_readings = tcp_targets(scenario).pose
-    q_tcp = robot.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
-    true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
+    if tcp_readings is None and any(m.endswith("-mc") for m in methods):
+        raise InputError(
+            f"{scenario.source}: the coverage study checks the TCP ellipsoid at a pose: give `tcp_readings` or "
+            "the scenario's `[tcp] pose_deg`"
+        )
+    if tcp_readings is not None:
+        q_tcp = robot.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
+        true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
     z = norm.ppf(0.5 + coverage / 2.0)
     settings = MonteCarloSettings(iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000))
 
@@ -214,9 +220,19 @@ def coverage_study(
             capture = simulate_scenario(scenario, seed=capture_seed, true_parameters=truth).capture
             cpa = identify_scenario(capture, scenario).parameters
             refined = refine_scenario(capture, scenario, cpa, criterion=criterion)
-        mask = cpa.identified & refined.free if checked is None else checked
+        mask = cpa.identified & refined.free
         if checked is None:
             checked = mask
+        elif not np.array_equal(mask, checked):
+            # every capture of one plan has the same structure; a different free set means a rank
+            # decision sat on a threshold, and the study would compare different things
+            changed = [
+                n for n, a, b in zip(robot.parameter_names, mask.ravel(), checked.ravel(), strict=True) if a != b
+            ]
+            raise InputError(
+                f"capture {k + 1} of the coverage study determines a different set of parameters ({', '.join(changed)}) "
+                "than the first capture; the study needs one fixed set"
+            )
         error["cpa"].append((cpa.values - truth.values)[checked])
         error["refined"].append((refined.parameters.values - truth.values)[checked])
         for method in methods:
