@@ -133,6 +133,7 @@ __all__ = [
     "capture_turning_joints",
     "capture_target_index",
     "measurement_pairs",
+    "base_correction",
 ]
 
 #: The two objectives of thesis ch. 4.5.7.
@@ -269,16 +270,20 @@ def capture_turning_joints(capture: Capture, reflector: ReflectorMount) -> np.nd
     return np.maximum(capture.circle - 1, 0)
 
 
-def _base_delta(x_base: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
-    """Rotation ``Rz Ry Rx``, translation, and the three rotation derivatives of the correction."""
-    tx, ty, tz, rx, ry, rz = x_base
-    r_x, r_y, r_z = rot_x(rx)[:3, :3], rot_y(ry)[:3, :3], rot_z(rz)[:3, :3]
+def base_correction(x_base: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """Rotation ``Rz Ry Rx``, translation, and the three rotation derivatives of the correction.
+
+    ``x_base (..., 6)``: one correction or a batch (the refined-model Monte Carlo); every output has the
+    batch's leading shape, ``(..., 3, 3)`` and ``(..., 3)``.
+    """
+    x_base = np.asarray(x_base, dtype=float)
+    r_x, r_y, r_z = (rot(x_base[..., 3 + k])[..., :3, :3] for k, rot in enumerate((rot_x, rot_y, rot_z)))
     k_x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
     k_y = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     k_z = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     rotation = r_z @ r_y @ r_x
     derivatives = (r_z @ r_y @ r_x @ k_x, r_z @ r_y @ k_y @ r_x, r_z @ k_z @ r_y @ r_x)
-    return rotation, np.array([tx, ty, tz]), derivatives
+    return rotation, x_base[..., :3].copy(), derivatives
 
 
 def _unit(diff: np.ndarray) -> np.ndarray:
@@ -331,7 +336,7 @@ class _Problem:
         return values, x_base
 
     def tracker(self, x_base) -> np.ndarray:
-        rotation, shift, _ = _base_delta(x_base)
+        rotation, shift, _ = base_correction(x_base)
         delta = np.eye(4)
         delta[:3, :3] = rotation
         delta[:3, 3] = shift
@@ -351,7 +356,7 @@ class _Problem:
         jac = jac.reshape(jac.shape[0], 3, -1)[:, :, self.free.ravel()]
         if self.criterion == "distances":
             return points, jac
-        rotation, shift, derivatives = _base_delta(x_base)
+        rotation, shift, derivatives = base_correction(x_base)
         r0 = self.base_start[:3, :3]
         total = r0 @ rotation
         columns = [np.einsum("ij,pjk->pik", total, jac)]

@@ -51,9 +51,10 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityWarning, InputError
-from robotcal.geometry.transforms import rot_x, rot_y, rot_z
+from robotcal.geometry.transforms import rot_z
 from robotcal.identification.refine import (
     CRITERIA,
+    base_correction,
     capture_target_index,
     capture_turning_joints,
     measurement_pairs,
@@ -64,11 +65,6 @@ from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
 __all__ = ["RefinedModel", "RefinedBatch", "prepare_refined_model", "refine_batch", "refined_covariance"]
 
-_K = (
-    np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
-    np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]),
-    np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]),
-)
 #: Pairs handled at once by the distances criterion (fixed, so that sums do not depend on the batch size;
 #: with ``REFINE_BATCH`` = 500 draws one chunk's arrays take ~12 MB each).
 _PAIR_CHUNK = 512
@@ -367,21 +363,13 @@ def _group_normal(model: RefinedModel, rotation: np.ndarray, origin: np.ndarray)
     return out
 
 
-def _base_delta(x_base: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-    """``Rz(rz) Ry(ry) Rx(rx)`` ``(B, 3, 3)`` and its derivatives w.r.t. rx, ry, rz."""
-    r_x, r_y, r_z = (rot(x_base[:, 3 + k])[..., :3, :3] for k, rot in enumerate((rot_x, rot_y, rot_z)))
-    rotation = r_z @ r_y @ r_x
-    derivatives = [r_z @ r_y @ r_x @ _K[0], r_z @ r_y @ _K[1] @ r_x, r_z @ _K[2] @ r_y @ r_x]
-    return rotation, derivatives
-
-
 def _base_twists(model: RefinedModel, x_base: np.ndarray) -> np.ndarray:
     """Twists ``(B, 6, n_base)`` of the free base corrections, in the base frame.
 
     ``T(x) p = T_0 (R p + t)``: d/dt_a is ``R_0 e_a`` in the tracker frame, ``R^T e_a`` in the base
     frame; d/dr_k is ``R_0 dR_k p``, i.e. ``omega x p`` with ``[omega]x = R^T dR_k``.
     """
-    rotation, derivatives = _base_delta(x_base)
+    rotation, _, derivatives = base_correction(x_base)
     columns = [np.concatenate([np.zeros_like(rotation[:, 0]), rotation[:, axis]], axis=-1) for axis in range(3)]
     for derivative in derivatives:
         skew = np.swapaxes(rotation, -1, -2) @ derivative
@@ -409,7 +397,7 @@ class _Batch:
         return values, x_base
 
     def tracker(self, x_base: np.ndarray, index: np.ndarray) -> np.ndarray:
-        rotation, _ = _base_delta(x_base)
+        rotation, _, _ = base_correction(x_base)
         delta = np.broadcast_to(np.eye(4), (x_base.shape[0], 4, 4)).copy()
         delta[:, :3, :3] = rotation
         delta[:, :3, 3] = x_base[:, :3]
@@ -428,7 +416,7 @@ class _Batch:
         points = _points(model, rotation, origin)
         if model.criterion == "distances":
             return self._distance_equations(points, twists * model.x_scale, index)
-        base_rotation, _ = _base_delta(x_base)
+        base_rotation, _, _ = base_correction(x_base)
         r0 = self.base_start[index, :3, :3]
         total = r0 @ base_rotation
         shift = np.einsum("bij,bj->bi", r0, x_base[:, :3]) + self.base_start[index, :3, 3]
