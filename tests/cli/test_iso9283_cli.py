@@ -28,13 +28,14 @@ def invoke(*args):
 def test_plan_then_iso9283_equals_the_library(tmp_path):
     robot = SCENARIO.robot
     nominal = ParameterSet.nominal(robot)
-    start = np.radians([0.0, -90.0, 90.0, 0.0, 45.0, 0.0])
+    # KUKA A2 = -90, A3 = 90 as model readings of kuka-kr5-sixx-r650 (its limits are in model readings)
+    start = np.radians([0.0, 90.0, -90.0, 0.0, 45.0, 0.0])
     frame = forward_kinematics(nominal.values, robot.model_joint_variables(start))[0]
     centre = frame[:3, :3] @ TARGET + frame[:3, 3]
     plan = tmp_path / "iso.csv"
     result = invoke(
         "iso9283-plan", "--scenario", "kr5-demo", "--center", ",".join(f"{v:.6f}" for v in centre),
-        "--side", "150", "--start", "0,-90,90,0,45,0", "--cycles", "3", "--out", plan,
+        "--side", "150", "--start", "0,90,-90,0,45,0", "--cycles", "3", "--out", plan,
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     readings = read_trajectory(plan, n_joints=6)

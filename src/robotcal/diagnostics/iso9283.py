@@ -176,7 +176,7 @@ def iso_plan_readings(
     """Controller readings that bring a flange point to each test position, repeated ``n_cycles`` times.
 
     The orientation of the flange is held at that of ``start_readings`` (ISO 9283 keeps one
-    orientation for the pose test); the readings are found by damped Gauss-Newton on position and
+    orientation for the pose test); the readings are found by Gauss-Newton (least-squares steps) on position and
     orientation, starting from ``start_readings`` for every pose.
 
     Parameters
@@ -232,6 +232,14 @@ def iso_plan_readings(
         else:
             raise InputError(
                 f"ISO 9283 pose P{k + 1} at {np.round(goal, 3).tolist()} mm is not reachable from the start"
+            )
+        outside = np.flatnonzero((r < robot.limits[:, 0]) | (r > robot.limits[:, 1]))
+        if outside.size:
+            j = int(outside[0])
+            raise InputError(
+                f"ISO 9283 pose P{k + 1}: the readings reaching it put J{j + 1} at {np.rad2deg(r[j]):.3f} deg, outside "
+                f"its limits [{np.rad2deg(robot.limits[j, 0]):.3f}, {np.rad2deg(robot.limits[j, 1]):.3f}] deg; "
+                "choose another start pose or a smaller cube"
             )
         solutions.append(r)
     return np.tile(np.array(solutions), (n_cycles, 1))
