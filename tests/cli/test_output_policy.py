@@ -48,6 +48,23 @@ def test_a_user_file_added_to_a_robotcal_folder_is_never_replaced_without_force(
     check_output_folder(out, keeps_other_files=True)  # run replaces only its own entries
 
 
+def test_a_robot_file_named_by_the_scenario_is_an_input(tmp_path):
+    # review finding: a result folder holding the scenario's robot TOML was replaced whole
+    from robotcal.io.builtins import data_path
+
+    res = tmp_path / "res"
+    res.mkdir()
+    (res / "myrobot.toml").write_text(data_path("robots", "kuka-kr5-sixx-r650.toml").read_text())
+    write_marker(res, command="test")
+    scenario = data_path("scenarios", "thesis-laser-tracker.toml").read_text()
+    scenario = scenario.replace('robot = "kuka-kr5-sixx-r650"', 'robot = "res/myrobot.toml"')
+    (tmp_path / "scen.toml").write_text(scenario)
+    assert load_scenario(str(tmp_path / "scen.toml")).files[-1] == str(res / "myrobot.toml")
+    result = runner.invoke(app, ["uncertainty", str(tmp_path / "scen.toml"), "-n", "200", "--force", "--out", str(res)])
+    assert result.exit_code == 2 and "holds an input" in result.output
+    assert (res / "myrobot.toml").is_file()
+
+
 def test_a_run_folder_marker_lists_only_the_runs_entries(tmp_path):
     out = tmp_path / "run"
     out.mkdir()

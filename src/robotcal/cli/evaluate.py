@@ -145,7 +145,7 @@ def evaluate(
     inputs = existing_inputs(scenario, *params, *capture)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
-    inputs += existing_inputs(loaded.source)
+    inputs += existing_inputs(*loaded.files)
     robot = loaded.robot
     used: set[str] = set()
     sets: dict[str, ParameterSet] = {}

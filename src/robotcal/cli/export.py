@@ -52,7 +52,7 @@ def load_parameter_set(params: Path, robot: str | None, scenario: str | None) ->
     if scenario is not None:
         loaded = load_scenario(scenario)
         model = loaded.robot
-        inputs += existing_inputs(loaded.source)
+        inputs += existing_inputs(*loaded.files)
     elif robot is not None:
         model = load_robot(robot)
     else:

@@ -41,7 +41,7 @@ def identify(
     inputs = existing_inputs(capture, scenario)
     check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
-    inputs += existing_inputs(loaded.source)
+    inputs += existing_inputs(*loaded.files)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     removed = None
     if reject_outliers:

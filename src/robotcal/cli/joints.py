@@ -189,7 +189,7 @@ def joints(
     inputs = existing_inputs(capture, scenario)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
-    inputs += existing_inputs(loaded.source)
+    inputs += existing_inputs(*loaded.files)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     diagnostics, model = compute_joints(
         measured, loaded, order=order, backlash=backlash, match_tolerance_deg=match_tolerance_deg

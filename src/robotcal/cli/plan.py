@@ -94,7 +94,7 @@ def check(
         write_check_files(folder, result, document)
         plot_check(result, folder / "plan_check.png", acceptance_deg=document["cell"]["acceptance_deg"])
 
-    _write_folder(out, existing_inputs(loaded.source), force, "robotcal plan check", write)
+    _write_folder(out, existing_inputs(*loaded.files), force, "robotcal plan check", write)
     bad = int((~result.ok).sum())
     counts = ", ".join(f"{reason} {int(result.failures[:, k].sum())}" for k, reason in enumerate(REASONS))
     console.print(f"points failing each check: {counts}", highlight=False)
@@ -151,7 +151,7 @@ def optimise(
     from robotcal.planning.scenario import cell_from_scenario, dump_toml, scenario_document
 
     loaded = load_scenario(scenario)
-    inputs = existing_inputs(loaded.source)
+    inputs = existing_inputs(*loaded.files)
     check_output_folder(out, inputs=inputs, force=force)
     cell, notes = cell_from_scenario(loaded, acceptance_deg=acceptance_deg, no_acceptance=no_acceptance, aim=aim)
     problem, readings = PlanProblem.from_scenario(

@@ -56,6 +56,6 @@ def program(
     )
     text = write_program(circle, direction, angles, language=language, dwell_s=dwell, name=name,
                          speed_percent=speed, header=header)  # fmt: skip
-    with result_file(out, inputs=existing_inputs(loaded.source), force=force) as path:
+    with result_file(out, inputs=existing_inputs(*loaded.files), force=force) as path:
         atomic_write_text(path, text)
     console.print(f"wrote {out}: {circle.size} {language} joint moves, dwell {dwell:g} s", highlight=False)

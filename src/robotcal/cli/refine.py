@@ -52,7 +52,7 @@ def refine(
     inputs = existing_inputs(capture, scenario, start)
     check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
-    inputs += existing_inputs(loaded.source)
+    inputs += existing_inputs(*loaded.files)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     if criterion == "distances":
         check_memory(

@@ -140,7 +140,7 @@ def prepare_run(
     out = Path(out)
     check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
     loaded = load_scenario(scenario)
-    inputs += existing_inputs(loaded.source)
+    inputs += existing_inputs(*loaded.files)
     check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
     robot = loaded.robot
     validation_reflector(loaded)  # a validation capture needs a flange target

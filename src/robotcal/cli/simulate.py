@@ -51,7 +51,7 @@ def simulate(
     loaded = load_scenario(scenario)
     if true_params is not None and truth_out is not None:
         raise InputError("give either --true-params (an existing truth) or --truth-out (a new perturbed truth)")
-    inputs = existing_inputs(scenario, loaded.source, true_params)
+    inputs = existing_inputs(scenario, *loaded.files, true_params)
     if validation:
         poses = int((loaded.validation or {}).get("poses", 100))
         check_memory(

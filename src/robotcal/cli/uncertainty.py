@@ -201,7 +201,7 @@ def uncertainty(
     inputs = existing_inputs(scenario, true_params)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
-    inputs += existing_inputs(loaded.source)
+    inputs += existing_inputs(*loaded.files)
     table = loaded.montecarlo
     settings = MonteCarloSettings(
         iterations=int(table["iterations"]) if iterations is None else iterations,

@@ -160,6 +160,9 @@ class Scenario:
     truth: dict | None = None
     validation: dict | None = None
     tcp: dict | None = None
+    #: Files the scenario was read from (the TOML and a robot TOML it names): inputs that an output
+    #: of the same command must never replace.
+    files: tuple[str, ...] = ()
 
 
 def _rigid(matrix, source: str) -> np.ndarray:
@@ -280,7 +283,18 @@ def scenario_from_dict(
         truth=None if spec.truth is None else spec.truth.model_dump(),
         validation=_validation(spec.validation, source),
         tcp=None if spec.tcp is None else spec.tcp.model_dump(),
+        files=(source, *_robot_file(spec.robot, base_dir)),
     )
+
+
+def _robot_file(robot: str, base_dir: Path | None) -> tuple[str, ...]:
+    """The robot TOML a scenario names, as :func:`load_robot` resolves it; () for a built-in robot."""
+    if robot in builtin_names("robots"):
+        return ()
+    path = Path(robot)
+    if not path.is_absolute() and base_dir is not None and (base_dir / path).exists():
+        path = base_dir / path
+    return (str(path),)
 
 
 def _validation(table: ValidationTable | None, source: str) -> dict | None:
