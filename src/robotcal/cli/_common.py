@@ -3,27 +3,56 @@
 User text (paths, CSV cells, robot and scenario names, exception messages) reaches the terminal
 literally: both consoles are created with ``markup=False``, so square brackets are never read as Rich
 markup; styled parts are built as :class:`rich.text.Text` (:func:`styled`).
+
+Importing this module is light (``robotcal --help`` and :func:`robotcal.cli.main` import it): Rich, numpy
+and the kinematics are imported where used, and ``console`` / ``error_console`` are created on first use.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 import os
 import signal
 import sys
 import warnings
+from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
-from rich.console import Console
-from rich.table import Table
-from rich.text import Text
 
 from robotcal.errors import InputError, RobotcalError
-from robotcal.kinematics.model import PARAMETER_KINDS, ParameterSet
 
-console = Console(markup=False)
-error_console = Console(stderr=True, soft_wrap=True, markup=False)  # messages stay on one line
+if TYPE_CHECKING:  # imported where used: `robotcal --help` and main() stay light (docs/cli.md)
+    from rich.console import Console
+    from rich.table import Table
+    from rich.text import Text
+
+    from robotcal.kinematics.model import ParameterSet
+
+    console: Console
+    error_console: Console
+
+#: Settings of the two consoles, created on first use (module ``__getattr__``): ``console`` for
+#: results on stdout, ``error_console`` for messages on stderr (each message stays on one line).
+_CONSOLES = {
+    "console": {"markup": False},
+    "error_console": {"stderr": True, "soft_wrap": True, "markup": False},
+}
+
+
+def __getattr__(name: str):
+    """``console`` and ``error_console``, created on first use (``from robotcal.cli._common import console``)."""
+    if name not in _CONSOLES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from rich.console import Console
+
+    return globals().setdefault(name, Console(**_CONSOLES[name]))  # one console even if two threads race
+
+
+def _error_console() -> Console:
+    """``error_console`` (a test may have replaced it), created on first use."""
+    replaced = globals().get("error_console")
+    return __getattr__("error_console") if replaced is None else replaced
 
 #: Seeds are integers in ``[0, SEED_BOUND)``: numpy's ``SeedSequence`` takes any non-negative integer,
 #: but seeds are recorded in files as signed 64-bit integers (``draws.npz``), so 2^63 is the bound.
@@ -40,6 +69,16 @@ EXIT_TERMINATED = 143
 FALLBACK_MEMORY = 4 * 2**30
 
 
+def command_app(**settings) -> typer.Typer:
+    """A command module's Typer application, ``app = command_app()``, on which the module registers its
+    command(s) (``@app.command()``); :data:`robotcal.cli.COMMANDS` names the module for each command.
+
+    Settings shared with the ``robotcal`` group: help printed literally (no Rich markup: "[mm]" stays),
+    no completion options, plain tracebacks; ``settings`` are further :class:`typer.Typer` arguments.
+    """
+    return typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None, **settings)
+
+
 class Terminated(KeyboardInterrupt):
     """Raised in the main thread by the SIGTERM handler so that every cleanup (``finally``, context
     managers, pool shutdown) runs as for Ctrl-C; a :class:`KeyboardInterrupt` so code that handles an
@@ -48,17 +87,21 @@ class Terminated(KeyboardInterrupt):
 
 def styled(text: str, style: str) -> Text:
     """``text`` (printed literally) in ``style``."""
+    from rich.text import Text
+
     return Text(str(text), style=style)
 
 
 def _line(label: str, style: str, message) -> Text:
+    from rich.text import Text
+
     line = Text(label, style=style)
     line.append(f" {message}")
     return line
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    error_console.print(_line("warning:", "yellow", message), highlight=False)
+    _error_console().print(_line("warning:", "yellow", message), highlight=False)
 
 
 def _on_sigterm(signum, frame):
@@ -95,17 +138,17 @@ def handle_errors(function):
         try:
             return function(*args, **kwargs)
         except RobotcalError as exc:
-            error_console.print(_line("error:", "red", exc), highlight=False)
+            _error_console().print(_line("error:", "red", exc), highlight=False)
             raise typer.Exit(code=2) from None
         except MemoryError:
-            error_console.print(
+            _error_console().print(
                 _line("error:", "red", "out of memory; use fewer draws, poses or points (or --batch-size)"),
                 highlight=False,
             )
             raise typer.Exit(code=2) from None
         except KeyboardInterrupt as exc:
             terminated = isinstance(exc, Terminated)
-            error_console.print(styled("terminated" if terminated else "interrupted", "red"))
+            _error_console().print(styled("terminated" if terminated else "interrupted", "red"))
             sys.exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
         finally:
             warnings.showwarning = previous
@@ -168,11 +211,15 @@ def seed_option_check(seed: int | None, option: str = "--seed", *, headroom: int
 
 
 def _display(kind: str, value: float) -> float:
-    return float(np.rad2deg(value)) if kind in ("theta", "alpha", "beta") else float(value)
+    return math.degrees(float(value)) if kind in ("theta", "alpha", "beta") else float(value)
 
 
 def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str) -> Table:
     """Nominal / identified / difference per parameter, in mm and degrees."""
+    from rich.table import Table
+
+    from robotcal.kinematics.model import PARAMETER_KINDS
+
     table = Table(title=title, title_justify="left")
     table.add_column("parameter")
     table.add_column("unit")
@@ -199,6 +246,8 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
 
 def circle_table(result) -> Table:
     """Per-circle fit residuals of a CPA result."""
+    from rich.table import Table
+
     table = Table(title="Circle fits", title_justify="left")
     for column in ("circle", "points", "radius (mm)", "plane RMS (mm)", "circle RMS (mm)"):
         table.add_column(column, justify="right")

@@ -1,26 +1,31 @@
-"""``robotcal robots``, ``robotcal instruments``, ``robotcal scenarios``: what ships with robotcal."""
+"""``robotcal robots``, ``robotcal instruments``, ``robotcal scenarios``: what ships with robotcal.
+
+The catalog (:mod:`robotcal.io`) and Rich's tables are imported by the commands, so that their
+``--help`` starts fast (docs/cli.md, "For contributors: how commands load").
+"""
 
 from __future__ import annotations
 
-import numpy as np
-from rich.table import Table
+from robotcal.cli._common import command_app, console, handle_errors
 
-from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
-from robotcal.io import instrument_presets, list_robots, list_scenarios
+app = command_app()
 
 
 @app.command()
 @handle_errors
 def robots() -> None:
     """List the built-in robots (usable by name in a scenario's `robot` key)."""
+    from rich.table import Table
+
+    from robotcal.io import list_robots
+
     table = Table(title="Built-in robots", title_justify="left")
     models = list_robots()
     table.add_column("name", no_wrap=True, min_width=max(len(r.name) for r in models))
     for column in ("joints", "Hayati joints", "reading signs", "description"):
         table.add_column(column)
     for robot in models:
-        hayati = ", ".join(f"J{i + 1}" for i in np.flatnonzero(robot.hayati)) or "-"
+        hayati = ", ".join(f"J{i + 1}" for i, parallel in enumerate(robot.hayati) if parallel) or "-"
         signs = " ".join("+" if s > 0 else "-" for s in robot.reading_sign)
         table.add_row(robot.name, str(robot.n_joints), hayati, signs, robot.description)
     console.print(table)
@@ -30,6 +35,10 @@ def robots() -> None:
 @handle_errors
 def instruments() -> None:
     """List the instrument presets, U(L) = A + B*L (L in m)."""
+    from rich.table import Table
+
+    from robotcal.io import instrument_presets
+
     table = Table(title="Instrument presets", title_justify="left")
     presets = instrument_presets()
     table.add_column("preset", no_wrap=True, min_width=max(len(name) for name in presets))
@@ -44,6 +53,10 @@ def instruments() -> None:
 @handle_errors
 def scenarios() -> None:
     """List the built-in scenarios (the thesis's Tables 5.1, 5.2/5.4 and 5.5)."""
+    from rich.table import Table
+
+    from robotcal.io import list_scenarios
+
     table = Table(title="Built-in scenarios", title_justify="left")
     loaded = list_scenarios()
     table.add_column("scenario", no_wrap=True, min_width=max(len(s.name) for s in loaded))

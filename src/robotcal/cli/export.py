@@ -8,8 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli import app
-from robotcal.cli._common import FORCE_HELP, console, handle_errors
+from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io import atomic_write_text, load_robot, load_scenario, read_parameters, write_parameters
 from robotcal.io._validation import read_json_file
@@ -25,6 +24,8 @@ from robotcal.io.export import (
 )
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.kinematics.model import ParameterSet
+
+app = command_app()
 
 ROBOT_HELP = "Robot name or TOML of the parameters (default: the robot named in PARAMS, if built-in)."
 SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (instead of --robot)."

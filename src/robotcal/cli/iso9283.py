@@ -11,8 +11,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from robotcal.cli import app
-from robotcal.cli._common import FORCE_HELP, console, handle_errors
+from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.cli.export import parse_vector
 from robotcal.diagnostics.iso9283 import ISO_CYCLES, iso_plan_readings, iso_test_positions, pose_characteristics
 from robotcal.errors import InputError
@@ -23,6 +22,8 @@ from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.io.trajectory_csv import write_trajectory
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.model import ParameterSet
+
+app = command_app()
 
 ISO_COLUMNS = ("model", "pose", "APx", "APy", "APz", "AP", "l_bar", "S_l", "RP", "AD", "RD")
 

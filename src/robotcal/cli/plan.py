@@ -8,14 +8,16 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
-from rich.table import Table
 
-from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
+from robotcal.cli._common import command_app, console, handle_errors
+
+if TYPE_CHECKING:  # numpy, Rich tables and the planning library load in the commands: a fast --help
+    from rich.table import Table
+
+app = command_app()
 
 __all__ = ["plan_app", "check_table"]
 
@@ -38,6 +40,8 @@ _Force = Annotated[bool, typer.Option("--force", help="Replace an output not wri
 
 
 def check_table(check) -> Table:
+    from rich.table import Table
+
     table = Table(title="Cell check per circle (forward sweep)", title_justify="left")
     for column in ("circle", "points", "feasible", "planned (deg)", "usable (deg)", "first blocked", "why"):
         table.add_column(column, justify="left" if column == "why" else "right", overflow="fold")
@@ -108,6 +112,8 @@ def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, wo
     """Workspace p95 TCP position uncertainty [mm] of ``plan`` by a Monte Carlo of ``iterations`` draws."""
     import dataclasses
 
+    import numpy as np
+
     from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
     from robotcal.uncertainty.workspace import workspace_uncertainty
     from robotcal.workflow import scenario_monte_carlo
@@ -144,6 +150,9 @@ def optimise(
 ) -> None:
     """Search start angles, sweeps, points per circle and reflector positions for a lower uncertainty,
     within the cell check; confirm baseline and winner by Monte Carlo; write the optimised scenario."""
+    import numpy as np
+    from rich.table import Table
+
     from robotcal.io import load_scenario
     from robotcal.io.output import check_output_folder, existing_inputs
     from robotcal.planning.cell import check_plan

@@ -9,8 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from robotcal.cli import app
-from robotcal.cli._common import FORCE_HELP, console, handle_errors
+from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 from robotcal.errors import InputError
 from robotcal.geometry.euler import kuka_abc_from_matrix, matrix_from_kuka_abc
@@ -18,6 +17,8 @@ from robotcal.io import atomic_write_text
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.io.trajectory_csv import read_trajectory
 from robotcal.kinematics.forward import forward_kinematics
+
+app = command_app()
 
 PREDICT_COLUMNS = ("pose", "x", "y", "z", "A", "B", "C")
 

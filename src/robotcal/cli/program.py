@@ -7,8 +7,9 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli import app
-from robotcal.cli._common import console, handle_errors
+from robotcal.cli._common import command_app, console, handle_errors
+
+app = command_app()
 
 __all__ = ["program"]
 

@@ -8,12 +8,21 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli import app
-from robotcal.cli._common import BYTES_PER_POSE, FORCE_HELP, SEED_BOUND, check_memory, console, handle_errors
+from robotcal.cli._common import (
+    BYTES_PER_POSE,
+    FORCE_HELP,
+    SEED_BOUND,
+    check_memory,
+    command_app,
+    console,
+    handle_errors,
+)
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters, write_capture, write_parameters
 from robotcal.io.output import existing_inputs, result_file
 from robotcal.workflow import scenario_truth, simulate_scenario, simulate_validation, versions
+
+app = command_app()
 
 
 @app.command()

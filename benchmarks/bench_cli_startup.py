@@ -1,0 +1,85 @@
+"""Benchmark of the command line's start-up: ``robotcal --help``, ``--version`` and ``run --help``.
+
+Plain script: ``python benchmarks/bench_cli_startup.py [--repeat N]`` runs each command N times
+(default 15) as a fresh subprocess, as a user's shell does, and prints the median and the minimum
+wall time. Issue 13 asks for ``robotcal --help`` <= 0.3 s.
+
+Rows, besides the commands themselves:
+
+- ``python -c pass`` and ``import typer``: the floor (interpreter start, then the CLI framework);
+- ``eager --help``: the behaviour before the lazy registry, emulated on today's code by importing
+  every command module (:func:`robotcal.cli.load_command` for each name of
+  :data:`robotcal.cli.COMMANDS`) before printing the help, as ``robotcal/cli/__init__.py`` used to.
+
+Before the lazy registry (commit before issue 13's CLI change), ``robotcal --help`` took 0.9-2.4 s
+on the project's 2-core machine (measured by the lead; 1.9-2.2 s measured by H4 under load):
+:data:`BEFORE` holds those figures for the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+#: ``robotcal --help`` before the lazy registry [s]: the range measured on the 2-core machine.
+BEFORE = {"robotcal --help": "0.9-2.4", "robotcal run --help": "0.9-2.4 (same imports)", "robotcal --version": "n/a"}
+#: Issue 13's target for ``robotcal --help`` [s].
+TARGET = 0.3
+
+EAGER_HELP = (
+    "import sys; import robotcal.cli as cli; [cli.load_command(name) for name in cli.COMMANDS]; "
+    "sys.argv = ['robotcal', '--help']; cli.main()"
+)
+
+
+def robotcal_command() -> list[str]:
+    """The installed ``robotcal`` script beside this interpreter, else the same entry point through ``-c``."""
+    script = Path(sys.executable).with_name("robotcal")
+    if script.is_file() and os.access(script, os.X_OK):
+        return [str(script)]
+    found = shutil.which("robotcal")
+    return [found] if found else [sys.executable, "-c", "from robotcal.cli import main; main()"]
+
+
+def time_command(command: list[str], repeat: int) -> list[float]:
+    """Wall times [s] of ``repeat`` runs of ``command`` (output discarded; a failure stops the benchmark)."""
+    times = []
+    for _ in range(repeat):
+        started = time.perf_counter()
+        subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        times.append(time.perf_counter() - started)
+    return times
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=15, help="runs per command (median and minimum reported)")
+    args = parser.parse_args()
+    robotcal = robotcal_command()
+    rows = {
+        "python -c pass": [sys.executable, "-c", "pass"],
+        "python -c 'import typer'": [sys.executable, "-c", "import typer"],
+        "robotcal --help": [*robotcal, "--help"],
+        "robotcal --version": [*robotcal, "--version"],
+        "robotcal run --help": [*robotcal, "run", "--help"],
+        "eager --help (old behaviour)": [sys.executable, "-c", EAGER_HELP],
+    }
+    print(f"cpu cores: {os.cpu_count()}, load average: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(f"{'command':<30} {'median (s)':>10} {'min (s)':>8}  before (s)")
+    medians = {}
+    for label, command in rows.items():
+        times = time_command(command, args.repeat)
+        medians[label] = statistics.median(times)
+        print(f"{label:<30} {medians[label]:>10.3f} {min(times):>8.3f}  {BEFORE.get(label, '')}")
+    verdict = "met" if medians["robotcal --help"] <= TARGET else "NOT met"
+    print(f"target robotcal --help <= {TARGET} s: {verdict}")
+
+
+if __name__ == "__main__":
+    main()
