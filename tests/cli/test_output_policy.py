@@ -18,6 +18,7 @@ from robotcal.cli import app
 from robotcal.cli._common import SEED_BOUND, console, error_console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, write_capture, write_parameters
+from robotcal.io.capture_csv import capture_to_csv
 from robotcal.io.output import (
     MARKER,
     check_output_file,
@@ -238,3 +239,17 @@ def test_an_interrupt_between_the_renames_restores_the_old_folder(tmp_path, monk
     assert len(calls) == 4 and calls[1][0] == out and calls[3][1] == out
     assert (out / "a.txt").read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]
+
+
+def test_a_capture_with_target_and_u95_columns_is_recognised(tmp_path):
+    """The optional ``target``/``u95_mm`` columns (robotcal import) keep a capture robotcal's own."""
+    scenario = load_scenario("thesis-noise-free")
+    text = capture_to_csv(simulate_scenario(scenario, seed=1).capture).splitlines()
+    tagged = [text[0] + ",target,u95_mm"] + [line + ",T1,0.025" for line in text[1:]]
+    (tmp_path / "t.csv").write_text("\n".join(tagged) + "\n")
+    assert is_robotcal_file(tmp_path / "t.csv")
+    # one measured coordinate among them (3 decimals): not robotcal's, target column or not
+    cells = tagged[1].split(",")
+    cells[-3] = f"{float(cells[-3]):.3f}"  # z
+    (tmp_path / "m.csv").write_text("\n".join([tagged[0], ",".join(cells), *tagged[2:]]) + "\n")
+    assert not is_robotcal_file(tmp_path / "m.csv")

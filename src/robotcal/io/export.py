@@ -36,7 +36,10 @@ from robotcal.kinematics.model import ParameterSet
 __all__ = [
     "EXPORT_FORMATS",
     "UR_JOINT_NAMES",
+    "coupled_joints",
     "joint_origins",
+    "model_variable_limits",
+    "require_uncoupled",
     "rpy_from_matrix",
     "parameters_to_urdf",
     "parameters_to_ur_yaml",
@@ -103,6 +106,8 @@ def joint_origins(
     if joint_variable not in ("reading", "model"):
         raise InputError(f"`joint_variable` must be 'reading' or 'model'; got {joint_variable!r}")
     robot = parameters.robot
+    if joint_variable == "reading":
+        require_uncoupled(robot, "a URDF or UR YAML joint whose value is the controller reading")
     values = parameters.values
     n = robot.n_joints
     origins = np.empty((n, 4, 4))
@@ -115,6 +120,41 @@ def joint_origins(
         previous = _post(values[i])
     sign = robot.reading_sign.copy() if joint_variable == "reading" else np.ones(n)
     return origins, sign, previous
+
+
+def coupled_joints(robot) -> list[str]:
+    """Joints ``Jk`` whose controller reading depends on another joint's model variable (``reading_coupling``)."""
+    if not robot.is_coupled:
+        return []
+    return [f"J{k + 1}" for k in np.flatnonzero(np.any(robot.reading_coupling != 0.0, axis=1))]
+
+
+def require_uncoupled(robot, what: str) -> None:
+    """InputError naming the coupled joints: ``what`` turns each joint by its own reading alone."""
+    joints = coupled_joints(robot)
+    if joints:
+        raise InputError(
+            f"robot {robot.name!r}: the readings of {', '.join(joints)} are coupled to other joints "
+            f"(`reading_coupling`), which {what} cannot express; export the model variables instead "
+            "(robotcal export --joint-variable model) and convert readings with the robot's reading map"
+        )
+
+
+def model_variable_limits(robot) -> np.ndarray:
+    """``(n, 2)`` limits of the model variables ``q = M^-1 r + o`` [rad] implied by the reading limits.
+
+    A box only where ``q_i`` follows one reading alone (row ``i`` of ``M^-1`` has one non-zero entry);
+    elsewhere ``(-inf, inf)``: the controller's limits bound a combination of joints, which a per-joint
+    limit cannot hold (the URDF joint becomes ``continuous``).
+    """
+    inverse = np.linalg.inv(robot.reading_matrix)
+    limits = np.full((robot.n_joints, 2), [-np.inf, np.inf])
+    for i, row in enumerate(inverse):
+        used = np.flatnonzero(np.abs(row) > 1e-12)
+        if used.size == 1:
+            j = int(used[0])
+            limits[i] = np.sort(row[j] * robot.limits[j] + robot.reading_offset[i])
+    return limits
 
 
 def _origin_xml(matrix, indent: str) -> str:
@@ -154,9 +194,8 @@ def parameters_to_urdf(
     robot = parameters.robot
     origins, sign, flange = joint_origins(parameters, joint_variable=joint_variable)
     limits = robot.limits
-    if joint_variable == "model":  # limits of q = s r + o
-        ends = np.sort(robot.reading_sign[:, None] * robot.limits + robot.reading_offset[:, None], axis=1)
-        limits = ends
+    if joint_variable == "model":  # limits of q = M^-1 r + o (q = s r + o without coupling)
+        limits = model_variable_limits(robot)
     out = io.StringIO()
     out.write('<?xml version="1.0"?>\n')
     out.write(f"<!-- written by robotcal: calibrated model of {robot.name}; joint value = controller ")
@@ -212,6 +251,7 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
     J6's ``a``, ``alpha`` and ``beta`` zero (the format has no flange offset after ``wrist_3``).
     """
     robot = parameters.robot
+    require_uncoupled(robot, "the UR calibration YAML")
     if robot.n_joints != 6:
         raise InputError(f"the UR calibration YAML needs 6 joints; robot {robot.name!r} has {robot.n_joints}")
     bad = [f"J{i + 1}" for i in np.flatnonzero(robot.reading_sign < 0)]
@@ -243,6 +283,7 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
 
 def _reading_columns(parameters: ParameterSet, i: int) -> dict:
     robot = parameters.robot
+    require_uncoupled(robot, "the table's `reading_sign`/`reading_offset_deg` columns")
     return {
         "reading_sign": int(robot.reading_sign[i]),
         "reading_offset_deg": math.degrees(robot.reading_offset[i]),

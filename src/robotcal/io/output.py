@@ -55,7 +55,8 @@ MARKER = ".robotcal"
 #: Suffix of the lock file beside an output being written.
 LOCK_SUFFIX = ".robotcal-lock"
 
-_CAPTURE_HEADER = re.compile(r"^circle,direction,(q\d+,)+x,y,z$")
+#: The capture header (docs/scenario.md), with its optional ``target`` and ``u95_mm`` columns.
+_CAPTURE_HEADER = re.compile(r"^circle,direction,(q\d+,)+x,y,z(,target)?(,u95_mm)?$")
 _CAPTURE_NUMBER = re.compile(r"^-?\d+\.\d{12}$")  # robotcal writes every reading and coordinate with 12 decimals
 _GENERATOR = '<meta name="generator" content="robotcal'
 
@@ -177,10 +178,12 @@ def is_robotcal_file(path) -> bool:
         lines = text.splitlines()
         if not lines or not _CAPTURE_HEADER.match(lines[0].strip()):
             return False
+        header = lines[0].strip().split(",")
+        numbers = slice(2, header.index("z") + 1)  # the readings and coordinates (the 12-decimal columns)
         rows = [line for line in lines[1:50] if line.strip()]
         for line in rows:
             cells = line.split(",")
-            if len(cells) < 5 or not all(_CAPTURE_NUMBER.match(cell) for cell in cells[2:]):
+            if len(cells) != len(header) or not all(_CAPTURE_NUMBER.match(cell) for cell in cells[numbers]):
                 return False
         return True
     return False

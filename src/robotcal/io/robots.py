@@ -3,6 +3,12 @@
 Lengths in mm and angles in degrees (docs/results.md). Optional per joint: ``reading_sign`` (+1 or
 -1) and ``reading_offset_deg``, mapping controller readings to model joint variables
 (``q = reading_sign * reading + reading_offset``); both default to the identity map.
+
+Optional per joint ``reading_coupling = {2 = -1.0}`` (keys: other joints, 1-based): the joint's
+reading also depends on those joints' model variables,
+``reading_k = reading_sign_k (q_k - o_k) + sum_j c_kj (q_j - o_j)`` with ``o = reading_offset``
+(a Fanuc-style J3 reading that is the forearm's angle to the horizontal; see
+``fanuc-style-coupled.toml``). The whole map must be invertible. No key: today's uncoupled map.
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ class JointEntry(BaseModel):
     reading_sign: int = 1
     reading_offset_deg: float = 0.0
     capsule_radius_mm: float | None = Field(default=None, ge=0)  # link i as a capsule F_{i-1}-F_i (planning.cell)
+    reading_coupling: dict[int, float] = Field(default_factory=dict)  # {other joint (1-based): coefficient}
 
     @field_validator("reading_sign")
     @classmethod
@@ -53,6 +60,23 @@ class JointEntry(BaseModel):
         if self.limits_deg[0] >= self.limits_deg[1]:
             raise ValueError("limits_deg must be [lower, upper] with lower < upper")
         return self
+
+
+def _coupling_matrix(spec: RobotFile, source: str) -> np.ndarray | None:
+    """The ``(n, n)`` off-diagonal coupling of the robot file's ``reading_coupling`` keys (None: none)."""
+    n = len(spec.joints)
+    coupling = np.zeros((n, n))
+    for row, joint in enumerate(spec.joints):
+        for other, coefficient in joint.reading_coupling.items():
+            where = f"{source}: key `joints[{row}].reading_coupling.{other}`"
+            if not 1 <= other <= n:
+                raise InputError(f"{where}: {other} is not a joint number 1..{n}")
+            if other == row + 1:
+                raise InputError(f"{where}: a joint is not coupled to itself (its own coefficient is `reading_sign`)")
+            if not np.isfinite(coefficient):
+                raise InputError(f"{where}: must be a finite number; got {coefficient!r}")
+            coupling[row, other - 1] = coefficient
+    return coupling if np.any(coupling) else None
 
 
 class RobotFile(BaseModel):
@@ -76,6 +100,7 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
         reading_offset=np.deg2rad([j.reading_offset_deg for j in spec.joints]),
         limits=np.deg2rad([j.limits_deg for j in spec.joints]),
         description=spec.description,
+        reading_coupling=_coupling_matrix(spec, source),
     )
 
 
@@ -99,6 +124,9 @@ def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
                 "reading_offset_deg": float(np.rad2deg(robot.reading_offset[index])),
             }
         )
+        coupled = np.flatnonzero(robot.reading_coupling[index])
+        if coupled.size:  # written only when present, so that uncoupled robots keep their exact layout
+            joints[-1]["reading_coupling"] = {str(j + 1): float(robot.reading_coupling[index, j]) for j in coupled}
     return {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
 
 

@@ -62,6 +62,14 @@ class RobotModel:
     reading_sign, reading_offset : ndarray, shape (n_joints,)
         Map from controller readings to model joint variables:
         ``q_model = reading_sign * reading + reading_offset`` [rad]. Identity by default.
+    reading_coupling : ndarray, shape (n_joints, n_joints)
+        Off-diagonal coupling of the readings (zero diagonal; all zero by default, the uncoupled
+        case above). With ``M = diag(reading_sign) + reading_coupling`` the readings are
+        ``reading = M (q_model - reading_offset)``: the reading of joint k is a sum of coefficients
+        times model variables, e.g. a Fanuc-style J3 reading that is the forearm's angle to the
+        horizontal, ``reading_3 = -(q_3 - o_3) - (q_2 - o_2)`` (coupling[2, 1] = -1). ``M`` must be
+        invertible; :meth:`model_joint_variables` and :meth:`readings_from_model` are the one place
+        where readings and model variables are converted.
     limits : ndarray, shape (n_joints, 2)
         Software limits of the controller readings [rad] (lower, upper).
     description : str
@@ -74,6 +82,8 @@ class RobotModel:
     reading_offset: np.ndarray = field(default=None)
     limits: np.ndarray = field(default=None)
     description: str = ""
+    reading_coupling: np.ndarray = field(default=None)
+    _model_from_reading: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         nominal = np.asarray(self.nominal, dtype=float)
@@ -102,11 +112,51 @@ class RobotModel:
         limits = np.tile([-np.inf, np.inf], (n, 1)) if self.limits is None else np.asarray(self.limits, dtype=float)
         if limits.shape != (n, 2) or np.any(limits[:, 0] >= limits[:, 1]):
             raise InputError(f"robot {self.name!r}: `limits` must be {n} pairs (lower < upper)")
+        coupling = self._check_coupling(n, sign)
         object.__setattr__(self, "nominal", _frozen(nominal))
         object.__setattr__(self, "hayati", _frozen(hayati, bool))
         object.__setattr__(self, "reading_sign", _frozen(sign))
         object.__setattr__(self, "reading_offset", _frozen(offset))
         object.__setattr__(self, "limits", _frozen(limits))
+        object.__setattr__(self, "reading_coupling", _frozen(coupling))
+        inverse = None if not np.any(coupling) else _frozen(np.linalg.inv(np.diag(sign) + coupling))
+        object.__setattr__(self, "_model_from_reading", inverse)
+
+    def _check_coupling(self, n: int, sign: np.ndarray) -> np.ndarray:
+        """The ``(n, n)`` off-diagonal reading coupling, validated (finite, zero diagonal, invertible map)."""
+        if self.reading_coupling is None:
+            return np.zeros((n, n))
+        try:
+            coupling = np.array(self.reading_coupling, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"robot {self.name!r}: `reading_coupling` must be numeric") from exc
+        if coupling.shape != (n, n):
+            raise InputError(f"robot {self.name!r}: `reading_coupling` must have shape ({n}, {n}); got {coupling.shape}")
+        if not np.all(np.isfinite(coupling)):
+            raise InputError(f"robot {self.name!r}: `reading_coupling` contains NaN or infinite values")
+        if np.any(np.diag(coupling) != 0.0):
+            joint = int(np.flatnonzero(np.diag(coupling))[0])
+            raise InputError(
+                f"robot {self.name!r}: J{joint + 1} is coupled to itself; its own coefficient is `reading_sign`"
+            )
+        matrix = np.diag(sign) + coupling
+        condition = np.linalg.cond(matrix)
+        if not np.isfinite(condition) or condition > 1e8:
+            raise InputError(
+                f"robot {self.name!r}: the reading map (reading_sign + reading_coupling) is not invertible "
+                f"(condition number {condition:.3g}); the model joint variables could not be recovered from the readings"
+            )
+        return coupling
+
+    @property
+    def is_coupled(self) -> bool:
+        """Whether some joint's reading depends on another joint's model variable."""
+        return self._model_from_reading is not None
+
+    @property
+    def reading_matrix(self) -> np.ndarray:
+        """``M = diag(reading_sign) + reading_coupling``: ``reading = M (q - reading_offset)``, shape (n, n)."""
+        return np.diag(self.reading_sign) + self.reading_coupling
 
     @property
     def n_joints(self) -> int:
@@ -126,12 +176,25 @@ class RobotModel:
         return fixed
 
     def model_joint_variables(self, readings) -> np.ndarray:
-        """Model joint variables ``q = sign * reading + offset`` [rad] from readings ``(..., n_joints)`` [rad]."""
-        return np.asarray(readings, dtype=float) * self.reading_sign + self.reading_offset
+        """Model joint variables [rad] from controller readings ``(..., n_joints)`` [rad].
+
+        ``q = sign * reading + offset``; with a coupling, ``q = M^-1 reading + offset`` (see
+        :attr:`reading_matrix`).
+        """
+        readings = np.asarray(readings, dtype=float)
+        if self._model_from_reading is None:
+            return readings * self.reading_sign + self.reading_offset
+        return readings @ self._model_from_reading.T + self.reading_offset
 
     def readings_from_model(self, q) -> np.ndarray:
-        """Controller readings [rad] from model joint variables ``(..., n_joints)`` [rad]."""
-        return (np.asarray(q, dtype=float) - self.reading_offset) * self.reading_sign
+        """Controller readings [rad] from model joint variables ``(..., n_joints)`` [rad].
+
+        ``reading = sign * (q - offset)``; with a coupling, ``reading = M (q - offset)``.
+        """
+        q = np.asarray(q, dtype=float)
+        if self._model_from_reading is None:
+            return (q - self.reading_offset) * self.reading_sign
+        return (q - self.reading_offset) @ self.reading_matrix.T
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

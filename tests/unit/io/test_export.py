@@ -204,3 +204,33 @@ def test_markdown_table_has_a_row_per_joint():
     parameters = _perturbed("kuka-kr5-sixx-r650", 13, zero_beta=True)
     text = table_to_markdown(dh_table(parameters), title="DH")
     assert text.count("\n| J") == 6 and text.startswith("# DH")
+
+
+def test_coupled_readings_export_the_model_variables_only(tmp_path):
+    """A Fanuc-style robot whose J3 reading is coupled to J2: a URDF joint (or a table's reading columns,
+    or the UR YAML) turns by one value, so only the model-variable export is exact; its FK in yourdfpy
+    equals robotcal's at random readings, and its limits are the readings' where q follows one reading."""
+    yourdfpy = pytest.importorskip("yourdfpy")
+    parameters = _perturbed("fanuc-style-coupled", 8)
+    robot = parameters.robot
+    assert robot.is_coupled
+    without_beta = _perturbed("fanuc-style-coupled", 8, zero_beta=True)  # so DH/MDH could hold the geometry
+    for export in (parameters_to_urdf, parameters_to_ur_yaml, dh_table, mdh_table):
+        with pytest.raises(InputError, match=r"J3 are coupled.*--joint-variable model"):
+            export(without_beta)
+    path = tmp_path / "robot.urdf"
+    path.write_text(parameters_to_urdf(parameters, joint_variable="model"))
+    urdf = yourdfpy.URDF.load(str(path), load_meshes=False, load_collision_meshes=False)
+    readings = np.random.default_rng(9).uniform(-1.0, 1.0, (200, 6))
+    q = robot.model_joint_variables(readings)
+    flange = []
+    for row in q:
+        urdf.update_cfg(row)
+        flange.append(urdf.get_transform("flange", "base_link"))
+    flange = np.array(flange)
+    flange[:, :3, 3] *= 1000.0
+    _assert_same_pose(flange, forward_kinematics(parameters.values, q))
+    # q3 = -(r3 + r2 ...) follows two readings: no per-joint limit can hold it; J1 keeps its own
+    assert '<joint name="joint_3" type="continuous">' in path.read_text()
+    lower, upper = np.sort(robot.reading_sign[0] * robot.limits[0] + robot.reading_offset[0])
+    assert f'lower="{float(lower)!r}" upper="{float(upper)!r}"' in path.read_text()

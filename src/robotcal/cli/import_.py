@@ -1,0 +1,81 @@
+"""``robotcal import EXPORT --joints LOG --out CAPTURE.csv``: a tracker export into a capture CSV (docs/real-robot.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+
+app = command_app()
+
+COLUMNS_HELP = (
+    'Column map of a generic export: x="X [mm]",y=...,z=...[,name=...,u95=...,target=...,circle=...,direction=...] '
+    "(header names, or 1-based column numbers in a file without header). Default: Leica or plain name;x;y;z recognised."
+)
+
+
+@app.command("import")
+@handle_errors
+def import_(
+    export: Annotated[Path, typer.Argument(help="Tracker export (Leica, plain name;x;y;z, or generic with --columns).")],
+    joints: Annotated[
+        Path, typer.Option("--joints", "-j", help="Joint-angle log CSV: name (to join by name), q1..qN [deg].")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write (circle,direction,q1..qN,x,y,z,...).")],
+    columns: Annotated[str | None, typer.Option("--columns", help=COLUMNS_HELP)] = None,
+    units: Annotated[
+        str | None, typer.Option("--units", help="Unit of the export's coordinates: mm | m | in (default: its header).")
+    ] = None,
+    delimiter: Annotated[
+        str | None, typer.Option("--delimiter", help="Delimiter of the export: ',' | ';' | tab (default: detected).")
+    ] = None,
+    decimal: Annotated[
+        str | None, typer.Option("--decimal", help="Decimal separator of the export: '.' | ',' (default: detected).")
+    ] = None,
+    join: Annotated[
+        str, typer.Option("--join", help="name: point names = pose names of the log | order: point k <-> row k.")
+    ] = "name",
+    target: Annotated[
+        str | None, typer.Option("--target", help="Target name for every point (when no file has a target column).")
+    ] = None,
+    robot: Annotated[
+        str | None, typer.Option("--robot", "-r", help="Robot name or TOML: checks the number of joint columns.")
+    ] = None,
+    scenario: Annotated[
+        str | None, typer.Option("--scenario", "-s", help="Scenario whose robot checks the joint columns.")
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+) -> None:
+    """Convert a tracker export and a joint-angle log into a capture CSV (mm, deg; U(95) kept as u95_mm)."""
+    from robotcal.errors import InputError
+    from robotcal.io import load_robot, load_scenario
+    from robotcal.io.capture_csv import write_capture
+    from robotcal.io.output import check_output_file, existing_inputs, result_file
+    from robotcal.io.tracker_import import join_points_to_readings, read_joint_log, read_tracker_export
+
+    if robot is not None and scenario is not None:
+        raise InputError("give --robot or --scenario, not both")
+    inputs = existing_inputs(export, joints, robot, scenario)
+    n_joints = None
+    if scenario is not None:
+        loaded = load_scenario(scenario)
+        n_joints = loaded.robot.n_joints
+        inputs += existing_inputs(*loaded.files)
+    elif robot is not None:
+        n_joints = load_robot(robot).n_joints
+    check_output_file(out, inputs=inputs, force=force)
+    points = read_tracker_export(export, columns=columns, delimiter=delimiter, decimal=decimal, units=units)
+    log = read_joint_log(joints, n_joints=n_joints)
+    capture = join_points_to_readings(points, log, join=join, target=target)
+    with result_file(out, inputs=inputs, force=force):
+        write_capture(out, capture)
+    poses = len({tuple(row) for row in capture.readings.tolist()})
+    targets = f", targets {', '.join(capture.target_names)}" if capture.target is not None else ""
+    u95 = ", U(95) per point" if capture.u95 is not None else ""
+    console.print(
+        f"wrote {out}: {capture.n_points} points at {poses} poses ({points.layout} export in {points.unit}{targets}{u95})",
+        highlight=False,
+    )

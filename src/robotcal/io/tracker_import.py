@@ -1,0 +1,684 @@
+"""Tracker exports in: a tracker's point export + a joint-angle log -> a capture (docs/real-robot.md).
+
+Three export layouts are read:
+
+* **Leica** (recognised from its header): ``X [mm],Y [mm],Z [mm],U(95) [mm],...,Time Stamp``, with
+  a point name column when there is one (``Name``, ``Point``, ``Point ID``, ``ID``, ``Label``);
+  units read from the brackets ([mm], [m], [in]); the other columns are ignored.
+* **plain** ``name;x;y;z`` lines without a header (the point export of tracker software); the unit
+  must then be given (``units``), since nothing in the file states it.
+* **generic** delimited text with a header and a column map ``{"x": "X [mm]", "y": ..., "z": ...,
+  "name": ..., "u95": ..., "target": ..., "circle": ..., "direction": ...}`` (header names, or
+  1-based column numbers for a file without a header).
+
+Delimiters ``,``, ``;`` or tab and decimal ``.`` or ``,`` are detected (or given). A unit given both
+by ``units`` and by the header must agree; conversions are exact (1 m = 1000 mm, 1 in = 25.4 mm).
+
+The joint-angle log is a CSV with a header: ``name`` (needed to join by name) and ``q1..qN`` in
+degrees (``j1..jN`` or ``a1..aN`` also accepted), optionally ``circle``, ``direction`` and
+``target``. Points are joined to log rows **by name** (each point's name is a pose of the log; with
+a ``target`` column several points, one per target, share a pose) or **by order** (point k <-> row
+k). A point without a reading, a reading without a point, or a name (or name and target) given
+twice is an :class:`InputError` naming the file, line and column.
+
+The result is a :class:`robotcal.capture.Capture` with the optional ``target`` and ``u95`` columns
+(U(95) [mm], k = 2, normal), written by :func:`robotcal.io.capture_csv.write_capture`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from robotcal._arrays import frozen_array as _frozen
+from robotcal.capture import Capture
+from robotcal.errors import InputError
+from robotcal.io._validation import MAX_LINE_CHARS, csv_rows, read_text_file
+
+__all__ = [
+    "UNITS_MM",
+    "TrackerPoints",
+    "JointLog",
+    "parse_column_map",
+    "read_tracker_export",
+    "read_joint_log",
+    "join_points_to_readings",
+    "import_tracker_capture",
+]
+
+#: Length units a tracker export may use, in mm per unit (exact).
+UNITS_MM = {"mm": 1.0, "m": 1000.0, "in": 25.4}
+_UNIT_ALIASES = {"mm": "mm", "m": "m", "in": "in", "inch": "in", "inches": "in", '"': "in"}
+#: Header names of a point-name column (lower case).
+NAME_HEADERS = ("name", "point", "point name", "point id", "pointid", "id", "label", "pose")
+MAP_KEYS = ("x", "y", "z", "name", "u95", "target", "circle", "direction")
+_UNIT_IN_HEADER = re.compile(r"^(?P<base>.*?)\s*[\[(](?P<unit>[^\[\]()]*)[\])]\s*$")
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TrackerPoints:
+    """The points of a tracker export, converted to mm.
+
+    Attributes
+    ----------
+    points : ndarray, shape (n_points, 3)
+        Coordinates in the tracker frame [mm].
+    names : tuple of str or None
+        Point names (None when the export has no name column).
+    u95 : ndarray, shape (n_points,), or None
+        Expanded uncertainty U(95) [mm] of each point (k = 2), when the export gives one.
+    target, circle, direction : tuple or ndarray or None
+        Optional per-point columns (target names; circle and direction as integers).
+    lines : ndarray of int, shape (n_points,)
+        Line of the file each point was read from (for error messages).
+    layout : str
+        ``"leica"``, ``"plain"`` or ``"generic"``.
+    unit : str
+        Unit of the file's coordinates (``"mm"``, ``"m"``, ``"in"``).
+    source : str
+    """
+
+    points: np.ndarray
+    names: tuple[str, ...] | None
+    lines: np.ndarray
+    layout: str
+    unit: str
+    source: str
+    u95: np.ndarray | None = None
+    target: tuple[str, ...] | None = None
+    circle: np.ndarray | None = None
+    direction: np.ndarray | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "points", _frozen(np.asarray(self.points, dtype=float)))
+        object.__setattr__(self, "lines", _frozen(np.asarray(self.lines), int))
+        if self.u95 is not None:
+            object.__setattr__(self, "u95", _frozen(np.asarray(self.u95, dtype=float)))
+
+    @property
+    def n_points(self) -> int:
+        return self.points.shape[0]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class JointLog:
+    """The joint readings of a joint-angle log.
+
+    Attributes
+    ----------
+    readings : ndarray, shape (n_rows, n_joints)
+        Controller readings [rad].
+    names : tuple of str or None
+        Pose names (None without a ``name`` column).
+    lines : ndarray of int, shape (n_rows,)
+    circle, direction : ndarray of int or None
+    target : tuple of str or None
+    source : str
+    """
+
+    readings: np.ndarray
+    names: tuple[str, ...] | None
+    lines: np.ndarray
+    source: str
+    circle: np.ndarray | None = None
+    direction: np.ndarray | None = None
+    target: tuple[str, ...] | None = field(default=None)
+
+    @property
+    def n_rows(self) -> int:
+        return self.readings.shape[0]
+
+
+# --------------------------------------------------------------------------------------------------
+# delimited text
+
+
+def _detect_delimiter(first_line: str, delimiter: str | None, source) -> str:
+    if delimiter is not None:
+        delimiter = {"tab": "\t", "\\t": "\t", "semicolon": ";", "comma": ","}.get(delimiter, delimiter)
+        if delimiter not in (",", ";", "\t"):
+            raise InputError(f"{source}: delimiter must be ',', ';' or tab; got {delimiter!r}")
+        return delimiter
+    for candidate in ("\t", ";"):
+        if candidate in first_line:
+            return candidate
+    return ","
+
+
+def _detect_decimal(rows: list[list[str]], delimiter: str, decimal: str | None, source) -> str:
+    if decimal is not None:
+        if decimal not in (".", ","):
+            raise InputError(f"{source}: decimal separator must be '.' or ','; got {decimal!r}")
+        if decimal == "," and delimiter == ",":
+            raise InputError(f"{source}: decimal ',' needs another delimiter (';' or tab) than ','")
+        return decimal
+    if delimiter == ",":
+        return "."
+    for row in rows[:50]:
+        if any(_DECIMAL_COMMA.match(cell.strip()) for cell in row):
+            return ","
+    return "."
+
+
+def _table(path, *, kind: str, delimiter: str | None, decimal: str | None):
+    """``(records, delimiter, decimal)``: the non-empty ``(line, cells)`` of a delimited text file."""
+    text = read_text_file(path, kind=kind)
+    first = next((line for line in text.splitlines() if line.strip()), "")
+    if not first:
+        raise InputError(f"{path}: empty file; expected a {kind}")
+    delimiter = _detect_delimiter(first, delimiter, path)
+    records = [
+        (number, [cell.strip() for cell in row])
+        for number, row in _csv_records(text, path, delimiter)
+        if any(cell.strip() for cell in row)
+    ]
+    decimal = _detect_decimal([row for _, row in records[1:]] or [records[0][1]], delimiter, decimal, path)
+    return records, delimiter, decimal
+
+
+def _csv_records(text: str, path, delimiter: str):
+    if delimiter == ",":
+        return csv_rows(text, path)
+    for number, line in enumerate(text.splitlines(), start=1):  # the line-length check of every reader
+        if len(line) > MAX_LINE_CHARS:
+            raise InputError(f"{path}: line {number} is {len(line):,} characters long (limit {MAX_LINE_CHARS:,})")
+    reader = csv.reader(io.StringIO(text), delimiter=delimiter)
+    rows = []
+    try:
+        for row in reader:
+            rows.append((reader.line_num - sum(cell.count("\n") for cell in row), row))
+    except csv.Error as exc:
+        raise InputError(f"{path}: line {reader.line_num}: not valid delimited text ({exc})") from None
+    return rows
+
+
+def _number(cell: str, decimal: str, where: str) -> float:
+    text = cell.strip()
+    if decimal == ",":
+        if "." in text:
+            raise InputError(f"{where}: {text!r} is not a number with decimal comma")
+        text = text.replace(",", ".")
+    try:
+        value = float(text)
+    except ValueError:
+        hint = " (a decimal comma? give --decimal ,)" if decimal == "." and _DECIMAL_COMMA.match(text) else ""
+        raise InputError(f"{where}: {cell.strip()!r} is not a number{hint}") from None
+    if not np.isfinite(value):
+        raise InputError(f"{where}: {cell.strip()!r} is not a finite number")
+    return value
+
+
+def _is_number(cell: str, decimal: str) -> bool:
+    try:
+        _number(cell, decimal, "")
+    except InputError:
+        return False
+    return True
+
+
+def _split_unit(header: str) -> tuple[str, str | None]:
+    """``"X [mm]"`` -> ``("x", "mm")``; ``"x"`` -> ``("x", None)`` (base in lower case)."""
+    match = _UNIT_IN_HEADER.match(header.strip())
+    if match is None:
+        return header.strip().lower(), None
+    return match["base"].strip().lower(), match["unit"].strip().lower()
+
+
+def _length_unit(unit: str, where: str) -> str:
+    if unit not in _UNIT_ALIASES:
+        raise InputError(f"{where}: unknown unit {unit!r}; known: {', '.join(UNITS_MM)}")
+    return _UNIT_ALIASES[unit]
+
+
+def parse_column_map(text: str | None) -> dict[str, str]:
+    """``'x="X [mm]",y=Y,name=Point'`` -> ``{"x": "X [mm]", "y": "Y", "name": "Point"}``.
+
+    Values may be double-quoted (to hold commas); keys are those of :data:`MAP_KEYS`.
+    """
+    if text is None or not text.strip():
+        return {}
+    items, current, quoted = [], "", False
+    for char in text:
+        if char == '"':
+            quoted = not quoted
+        elif char == "," and not quoted:
+            items.append(current)
+            current = ""
+            continue
+        current += char
+    if quoted:
+        raise InputError(f"--columns: unbalanced quote in {text!r}")
+    items.append(current)
+    mapping = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip().lower(), value.strip()
+        if len(value) >= 2 and value[0] == value[-1] == '"':
+            value = value[1:-1]
+        if not sep or not key or not value:
+            raise InputError(f"--columns: expected KEY=COLUMN items separated by commas; got {item.strip()!r}")
+        if key not in MAP_KEYS:
+            raise InputError(f"--columns: unknown key {key!r}; known: {', '.join(MAP_KEYS)}")
+        if key in mapping:
+            raise InputError(f"--columns: key {key!r} given twice")
+        mapping[key] = value
+    missing = [key for key in ("x", "y", "z") if key not in mapping]
+    if missing:
+        raise InputError(f"--columns: the map must name x, y and z; missing {', '.join(missing)}")
+    return mapping
+
+
+# --------------------------------------------------------------------------------------------------
+# the tracker export
+
+
+def _auto_columns(header: list[str]) -> tuple[dict[str, int], str]:
+    """Column positions recognised in a header without a map, and the layout name."""
+    positions: dict[str, int] = {}
+    bases = [_split_unit(cell)[0] for cell in header]
+    for position, base in enumerate(bases):
+        key = None
+        if base in ("x", "y", "z"):
+            key = base
+        elif re.fullmatch(r"u\s*\(?\s*95\s*\)?|u95|u95_mm", base):
+            key = "u95"
+        elif base in NAME_HEADERS:
+            key = "name"
+        elif base in ("target", "circle", "direction"):
+            key = base
+        if key is not None and key not in positions:
+            positions[key] = position
+    leica = "u95" in positions or any(base == "time stamp" for base in bases)
+    return positions, "leica" if leica else "generic"
+
+
+def _mapped_columns(header: list[str] | None, mapping: dict[str, str], source) -> dict[str, int]:
+    positions = {}
+    lowered = [cell.strip().lower() for cell in header] if header is not None else None
+    for key, column in mapping.items():
+        if lowered is not None and column.strip().lower() in lowered:
+            positions[key] = lowered.index(column.strip().lower())
+        elif column.isdigit() and int(column) >= 1:
+            positions[key] = int(column) - 1
+        else:
+            known = ", ".join(repr(cell) for cell in header) if header else "(no header)"
+            raise InputError(f"{source}: --columns {key}={column!r}: no such column; the header has {known}")
+    return positions
+
+
+def read_tracker_export(
+    path,
+    *,
+    columns: dict[str, str] | str | None = None,
+    delimiter: str | None = None,
+    decimal: str | None = None,
+    units: str | None = None,
+) -> TrackerPoints:
+    """Read a tracker's point export (Leica, plain ``name;x;y;z`` or a mapped generic layout), in mm.
+
+    Parameters
+    ----------
+    path : path-like
+    columns : dict or str, optional
+        Column map (see :func:`parse_column_map`); without it the layout is recognised.
+    delimiter : {",", ";", "\\t"}, optional
+        Detected from the first line when omitted (tab, then ``;``, else ``,``).
+    decimal : {".", ","}, optional
+        Detected from the data when omitted (``,`` only with another delimiter).
+    units : {"mm", "m", "in"}, optional
+        Unit of the coordinates; read from the header's ``[mm]`` when omitted; both given must agree.
+
+    Returns
+    -------
+    TrackerPoints
+    """
+    source = Path(path)
+    mapping = parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
+    if units is not None:
+        units = _length_unit(units.strip().lower(), f"{source}: --units")
+    records, delimiter, decimal = _table(source, kind="tracker export", delimiter=delimiter, decimal=decimal)
+    first = records[0][1]
+    headerless = len(first) >= 4 and all(_is_number(cell, decimal) for cell in first[1:4])
+    if mapping:
+        by_position = all(value.isdigit() and int(value) >= 1 for value in mapping.values())
+        if by_position and all(
+            int(mapping[key]) <= len(first) and _is_number(first[int(mapping[key]) - 1], decimal) for key in "xyz"
+        ):
+            header, data = None, records
+        else:
+            header, data = first, records[1:]
+        positions, layout = _mapped_columns(header, mapping, source), "generic"
+    elif headerless:
+        header, data, layout = None, records, "plain"
+        positions = {"name": 0, "x": 1, "y": 2, "z": 3}
+    else:
+        header, data = first, records[1:]
+        positions, layout = _auto_columns(header)
+        missing = [key for key in ("x", "y", "z") if key not in positions]
+        if missing:
+            raise InputError(
+                f"{source}: no column {', '.join(missing)} in the header ({', '.join(header)}); "
+                'name the columns with --columns x="...",y="...",z="..."'
+            )
+    if not data:
+        raise InputError(f"{source}: no data rows")
+    width = len(header) if header is not None else None
+
+    def column_name(key: str) -> str:
+        return header[positions[key]] if header is not None else f"{key} (column {positions[key] + 1})"
+
+    # units: from the header's brackets of x, y, z (must agree) and/or --units
+    header_unit = None
+    if header is not None:
+        found = {}
+        for key in ("x", "y", "z"):
+            unit = _split_unit(header[positions[key]])[1]
+            if unit is not None:
+                found[key] = _length_unit(unit, f"{source}: column `{header[positions[key]]}`")
+        if len(set(found.values())) > 1:
+            raise InputError(f"{source}: the coordinate columns disagree on the unit: {found}")
+        header_unit = next(iter(found.values()), None)
+    if units is not None and header_unit is not None and units != header_unit:
+        raise InputError(
+            f"{source}: --units {units} contradicts the header, whose coordinates are in {header_unit} "
+            f"(column `{column_name('x')}`)"
+        )
+    unit = units or header_unit
+    if unit is None:
+        raise InputError(f"{source}: the export does not state its unit; give --units {'|'.join(UNITS_MM)}")
+    u95_unit = unit
+    if "u95" in positions and header is not None:
+        stated = _split_unit(header[positions["u95"]])[1]
+        if stated is not None:
+            u95_unit = _length_unit(stated, f"{source}: column `{header[positions['u95']]}`")
+    needed = max(positions.values()) + 1
+    values = {key: [] for key in positions}
+    lines = []
+    for line, row in data:
+        if width is not None and len(row) != width and len(row) < needed:
+            raise InputError(f"{source}: line {line} has {len(row)} fields; the header has {width}")
+        if len(row) < needed:
+            raise InputError(f"{source}: line {line} has {len(row)} fields; expected at least {needed}")
+        lines.append(line)
+        for key, position in positions.items():
+            cell = row[position]
+            where = f"{source}: line {line}, column `{column_name(key)}`"
+            if key in ("x", "y", "z", "u95"):
+                values[key].append(_number(cell, decimal, where))
+            elif key in ("circle", "direction"):
+                number = _number(cell, decimal, where)
+                if number != round(number):
+                    raise InputError(f"{where}: must be a whole number; got {cell!r}")
+                values[key].append(int(number))
+            else:
+                if not cell:
+                    raise InputError(f"{where}: empty {key}")
+                values[key].append(cell)
+    points = np.column_stack([values[key] for key in ("x", "y", "z")]) * UNITS_MM[unit]
+    u95 = None
+    if "u95" in values:
+        u95 = np.asarray(values["u95"]) * UNITS_MM[u95_unit]
+        bad = np.flatnonzero(u95 <= 0.0)
+        if bad.size:
+            raise InputError(
+                f"{source}: line {lines[bad[0]]}, column `{column_name('u95')}`: U(95) must be > 0; "
+                f"got {values['u95'][bad[0]]!r}"
+            )
+    names = tuple(values["name"]) if "name" in values else None
+    target = tuple(values["target"]) if "target" in values else None
+    _check_unique_names(names, target, lines, source, column_name("name") if names else "")
+    return TrackerPoints(
+        points=points,
+        names=names,
+        lines=np.asarray(lines),
+        layout=layout,
+        unit=unit,
+        source=str(source),
+        u95=u95,
+        target=target,
+        circle=np.asarray(values["circle"]) if "circle" in values else None,
+        direction=np.asarray(values["direction"]) if "direction" in values else None,
+    )
+
+
+def _check_unique_names(names, target, lines, source, column: str) -> None:
+    if names is None:
+        return
+    seen: dict[tuple, int] = {}
+    for k, name in enumerate(names):
+        key = (name, None if target is None else target[k])
+        if key in seen:
+            what = f"name {name!r}" if target is None else f"name {name!r} with target {target[k]!r}"
+            raise InputError(
+                f"{source}: line {lines[k]}, column `{column}`: {what} already on line {seen[key]}; "
+                "point names must be unique (one point per pose and target)"
+            )
+        seen[key] = lines[k]
+
+
+# --------------------------------------------------------------------------------------------------
+# the joint-angle log
+
+_JOINT_COLUMN = re.compile(r"^(?:q|j|a)(\d{1,3})$")
+
+
+def read_joint_log(
+    path, *, n_joints: int | None = None, delimiter: str | None = None, decimal: str | None = None
+) -> JointLog:
+    """Read a joint-angle log: header with ``name`` (optional) and ``q1..qN`` [deg] (``j``/``a`` prefixes too).
+
+    A ``[rad]`` unit in a joint column's header is converted; ``[deg]`` or none means degrees.
+    Optional columns ``circle``, ``direction``, ``target``.
+    """
+    source = Path(path)
+    records, delimiter, decimal = _table(source, kind="joint-angle log", delimiter=delimiter, decimal=decimal)
+    header = records[0][1]
+    parsed = [_split_unit(cell) for cell in header]
+    joint_positions: dict[str, dict[int, int]] = {}
+    for position, (base, _) in enumerate(parsed):
+        match = _JOINT_COLUMN.match(base)
+        if match:
+            joint_positions.setdefault(base[0], {})[int(match[1])] = position
+    prefix = next((p for p in ("q", "j", "a") if p in joint_positions), None)
+    if prefix is None:
+        raise InputError(f"{source}: no joint columns q1..qN in the header ({', '.join(header)})")
+    joints = joint_positions[prefix]
+    count = max(joints)
+    missing = [f"{prefix}{k}" for k in range(1, count + 1) if k not in joints]
+    if missing:
+        raise InputError(f"{source}: missing joint column(s) {', '.join(missing)}")
+    if n_joints is not None and count != n_joints:
+        raise InputError(
+            f"{source}: {count} joint columns ({prefix}1..{prefix}{count}) but the robot has {n_joints} joints"
+        )
+    scale = []
+    for k in range(1, count + 1):
+        unit = parsed[joints[k]][1]
+        if unit not in (None, "deg", "°", "degree", "degrees", "rad"):
+            raise InputError(f"{source}: column `{header[joints[k]]}`: unknown angle unit {unit!r}; known: deg, rad")
+        scale.append(1.0 if unit == "rad" else np.pi / 180.0)
+    bases = [base for base, _ in parsed]
+    optional = {
+        key: bases.index(alias)
+        for key, aliases in (
+            ("name", NAME_HEADERS),
+            ("circle", ("circle",)),
+            ("direction", ("direction",)),
+            ("target", ("target",)),
+        )
+        for alias in aliases
+        if alias in bases
+    }
+    data = records[1:]
+    if not data:
+        raise InputError(f"{source}: no data rows")
+    readings = np.empty((len(data), count))
+    extra = {key: [] for key in optional}
+    lines = []
+    for row_index, (line, row) in enumerate(data):
+        if len(row) != len(header):
+            raise InputError(f"{source}: line {line} has {len(row)} fields; the header has {len(header)}")
+        lines.append(line)
+        for k in range(1, count + 1):
+            where = f"{source}: line {line}, column `{header[joints[k]]}`"
+            readings[row_index, k - 1] = _number(row[joints[k]], decimal, where) * scale[k - 1]
+        for key, position in optional.items():
+            cell = row[position]
+            where = f"{source}: line {line}, column `{header[position]}`"
+            if key in ("circle", "direction"):
+                number = _number(cell, decimal, where)
+                if number != round(number):
+                    raise InputError(f"{where}: must be a whole number; got {cell!r}")
+                extra[key].append(int(number))
+            elif not cell:
+                raise InputError(f"{where}: empty {key}")
+            else:
+                extra[key].append(cell)
+    names = tuple(extra["name"]) if "name" in extra else None
+    if names is not None:
+        seen: dict[str, int] = {}
+        for k, name in enumerate(names):
+            if name in seen:
+                raise InputError(
+                    f"{source}: line {lines[k]}, column `{header[optional['name']]}`: pose name {name!r} already "
+                    f"on line {seen[name]}; pose names must be unique"
+                )
+            seen[name] = lines[k]
+    return JointLog(
+        readings=readings,
+        names=names,
+        lines=np.asarray(lines),
+        source=str(source),
+        circle=np.asarray(extra["circle"]) if "circle" in extra else None,
+        direction=np.asarray(extra["direction"]) if "direction" in extra else None,
+        target=tuple(extra["target"]) if "target" in extra else None,
+    )
+
+
+# --------------------------------------------------------------------------------------------------
+# the join
+
+
+def _pick(name: str, from_points, from_log, rows: np.ndarray, points: TrackerPoints, log: JointLog):
+    """A per-point column given by the export or by the log (both: they must agree)."""
+    log_values = None if from_log is None else [from_log[r] for r in rows]
+    if from_points is None:
+        return log_values
+    point_values = list(from_points)
+    if log_values is not None:
+        for k, (a, b) in enumerate(zip(point_values, log_values, strict=True)):
+            if a != b:
+                raise InputError(
+                    f"{points.source}: line {points.lines[k]}: {name} {a!r} disagrees with the joint-angle log "
+                    f"({log.source}: line {log.lines[rows[k]]}: {b!r})"
+                )
+    return point_values
+
+
+def join_points_to_readings(
+    points: TrackerPoints, log: JointLog, *, join: str = "name", target: str | None = None
+) -> Capture:
+    """Join the export's points to the log's readings (by name or by order) into a :class:`Capture`.
+
+    Parameters
+    ----------
+    points : TrackerPoints
+    log : JointLog
+    join : {"name", "order"}
+        ``"name"``: each point's name is a pose name of the log; every pose must be measured and
+        every point must have a pose. ``"order"``: point k takes row k (equal counts).
+    target : str, optional
+        One target name for every point (when neither file has a ``target`` column).
+
+    Returns
+    -------
+    Capture
+        ``circle`` and ``direction`` from the files when given (else 0 and +1: free poses), the
+        ``target`` column and ``u95`` [mm] when known.
+    """
+    if join not in ("name", "order"):
+        raise InputError(f"--join must be 'name' or 'order'; got {join!r}")
+    if join == "order":
+        if points.n_points != log.n_rows:
+            raise InputError(
+                f"joining by order needs as many points as joint readings: {points.source} has "
+                f"{points.n_points} points, {log.source} has {log.n_rows} rows"
+            )
+        rows = np.arange(points.n_points)
+    else:
+        if points.names is None:
+            raise InputError(f"{points.source}: no point-name column to join by name; use --join order")
+        if log.names is None:
+            raise InputError(f"{log.source}: no `name` column to join by name; use --join order")
+        lookup = {name: k for k, name in enumerate(log.names)}
+        orphans = [k for k, name in enumerate(points.names) if name not in lookup]
+        if orphans:
+            listed = ", ".join(repr(points.names[k]) for k in orphans[:5]) + (" ..." if len(orphans) > 5 else "")
+            raise InputError(
+                f"{points.source}: line {points.lines[orphans[0]]}: {len(orphans)} point(s) with no joint reading in "
+                f"{log.source}: {listed}"
+            )
+        rows = np.array([lookup[name] for name in points.names], dtype=int)
+        unused = np.setdiff1d(np.arange(log.n_rows), rows)
+        if unused.size:
+            listed = ", ".join(repr(log.names[k]) for k in unused[:5]) + (" ..." if unused.size > 5 else "")
+            raise InputError(
+                f"{log.source}: line {log.lines[unused[0]]}: {unused.size} joint reading(s) with no measured point in "
+                f"{points.source}: {listed}"
+            )
+    targets = _pick("target", points.target, log.target, rows, points, log)
+    if targets is not None and target is not None:
+        raise InputError("--target names one target for every point, but the files have a `target` column")
+    if targets is None and target is not None:
+        if not target.strip():
+            raise InputError("--target must be a non-empty name")
+        targets = [target.strip()] * points.n_points
+    circle = _pick("circle", points.circle, log.circle, rows, points, log)
+    direction = _pick("direction", points.direction, log.direction, rows, points, log)
+    target_index, target_names = None, ()
+    if targets is not None:
+        target_names = tuple(dict.fromkeys(targets))
+        lookup = {name: k for k, name in enumerate(target_names)}
+        target_index = np.array([lookup[name] for name in targets], dtype=int)
+    n = points.n_points
+    return Capture(
+        circle=np.zeros(n, dtype=int) if circle is None else np.asarray(circle, dtype=int),
+        direction=np.ones(n, dtype=int) if direction is None else np.asarray(direction, dtype=int),
+        readings=log.readings[rows],
+        points=points.points,
+        source=points.source,
+        target=target_index,
+        target_names=target_names,
+        u95=points.u95,
+    )
+
+
+def import_tracker_capture(
+    export_path,
+    joints_path,
+    *,
+    n_joints: int | None = None,
+    columns: dict[str, str] | str | None = None,
+    delimiter: str | None = None,
+    decimal: str | None = None,
+    units: str | None = None,
+    join: str = "name",
+    target: str | None = None,
+    log_delimiter: str | None = None,
+    log_decimal: str | None = None,
+) -> Capture:
+    """Read a tracker export and a joint-angle log and join them into a :class:`Capture` (mm, rad).
+
+    ``delimiter``/``decimal`` apply to the export; the log's are detected unless ``log_delimiter``/
+    ``log_decimal`` are given. See :func:`read_tracker_export`, :func:`read_joint_log`,
+    :func:`join_points_to_readings`.
+    """
+    points = read_tracker_export(export_path, columns=columns, delimiter=delimiter, decimal=decimal, units=units)
+    log = read_joint_log(joints_path, n_joints=n_joints, delimiter=log_delimiter, decimal=log_decimal)
+    return join_points_to_readings(points, log, join=join, target=target)
