@@ -38,9 +38,9 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
-from scipy.stats import binom, norm
 
 from robotcal.errors import InputError
 from robotcal.kinematics.model import ParameterSet
@@ -53,6 +53,8 @@ COVERAGE_METHODS = ("cpa-mc", "refined-mc", "refined-linearised")
 
 def binomial_band(captures: int, coverage: float = 0.95, confidence: float = 0.99) -> tuple[float, float]:
     """The ``confidence`` band of the empirical coverage of ``captures`` trials of probability ``coverage``."""
+    from scipy.stats import binom  # scipy.stats costs ~1 s to import: only when a study runs
+
     low, high = binom.interval(confidence, captures, coverage)
     return float(low) / captures, float(high) / captures
 
@@ -205,7 +207,7 @@ def coverage_study(
     if tcp_readings is not None:
         q_tcp = robot.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
         true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
-    z = norm.ppf(0.5 + coverage / 2.0)
+    z = NormalDist().inv_cdf(0.5 + coverage / 2.0)
     settings = MonteCarloSettings(iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000))
 
     contained = {m: [] for m in methods}
