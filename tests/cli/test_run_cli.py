@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import robotcal.cli.run as run_cli
+import robotcal.pipeline.stages as pipeline_stages
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters
 from robotcal.io.builtins import read_toml
 from robotcal.io.robots import load_robot
 from robotcal.io.scenario import scenario_from_dict
+from robotcal.pipeline import STAGES, plan_run
 from robotcal.uncertainty.tcp import tcp_coordinates
 from robotcal.workflow import TABLE_5_8_READINGS_DEG, tcp_targets
 from thesis_data import thesis_tables
@@ -73,7 +74,7 @@ def test_run_writes_every_stage_and_the_report(run_folder):
     assert missing == []
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "done"
-    assert list(record["stages"]) == list(run_cli.STAGES)
+    assert list(record["stages"]) == list(STAGES)
     assert all(entry["status"] == "done" and entry["seconds"] >= 0 for entry in record["stages"].values())
     assert record["scenario"]["name"] == "kr5-demo" and record["robot"] == "kuka-kr5-sixx-r650"
     instrument = record["scenario"]["instrument"]
@@ -175,7 +176,7 @@ def test_rerun_replaces_stage_folders(tmp_path, monkeypatch):
     def fail(*args, **kwargs):
         raise InputError("stop here")
 
-    monkeypatch.setattr(run_cli, "evaluate_scenario", fail)
+    monkeypatch.setattr(pipeline_stages, "evaluate_scenario", fail)
     # not robotcal's folder (no marker): refused, untouched
     result = invoke("run", "kr5-demo", "--draws", 2000, "--out", stale)
     assert result.exit_code == 2 and "--force" in result.output
@@ -213,20 +214,20 @@ def test_bad_tcp_table_is_refused_before_work(tmp_path, table, message):
     path = tmp_path / "tcp.toml"
     path.write_text(_toml(data))
     with pytest.raises(InputError, match=message):
-        run_cli.prepare_run(str(path), tmp_path / "out")
+        plan_run(str(path), tmp_path / "out")
     assert not (tmp_path / "out").exists()
 
 
 def test_too_few_draws_is_refused_before_work(tmp_path):
     with pytest.raises(InputError, match="iterations"):
-        run_cli.prepare_run("kr5-demo", tmp_path / "out", draws=10)
+        plan_run("kr5-demo", tmp_path / "out", draws=10)
 
 
 def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkeypatch):
     def fail(*args, **kwargs):
         raise InputError("joint diagnostics exploded")
 
-    monkeypatch.setattr(run_cli, "compute_joints", fail)
+    monkeypatch.setattr(pipeline_stages, "compute_joints", fail)
     out = tmp_path / "demo"
     result = invoke("demo", "--out", out, "--draws", 2000, "--seed", 5)
     assert result.exit_code == 2

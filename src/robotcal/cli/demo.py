@@ -7,9 +7,11 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli import app
-from robotcal.cli._common import FORCE_HELP, SEED_BOUND, handle_errors
-from robotcal.cli.run import SEED_OFFSETS, _command_line, prepare_run, run_and_print
+from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, handle_errors
+from robotcal.cli.run import _command_line, run_and_print
+from robotcal.pipeline.plan import SEED_OFFSETS, plan_run
+
+app = command_app()
 
 DEMO_SCENARIO = "kr5-demo"
 
@@ -33,7 +35,7 @@ def demo(
 ) -> None:
     """The whole calibration of a simulated KUKA KR 5 sixx R650 with a perturbed "true" robot: writes
     OUT/report.html (run `robotcal run kr5-demo --out OUT`)."""
-    plan = prepare_run(
+    plan = plan_run(
         DEMO_SCENARIO,
         out,
         seed=seed,

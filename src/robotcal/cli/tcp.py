@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import time
-import warnings
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -12,24 +10,25 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from robotcal.cli import app
 from robotcal.cli._common import (
     BYTES_PER_POSE,
     FORCE_HELP,
     SEED_BOUND,
     check_memory,
+    command_app,
     console,
     handle_errors,
 )
-from robotcal.errors import InputError, JointLimitWarning
+from robotcal.errors import InputError
 from robotcal.io.draws_npz import ParameterDraws, read_draws
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.io.tcp_results import write_tcp_csv, write_tcp_json
 from robotcal.io.trajectory_csv import load_trajectory
+from robotcal.pipeline.tcp import compute_tcp, write_tcp_folder
 from robotcal.uncertainty.statistics import INTERVAL_KINDS
-from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty, check_readings, propagate_to_tcp
-from robotcal.uncertainty.workspace import workspace_uncertainty
+from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty, check_readings
 from robotcal.workflow import versions
+
+app = command_app()
 
 _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
 
@@ -69,14 +68,6 @@ def _subset(loaded: ParameterDraws, max_draws: int | None) -> np.ndarray:
     return loaded.values[:max_draws]
 
 
-@contextmanager
-def _limits_already_checked():
-    """Silence the library's second joint-limit warning (the CLI has warned, naming the file)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", JointLimitWarning)
-        yield
-
-
 def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> Table:
     low, high = result.summary.interval(interval)
     table = Table(title=f"TCP at pose {pose + 1} ({result.n_draws} draws)", title_justify="left")
@@ -95,61 +86,6 @@ def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> Table:
             f"{high[pose, k] * f:.4f}",
         )
     return table
-
-
-def compute_tcp(
-    robot,
-    values: np.ndarray,
-    mode: str,
-    *,
-    readings: np.ndarray | None = None,
-    n_poses: int | None = None,
-    seed: int = 0,
-    tool_mm=None,
-    coverage: float = 0.95,
-):
-    """TCP uncertainty of the draws ``values`` (n_draws, n_joints, 5) [mm, rad].
-
-    ``mode`` ``"pose"`` or ``"trajectory"``: at ``readings`` (n_poses, n_joints) [rad], already checked
-    against the limits (:func:`check_readings`; the library's second warning is silenced);
-    ``"workspace"``: at ``n_poses`` random poses within the limits drawn with ``seed``. Returns
-    ``(TCPUncertainty, WorkspaceUncertainty or None)``.
-    """
-    if mode == "workspace":
-        ws = workspace_uncertainty(robot, values, n_poses, rng=seed, tool=tool_mm, coverage=coverage)
-        return ws.tcp, ws
-    if mode not in ("pose", "trajectory"):
-        raise InputError(f"unknown TCP mode {mode!r}: pose, trajectory or workspace")
-    with _limits_already_checked():
-        result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage, keep_draws=mode == "pose")
-    return result, None
-
-
-def write_tcp_folder(
-    folder: Path,
-    result: TCPUncertainty,
-    mode: str,
-    *,
-    interval: str = "symmetric",
-    workspace=None,
-    provenance: dict | None = None,
-) -> list[str]:
-    """Write ``tcp.csv``, ``tcp.json`` and the mode's figures into ``folder`` (an existing, normally
-    temporary, folder); returns the file names."""
-    from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
-
-    write_tcp_csv(folder / "tcp.csv", result, interval=interval)
-    write_tcp_json(folder / "tcp.json", result, interval=interval, workspace=workspace, provenance=provenance or {})
-    if mode == "pose":
-        figures = [
-            plot_tcp_scatter(result, folder / "scatter.png"),
-            plot_tcp_histograms(result, folder / "histograms.png"),
-        ]
-    elif mode == "trajectory":
-        figures = [plot_trajectory(result, folder / "trajectory.png")]
-    else:
-        figures = [plot_workspace(workspace, folder / "workspace.png")]
-    return ["tcp.csv", "tcp.json"] + [Path(figure).name for figure in figures]
 
 
 @app.command()

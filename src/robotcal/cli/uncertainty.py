@@ -11,12 +11,12 @@ import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-from robotcal.cli import app
 from robotcal.cli._common import (
     FORCE_HELP,
     SEED_BOUND,
     _line,
     check_memory,
+    command_app,
     console,
     handle_errors,
     monte_carlo_bytes,
@@ -26,19 +26,21 @@ from robotcal.cli._common import (
 from robotcal.errors import InputError
 from robotcal.identification.refine import CRITERIA
 from robotcal.io import load_scenario, read_parameters
-from robotcal.io.draws_npz import write_draws
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 from robotcal.io.scenario import Scenario
-from robotcal.io.uncertainty_files import uncertainty_rows, write_uncertainty_csv, write_uncertainty_json
+from robotcal.io.uncertainty_files import uncertainty_rows
 from robotcal.kinematics.model import ParameterSet
+from robotcal.pipeline.uncertainty import compute_uncertainty as run_uncertainty
+from robotcal.pipeline.uncertainty import write_uncertainty_folder
 from robotcal.uncertainty.montecarlo import (
     MODELS,
     MonteCarloResult,
     MonteCarloSettings,
     ProgressCallback,
-    run_monte_carlo,
 )
-from robotcal.workflow import resolve_seed, scenario_monte_carlo, versions
+from robotcal.workflow import resolve_seed
+
+app = command_app()
 
 __all__ = ["uncertainty", "compute_uncertainty", "write_uncertainty_folder", "uncertainty_table"]
 
@@ -54,16 +56,13 @@ def compute_uncertainty(
     model: str = "cpa",
     criterion: str = "points",
 ) -> MonteCarloResult:
-    """Prepare (all input checks happen here, before any draw) and run the Monte Carlo.
-
-    ``model="refined"`` draws capture -> CPA -> refinement (``criterion``), the deployed model.
-
-    ``progress(done, total)`` is called after every block when given (``robotcal run`` drives its own
-    display with it); else ``show_progress`` shows a progress bar of its own.
-    """
-    problem = scenario_monte_carlo(scenario, true_parameters=true_parameters, model=model, criterion=criterion)
+    """:func:`robotcal.pipeline.uncertainty.compute_uncertainty` with a progress bar of its own when
+    ``show_progress`` and no ``progress`` callback is given."""
     if progress is not None or not show_progress:
-        return run_monte_carlo(problem, settings, seed=seed, progress=progress)
+        return run_uncertainty(
+            scenario, settings, seed=seed, true_parameters=true_parameters, progress=progress, model=model,
+            criterion=criterion,
+        )  # fmt: skip
     total = None if settings.adaptive else settings.iterations
     with Progress(
         TextColumn("Monte Carlo"),
@@ -74,28 +73,16 @@ def compute_uncertainty(
         TimeRemainingColumn(),
         console=console,
         transient=True,
-    ) as progress:
-        task = progress.add_task("draws", total=total)
+    ) as display:
+        task = display.add_task("draws", total=total)
 
         def report(done: int, expected: int | None) -> None:
-            progress.update(task, completed=done, total=expected)
+            display.update(task, completed=done, total=expected)
 
-        return run_monte_carlo(problem, settings, seed=seed, progress=report)
-
-
-def write_uncertainty_folder(folder: Path, result: MonteCarloResult, scenario: Scenario, *, save_draws: bool) -> None:
-    """Write ``parameters.csv``, ``parameters.json``, the histograms and (optionally) ``draws.npz``
-    into ``folder`` (an existing, normally temporary, folder)."""
-    from robotcal.report.montecarlo import write_histograms  # matplotlib only when writing figures
-
-    echo = {"name": scenario.name, "source": scenario.source, "settings": scenario.settings}
-    write_uncertainty_csv(folder / "parameters.csv", result)
-    write_uncertainty_json(folder / "parameters.json", result, scenario=echo, versions=versions())
-    if save_draws:
-        write_draws(
-            folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed, model=result.model
-        )
-    write_histograms(result, folder)
+        return run_uncertainty(
+            scenario, settings, seed=seed, true_parameters=true_parameters, progress=report, model=model,
+            criterion=criterion,
+        )  # fmt: skip
 
 
 def _model_name(result: MonteCarloResult) -> str:

@@ -1,0 +1,268 @@
+"""Plan a calibration run: load and check everything it needs before any computation (nothing is written).
+
+:func:`plan_run` is the one place that turns a scenario and the run options (``robotcal run``'s) into a
+:class:`RunPlan`; the constants that shape a run (stages, their outputs, derived seeds, the refined Monte
+Carlo's draws, the plan stage's sensitivity study) live here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.errors import InputError
+from robotcal.io import load_scenario
+from robotcal.io.output import check_output_folder, existing_inputs
+from robotcal.io.scenario import Scenario
+from robotcal.pipeline.runtime import BYTES_PER_POSE, SEED_BOUND, check_memory, monte_carlo_bytes, pairs_bytes
+from robotcal.uncertainty.montecarlo import MonteCarloSettings
+from robotcal.workflow import TCPTargets, resolve_seed, tcp_targets, validation_reflector
+
+__all__ = [
+    "OUTPUTS",
+    "PLAN_SENSITIVITY_DRAWS",
+    "PLAN_SENSITIVITY_KEY",
+    "PLAN_SENSITIVITY_VALUES",
+    "REFINED_DRAWS",
+    "RUN_RECORD",
+    "SEED_OFFSETS",
+    "STAGES",
+    "STEPS",
+    "RunPlan",
+    "plan_run",
+]
+
+#: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
+STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "report")
+#: What each stage writes under the run folder (docs/results.md).
+OUTPUTS = {
+    "simulate": ("truth.json", "capture.csv", "validation.csv"),
+    "identify": ("cpa",),
+    "refine": ("refine",),
+    "evaluate": ("evaluation",),
+    "joints": ("joints",),
+    "uncertainty": ("uncertainty", "uncertainty-refined"),
+    "tcp": ("tcp",),
+    "plan": ("plan",),
+    "report": ("report.html",),
+}
+#: The run's own record, rewritten after every stage.
+RUN_RECORD = "run.json"
+#: Steps per stage for a progress display (the Monte Carlo counts draws instead).
+STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "plan": 2, "report": 1}
+#: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
+PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
+PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)
+PLAN_SENSITIVITY_DRAWS = 2_000
+#: Refined-model Monte Carlo draws of a run unless ``refined_draws`` says otherwise (at most the CPA
+#: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
+REFINED_DRAWS = 20_000
+#: Offsets of the seeds derived from ``seed=N``: every random part of the run gets its own.
+SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4}
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RunPlan:
+    """A checked run: the scenario, the output folder, the seeds and the stage settings.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    out : Path or None
+        The run folder; None for a plan only studied (:func:`robotcal.pipeline.run_calibration` refuses it).
+    seeds : dict
+        ``capture``, ``truth`` (None without a ``[truth]`` table), ``validation``, ``montecarlo``, ``workspace``.
+    montecarlo, refined_montecarlo : MonteCarloSettings
+        The CPA-model and the refined-model Monte Carlo.
+    tcp : TCPTargets
+        Where the TCP uncertainty is stated (pose, trajectory, workspace) [rad, mm].
+    backlash : bool
+        Whether the joints stage analyses backlash (a bidirectional capture plan).
+    command : str
+        The command line recorded in ``run.json``.
+    force : bool
+        Replace an output folder robotcal did not write (:mod:`robotcal.io.output`).
+    inputs : tuple of Path
+        The files the run reads (the scenario and the robot it names): never replaced by its output.
+    """
+
+    scenario: Scenario
+    out: Path | None
+    seeds: dict
+    montecarlo: MonteCarloSettings
+    refined_montecarlo: MonteCarloSettings
+    tcp: TCPTargets
+    backlash: bool
+    command: str
+    force: bool = False
+    inputs: tuple = ()
+
+
+def plan_run(
+    scenario,
+    out=None,
+    *,
+    seed: int | None = None,
+    draws: int | None = None,
+    workspace: int | None = None,
+    workers: int | None = None,
+    refined_draws: int | None = None,
+    command: str = "robotcal run",
+    force: bool = False,
+) -> RunPlan:
+    """Load and check everything a run needs, before any computation; nothing is written.
+
+    Parameters
+    ----------
+    scenario : str or path
+        Built-in scenario name or scenario TOML.
+    out : path, optional
+        The run folder. Checked against the output policy of :mod:`robotcal.io.output` (a folder robotcal
+        wrote is replaced stage by stage; another is refused unless ``force``); None plans without a folder.
+    seed : int, optional
+        Seed of the whole run: capture ``seed``, truth ``seed + 1``, validation ``+ 2``, Monte Carlo ``+ 3``,
+        workspace ``+ 4`` (:data:`SEED_OFFSETS`); default: the scenario's seeds.
+    draws : int, optional
+        Monte Carlo draws (default: the scenario's ``montecarlo.iterations``).
+    workspace : int, optional
+        Random workspace poses of the TCP stage (default: ``tcp.workspace_poses``).
+    workers : int, optional
+        Monte Carlo worker processes (default: the CPU count, at most 4).
+    refined_draws : int, optional
+        Draws of the refined-model Monte Carlo (default: :data:`REFINED_DRAWS`, at most ``draws``).
+    command : str
+        The command line recorded in ``run.json``.
+    force : bool
+        See ``out``.
+
+    Returns
+    -------
+    RunPlan
+
+    Raises
+    ------
+    InputError
+        Naming the file and key: scenario keys, validation target, TCP pose and trajectory, Monte Carlo
+        settings, seeds, the memory each stage needs, the output folder.
+    """
+    inputs = existing_inputs(scenario)
+    if out is not None:
+        out = Path(out)
+        check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(*loaded.files)
+    if out is not None:
+        check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
+    robot = loaded.robot
+    validation_reflector(loaded)  # a validation capture needs a flange target
+    table = loaded.validation or {"margin_deg": 5.0}
+    if not np.all(np.isfinite(robot.limits)):
+        raise InputError(
+            f"{loaded.source}: robot {robot.name!r} needs finite `limits_deg` on every joint for the random "
+            "validation poses"
+        )
+    if np.any(robot.limits[:, 1] - robot.limits[:, 0] <= 2 * np.deg2rad(table["margin_deg"])):
+        raise InputError(f"{loaded.source}: key `validation.margin_deg` leaves no room within the joint limits")
+    if seed is not None:
+        seeds = {name: seed + offset for name, offset in SEED_OFFSETS.items()}
+    else:
+        seeds = {
+            "capture": resolve_seed(loaded.seed),
+            "truth": resolve_seed((loaded.truth or {}).get("seed")),
+            "validation": resolve_seed((loaded.validation or {}).get("seed")),
+            "montecarlo": resolve_seed(loaded.montecarlo.get("seed")),
+            "workspace": None,
+        }
+    if loaded.truth is None:
+        seeds["truth"] = None
+    for name, value in seeds.items():
+        if value is not None and not 0 <= value < SEED_BOUND:
+            raise InputError(f"{loaded.source}: the {name} seed {value} is outside [0, 2^63)")
+    targets = tcp_targets(loaded)
+    if seeds["workspace"] is None:
+        seeds["workspace"] = targets.workspace_seed
+    if workspace is not None:
+        if workspace < 1:
+            raise InputError(f"--workspace must be a positive number of poses; got {workspace}")
+        targets = dataclasses.replace(targets, workspace_poses=workspace)
+    iterations = int(loaded.montecarlo["iterations"]) if draws is None else draws
+    try:
+        settings = MonteCarloSettings(
+            iterations=iterations,
+            coverage=float(loaded.montecarlo["coverage"]),
+            workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
+        )
+    except InputError as exc:
+        raise InputError(f"{loaded.source}: Monte Carlo settings: {exc}") from None
+    if refined_draws is not None and not 1 <= refined_draws <= iterations:
+        raise InputError(
+            f"--refined-draws must be between 1 and the Monte Carlo draws ({iterations:,}); got {refined_draws}"
+        )
+    try:
+        refined_settings = dataclasses.replace(
+            settings, iterations=min(iterations, REFINED_DRAWS) if refined_draws is None else refined_draws
+        )
+    except InputError as exc:
+        raise InputError(f"--refined-draws: {exc}") from None
+    _check_tcp(loaded, targets, settings)
+    _check_memory(loaded, targets, settings, table)  # the refined Monte Carlo has at most as many draws
+    return RunPlan(
+        scenario=loaded,
+        out=out,
+        seeds=seeds,
+        montecarlo=settings,
+        refined_montecarlo=refined_settings,
+        tcp=targets,
+        backlash=bool(loaded.plan.bidirectional),
+        command=command,
+        force=force,
+        inputs=tuple(inputs),
+    )
+
+
+def _check_tcp(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings) -> None:
+    """The ``[tcp]`` stage's settings, checked before the run starts."""
+    if targets.tool_mm is not None and not np.all(np.isfinite(targets.tool_mm)):
+        raise InputError(
+            f"{loaded.source}: key `tcp.tool_mm` must hold 3 finite numbers [mm]; got {targets.tool_mm.tolist()}"
+        )
+    smallest = int(np.ceil(1.0 / (1.0 - settings.coverage))) + 1
+    used = settings.iterations if targets.workspace_draws is None else min(targets.workspace_draws, settings.iterations)
+    if used < smallest:
+        raise InputError(
+            f"{loaded.source}: key `tcp.workspace_draws` = {targets.workspace_draws} is too few for a "
+            f"{settings.coverage:g} coverage interval: at least {smallest}"
+        )
+
+
+def _check_memory(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings, validation: dict) -> None:
+    """Estimate the memory of the large stages up front (:func:`robotcal.pipeline.runtime.check_memory`)."""
+    robot = loaded.robot
+    n_points = int(loaded.plan.points.sum()) * (2 if loaded.plan.bidirectional else 1)
+    check_memory(
+        f"a Monte Carlo of {settings.iterations:,} draws",
+        monte_carlo_bytes(
+            settings.iterations, robot.n_joints, n_points, batch_size=settings.batch_size, workers=settings.workers
+        ),
+        "use fewer --draws",
+    )
+    check_memory(
+        f"a workspace map of {targets.workspace_poses:,} poses",
+        targets.workspace_poses * float(BYTES_PER_POSE),
+        "use fewer --workspace poses (tcp.workspace_poses)",
+    )
+    poses = int(validation.get("poses", 100))
+    check_memory(
+        f"a validation capture of {poses:,} poses (with its distances view)",
+        poses * float(BYTES_PER_POSE) + pairs_bytes(poses),
+        "lower `validation.poses` in the scenario",
+    )
+    check_memory(
+        f"the distances criterion on {n_points:,} points",
+        pairs_bytes(n_points, 5 * robot.n_joints),
+        "use fewer points per circle in the scenario's capture plan",
+    )

@@ -1,0 +1,86 @@
+"""TCP uncertainty from Monte Carlo parameter draws (thesis ch. 5.3): the computation and the files of a TCP folder.
+
+``robotcal tcp`` and the tcp stage of a run call :func:`compute_tcp` and :func:`write_tcp_folder`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from robotcal.errors import InputError, JointLimitWarning
+from robotcal.io.tcp_results import tcp_to_csv, tcp_to_dict
+from robotcal.pipeline.folder import write_csv, write_json
+from robotcal.pipeline.result import Document
+from robotcal.uncertainty.tcp import TCPUncertainty, propagate_to_tcp
+from robotcal.uncertainty.workspace import workspace_uncertainty
+
+__all__ = ["TCP_MODES", "compute_tcp", "write_tcp_folder"]
+
+#: Where the TCP uncertainty is stated: one pose, along a trajectory, over random workspace poses.
+TCP_MODES = ("pose", "trajectory", "workspace")
+
+
+def compute_tcp(
+    robot,
+    values: np.ndarray,
+    mode: str,
+    *,
+    readings: np.ndarray | None = None,
+    n_poses: int | None = None,
+    seed: int = 0,
+    tool_mm=None,
+    coverage: float = 0.95,
+):
+    """TCP uncertainty of the draws ``values`` (n_draws, n_joints, 5) [mm, rad].
+
+    ``mode`` ``"pose"`` or ``"trajectory"``: at ``readings`` (n_poses, n_joints) [rad], already checked
+    against the limits (:func:`robotcal.uncertainty.tcp.check_readings`; the library's second warning is
+    silenced); ``"workspace"``: at ``n_poses`` random poses within the limits drawn with ``seed``. Returns
+    ``(TCPUncertainty, WorkspaceUncertainty or None)``.
+    """
+    if mode == "workspace":
+        ws = workspace_uncertainty(robot, values, n_poses, rng=seed, tool=tool_mm, coverage=coverage)
+        return ws.tcp, ws
+    if mode not in ("pose", "trajectory"):
+        raise InputError(f"unknown TCP mode {mode!r}: pose, trajectory or workspace")
+    with warnings.catch_warnings():  # the caller has warned, naming the file
+        warnings.simplefilter("ignore", JointLimitWarning)
+        result = propagate_to_tcp(robot, values, readings, tool=tool_mm, coverage=coverage, keep_draws=mode == "pose")
+    return result, None
+
+
+def write_tcp_folder(
+    folder: Path,
+    result: TCPUncertainty,
+    mode: str,
+    *,
+    interval: str = "symmetric",
+    workspace=None,
+    provenance: dict | None = None,
+) -> dict[str, Document]:
+    """Write ``tcp.csv``, ``tcp.json`` and the mode's figures into ``folder`` (an existing, normally
+    temporary, folder); returns the documents by file name (CSV -> Table, JSON -> dict, figure -> Path)."""
+    from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
+
+    documents: dict[str, Document] = {
+        "tcp.csv": write_csv(folder / "tcp.csv", tcp_to_csv(result, interval=interval)),
+        "tcp.json": write_json(
+            folder / "tcp.json",
+            tcp_to_dict(result, interval=interval, workspace=workspace, provenance=provenance or {}),
+        ),
+    }
+    if mode == "pose":
+        figures = [
+            plot_tcp_scatter(result, folder / "scatter.png"),
+            plot_tcp_histograms(result, folder / "histograms.png"),
+        ]
+    elif mode == "trajectory":
+        figures = [plot_trajectory(result, folder / "trajectory.png")]
+    else:
+        figures = [plot_workspace(workspace, folder / "workspace.png")]
+    for figure in figures:
+        documents[Path(figure).name] = Path(figure)
+    return documents

@@ -1,0 +1,56 @@
+"""plan_run checks everything before any computation and writes nothing; run_calibration needs a folder."""
+
+from __future__ import annotations
+
+import pytest
+
+from robotcal.errors import InputError
+from robotcal.pipeline import RunPlan, plan_run, run_calibration
+from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS
+
+
+def test_plan_without_a_folder_writes_nothing(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    plan = plan_run("kr5-demo")
+    assert isinstance(plan, RunPlan) and plan.out is None
+    assert list(tmp_path.iterdir()) == []
+    # the scenario's seeds, its Monte Carlo size, and the refined Monte Carlo capped at REFINED_DRAWS
+    assert plan.seeds == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0}
+    assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == REFINED_DRAWS
+    assert plan.backlash and plan.command == "robotcal run"
+    with pytest.raises(InputError, match="needs a run folder"):
+        run_calibration(plan)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_one_seed_seeds_every_part(tmp_path):
+    plan = plan_run("kr5-demo", tmp_path / "out", seed=40, draws=500, workspace=7)
+    assert plan.seeds == {name: 40 + offset for name, offset in SEED_OFFSETS.items()}
+    assert plan.refined_montecarlo.iterations == 500  # at most the CPA Monte Carlo's draws
+    assert plan.tcp.workspace_poses == 7
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"draws": 10}, "iterations"),
+        ({"draws": 1000, "refined_draws": 1001}, r"--refined-draws must be between 1 and the Monte Carlo draws \(1,000\)"),
+        ({"workspace": 0}, "--workspace must be a positive number"),
+        ({"seed": 2**63 - 2}, r"seed .* is outside \[0, 2\^63\)"),
+    ],
+)
+def test_bad_options_are_refused_before_work(tmp_path, options, message):
+    with pytest.raises(InputError, match=message):
+        plan_run("kr5-demo", tmp_path / "out", **options)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_robotcal_did_not_write_is_refused(tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("mine", encoding="utf-8")
+    (out / "cpa").mkdir()
+    with pytest.raises(InputError, match="--force"):
+        plan_run("kr5-demo", out)
+    assert plan_run("kr5-demo", out, force=True).force
