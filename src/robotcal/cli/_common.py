@@ -21,6 +21,16 @@ from typing import TYPE_CHECKING
 import typer
 
 from robotcal.errors import InputError, RobotcalError
+from robotcal.pipeline.runtime import (  # noqa: F401  (re-exported: the commands import them from here)
+    BYTES_PER_POSE,
+    FALLBACK_MEMORY,
+    SEED_BOUND,
+    Terminated,
+    available_memory,
+    check_memory,
+    monte_carlo_bytes,
+    pairs_bytes,
+)
 
 if TYPE_CHECKING:  # imported where used: `robotcal --help` and main() stay light (docs/cli.md)
     from rich.console import Console
@@ -54,9 +64,6 @@ def _error_console() -> Console:
     replaced = globals().get("error_console")
     return __getattr__("error_console") if replaced is None else replaced
 
-#: Seeds are integers in ``[0, SEED_BOUND)``: numpy's ``SeedSequence`` takes any non-negative integer,
-#: but seeds are recorded in files as signed 64-bit integers (``draws.npz``), so 2^63 is the bound.
-SEED_BOUND = 2**63
 #: Help of every command's ``--force`` (docs/cli.md, "Output safety").
 FORCE_HELP = (
     "Replace an existing output that robotcal did not write (never an input of the command, "
@@ -65,10 +72,6 @@ FORCE_HELP = (
 #: Exit status after SIGINT (Ctrl-C) and SIGTERM: 128 + the signal number, as shells report them.
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
-#: Memory assumed available when ``/proc/meminfo`` cannot be read [bytes].
-FALLBACK_MEMORY = 4 * 2**30
-
-
 def command_app(**settings) -> typer.Typer:
     """A command module's Typer application, ``app = command_app()``, on which the module registers its
     command(s) (``@app.command()``); :data:`robotcal.cli.COMMANDS` names the module for each command.
@@ -77,12 +80,6 @@ def command_app(**settings) -> typer.Typer:
     no completion options, plain tracebacks; ``settings`` are further :class:`typer.Typer` arguments.
     """
     return typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None, **settings)
-
-
-class Terminated(KeyboardInterrupt):
-    """Raised in the main thread by the SIGTERM handler so that every cleanup (``finally``, context
-    managers, pool shutdown) runs as for Ctrl-C; a :class:`KeyboardInterrupt` so code that handles an
-    interrupt handles this too."""
 
 
 def styled(text: str, style: str) -> Text:
@@ -154,54 +151,6 @@ def handle_errors(function):
             warnings.showwarning = previous
 
     return wrapper
-
-
-def available_memory() -> int:
-    """Bytes available to a new allocation: ``MemAvailable`` of ``/proc/meminfo``, else
-    :data:`FALLBACK_MEMORY`."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as stream:
-            for line in stream:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return FALLBACK_MEMORY
-
-
-def _gib(value: float) -> str:
-    return f"{value / 2**30:.1f} GiB"
-
-
-def check_memory(what: str, estimate: float, way_out: str) -> None:
-    """Refuse, before any work, a problem whose estimated memory exceeds 80 % of the available memory.
-
-    Raises :class:`InputError` with the estimate, the memory available and ``way_out``.
-    """
-    available = available_memory()
-    if estimate > 0.8 * available:
-        raise InputError(f"{what} needs about {_gib(estimate)} of memory but {_gib(available)} is available; {way_out}")
-
-
-def monte_carlo_bytes(n_draws: int, n_joints: int, n_points: int, *, batch_size: int, workers: int) -> float:
-    """Memory estimate of a Monte Carlo [bytes]: the kept draws (n_draws, n_joints, 5) float64 twice
-    (draws and the sorted copy of the statistics) plus each worker's block of simulated points
-    (batch_size, n_points, 3) with ~20 arrays of intermediates."""
-    kept = 2.0 * n_draws * n_joints * 5 * 8
-    block = 20.0 * min(batch_size, n_draws) * max(n_points, 1) * 3 * 8
-    return kept + max(workers, 1) * block
-
-
-#: Memory per workspace or trajectory pose (readings, nominal and summary arrays) [bytes], generous.
-BYTES_PER_POSE = 4096
-
-
-def pairs_bytes(n_points: int, n_free: int = 0) -> float:
-    """Memory estimate of a pairwise-distances problem over ``n_points`` points [bytes]: pair indices,
-    two ``pdist`` vectors and the mask (~50 B per pair), plus a Jacobian column per free parameter
-    (three copies in the solver)."""
-    pairs = n_points * (n_points - 1) / 2
-    return pairs * (50.0 + 3 * 8.0 * n_free)
 
 
 def seed_option_check(seed: int | None, option: str = "--seed", *, headroom: int = 0) -> None:

@@ -143,8 +143,7 @@ def _status(exc: BaseException) -> str:
 
 
 def _message(exc: BaseException) -> str:
-    # the SIGTERM interrupt: robotcal.pipeline.runtime.Terminated, or the copy robotcal.cli._common still defines
-    if isinstance(exc, Terminated) or type(exc).__name__ == "Terminated":
+    if isinstance(exc, Terminated):  # the SIGTERM interrupt (robotcal.cli installs the handler)
         return "terminated (SIGTERM)"
     if isinstance(exc, KeyboardInterrupt):
         return "interrupted (SIGINT, Ctrl-C)"
