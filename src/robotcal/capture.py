@@ -1,8 +1,13 @@
 """The Capture: measured (or simulated) target positions with the joint readings of every point.
 
-This is the in-memory form of the capture CSV (``circle,direction,q1..qN,x,y,z``, docs/results.md); it is
-what the generator produces and what identification consumes. Readings in radians, points in mm in
-the tracker frame.
+This is the in-memory form of the capture CSV (``circle,direction,q1..qN,x,y,z[,target][,u95_mm]``,
+docs/scenario.md); it is what the generator produces and what identification consumes. Readings in
+radians, points in mm in the tracker frame.
+
+Two optional columns (issue 14): ``target`` names the target each point was measured on (several
+targets per pose; the names are declared in the scenario's ``[[targets]]``), and ``u95_mm`` is the
+point's expanded uncertainty U(95) [mm] as the tracker reports it (k = 2, normal: the standard
+uncertainty of each coordinate is U / 2).
 """
 
 from __future__ import annotations
@@ -36,6 +41,13 @@ class Capture:
         Where the capture came from (file name or ``"simulated"``), used in error messages.
     seed : int or None
         Seed of the generator that simulated it, if any.
+    target : ndarray of int, shape (n_points,), or None
+        Index into ``target_names`` of the target each point was measured on; None: no ``target``
+        column (one target, the scenario's, for every point: the historical meaning).
+    target_names : tuple of str
+        Names of the targets ``target`` indexes (empty when ``target`` is None).
+    u95 : ndarray, shape (n_points,), or None
+        Expanded uncertainty U(95) of each point [mm] (k = 2, normal); None: not given.
     """
 
     circle: np.ndarray
@@ -44,6 +56,9 @@ class Capture:
     points: np.ndarray
     source: str = "capture"
     seed: int | None = field(default=None)
+    target: np.ndarray | None = None
+    target_names: tuple[str, ...] = ()
+    u95: np.ndarray | None = None
 
     def __post_init__(self):
         circle = np.asarray(self.circle)
@@ -72,6 +87,26 @@ class Capture:
             bad = np.flatnonzero(~np.all(np.isfinite(array.reshape(n, -1)), axis=1))
             if bad.size:
                 raise InputError(f"{self.source}: point {bad[0] + 1} has NaN or infinite {name}")
+        if self.target is not None:
+            target = np.asarray(self.target)
+            names = tuple(str(name) for name in self.target_names)
+            if target.shape != (n,) or not np.all(target == np.round(target)):
+                raise InputError(f"{self.source}: `target` must hold one whole target index per point; got {target.shape}")
+            if target.size and (target.min() < 0 or target.max() >= len(names)):
+                raise InputError(f"{self.source}: `target` indexes {len(names)} target names; got {target.max()}")
+            if len(set(names)) != len(names) or any(not name.strip() for name in names):
+                raise InputError(f"{self.source}: target names must be distinct and not empty; got {names}")
+            object.__setattr__(self, "target", _frozen(target, int))
+            object.__setattr__(self, "target_names", names)
+        elif self.target_names:
+            raise InputError(f"{self.source}: `target_names` given without `target`")
+        if self.u95 is not None:
+            u95 = np.asarray(self.u95, dtype=float)
+            bad = np.flatnonzero(~np.isfinite(u95) | (u95 <= 0)) if u95.shape == (n,) else np.array([0])
+            if u95.shape != (n,) or bad.size:
+                where = f"point {bad[0] + 1}" if u95.shape == (n,) else f"shape {u95.shape}"
+                raise InputError(f"{self.source}: `u95_mm` must be one finite U(95) > 0 [mm] per point ({where})")
+            object.__setattr__(self, "u95", _frozen(u95))
         object.__setattr__(self, "circle", _frozen(circle, int))
         object.__setattr__(self, "direction", _frozen(direction, int))
         object.__setattr__(self, "readings", _frozen(readings))
@@ -85,6 +120,13 @@ class Capture:
     def n_joints(self) -> int:
         return self.readings.shape[1]
 
+    @property
+    def point_targets(self) -> tuple[str, ...] | None:
+        """The target name of every point, or None without a ``target`` column."""
+        if self.target is None:
+            return None
+        return tuple(self.target_names[k] for k in self.target)
+
     def with_points(self, points) -> Capture:
         """The same capture with other target positions (e.g. noisy copies)."""
         return Capture(
@@ -94,4 +136,22 @@ class Capture:
             points=points,
             source=self.source,
             seed=self.seed,
+            target=self.target,
+            target_names=self.target_names,
+            u95=self.u95,
+        )
+
+    def select(self, rows) -> Capture:
+        """The capture restricted to ``rows`` (indices or a bool mask), every column kept."""
+        rows = np.asarray(rows)
+        return Capture(
+            circle=self.circle[rows],
+            direction=self.direction[rows],
+            readings=self.readings[rows],
+            points=self.points[rows],
+            source=self.source,
+            seed=self.seed,
+            target=None if self.target is None else self.target[rows],
+            target_names=self.target_names,
+            u95=None if self.u95 is None else self.u95[rows],
         )

@@ -15,7 +15,7 @@ from robotcal.capture import Capture
 from robotcal.identification.cpa import CPAResult, identify_cpa
 from robotcal.identification.plausibility import check_capture
 from robotcal.io.scenario import Scenario
-from robotcal.kinematics.model import ParameterSet
+from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation.generator import simulate_capture
 
 __all__ = [
@@ -28,7 +28,14 @@ __all__ = [
     "simulate_validation",
     "refine_scenario",
     "refine_provenance",
+    "refined_targets",
+    "capture_reflector",
+    "cpa_target",
+    "cpa_health",
+    "refine_health",
+    "stated_noise",
     "evaluate_scenario",
+    "absolute_bases",
     "validation_consistency",
 ]
 
@@ -106,24 +113,124 @@ def scenario_monte_carlo(
     )
 
 
-def identify_scenario(capture: Capture, scenario: Scenario, *, check: bool = True) -> CPAResult:
+def cpa_target(scenario: Scenario, capture: Capture) -> tuple[Capture, ReflectorMount]:
+    """The capture rows CPA uses and their (known) target.
+
+    Without a ``target`` column: every row, on :func:`capture_reflector`'s target. With one: the rows of
+    the capture's first target (file order), which must be declared with a known position (CPA fits one
+    circle per joint of one target; :func:`refine_scenario` uses every target).
+    """
+    from robotcal.errors import InputError
+    from robotcal.identification.targets import Target
+
+    if capture.target is None:
+        target = capture_reflector(scenario, capture)
+        if isinstance(target, ReflectorMount):
+            return capture, target
+        target = target if isinstance(target, Target) else target[0]
+    else:
+        name = capture.target_names[int(capture.target[0])]
+        target = scenario.target(name)
+        capture = capture.select(capture.target == capture.target[0])
+    if not target.known:
+        raise InputError(
+            f"{scenario.source}: CPA needs a target of known position; the offset of target {target.name!r} is "
+            "unknown (refine from the nominal parameters instead, which estimates it)"
+        )
+    return capture, target.mount
+
+
+def identify_scenario(
+    capture: Capture, scenario: Scenario, *, check: bool = True, health: str = "warn"
+) -> CPAResult:
     """CPA of ``capture`` with the scenario's robot, reflector, base frame and options.
 
     With ``check`` (default) the capture first passes the plausibility checks of
     :func:`robotcal.identification.plausibility.check_capture` (units, readings in radians, radii,
     duplicated rows, outliers against the instrument's U): an :class:`InputError` where the result
-    would certainly be wrong, a ``PlausibilityWarning`` where it may be.
+    would certainly be wrong, a ``PlausibilityWarning`` where it may be. They need the scenario's
+    ``[instrument]`` and are skipped without it. Then the fit-health test
+    (:func:`cpa_health`): ``health`` = ``"warn"`` (default), ``"strict"`` (raise) or ``"off"``.
     """
-    if check:
-        check_capture(
-            capture, scenario.robot, scenario.plan.reflector, scenario.instrument, options=scenario.identification
-        )
-    return identify_cpa(
+    capture, reflector = cpa_target(scenario, capture)
+    if check and scenario.has_instrument:
+        check_capture(capture, scenario.robot, reflector, scenario.instrument, options=scenario.identification)
+    result = identify_cpa(
         capture,
         scenario.robot,
-        scenario.plan.reflector,
+        reflector,
         tracker_from_base=scenario.tracker_from_base,
         options=scenario.identification,
+    )
+    if health != "off":
+        cpa_health(result, capture, scenario, strict=health == "strict")
+    return result
+
+
+def stated_noise(scenario: Scenario, capture: Capture) -> tuple[float | None, str]:
+    """RMS stated standard uncertainty per coordinate of the capture's points [mm], and its source:
+    the points' U(95) / 2 (k = 2, normal) when given, else the scenario's instrument; None without both."""
+    if capture.u95 is not None:
+        return float(np.sqrt(np.mean((np.asarray(capture.u95) / 2.0) ** 2))), "U(95) / 2 of the points (k = 2)"
+    if scenario.has_instrument:
+        sd = scenario.instrument.standard_uncertainty(capture.points)
+        return float(np.sqrt(np.mean(np.asarray(sd) ** 2))), f"instrument {scenario.instrument.name}"
+    return None, "no instrument and no U(95)"
+
+
+def cpa_health(result: CPAResult, capture: Capture, scenario: Scenario, *, strict: bool = False, warn: bool = True):
+    """Fit health of a CPA identification (:mod:`robotcal.identification.health`): the RMS distance of the
+    points to their fitted circles against the stated noise, and circles whose axis direction the noise
+    leaves uncertain by more than :data:`~robotcal.identification.health.AXIS_LIMIT_DEG`."""
+    from robotcal.identification.health import AXIS_LIMIT_DEG, circle_axis_uncertainty, fit_health
+
+    noise, noise_source = stated_noise(scenario, capture)
+    squares, count, small = 0.0, 0, []
+    for joint, fit in enumerate(result.circle_fits):
+        rows = np.flatnonzero(capture.circle == joint + 1)
+        n_rows = rows.size
+        squares += n_rows * (float(fit.plane_rms) ** 2 + float(fit.circle_rms) ** 2)
+        count += n_rows
+        if noise is not None and n_rows >= 3:
+            u_axis, _ = circle_axis_uncertainty(capture.points[rows], noise)
+            if np.rad2deg(u_axis) > AXIS_LIMIT_DEG:
+                small.append(
+                    f"circle {joint + 1} (radius {float(fit.radius):.4g} mm, radius / u = {float(fit.radius) / noise:.3g}, "
+                    f"{n_rows} points) leaves its axis direction uncertain by {np.rad2deg(u_axis):.3g} deg "
+                    f"(> {AXIS_LIMIT_DEG:g} deg): measure it farther from the axis, over a wider arc or with more points"
+                )
+    residual = float(np.sqrt(squares / max(count, 1) / 2.0))  # two noise components per circle point
+    return fit_health(
+        "CPA (circle fits)",
+        residual,
+        noise,
+        noise_source=noise_source,
+        extra_problems=small,
+        source=capture.source,
+        strict=strict,
+        warn=warn,
+    )
+
+
+def refine_health(result, capture: Capture, scenario: Scenario, *, strict: bool = False, warn: bool = True):
+    """Fit health of a refinement: its residual standard deviation per coordinate (``sigma``, weighted by the
+    points' U(95) when given; the RMS residual when no degree of freedom is left) against the stated noise,
+    and the condition number of its scaled Jacobian (:mod:`robotcal.identification.health`)."""
+    from robotcal.identification.health import fit_health
+
+    noise, noise_source = stated_noise(scenario, capture)
+    residual = float(result.sigma) if np.isfinite(result.sigma) else float(result.residual_rms_coordinate)
+    if result.criterion == "distances" and not np.isfinite(result.sigma):
+        residual /= np.sqrt(2.0)  # a distance's error has the noise of two points
+    return fit_health(
+        f"refinement ({result.criterion} criterion)",
+        residual,
+        noise,
+        noise_source=noise_source,
+        condition_number=result.condition_number,
+        source=capture.source,
+        strict=strict,
+        warn=warn,
     )
 
 
@@ -154,6 +261,7 @@ def cpa_provenance(result: CPAResult, capture: Capture, scenario: Scenario) -> d
             "near_parallel_deg": result.options.near_parallel_deg,
             "still_tolerance_deg": result.options.still_tolerance_deg,
         },
+        "fit_health": cpa_health(result, cpa_target(scenario, capture)[0], scenario, warn=False).as_dict(),
         "reference_readings_deg": np.rad2deg(result.reference_readings).tolist(),
         "circles": [
             {
@@ -198,25 +306,54 @@ def scenario_truth(scenario: Scenario, *, seed: int | None = None) -> tuple[Para
 
 def validation_reflector(scenario: Scenario):
     """The flange target of validation captures: ``[validation].flange_reflector_mm``, else the
-    plan's reflector when it is a flange one."""
+    plan's (or ``[capture]``'s) reflector when it is a flange one, else the only known flange target
+    of ``[[targets]]``."""
     from robotcal.errors import InputError
-    from robotcal.kinematics.model import ReflectorMount
 
     if scenario.validation is not None:
         return ReflectorMount(frame="flange", positions=scenario.validation["flange_reflector_mm"])
-    if scenario.plan.reflector.frame == "flange":
-        return scenario.plan.reflector
+    reflector = scenario.plan.reflector if scenario.has_plan else scenario.reflector
+    if reflector is not None and reflector.frame == "flange":
+        return reflector
+    flange = [t for t in scenario.targets if t.frame == "flange" and t.known]
+    if reflector is None and len(flange) == 1:
+        return flange[0].mount
     raise InputError(
         f"{scenario.source}: a capture at free poses (circle = 0) needs a flange target: add a [validation] table "
-        "with `flange_reflector_mm`, or use a scenario with `capture.flange_reflector_mm`"
+        "with `flange_reflector_mm`, use a scenario with `capture.flange_reflector_mm`, or give the capture a "
+        "`target` column naming [[targets]] entries"
     )
 
 
 def capture_reflector(scenario: Scenario, capture: Capture):
-    """The target of ``capture``: the validation flange target when it has free poses, else the plan's."""
+    """The target(s) of ``capture`` for refinement and evaluation.
+
+    * a ``target`` column: the scenario's declared targets (:attr:`Scenario.targets`; each point names one);
+    * free poses (circle = 0): the validation flange target (:func:`validation_reflector`), or the
+      only ``[[targets]]`` entry (whose offset may be unknown);
+    * circles: the plan's reflector, else ``[capture]``'s, else the only ``[[targets]]`` entry.
+
+    Returns a :class:`ReflectorMount` (the historical single target), or :class:`Target` objects.
+    """
+    from robotcal.errors import InputError
+
+    if capture.target is not None:
+        return scenario.targets
+    declared = [t for t in scenario.targets if t.name not in ("capture", "validation")]
     if np.any(capture.circle == 0):
+        if len(declared) == 1 and scenario.validation is None and scenario.reflector is None:
+            return declared[0]
         return validation_reflector(scenario)
-    return scenario.plan.reflector
+    if scenario.has_plan:
+        return scenario.plan.reflector
+    if scenario.reflector is not None:
+        return scenario.reflector
+    if len(declared) == 1:
+        return declared[0]
+    raise InputError(
+        f"{scenario.source}: which target was measured? declare one (`capture.flange_reflector_mm`, "
+        "`capture.reflector_mm` or one [[targets]] entry) or give the capture a `target` column"
+    )
 
 
 def simulate_validation(
@@ -265,13 +402,15 @@ def refine_scenario(capture: Capture, scenario: Scenario, start: ParameterSet, *
     Points criterion: with ``[identification].base_frame = "given"`` the scenario's
     ``tracker_from_base`` is **held** (as CPA holds it), unless ``estimate_base=True`` is passed
     (then it is the start of the estimate); with ``"registered"`` the base frame is estimated from a
-    Horn registration start. ``options`` go to
+    Horn registration start. ``health`` (an option: ``"warn"`` default, ``"strict"``, ``"off"``) runs
+    :func:`refine_health` on the result; the other ``options`` go to
     :func:`robotcal.identification.refine.refine_parameters`.
     """
     from robotcal.identification.refine import refine_parameters
 
+    health = options.pop("health", "warn")
     base = scenario.tracker_from_base if scenario.identification.base_frame == "given" else None
-    return refine_parameters(
+    result = refine_parameters(
         capture,
         start,
         capture_reflector(scenario, capture),
@@ -279,6 +418,9 @@ def refine_scenario(capture: Capture, scenario: Scenario, start: ParameterSet, *
         tracker_from_base=base,
         **options,
     )
+    if health != "off":
+        refine_health(result, capture, scenario, strict=health == "strict")
+    return result
 
 
 def _finite_or_none(value):
@@ -338,16 +480,86 @@ def refine_provenance(result, capture: Capture, scenario: Scenario, start_source
             "matrix": [[round(float(v), 12) for v in row] for row in result.correlation],
         },
         "tracker_from_base": None if result.tracker_from_base is None else result.tracker_from_base.tolist(),
+        "base_frame_note": None
+        if result.tracker_from_base is not None
+        else "the distances criterion has no base frame (pairwise distances do not depend on it)",
+        "weights": "1/u^2 per point, u = U(95) / 2 (k = 2, normal)" if result.weighted else "equal",
+        "targets": {
+            target.name: {
+                "frame": target.frame,
+                "known": bool(target.known),
+                "points": int(np.sum(np.asarray(capture.point_targets or ()) == target.name))
+                if capture.target is not None
+                else int(capture.n_points),
+            }
+            for target in result.targets
+        },
+        "fit_health": refine_health(result, capture, scenario, warn=False).as_dict(),
         "versions": versions(),
     }
 
 
-def evaluate_scenario(scenario: Scenario, captures: dict, parameter_sets: dict):
-    """Evaluation rows (thesis Tables 4.10/4.11) of named parameter sets on named captures."""
-    from robotcal.identification.evaluation import evaluate_parameters
+def refined_targets(result) -> dict | None:
+    """The parameter JSON's ``targets`` key of a refinement (estimated offsets with their standard
+    uncertainty), None when it used the historical single mount."""
+    from robotcal.io.parameters_json import targets_to_dict
+
+    if not result.targets:
+        return None
+    return targets_to_dict(result.targets, result.target_uncertainty)
+
+
+def evaluate_scenario(
+    scenario: Scenario,
+    captures: dict,
+    parameter_sets: dict,
+    *,
+    views=None,
+    bases: dict | None = None,
+    set_targets: dict | None = None,
+):
+    """Evaluation rows (thesis Tables 4.10/4.11) of named parameter sets on named captures.
+
+    Each capture is evaluated on its own target(s) (:func:`capture_reflector`: a ``target`` column names
+    them per point). ``views`` default to points and distances; ``"absolute"`` needs ``bases`` (a base
+    frame per set, see :func:`absolute_bases`); ``set_targets`` gives per set the offsets it estimated.
+    """
+    from robotcal.identification.evaluation import VIEWS, evaluate_parameters
 
     reflectors = {name: capture_reflector(scenario, capture) for name, capture in captures.items()}
-    return evaluate_parameters(captures, parameter_sets, reflectors)
+    return evaluate_parameters(
+        captures,
+        parameter_sets,
+        reflectors,
+        views=VIEWS if views is None else views,
+        bases=bases,
+        set_targets=set_targets,
+    )
+
+
+def absolute_bases(scenario: Scenario, provenances: dict) -> tuple[dict, dict]:
+    """Base frame of each parameter set for the absolute view, and a note per set saying where it comes from.
+
+    ``provenances``: set name -> the parameter JSON's ``provenance`` (empty for the nominal set). The
+    base frame a fit recorded (``provenance.tracker_from_base``: a refinement's estimated or held one,
+    CPA's given or registered one) is used as it is; a set without one, such as a distances-criterion
+    refinement (it has no base frame), is evaluated with the scenario's ``tracker_from_base``.
+    """
+    bases, notes = {}, {}
+    for name, provenance in provenances.items():
+        recorded = (provenance or {}).get("tracker_from_base")
+        if recorded is not None:
+            bases[name] = np.asarray(recorded, dtype=float)
+            notes[name] = "the base frame recorded in its parameter JSON (provenance.tracker_from_base)"
+        else:
+            bases[name] = np.asarray(scenario.tracker_from_base, dtype=float)
+            why = (
+                "the distances criterion has no base frame"
+                if (provenance or {}).get("criterion") == "distances"
+                else "no base frame recorded"
+            )
+            notes[name] = f"{why}: the scenario's tracker_from_base is used"
+    return bases, notes
 
 
 def validation_consistency(

@@ -104,3 +104,88 @@ def test_refine_errors_are_one_line_exit_2(tmp_path):
     result = invoke("evaluate", "-s", scenario, "-p", tmp_path / "missing.json", "-c", cal, "--out", tmp_path / "e")
     assert result.exit_code == 2 and "file not found" in result.output
     assert not (tmp_path / "e").exists()
+
+
+CELL = """
+description = "real-cell style: no capture plan, three flange targets of unknown offset"
+robot = "kuka-kr5-sixx-r650"
+tracker_from_base = [[0.0, 1.0, 0.0, 1800.0], [-1.0, 0.0, 0.0, 50.0], [0.0, 0.0, 1.0, 600.0], [0.0, 0.0, 0.0, 1.0]]
+[instrument]
+a_um = 20.0
+b_um_per_m = 0.0
+noise = "normal"
+[[targets]]
+name = "A"
+flange_mm = "unknown"
+[[targets]]
+name = "B"
+flange_mm = "unknown"
+[[targets]]
+name = "C"
+flange_mm = "unknown"
+"""
+
+
+def _cell_capture(path, poses, seed):
+    from robotcal.identification.targets import Target
+    from robotcal.instruments import Instrument
+    from robotcal.io.capture_csv import write_capture
+    from robotcal.io.robots import load_robot
+    from robotcal.simulation.generator import simulate_target_poses
+    from robotcal.simulation.perturb import perturb_parameters
+    from robotcal.simulation.poses import random_poses
+
+    robot = load_robot("kuka-kr5-sixx-r650")
+    truth = perturb_parameters(robot, length_sd_mm=0.2, angle_sd_deg=0.05, rng=np.random.default_rng(4))
+    targets = [Target(name=name, frame="flange", positions=np.zeros(3), known=False) for name in "ABC"]
+    offsets = [[60.0, 0.0, 30.0], [0.0, 55.0, 40.0], [-45.0, -20.0, 35.0]]
+    tracker = np.array([[0.0, 1.0, 0.0, 1800.0], [-1.0, 0.0, 0.0, 50.0], [0.0, 0.0, 1.0, 600.0], [0, 0, 0, 1.0]])
+    instrument = Instrument(name="t", a_mm=0.02, b_mm_per_m=0.0, noise="normal", coverage_factor=2.0)
+    readings = random_poses(robot, poses, rng=np.random.default_rng(seed))
+    capture, _ = simulate_target_poses(
+        robot, readings, targets, instrument, tracker, true_parameters=truth, true_offsets=offsets, u95_mm=0.02, rng=seed
+    )
+    write_capture(path, capture)
+    return truth, np.array(offsets)
+
+
+@pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")  # J6's frame held: by design
+def test_planless_scenario_with_three_unknown_targets_refines_and_evaluates_absolute(tmp_path):
+    scenario = tmp_path / "cell.toml"
+    scenario.write_text(CELL)
+    cal, held_out, refined = tmp_path / "cal.csv", tmp_path / "test.csv", tmp_path / "refined.json"
+    truth, offsets = _cell_capture(cal, 36, 1)
+    _cell_capture(held_out, 40, 2)
+    result = invoke("refine", cal, "--scenario", scenario, "--out", refined, "--strict")
+    assert result.exit_code == 0, result.output
+    assert "fit health" in result.output and "OK" in result.output
+    document = json.loads(refined.read_text())
+    for name, offset in zip("ABC", offsets, strict=True):
+        entry = document["targets"][name]
+        assert entry["known"] is False
+        # within 4 reported standard uncertainties of the truth (noise U = 0.02 mm, k = 2)
+        assert np.all(np.abs(np.array(entry["flange_mm"]) - offset) < 4 * np.array(entry["u_mm"]))
+    assert document["provenance"]["fit_health"]["healthy"] is True
+    assert document["provenance"]["weights"].startswith("1/u^2")
+    # identify needs circles; simulate needs the plan: the error names the key and the command family
+    result = invoke("simulate", scenario, "--out", tmp_path / "sim.csv")
+    assert result.exit_code != 0 and "capture.start_deg" in result.output
+    out = tmp_path / "eval"
+    result = invoke("evaluate", "--scenario", scenario, "--params", refined, "--capture", held_out, "--absolute", "--out", out)
+    assert result.exit_code == 0, result.output
+    rows = {(r["parameter_set"], r["view"]): r for r in json.loads((out / "evaluation.json").read_text())["rows"]}
+    # held-out absolute error of the refined model: at the noise level (sigma 0.01 mm per coordinate,
+    # |3D error| ~ 0.016 mm mean) plus the model's own uncertainty; nominal is off by the 0.2 mm / 0.05 deg truth
+    assert rows[("refined", "absolute")]["mean_error_mm"] < 0.05
+    assert rows[("nominal", "absolute")]["mean_error_mm"] > 0.3
+    assert rows[("refined", "points")]["mean_error_mm"] <= rows[("refined", "absolute")]["mean_error_mm"] + 1e-9
+    # the distances criterion has no base frame: the absolute view says which one it used instead
+    distances = tmp_path / "distances.json"
+    assert invoke("refine", cal, "--scenario", scenario, "--criterion", "distances", "--out", distances).exit_code == 0
+    assert json.loads(distances.read_text())["provenance"]["base_frame_note"].startswith("the distances criterion")
+    out = tmp_path / "eval2"
+    result = invoke("evaluate", "--scenario", scenario, "--params", distances, "--capture", held_out, "--absolute", "--out", out)
+    assert result.exit_code == 0, result.output
+    assert "distances criterion has no base frame" in result.output
+    notes = json.loads((out / "evaluation.json").read_text())["settings"]["absolute_base_frames"]
+    assert notes["distances"].startswith("the distances criterion has no base frame: the scenario's tracker_from_base")

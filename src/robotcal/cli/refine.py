@@ -8,18 +8,36 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from robotcal.cli import app
-from robotcal.cli._common import FORCE_HELP, check_memory, console, handle_errors, pairs_bytes, parameter_table
+from robotcal.cli._common import (
+    FORCE_HELP,
+    check_memory,
+    command_app,
+    console,
+    handle_errors,
+    pairs_bytes,
+    parameter_table,
+)
 from robotcal.io import load_scenario, read_capture, read_parameters, write_parameters
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.kinematics.model import ParameterSet
-from robotcal.workflow import refine_provenance, refine_scenario
+from robotcal.workflow import refine_provenance, refine_scenario, refined_targets
+
+app = command_app()
+
+
+def _wrapped(parameters: ParameterSet) -> ParameterSet:
+    """The parameters with theta, alpha, beta in (-180, 180] deg, for display."""
+    from robotcal.identification.refine import wrap_angles
+
+    return parameters.replace(values=wrap_angles(parameters.values))
 
 
 @app.command()
 @handle_errors
 def refine(
-    capture: Annotated[Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z).")],
+    capture: Annotated[
+        Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z[,target][,u95_mm]).")
+    ],
     scenario: Annotated[
         str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot, target, base frame.")
     ],
@@ -32,8 +50,21 @@ def refine(
         str, typer.Option("--criterion", "-c", help="points (eq. 4-101) or distances (eq. 4-102).")
     ] = "points",
     strict: Annotated[
-        bool, typer.Option("--strict", help="Fail instead of holding parameters the data cannot determine.")
+        bool,
+        typer.Option(
+            "--strict",
+            help="Fail instead of holding parameters the data cannot determine, and when the fit does not pass "
+            "the fit-health test (residual > 3 x the stated noise, or scaled condition number > 1e8).",
+        ),
     ] = False,
+    weights: Annotated[
+        str,
+        typer.Option(
+            "--weights",
+            help="auto: weight each point by 1/u^2 from its u95_mm column (u = U(95)/2, k = 2, normal), when "
+            "present; none: equal weights.",
+        ),
+    ] = "auto",
     estimate_base: Annotated[
         bool,
         typer.Option(
@@ -47,6 +78,8 @@ def refine(
     """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7)."""
     if criterion not in ("points", "distances"):
         raise typer.BadParameter(f"must be 'points' or 'distances'; got {criterion!r}", param_hint="--criterion")
+    if weights not in ("auto", "none"):
+        raise typer.BadParameter(f"must be 'auto' or 'none'; got {weights!r}", param_hint="--weights")
     if estimate_base and criterion != "points":
         raise typer.BadParameter("applies to the points criterion only", param_hint="--estimate-base")
     inputs = existing_inputs(capture, scenario, start)
@@ -67,16 +100,32 @@ def refine(
         initial,
         criterion=criterion,
         on_unidentifiable="raise" if strict else "fix",
+        health="strict" if strict else "warn",
+        weights=weights,
         **({"estimate_base": True} if estimate_base else {}),
     )
     source = str(start) if start is not None else "nominal"
+    provenance = refine_provenance(result, measured, loaded, source)
     with result_file(out, inputs=inputs, force=force):
-        write_parameters(out, result.parameters, refine_provenance(result, measured, loaded, source))
-    console.print(parameter_table(initial, result.parameters, f"Refined parameters ({criterion}) vs start"))
+        write_parameters(out, result.parameters, provenance, refined_targets(result))
+    console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
+        parameter_table(_wrapped(initial), _wrapped(result.parameters), f"Refined parameters ({criterion}) vs start")
+    )
     summary = Table(title="Refinement", title_justify="left", show_header=False)
     summary.add_row("criterion", criterion)
     summary.add_row("solver", f"least_squares, method={result.method}")
     summary.add_row("status", f"{'converged' if result.success else 'NOT converged'}: {result.message}")
+    health = provenance["fit_health"]
+    ratio = (
+        f"not compared ({health['noise_source']})"
+        if health["ratio"] is None
+        else f"{health['ratio']:.3g} x the stated noise ({health['noise_source']})"
+    )
+    summary.add_row(
+        "fit health",
+        ("OK" if health["healthy"] else "FAILED (" + "; ".join(health["problems"]) + ")") + f": residual {ratio}",
+    )
+    summary.add_row("weights", provenance["weights"])
     summary.add_row("iterations (Jacobian evaluations)", str(result.njev))
     summary.add_row("residual evaluations", str(result.nfev))
     summary.add_row("residuals", str(result.n_residuals))
@@ -89,6 +138,11 @@ def refine(
     summary.add_row("held (gauge: a base motion)", ", ".join(result.gauge) or "-")
     summary.add_row("held (not determined)", ", ".join(result.held) or "-")
     summary.add_row("free, tied to held ones", ", ".join(result.confounded) or "-")
+    for k, target in enumerate(result.targets):
+        if not target.known:
+            u = result.target_uncertainty[k]
+            shown = ", ".join(f"{v:.4f} ± {e:.4f}" for v, e in zip(target.positions, u, strict=True))
+            summary.add_row(f"target {target.name} offset [mm] (± u)", shown)
     summary.add_row("time [s]", f"{result.wall_time_s:.2f}")
     console.print(summary)
     console.print(f"wrote {out}", highlight=False)

@@ -11,6 +11,15 @@ Two views of the error, one per criterion of ch. 4.5.7:
     reflectors, different targets) is ``| |p_i - p_j| - |m_i - m_j| |``,
     over all such pairs (no registration).
 
+``"absolute"`` (issue 14, ``evaluate --absolute``)
+    the error of a point is ``|T p_k - m_k|`` with the *given* base frame ``T`` (the scenario's
+    ``tracker_from_base`` or the one a refinement estimated), no re-registration: the held-out error a
+    user of the calibrated model sees. A parameter set without a base frame (the distances criterion
+    estimates none) is evaluated with the scenario's, and the caller says so.
+
+Captures with a ``target`` column are evaluated point by point on their own targets (each capture may
+name its own); the unknown offsets are the ones the evaluated parameter set estimated.
+
 The improvement of a set is ``100 (1 - mean / mean_reference)`` [%], the reference being the
 first set given (normally the nominal parameters), per view and capture, as in the tables'
 "Mejora promedio" columns (e.g. test 2, CPA: 1 - 0.6498/1.0015 = 35.12 %).
@@ -28,13 +37,24 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.registration import register_points
 from robotcal.identification.refine import capture_target_index, capture_turning_joints, measurement_pairs
+from robotcal.identification.targets import Target, resolve_targets
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
-__all__ = ["VIEWS", "EvaluationRow", "point_errors", "distance_errors", "evaluate_parameters"]
+__all__ = [
+    "VIEWS",
+    "ALL_VIEWS",
+    "EvaluationRow",
+    "point_errors",
+    "distance_errors",
+    "absolute_errors",
+    "evaluate_parameters",
+]
 
 #: Evaluation views (Tables 4.10, 4.11).
 VIEWS = ("points", "distances")
+#: Every view: ``"absolute"`` needs a base frame per parameter set.
+ALL_VIEWS = ("points", "distances", "absolute")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -51,23 +71,54 @@ class EvaluationRow:
     improvement_pct: float
 
 
-def _predicted(capture: Capture, parameters: ParameterSet, reflector: ReflectorMount) -> np.ndarray:
+def _predicted(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
+    """Predicted base-frame points; ``reflector`` a :class:`ReflectorMount` or :class:`Target` object(s)."""
     robot = parameters.robot
     if capture.n_joints != robot.n_joints:
         raise InputError(
             f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {robot.n_joints}"
         )
-    turning = capture_turning_joints(capture, reflector)
-    return target_positions(parameters.values, robot.model_joint_variables(capture.readings), turning, reflector)
+    q = robot.model_joint_variables(capture.readings)
+    if isinstance(reflector, ReflectorMount):
+        turning = capture_turning_joints(capture, reflector)
+        return target_positions(parameters.values, q, turning, reflector)
+    targets, index = resolve_targets(capture, (reflector,) if isinstance(reflector, Target) else tuple(reflector))
+    turning = np.maximum(capture.circle - 1, 0)
+    points = np.empty((capture.n_points, 3))
+    for t, target in enumerate(targets):
+        rows = np.flatnonzero(index == t)
+        if target.frame == "joint" and np.any(capture.circle[rows] == 0):
+            raise InputError(f"{capture.source}: free poses (circle = 0) on the per-joint target {target.name!r}")
+        points[rows] = target_positions(parameters.values, q[rows], turning[rows], target.mount)
+    return points
 
 
-def point_errors(capture: Capture, parameters: ParameterSet, reflector: ReflectorMount) -> np.ndarray:
+def _pair_keep(capture: Capture, reflector, n_joints: int) -> np.ndarray:
+    """Pairs of distinct measurements (as the refinement's distances criterion takes them)."""
+    if isinstance(reflector, ReflectorMount):
+        key = capture_target_index(capture, reflector)
+    else:
+        targets, index = resolve_targets(capture, (reflector,) if isinstance(reflector, Target) else tuple(reflector))
+        is_joint = np.array([target.frame == "joint" for target in targets])
+        key = index * (n_joints + 1) + np.where(is_joint[index], np.maximum(capture.circle - 1, 0) + 1, 0)
+    return measurement_pairs(capture.readings, key)[2]
+
+
+def absolute_errors(capture: Capture, parameters: ParameterSet, reflector, tracker_from_base) -> np.ndarray:
+    """``|T p_k - m_k|`` with the given base frame ``T`` (no registration), ``(n_points,)`` [mm]."""
+    predicted = _predicted(capture, parameters, reflector)
+    transform = np.asarray(tracker_from_base, dtype=float)
+    in_tracker = predicted @ transform[:3, :3].T + transform[:3, 3]
+    return np.linalg.norm(in_tracker - capture.points, axis=1)
+
+
+def point_errors(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
     """Per-point distance after registering the predicted points onto the measured ones, ``(n_points,)`` [mm]."""
     predicted = _predicted(capture, parameters, reflector)
     return register_points(predicted, capture.points).residuals
 
 
-def distance_errors(capture: Capture, parameters: ParameterSet, reflector: ReflectorMount) -> np.ndarray:
+def distance_errors(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
     """``| |p_i - p_j| - |m_i - m_j| |`` over pairs of distinct measurements, ``(n_pairs,)`` [mm].
 
     A pair at the same readings on the same target (bidirectional twins) is left out; with per-joint
@@ -75,7 +126,7 @@ def distance_errors(capture: Capture, parameters: ParameterSet, reflector: Refle
     :func:`robotcal.identification.refine.measurement_pairs`).
     """
     predicted = _predicted(capture, parameters, reflector)
-    _, _, keep = measurement_pairs(capture.readings, capture_target_index(capture, reflector))
+    keep = _pair_keep(capture, reflector, parameters.robot.n_joints)
     return np.abs(pdist(predicted) - pdist(capture.points))[keep]
 
 
@@ -85,6 +136,8 @@ def evaluate_parameters(
     reflectors: Mapping[str, ReflectorMount] | ReflectorMount,
     *,
     views=VIEWS,
+    bases: Mapping[str, np.ndarray] | None = None,
+    set_targets: Mapping[str, Mapping[str, tuple]] | None = None,
 ) -> tuple[EvaluationRow, ...]:
     """Mean, max and RMS errors of every parameter set on every capture under each view.
 
@@ -97,7 +150,12 @@ def evaluate_parameters(
         reference of ``improvement_pct``.
     reflectors : ReflectorMount or mapping of str to ReflectorMount
         The target of each capture (one for all, or per capture name).
-    views : sequence of {"points", "distances"}
+    views : sequence of {"points", "distances", "absolute"}
+    bases : mapping of str to ndarray (4, 4), optional
+        ``"absolute"`` view: the base frame of each parameter set (required for it).
+    set_targets : mapping of str to mapping of str to (x, y, z), optional
+        Per parameter set, flange offsets [mm] that replace those of same-named targets (the offsets
+        a refinement estimated for targets declared unknown).
 
     Returns
     -------
@@ -106,10 +164,25 @@ def evaluate_parameters(
     """
     if not captures or not parameter_sets:
         raise InputError("evaluation needs at least one capture and one parameter set")
-    unknown = [view for view in views if view not in VIEWS]
+    unknown = [view for view in views if view not in ALL_VIEWS]
     if unknown:
-        raise InputError(f"unknown evaluation view(s) {unknown}; expected {VIEWS}")
-    functions = {"points": point_errors, "distances": distance_errors}
+        raise InputError(f"unknown evaluation view(s) {unknown}; expected {ALL_VIEWS}")
+    if "absolute" in views:
+        missing = [name for name in parameter_sets if bases is None or bases.get(name) is None]
+        if missing:
+            raise InputError(f"the absolute view needs a base frame for every parameter set; none for {missing}")
+
+    def errors_of(view, capture, set_name, parameters, reflector):
+        offsets = (set_targets or {}).get(set_name) or {}
+        if offsets and not isinstance(reflector, ReflectorMount):
+            given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
+            reflector = tuple(
+                t.with_position(offsets[t.name]) if t.frame == "flange" and t.name in offsets else t for t in given
+            )
+        if view == "absolute":
+            return absolute_errors(capture, parameters, reflector, bases[set_name])
+        return (point_errors if view == "points" else distance_errors)(capture, parameters, reflector)
+
     rows = []
     for capture_name, capture in captures.items():
         reflector = reflectors if isinstance(reflectors, ReflectorMount) else reflectors.get(capture_name)
@@ -118,7 +191,7 @@ def evaluate_parameters(
         for view in views:
             reference = None
             for set_name, parameters in parameter_sets.items():
-                errors = functions[view](capture, parameters, reflector)
+                errors = errors_of(view, capture, set_name, parameters, reflector)
                 mean = float(errors.mean())
                 reference = mean if reference is None else reference
                 improvement = 100.0 * (1.0 - mean / reference) if reference > 0 else 0.0

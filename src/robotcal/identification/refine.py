@@ -103,7 +103,8 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import sparse
@@ -121,7 +122,8 @@ from robotcal.identification.observability import (
     select_identifiable,
     triangular_factor,
 )
-from robotcal.kinematics.forward import target_positions
+from robotcal.identification.targets import Target, resolve_targets
+from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
@@ -134,6 +136,8 @@ __all__ = [
     "capture_target_index",
     "measurement_pairs",
     "base_correction",
+    "wrap_angles",
+    "point_sigmas",
 ]
 
 #: The two objectives of thesis ch. 4.5.7.
@@ -146,6 +150,16 @@ _PAIR_CHUNK = 32768
 _STILL_RAD = 1e-9
 _SAMPLE_ROWS = 8192  # residuals sampled for the null space at the generic point
 _SUPPORT = 1e-8  # a null vector's entry (unit columns) above this ties a free quantity to a held one
+#: The rank test sees unknown flange offsets at their guess moved by this much in a fixed generic direction
+#: [mm]: a guess on axis n (the default, the flange origin) would hide joint n's rotation from the test,
+#: while the data, taken off the axis, do show it.
+_GENERIC_OFFSET_MM = 50.0
+
+
+def _generic_directions(count: int) -> np.ndarray:
+    """``(count, 3)`` fixed unit vectors in generic directions (seeded), one per unknown offset."""
+    directions = np.random.default_rng(12345).normal(size=(count, 3))
+    return directions / np.linalg.norm(directions, axis=1, keepdims=True)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -252,6 +266,32 @@ class RefinementResult:
     correlation: np.ndarray | None
     standard_uncertainty: np.ndarray
     wall_time_s: float
+    targets: tuple[Target, ...] = ()
+    target_uncertainty: np.ndarray | None = None
+    weighted: bool = False
+    residual_rms_coordinate: float = float("nan")
+
+
+def wrap_angles(values) -> np.ndarray:
+    """Parameters ``(..., n_joints, 5)`` with theta, alpha, beta wrapped into (-pi, pi] [rad].
+
+    A turn of 2 pi leaves every transform unchanged; only values outside the interval are touched,
+    so that values already inside keep every bit. The fits keep their values continuous with the start
+    (a result stays comparable with the start and with a truth); every output wraps them: the parameter
+    JSON (:func:`robotcal.io.parameters_json.parameters_to_dict`) and the tables of ``identify`` and
+    ``refine``.
+    """
+    values = np.array(values, dtype=float)
+    angles = values[..., [1, 3, 4]]
+    wrapped = np.pi - np.mod(np.pi - angles, 2.0 * np.pi)
+    values[..., [1, 3, 4]] = np.where((angles > np.pi) | (angles <= -np.pi), wrapped, angles)
+    return values
+
+
+def point_sigmas(capture: Capture) -> np.ndarray | None:
+    """Standard uncertainty per coordinate of every point [mm] from its U(95): ``U / 2`` (k = 2, normal);
+    None when the capture has no ``u95_mm`` column."""
+    return None if capture.u95 is None else np.asarray(capture.u95, dtype=float) / 2.0
 
 
 def capture_turning_joints(capture: Capture, reflector: ReflectorMount) -> np.ndarray:
@@ -303,9 +343,22 @@ def _pair_jacobian(points, jac, pair_i, pair_j) -> np.ndarray:
     return out
 
 
+def _empty_offsets() -> np.ndarray:
+    return np.zeros((0, 3))
+
+
+def _no_flags() -> np.ndarray:
+    return np.zeros(0, dtype=bool)
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class _Problem:
-    """Immutable data of one refinement; residuals and Jacobian are pure functions of x."""
+    """Immutable data of one refinement; residuals and Jacobian are pure functions of x.
+
+    ``x`` holds the free parameters, then the free components of the unknown flange offsets
+    (``targets[unknown[u]]``, 3 each), then the free base corrections. Without ``targets`` every point
+    is on ``reflector`` (the historical single-target problem).
+    """
 
     start: np.ndarray
     free: np.ndarray  # (n, 5) bool
@@ -320,20 +373,77 @@ class _Problem:
     pair_j: np.ndarray | None
     pair_keep: np.ndarray | None
     measured_distances: np.ndarray | None
+    targets: tuple[Target, ...] = ()
+    target_index: np.ndarray | None = None
+    unknown: tuple[int, ...] = ()
+    offset_start: np.ndarray = field(default_factory=_empty_offsets)
+    offset_free: np.ndarray = field(default_factory=_no_flags)
+    point_weight: np.ndarray | None = None
+    pair_weight: np.ndarray | None = None
 
     @property
     def n_kinematic(self) -> int:
         return int(self.free.sum())
 
-    def x0(self) -> np.ndarray:
-        return np.concatenate([self.start[self.free], np.zeros(int(self.base_free.sum()))])
+    @property
+    def n_offsets(self) -> int:
+        return int(self.offset_free.sum())
 
-    def unpack(self, x) -> tuple[np.ndarray, np.ndarray]:
+    def x0(self) -> np.ndarray:
+        return np.concatenate(
+            [self.start[self.free], self.offset_start.ravel()[self.offset_free], np.zeros(int(self.base_free.sum()))]
+        )
+
+    def unpack_all(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Parameters ``(n, 5)``, unknown offsets ``(k, 3)`` and base corrections ``(6,)`` at x."""
         values = self.start.copy()
         values[self.free] = x[: self.n_kinematic]
+        offsets = self.offset_start.copy().ravel()
+        offsets[self.offset_free] = x[self.n_kinematic : self.n_kinematic + self.n_offsets]
         x_base = np.zeros(6)
-        x_base[self.base_free] = x[self.n_kinematic :]
+        x_base[self.base_free] = x[self.n_kinematic + self.n_offsets :]
+        return values, offsets.reshape(-1, 3), x_base
+
+    def unpack(self, x) -> tuple[np.ndarray, np.ndarray]:
+        values, _, x_base = self.unpack_all(x)
         return values, x_base
+
+    def _groups(self, offsets):
+        """``(rows, mount, unknown slot or None)`` per target."""
+        for t, target in enumerate(self.targets):
+            rows = np.flatnonzero(self.target_index == t)
+            if rows.size == 0:
+                continue
+            slot = self.unknown.index(t) if t in self.unknown else None
+            mount = target.mount if slot is None else ReflectorMount(frame="flange", positions=offsets[slot])
+            yield rows, mount, slot
+
+    def base_points(self, values, offsets) -> np.ndarray:
+        """Target positions in the base frame ``(n_points, 3)`` [mm]."""
+        if not self.targets:
+            return target_positions(values, self.q, self.turning, self.reflector)
+        points = np.empty((self.q.shape[0], 3))
+        for rows, mount, _ in self._groups(offsets):
+            points[rows] = target_positions(values, self.q[rows], self.turning[rows], mount)
+        return points
+
+    def base_jacobian(self, values, offsets) -> tuple[np.ndarray, np.ndarray]:
+        """Base-frame points and ``d points / d (parameters, every unknown offset)`` ``(n_points, 3, 5 n + 3 k)``."""
+        if not self.targets:
+            points, jac = target_jacobian(values, self.q, self.turning, self.reflector)
+            return points, jac.reshape(jac.shape[0], 3, -1)
+        n_points, n = self.q.shape
+        points = np.empty((n_points, 3))
+        jac = np.zeros((n_points, 3, 5 * n + 3 * len(self.unknown)))
+        for rows, mount, slot in self._groups(offsets):
+            group_points, group_jac = target_jacobian(values, self.q[rows], self.turning[rows], mount)
+            points[rows] = group_points
+            jac[rows, :, : 5 * n] = group_jac.reshape(rows.size, 3, -1)
+            if slot is not None:  # d (F_n r) / d r = the flange rotation
+                jac[rows, :, 5 * n + 3 * slot : 5 * n + 3 * slot + 3] = forward_kinematics(values, self.q[rows])[
+                    :, :3, :3
+                ]
+        return points, jac
 
     def tracker(self, x_base) -> np.ndarray:
         rotation, shift, _ = base_correction(x_base)
@@ -342,18 +452,31 @@ class _Problem:
         delta[:3, 3] = shift
         return self.base_start @ delta
 
-    def residuals(self, x) -> np.ndarray:
-        values, x_base = self.unpack(x)
-        points = target_positions(values, self.q, self.turning, self.reflector)
+    def raw_residuals(self, x) -> np.ndarray:
+        """Unweighted residuals [mm]: ``T p - m`` per coordinate, or ``|p_i - p_j| - |m_i - m_j|``."""
+        values, offsets, x_base = self.unpack_all(x)
+        points = self.base_points(values, offsets)
         if self.criterion == "distances":
             return pdist(points)[self.pair_keep] - self.measured_distances
         tracker = self.tracker(x_base)
         return (points @ tracker[:3, :3].T + tracker[:3, 3] - self.measured).ravel()
 
-    def point_jacobian(self, values, x_base) -> tuple[np.ndarray, np.ndarray]:
-        """Base-frame points ``(n_points, 3)`` and ``d points / d x`` ``(n_points, 3, n_x)``."""
-        points, jac = target_jacobian(values, self.q, self.turning, self.reflector)
-        jac = jac.reshape(jac.shape[0], 3, -1)[:, :, self.free.ravel()]
+    def _row_weights(self) -> np.ndarray | None:
+        if self.criterion == "distances":
+            return self.pair_weight
+        return None if self.point_weight is None else np.repeat(self.point_weight, 3)
+
+    def residuals(self, x) -> np.ndarray:
+        residuals = self.raw_residuals(x)
+        weights = self._row_weights()
+        return residuals if weights is None else residuals * weights
+
+    def point_jacobian(self, values, x_base, offsets=None) -> tuple[np.ndarray, np.ndarray]:
+        """Tracker-frame (points criterion) or base-frame (distances) points ``(n_points, 3)`` and
+        ``d points / d x`` ``(n_points, 3, n_x)``."""
+        offsets = self.offset_start if offsets is None else offsets
+        points, jac = self.base_jacobian(values, offsets)
+        jac = jac[:, :, np.r_[self.free.ravel(), self.offset_free]]
         if self.criterion == "distances":
             return points, jac
         rotation, shift, derivatives = base_correction(x_base)
@@ -369,18 +492,23 @@ class _Problem:
         return tracker_points, np.concatenate(columns, axis=-1)
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
-        """Residuals ``(m,)`` and Jacobian ``(m, n_x)`` at x."""
-        values, x_base = self.unpack(x)
-        points, jac = self.point_jacobian(values, x_base)
+        """Residuals ``(m,)`` and Jacobian ``(m, n_x)`` at x (weighted where weights are given)."""
+        values, offsets, x_base = self.unpack_all(x)
+        points, jac = self.point_jacobian(values, x_base, offsets)
         if self.criterion == "points":
-            return (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
-        residuals = pdist(points)[self.pair_keep] - self.measured_distances
-        return residuals, _pair_jacobian(points, jac, self.pair_i, self.pair_j)
+            residuals, jacobian = (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
+        else:
+            residuals = pdist(points)[self.pair_keep] - self.measured_distances
+            jacobian = _pair_jacobian(points, jac, self.pair_i, self.pair_j)
+        weights = self._row_weights()
+        if weights is None:
+            return residuals, jacobian
+        return residuals * weights, jacobian * weights[:, None]
 
     def jacobian_sample(self, x, rows: int) -> np.ndarray:
         """Jacobian at x on about ``rows`` evenly strided residuals (every pair, or point, k-th)."""
-        values, x_base = self.unpack(x)
-        points, jac = self.point_jacobian(values, x_base)
+        values, offsets, x_base = self.unpack_all(x)
+        points, jac = self.point_jacobian(values, x_base, offsets)
         if self.criterion == "points":
             return jac.reshape(-1, jac.shape[-1])
         stride = max(1, self.pair_i.size // rows)
@@ -390,15 +518,21 @@ class _Problem:
         """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
         if self.criterion == "points":
             return None
-        values, _ = self.unpack(x)
-        points = target_positions(values, self.q, self.turning, self.reflector)
+        values, offsets, _ = self.unpack_all(x)
+        points = self.base_points(values, offsets)
         unit = _unit(points[self.pair_i] - points[self.pair_j])
+        if self.pair_weight is not None:  # G = diag(w_pair) dr/dm diag(sigma_k / sigma_ref): isotropic noise again
+            unit = unit * self.pair_weight[:, None]
+            unit_i = unit / self.point_weight[self.pair_i, None]
+            unit_j = unit / self.point_weight[self.pair_j, None]
+        else:
+            unit_i = unit_j = unit
         m = self.pair_i.size
         rows = np.repeat(np.arange(m), 6)
         cols = np.concatenate(
             [3 * self.pair_i[:, None] + np.arange(3), 3 * self.pair_j[:, None] + np.arange(3)], axis=1
         ).ravel()
-        data = np.concatenate([unit, -unit], axis=1).ravel()
+        data = np.concatenate([unit_i, -unit_j], axis=1).ravel()
         return sparse.csr_matrix((data, (rows, cols)), shape=(m, 3 * points.shape[0]))
 
 
@@ -406,8 +540,9 @@ def measurement_pairs(readings, targets=None) -> tuple[np.ndarray, np.ndarray, n
     """Pairs i < j of points that are not the same measurement, in :func:`scipy.spatial.distance.pdist` order.
 
     Two points at the same readings *and* on the same target (the forward and return sweeps of a
-    bidirectional capture share their readings) have model distance 0 for any parameters: such a
-    pair carries no information about the parameters and is left out. With per-joint reflectors
+    bidirectional capture share their readings; readings 360 deg apart are the same pose too) have
+    model distance 0 for any parameters: such a pair carries no information about the parameters
+    and is left out (its distance has no derivative at 0). With per-joint reflectors
     (``ReflectorMount(frame="joint")``) every circle has its own target, so two points of different
     circles at the same readings are different targets and their pair is kept.
 
@@ -428,7 +563,10 @@ def measurement_pairs(readings, targets=None) -> tuple[np.ndarray, np.ndarray, n
     """
     readings = np.asarray(readings, dtype=float)
     n = readings.shape[0]
-    key = readings if targets is None else np.column_stack([readings, np.asarray(targets, dtype=float)])
+    # one pose: the same joint angles modulo 360 deg (a sweep over -360..360 visits every pose twice),
+    # compared on a 1e-7 deg grid so that 360 deg computed in floating point matches exactly
+    turns = np.mod(np.round(np.rad2deg(readings) * 1e7).astype(np.int64), 3_600_000_000)
+    key = turns if targets is None else np.column_stack([turns, np.asarray(targets, dtype=np.int64)])
     _, pose = np.unique(key, axis=0, return_inverse=True)
     pose = pose.ravel()
     pair_i, pair_j = np.triu_indices(n, k=1)
@@ -486,29 +624,41 @@ class _Selection:
     """Outcome of the rank test on the full candidate set (module notes)."""
 
     free: np.ndarray  # (n, 5) bool: parameters estimated
+    offset_free: np.ndarray  # (3 k,) bool: unknown offset components estimated
     base_free: np.ndarray  # (6,) bool: base corrections estimated
     held: np.ndarray  # (n, 5) bool: candidate parameters held, gauge ones included
+    offset_held: np.ndarray  # (3 k,) bool
     base_held: np.ndarray  # (6,) bool: candidate base corrections held
     gauge: np.ndarray  # (n, 5) bool: held because they move the whole point cloud rigidly
-    confounded: np.ndarray  # (5 n + 6,) bool: free quantities tied to a held one
+    confounded: np.ndarray  # (5 n + 3 k + 6,) bool: free quantities tied to a held one
 
 
 def _select_free(
     probe: _Problem, candidates: np.ndarray, all_scale: np.ndarray, kind_scale: np.ndarray, tolerance: float
 ) -> _Selection:
-    """Rank test at the start on every candidate column (parameters and base corrections together).
+    """Rank test at the start on every candidate column (parameters, unknown offsets, base corrections).
 
-    Columns are taken base corrections first, then the parameters joint by joint in the order
-    d, theta, a, alpha, beta (:func:`select_identifiable`): of a dependent group the earlier ones
-    stay free, so a parameter equivalent to a base motion is held and the base correction kept.
+    Columns are taken base corrections first, then the parameters of joints 1..n-1 in the order d,
+    theta, a, alpha, beta, then the unknown flange offsets, then joint n's parameters
+    (:func:`select_identifiable`): of a dependent group the earlier ones stay free, so a parameter
+    equivalent to a base motion is held and the base correction kept, and joint n's d, theta, a,
+    alpha, which only move the flange frame that unknown offsets are expressed in, are held in
+    favour of the offsets (the flange frame stays nominal; the offsets are estimated in it).
     """
     n = probe.free.shape[0]
+    n_off = probe.offset_free.size
     n_base = int(probe.base_free.sum())
-    _, jac_all = probe.evaluate(probe.x0())  # columns: the 5 n parameters, then the candidate base ones
-    scale = np.concatenate([np.tile(kind_scale, n), all_scale[5 * n :][probe.base_free]])
+    _, jac_all = probe.evaluate(probe.x0())  # columns: 5 n parameters, 3 k offsets, then the candidate base ones
+    scale = np.concatenate([np.tile(kind_scale, n), np.ones(n_off), all_scale[5 * n :][probe.base_free]])
     scaled = triangular_factor(jac_all * scale)
-    chosen = np.r_[candidates.ravel(), np.ones(n_base, dtype=bool)]
-    order = np.r_[np.arange(5 * n, 5 * n + n_base), np.arange(5 * n)]
+    chosen = np.r_[candidates.ravel(), np.ones(n_off + n_base, dtype=bool)]
+    last = 5 * (n - 1)
+    order = np.r_[
+        np.arange(5 * n + n_off, 5 * n + n_off + n_base),
+        np.arange(last),
+        np.arange(5 * n, 5 * n + n_off),
+        np.arange(last, 5 * n),
+    ]
     keep = np.zeros(chosen.size, dtype=bool)
     keep[order] = select_identifiable(scaled[:, order], chosen[order], tolerance=tolerance)
     held_all = chosen & ~keep
@@ -535,33 +685,35 @@ def _select_free(
     gauge = np.zeros((n, 5), dtype=bool)
     held = held_all[: 5 * n].reshape(n, 5)
     if np.any(held) and (n_base or probe.criterion == "distances"):
-        values, _ = probe.unpack(probe.x0())
-        points, point_jac = target_jacobian(values, probe.q, probe.turning, probe.reflector)
-        columns = point_jac.reshape(-1, 5 * n) * np.tile(kind_scale, n)
+        values, offsets, _ = probe.unpack_all(probe.x0())
+        points, point_jac = probe.base_jacobian(values, offsets)
+        columns = point_jac[:, :, : 5 * n].reshape(-1, 5 * n) * np.tile(kind_scale, n)
         basis = _rigid_motion_fields(points, float(kind_scale[1]))
         size = np.linalg.norm(columns, axis=0)
         outside = np.linalg.norm(columns - basis @ (basis.T @ columns), axis=0)
         rigid = (size > 1e-12 * max(float(size.max()), 1e-300)) & (outside <= tolerance * size)
         gauge = held & rigid.reshape(n, 5)
     base_keep = np.zeros(6, dtype=bool)
-    base_keep[probe.base_free] = keep[5 * n :]
+    base_keep[probe.base_free] = keep[5 * n + n_off :]
     base_held = probe.base_free & ~base_keep
     base_confounded = np.zeros(6, dtype=bool)
-    base_confounded[probe.base_free] = confounded[5 * n :]
+    base_confounded[probe.base_free] = confounded[5 * n + n_off :]
     return _Selection(
         free=keep[: 5 * n].reshape(n, 5),
+        offset_free=keep[5 * n : 5 * n + n_off],
         base_free=base_keep,
         held=held,
+        offset_held=held_all[5 * n : 5 * n + n_off],
         base_held=base_held,
         gauge=gauge,
-        confounded=np.r_[confounded[: 5 * n], base_confounded],
+        confounded=np.r_[confounded[: 5 * n + n_off], base_confounded],
     )
 
 
 def refine_parameters(
     capture: Capture,
     start: ParameterSet,
-    reflector: ReflectorMount,
+    reflector: ReflectorMount | Target | Sequence[Target],
     *,
     criterion: str = "points",
     tracker_from_base=None,
@@ -572,6 +724,7 @@ def refine_parameters(
     max_nfev: int | None = None,
     tolerance: float = 1e-12,
     rank_tolerance: float = 1e-7,
+    weights: str = "auto",
 ) -> RefinementResult:
     """Refine kinematic parameters by least squares over all measured points (thesis ch. 4.5.7).
 
@@ -582,8 +735,10 @@ def refine_parameters(
         poses (``circle = 0``, flange reflector only) alike.
     start : ParameterSet
         Start values (the CPA result, or nominal) [mm, rad]; held parameters keep these values.
-    reflector : ReflectorMount
-        Where the target sat.
+    reflector : ReflectorMount, Target or sequence of Target
+        Where the target sat: one mount for every point (the historical form), or the targets a
+        capture's ``target`` column names (several per pose; a flange target with ``known=False``
+        has its offset estimated, reported in ``targets`` and ``target_uncertainty``).
     criterion : {"points", "distances"}
         Eq. 4-101 (point positions in the tracker frame) or eq. 4-102 (all pairwise distances);
         see the module notes.
@@ -608,6 +763,9 @@ def refine_parameters(
         ``ftol = xtol = gtol`` of ``least_squares``.
     rank_tolerance : float
         See :func:`robotcal.identification.observability.select_identifiable`.
+    weights : {"auto", "none"}
+        ``auto``: with a ``u95_mm`` column, weight each point by ``1 / u^2`` (u = U(95) / 2, k = 2,
+        normal; module notes); ``none``: equal weights.
 
     Returns
     -------
@@ -639,6 +797,8 @@ def refine_parameters(
         raise InputError(f"`estimate_base` must be None, True or False; got {estimate_base!r}")
     if criterion == "points" and estimate_base is False and tracker_from_base is None:
         raise InputError("`estimate_base=False` holds the base frame: give `tracker_from_base`")
+    if weights not in ("auto", "none"):
+        raise InputError(f"`weights` must be 'auto' or 'none'; got {weights!r}")
     if capture.n_joints != n:
         raise InputError(
             f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints"
@@ -646,9 +806,39 @@ def refine_parameters(
     minimum = 3 if criterion == "points" else 4
     if capture.n_points < minimum:
         raise InputError(f"{capture.source}: {capture.n_points} points; refinement needs at least {minimum}")
-    turning = capture_turning_joints(capture, reflector)
     q = robot.model_joint_variables(capture.readings)
     measured = np.asarray(capture.points, dtype=float)
+    targets: tuple[Target, ...] = ()
+    target_index = None
+    unknown: tuple[int, ...] = ()
+    if isinstance(reflector, ReflectorMount):
+        turning = capture_turning_joints(capture, reflector)
+        pair_key = capture_target_index(capture, reflector)
+    else:
+        given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
+        targets, target_index = resolve_targets(capture, given)
+        turning = np.maximum(capture.circle - 1, 0)
+        for t, target in enumerate(targets):
+            if target.frame == "joint":
+                if target.positions.shape[0] != n:
+                    raise InputError(f"target {target.name!r}: {target.positions.shape[0]} reflectors for {n} joints")
+                rows = np.flatnonzero((target_index == t) & (capture.circle == 0))
+                if rows.size:
+                    raise InputError(
+                        f"{capture.source}: point {rows[0] + 1} is a free pose (circle = 0) on the per-joint target "
+                        f"{target.name!r}, which is defined only on circles"
+                    )
+        unknown = tuple(t for t, target in enumerate(targets) if not target.known)
+        is_joint = np.array([target.frame == "joint" for target in targets])
+        pair_key = target_index * (n + 1) + np.where(is_joint[target_index], turning + 1, 0)
+        reflector = targets[0].mount  # (unused with targets; kept for the single-target code paths)
+    offset_start = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
+    offset_names = tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz")
+    sigmas = point_sigmas(capture) if weights == "auto" else None
+    point_weight = pair_weight = None
+    if sigmas is not None:
+        reference = float(np.sqrt(np.mean(sigmas**2)))
+        point_weight = reference / sigmas  # relative weights: sigma keeps its meaning [mm] (module notes)
     names = robot.parameter_names
     use_base = criterion == "points" and (tracker_from_base is None if estimate_base is None else estimate_base)
     explicit_mask = _check_free(free, robot)
@@ -663,8 +853,10 @@ def refine_parameters(
             base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
     pair_i = pair_j = distances = pair_keep = None
     if criterion == "distances":
-        pair_i, pair_j, pair_keep = measurement_pairs(capture.readings, capture_target_index(capture, reflector))
+        pair_i, pair_j, pair_keep = measurement_pairs(q, pair_key)
         distances = pdist(measured)[pair_keep]
+        if sigmas is not None:
+            pair_weight = np.sqrt(2.0) * reference / np.hypot(sigmas[pair_i], sigmas[pair_j])
         if np.any(distances <= 0.0):
             k = int(np.flatnonzero(distances <= 0.0)[0])
             raise InputError(
@@ -695,27 +887,55 @@ def refine_parameters(
         pair_j=pair_j,
         pair_keep=pair_keep,
         measured_distances=distances,
+        targets=targets,
+        target_index=target_index,
+        unknown=unknown,
+        offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(offset_start.shape[0]),
+        offset_free=np.ones(offset_start.size, dtype=bool),
+        point_weight=point_weight,
+        pair_weight=pair_weight,
     )
     selection = _select_free(probe, candidates, all_scale, kind_scale, rank_tolerance)
-    free_mask, base_free = selection.free, selection.base_free
+    probe = replace(probe, offset_start=offset_start)
+    free_mask, base_free, offset_free = selection.free, selection.base_free, selection.offset_free
     gauge = tuple(name for name, flag in zip(names, selection.gauge.ravel(), strict=True) if flag)
     held_mask = selection.held & ~selection.gauge
-    held = tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag) + tuple(
-        BASE_NAMES[k] for k in np.flatnonzero(selection.base_held)
+    held = (
+        tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
+        + tuple(name for name, flag in zip(offset_names, selection.offset_held, strict=True) if flag)
+        + tuple(BASE_NAMES[k] for k in np.flatnonzero(selection.base_held))
     )
-    confounded = tuple(name for name, flag in zip(names + BASE_NAMES, selection.confounded, strict=True) if flag)
+    confounded = tuple(
+        name for name, flag in zip(names + offset_names + BASE_NAMES, selection.confounded, strict=True) if flag
+    )
     if gauge or held:
-        _report_held(capture, criterion, use_base, gauge, held, still, explicit or on_unidentifiable == "raise")
+        flange_frame = _flange_frame_note(targets, unknown, held_mask, n)
+        flange_held = () if explicit or not flange_frame else tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
+        _report_held(
+            capture,
+            criterion,
+            use_base,
+            gauge,
+            held,
+            still,
+            explicit or on_unidentifiable == "raise",
+            flange_frame,
+            flange_held,
+        )
 
-    problem = replace(probe, free=free_mask, base_free=base_free)  # only the identifiable columns free
+    problem = replace(probe, free=free_mask, base_free=base_free, offset_free=offset_free)  # identifiable columns
     x0 = problem.x0()
     if x0.size == 0:
         raise IdentifiabilityError(
             f"{capture.source}: no parameter can be refined from this capture", parameters=gauge + held
         )
-    x_scale = np.concatenate([np.tile(kind_scale, (n, 1))[free_mask], all_scale[5 * n :][base_free]])
-    free_names = tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag) + tuple(
-        BASE_NAMES[k] for k in np.flatnonzero(base_free)
+    x_scale = np.concatenate(
+        [np.tile(kind_scale, (n, 1))[free_mask], np.ones(int(offset_free.sum())), all_scale[5 * n :][base_free]]
+    )
+    free_names = (
+        tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag)
+        + tuple(name for name, flag in zip(offset_names, offset_free, strict=True) if flag)
+        + tuple(BASE_NAMES[k] for k in np.flatnonzero(base_free))
     )
     history: list[float] = []
 
@@ -753,18 +973,20 @@ def refine_parameters(
     if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
         history.append(final_cost)
     cost_history = np.asarray(history)
-    values, x_base = problem.unpack(x_final)
+    values, offsets, x_base = problem.unpack_all(x_final)
 
-    # statistics at the solution
+    # statistics at the solution (the per-point figures unweighted, in mm)
     residuals, jac = problem.evaluate(x_final)
+    raw = problem.raw_residuals(x_final)
     if criterion == "points":
-        per = np.linalg.norm(residuals.reshape(-1, 3), axis=1)
+        per = np.linalg.norm(raw.reshape(-1, 3), axis=1)
     else:
-        per = np.abs(residuals)
+        per = np.abs(raw)
     scaled = jac * x_scale
     cond = conditioning(scaled)
     covariance, sigma, dof = _covariance(jac, x_scale, residuals, problem.noise_map(x_final))
     standard = np.full((n, 5), np.nan)
+    offset_sd = np.full(offset_start.shape, np.nan)
     if covariance is None:
         message = (
             f"no degrees of freedom left to estimate the noise ({m} residuals, {x0.size} free unknowns, "
@@ -772,8 +994,17 @@ def refine_parameters(
             f"measure more points. Solver: {message}"
         )
     else:
-        standard[free_mask] = np.sqrt(np.clip(np.diag(covariance), 0.0, None))[: problem.n_kinematic]
+        diagonal = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        standard[free_mask] = diagonal[: problem.n_kinematic]
+        flat = offset_sd.ravel()
+        flat[offset_free] = diagonal[problem.n_kinematic : problem.n_kinematic + problem.n_offsets]
+        offset_sd = flat.reshape(offset_start.shape)
     refined = ParameterSet(robot=robot, values=values, identified=start.identified | free_mask)
+    refined_targets = list(targets)
+    target_sd = np.full((len(targets), 3), np.nan)
+    for slot, t in enumerate(unknown):
+        refined_targets[t] = targets[t].with_position(offsets[slot])
+        target_sd[t] = offset_sd[slot]
     return RefinementResult(
         parameters=refined,
         tracker_from_base=None if base_start is None else _frozen(problem.tracker(x_base)),
@@ -806,11 +1037,37 @@ def refine_parameters(
         correlation=None if covariance is None else _frozen(correlation_from_covariance(covariance)),
         standard_uncertainty=_frozen(standard),
         wall_time_s=time.perf_counter() - began,
+        targets=tuple(refined_targets),
+        target_uncertainty=_frozen(target_sd) if targets else None,
+        weighted=sigmas is not None,
+        residual_rms_coordinate=float(np.sqrt(np.mean(raw**2))),
     )
 
 
-def _report_held(capture, criterion, use_base, gauge, held, still, strict) -> None:
-    """Warn about (or, ``strict``, raise for) the quantities the rank test holds."""
+def _flange_frame_note(targets, unknown, held_mask, n) -> str:
+    """Why joint n's parameters are held when every flange target's offset is unknown (empty otherwise:
+    with a known flange target, joint n's alpha is held as with the historical single flange target)."""
+    known = [t.name for t in targets if t.frame == "flange" and t.known]
+    if not unknown or known or not held_mask[n - 1].any():
+        return ""
+    names = ", ".join(f"J{n}.{kind}" for kind, flag in zip(PARAMETER_KINDS, held_mask[n - 1], strict=True) if flag)
+    unknown_names = ", ".join(targets[t].name for t in unknown)
+    return (
+        f"every flange target's offset is unknown, so the flange frame {{{n}}} is not determined by the data: an "
+        f"unknown offset is confounded with J{n}'s d, theta, a, alpha (a change of those moves the flange frame, "
+        f"which the offsets absorb); {names} are held at their start values and the offsets of {unknown_names} "
+        "are estimated in that flange frame"
+    )
+
+
+def _report_held(
+    capture, criterion, use_base, gauge, held, still, strict, flange_frame: str = "", flange_held=()
+) -> None:
+    """Warn about (or, ``strict``, raise for) the quantities the rank test holds.
+
+    ``flange_held``: joint n's parameters held because every flange offset is unknown (the flange frame
+    is then a choice, not a failure of the data): with ``strict`` they alone only warn.
+    """
     parts = []
     if gauge:
         why = (
@@ -825,8 +1082,10 @@ def _report_held(capture, criterion, use_base, gauge, held, still, strict) -> No
             f"the {criterion} criterion cannot determine {', '.join(held)} from this capture "
             f"(rank-deficient column-scaled Jacobian at the start){detail}"
         )
+    if flange_frame:
+        parts.append(flange_frame)
     text = f"{capture.source}: " + "; ".join(parts)
-    if strict:
+    if strict and set(gauge + held) - set(flange_held):
         raise IdentifiabilityError(text, parameters=gauge + held)
     warnings.warn(text + "; they are held at their start values", IdentifiabilityWarning, stacklevel=3)
 

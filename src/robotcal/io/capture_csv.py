@@ -1,8 +1,11 @@
-"""Capture CSV: ``circle,direction,q1..qN,x,y,z`` (docs/results.md).
+"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,u95_mm]`` (docs/scenario.md).
 
 One row per measured point; ``circle`` = joint turned (1-based; 0 for a free pose on no circle, such
 as a validation capture), ``direction`` = +1/-1, joint
-readings ``q1..qN`` in degrees, target position ``x, y, z`` in the tracker frame in mm.
+readings ``q1..qN`` in degrees, target position ``x, y, z`` in the tracker frame in mm. Optional:
+``target``, the name of the target measured (declared in the scenario's ``[[targets]]``; absent =
+the scenario's one target), and ``u95_mm``, the point's expanded uncertainty U(95) [mm] (k = 2,
+normal). A file without them loads as before.
 """
 
 from __future__ import annotations
@@ -26,13 +29,17 @@ def capture_to_csv(capture: Capture) -> str:
     stream = io.StringIO()
     writer = csv.writer(stream, lineterminator="\n")
     n = capture.n_joints
-    writer.writerow(["circle", "direction", *[f"q{i + 1}" for i in range(n)], "x", "y", "z"])
+    extra = (["target"] if capture.target is not None else []) + (["u95_mm"] if capture.u95 is not None else [])
+    writer.writerow(["circle", "direction", *[f"q{i + 1}" for i in range(n)], "x", "y", "z", *extra])
     readings_deg = np.rad2deg(capture.readings)
+    names = capture.point_targets
     for k in range(capture.n_points):
         writer.writerow(
             [int(capture.circle[k]), int(capture.direction[k])]
             + [f"{value:.12f}" for value in readings_deg[k]]
             + [f"{value:.12f}" for value in capture.points[k]]
+            + ([names[k]] if names is not None else [])
+            + ([f"{capture.u95[k]:.12g}"] if capture.u95 is not None else [])
         )
     return stream.getvalue()
 
@@ -95,10 +102,30 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
     bad = np.flatnonzero(~np.isin(direction, (-1.0, 1.0)))
     if bad.size:
         raise InputError(f"{path}: line {lines[bad[0]]}, column `direction`: must be +1 or -1")
+    target = names = u95 = None
+    if "target" in header:
+        position = header.index("target")
+        labels = [row[position].strip() for _, row in records[1:]]
+        empty = [k for k, label in enumerate(labels) if not label]
+        if empty:
+            raise InputError(f"{path}: line {lines[empty[0]]}, column `target`: empty target name")
+        names = tuple(dict.fromkeys(labels))
+        lookup = {name: k for k, name in enumerate(names)}
+        target = np.array([lookup[label] for label in labels], dtype=int)
+    if "u95_mm" in header:
+        position = header.index("u95_mm")
+        u95 = np.empty(len(records) - 1)
+        for k, (line, row) in enumerate(records[1:]):
+            u95[k] = parse_finite(row[position], f"{path}: line {line}, column `u95_mm`")
+            if u95[k] <= 0:
+                raise InputError(f"{path}: line {line}, column `u95_mm`: U(95) must be > 0 mm; got {u95[k]:g}")
     return Capture(
         circle=circle.astype(int),
         direction=direction.astype(int),
         readings=np.deg2rad(data[:, 2 : 2 + count]),
         points=data[:, 2 + count :],
         source=str(path),
+        target=target,
+        target_names=names or (),
+        u95=u95,
     )

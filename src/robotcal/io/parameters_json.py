@@ -19,35 +19,88 @@ from robotcal.io._validation import _short, as_finite_float, read_json_file
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import PARAMETER_KINDS, ParameterSet, RobotModel
 
-__all__ = ["parameters_to_dict", "write_parameters", "read_parameters"]
+__all__ = ["parameters_to_dict", "write_parameters", "read_parameters", "targets_to_dict", "read_targets"]
 
 _ANGLES = ("theta", "alpha", "beta")
 
 
-def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None) -> dict:
+def _wrap_deg(value: float) -> float:
+    """An angle in degrees in (-180, 180] (a turn of 360 deg changes no transform)."""
+    return value if -180.0 < value <= 180.0 else 180.0 - (180.0 - value) % 360.0
+
+
+def targets_to_dict(targets, uncertainty=None) -> dict:
+    """``{"name": {"frame": "flange", "flange_mm": [x, y, z], "known": bool, "u_mm": [ux, uy, uz] | null}}``
+    for flange targets (per-joint ones: ``reflector_mm``); ``u_mm``: standard uncertainties of an estimated
+    offset, null where unknown or not estimated."""
+    out = {}
+    for k, target in enumerate(targets):
+        entry: dict = {"frame": target.frame, "known": bool(target.known)}
+        if target.frame == "flange":
+            entry["flange_mm"] = [float(v) for v in target.positions]
+        else:
+            entry["reflector_mm"] = [[float(v) for v in row] for row in target.positions]
+        u = None
+        if uncertainty is not None and not target.known:
+            row = np.asarray(uncertainty[k], dtype=float)
+            u = [float(v) if np.isfinite(v) else None for v in row]
+        entry["u_mm"] = u
+        out[target.name] = entry
+    return out
+
+
+def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None) -> dict:
+    """The parameter JSON document; angles in degrees wrapped into (-180, 180]. ``targets`` (from
+    :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets."""
     robot = parameters.robot
     joints = []
     for i in range(robot.n_joints):
         entry = {}
         for k, kind in enumerate(PARAMETER_KINDS):
             value = float(parameters.values[i, k])
-            entry[kind] = math.degrees(value) if kind in _ANGLES else value
+            entry[kind] = _wrap_deg(math.degrees(value)) if kind in _ANGLES else value
         entry["hayati"] = bool(robot.hayati[i])
         joints.append(entry)
     names = [n for n, flag in zip(robot.parameter_names, parameters.identified.ravel(), strict=True) if flag]
-    return {
+    document = {
         "robot": robot.name,
         "units": {"length": "mm", "angle": "deg"},
         "joints": joints,
         "identified": names,
-        "provenance": provenance or {},
     }
+    if targets:
+        document["targets"] = targets
+    document["provenance"] = provenance or {}
+    return document
 
 
-def write_parameters(path, parameters: ParameterSet, provenance: dict | None = None) -> Path:
-    """Write a parameter JSON atomically."""
-    text = json.dumps(parameters_to_dict(parameters, provenance), indent=2, allow_nan=False)
+def write_parameters(path, parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None) -> Path:
+    """Write a parameter JSON atomically (``targets``: see :func:`parameters_to_dict`)."""
+    text = json.dumps(parameters_to_dict(parameters, provenance, targets), indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
+
+
+def read_targets(path) -> dict:
+    """The ``targets`` key of a parameter JSON: ``{name: (x, y, z) flange offset [mm]}`` of its flange
+    targets (empty when the key is absent)."""
+    path = Path(path)
+    data = read_json_file(path, kind="parameter JSON")
+    entries = data.get("targets") if isinstance(data, dict) else None
+    if entries is None:
+        return {}
+    if not isinstance(entries, dict):
+        raise InputError(f"{path}: key `targets` must be an object of target names")
+    out = {}
+    for name, entry in entries.items():
+        if not isinstance(entry, dict):
+            raise InputError(f"{path}: key `targets.{name}` must be an object")
+        if entry.get("frame", "flange") != "flange" or "flange_mm" not in entry:
+            continue
+        position = entry["flange_mm"]
+        if not isinstance(position, list) or len(position) != 3:
+            raise InputError(f"{path}: key `targets.{name}.flange_mm` must be [x, y, z]")
+        out[name] = tuple(as_finite_float(v, f"{path}: key `targets.{name}.flange_mm`") for v in position)
+    return out
 
 
 def read_parameters(path, robot: RobotModel) -> ParameterSet:

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from robotcal.errors import InputError, RigidTransformWarning
 from robotcal.geometry.transforms import check_rigid_transform, nearest_rotation
 from robotcal.identification.cpa import CPAOptions
+from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io._validation import validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
@@ -26,7 +27,7 @@ from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["Scenario", "load_scenario", "list_scenarios", "scenario_from_dict"]
+__all__ = ["Scenario", "MissingTable", "load_scenario", "list_scenarios", "scenario_from_dict"]
 
 #: Largest deviation from orthonormal that is repaired (with a warning) instead of refused: a
 #: matrix printed to 5 significant digits, like the thesis's Table 5.4, deviates by ~1e-5.
@@ -65,9 +66,9 @@ class JointErrorTable(_Strict):
 
 
 class CaptureTable(_Strict):
-    start_deg: list[float] | list[list[float]]
-    sweep_deg: list[float]
-    points: list[int]
+    start_deg: list[float] | list[list[float]] | None = None
+    sweep_deg: list[float] | None = None
+    points: list[int] | None = None
     reflector_mm: list[list[float]] | None = None
     flange_reflector_mm: list[float] | None = None
     bidirectional: bool = False
@@ -77,8 +78,29 @@ class CaptureTable(_Strict):
 
     @model_validator(mode="after")
     def _one_reflector(self):
-        if (self.reflector_mm is None) == (self.flange_reflector_mm is None):
+        if self.reflector_mm is not None and self.flange_reflector_mm is not None:
             raise ValueError("give exactly one of `reflector_mm` (per circle) and `flange_reflector_mm`")
+        plan = [key for key in PLAN_KEYS if getattr(self, key) is not None]
+        if plan and len(plan) != len(PLAN_KEYS):
+            missing = ", ".join(f"`capture.{key}`" for key in PLAN_KEYS if key not in plan)
+            raise ValueError(f"a capture plan needs `start_deg`, `sweep_deg` and `points`: {missing} missing")
+        return self
+
+
+class TargetTable(_Strict):
+    """One measured target (``[[targets]]``): per-joint reflectors or a flange target, known or unknown."""
+
+    name: str = Field(min_length=1)
+    flange_mm: list[float] | Literal["unknown"] | None = None
+    guess_mm: list[float] | None = None
+    reflector_mm: list[list[float]] | None = None
+
+    @model_validator(mode="after")
+    def _one_position(self):
+        if (self.flange_mm is None) == (self.reflector_mm is None):
+            raise ValueError("give exactly one of `flange_mm` (a flange target) and `reflector_mm` (per joint)")
+        if self.guess_mm is not None and self.flange_mm != "unknown":
+            raise ValueError('`guess_mm` is the start of an unknown offset: it needs `flange_mm = "unknown"`')
         return self
 
 
@@ -131,8 +153,9 @@ class ScenarioFile(_Strict):
     description: str = ""
     robot: str
     tracker_from_base: list[list[float]] = _IDENTITY
-    instrument: InstrumentTable
-    capture: CaptureTable
+    instrument: InstrumentTable | None = None
+    capture: CaptureTable | None = None
+    targets: list[TargetTable] = []
     identification: IdentificationTable = IdentificationTable()
     montecarlo: MonteCarloTable = MonteCarloTable()
     truth: TruthTable | None = None
@@ -140,9 +163,45 @@ class ScenarioFile(_Strict):
     tcp: TCPTable | None = None
 
 
+#: The keys of ``[capture]`` that make a capture plan (needed to simulate, not to identify).
+PLAN_KEYS = ("start_deg", "sweep_deg", "points")
+#: Commands that need the capture plan / the instrument (for the error of a scenario without them).
+PLAN_USERS = "simulate, the Monte Carlo (uncertainty, plan) and run"
+INSTRUMENT_USERS = "simulate, the Monte Carlo (uncertainty, plan), run and identify --reject-outliers"
+
+
+class MissingTable:
+    """Stands for a scenario table that is absent: any use raises an :class:`InputError` naming the
+    file, the key and the commands that need it (identification needs neither plan nor instrument)."""
+
+    __slots__ = ("_message",)
+
+    def __init__(self, message: str):
+        object.__setattr__(self, "_message", message)
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        raise InputError(self._message)
+
+    def __bool__(self) -> bool:
+        return False
+
+    def __repr__(self) -> str:
+        return f"MissingTable({self._message!r})"
+
+    def __reduce__(self):
+        return (MissingTable, (self._message,))
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Scenario:
-    """A loaded, validated scenario: core objects in core units (mm, rad)."""
+    """A loaded, validated scenario: core objects in core units (mm, rad).
+
+    ``plan`` and ``instrument`` are :class:`MissingTable` when the file has no capture plan / no
+    ``[instrument]`` (a scenario for a real capture): using them raises an :class:`InputError` that
+    names the key; :attr:`has_plan` / :attr:`has_instrument` test for them.
+    """
 
     name: str
     source: str
@@ -163,6 +222,27 @@ class Scenario:
     #: Files the scenario was read from (the TOML and a robot TOML it names): inputs that an output
     #: of the same command must never replace.
     files: tuple[str, ...] = ()
+    #: Declared targets: ``[[targets]]``, then (under the names ``capture`` and ``validation``, where
+    #: those names are free) the ``[capture]`` reflector and the ``[validation]`` flange target.
+    targets: tuple[Target, ...] = ()
+    #: The ``[capture]`` reflector (``reflector_mm`` / ``flange_reflector_mm``), plan or not; None if absent.
+    reflector: ReflectorMount | None = None
+
+    @property
+    def has_plan(self) -> bool:
+        return not isinstance(self.plan, MissingTable)
+
+    @property
+    def has_instrument(self) -> bool:
+        return not isinstance(self.instrument, MissingTable)
+
+    def target(self, name: str) -> Target:
+        """The declared target ``name``; an :class:`InputError` lists the declared ones otherwise."""
+        for target in self.targets:
+            if target.name == name:
+                return target
+        declared = ", ".join(t.name for t in self.targets) or "none"
+        raise InputError(f"{self.source}: no target named {name!r} (declared: {declared}); see [[targets]]")
 
 
 def _rigid(matrix, source: str) -> np.ndarray:
@@ -226,6 +306,77 @@ def scenario_from_dict(
         raise InputError(f"{source}: key `robot`: {exc}") from None
     n = robot.n_joints
     capture = spec.capture
+    declared = _targets(spec.targets, n, source)
+    reflector = None if capture is None else _capture_reflector(capture, n, source)
+    plan: CapturePlan | MissingTable = MissingTable(
+        f"{source}: key `capture.start_deg` (with `sweep_deg` and `points`) is missing: the capture plan is needed "
+        f"by {PLAN_USERS}; identify, refine and evaluate work without it"
+    )
+    if capture is not None and capture.start_deg is not None:
+        plan = _plan(capture, reflector, declared, robot, source)
+    instrument: Instrument | MissingTable = MissingTable(
+        f"{source}: key `instrument` is missing: the instrument is needed by {INSTRUMENT_USERS} (identify and refine "
+        "work without it, comparing their residual with the points' u95_mm when the capture has it)"
+    )
+    if spec.instrument is not None:
+        try:
+            instrument = make_instrument(**spec.instrument.model_dump())
+        except InputError as exc:
+            raise InputError(f"{source}: {exc}") from None
+    validation = _validation(spec.validation, source)
+    targets = list(declared)
+    taken = {target.name for target in targets}
+    if reflector is not None and "capture" not in taken:
+        targets.append(Target.from_mount(reflector, "capture"))
+    if validation is not None and "validation" not in taken:
+        targets.append(Target(name="validation", frame="flange", positions=validation["flange_reflector_mm"]))
+    ident = spec.identification
+    return Scenario(
+        name=name,
+        source=source,
+        description=spec.description,
+        robot=robot,
+        instrument=instrument,
+        plan=plan,
+        tracker_from_base=_rigid(spec.tracker_from_base, source),
+        joint_errors=_joint_errors([] if capture is None else capture.joint_errors, n, source),
+        joint_limits="warn" if capture is None else capture.joint_limits,
+        identification=CPAOptions(**ident.model_dump()),
+        seed=None if capture is None else capture.seed,
+        montecarlo=spec.montecarlo.model_dump(),
+        settings=spec.model_dump(),
+        truth=None if spec.truth is None else spec.truth.model_dump(),
+        validation=validation,
+        tcp=None if spec.tcp is None else spec.tcp.model_dump(),
+        files=(source, *_robot_file(spec.robot, base_dir)),
+        targets=tuple(targets),
+        reflector=reflector,
+    )
+
+
+def _capture_reflector(capture: CaptureTable, n: int, source: str) -> ReflectorMount | None:
+    """The ``[capture]`` reflector (per joint or flange), None when the table gives neither."""
+    if capture.reflector_mm is not None:
+        try:
+            reflector_array = np.asarray(capture.reflector_mm, dtype=float)
+        except ValueError:  # rows of unequal length
+            raise InputError(f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]") from None
+        if reflector_array.shape != (n, 3):
+            raise InputError(
+                f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}"
+            )
+        return ReflectorMount(frame="joint", positions=reflector_array)
+    if capture.flange_reflector_mm is not None:
+        flange = np.asarray(capture.flange_reflector_mm, dtype=float)
+        if flange.shape != (3,):
+            raise InputError(f"{source}: key `capture.flange_reflector_mm` must be [x, y, z]; got shape {flange.shape}")
+        return ReflectorMount(frame="flange", positions=flange)
+    return None
+
+
+def _plan(capture: CaptureTable, reflector, declared, robot, source: str) -> CapturePlan:
+    """The capture plan; its target is the ``[capture]`` reflector, else the first ``[[targets]]`` entry."""
+    n = robot.n_joints
     for key in ("sweep_deg", "points"):
         if len(getattr(capture, key)) != n:
             raise InputError(
@@ -239,52 +390,53 @@ def scenario_from_dict(
         raise InputError(
             f"{source}: key `capture.start_deg` must have {n} values or {n} rows of {n}; got shape {start.shape}"
         )
-    if capture.reflector_mm is not None:
-        try:
-            reflector_array = np.asarray(capture.reflector_mm, dtype=float)
-        except ValueError:  # rows of unequal length
-            raise InputError(f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]") from None
-        if reflector_array.shape != (n, 3):
+    if reflector is None:
+        if not declared:
             raise InputError(
-                f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}"
+                f"{source}: key `capture`: a capture plan needs a target: give `capture.reflector_mm` or "
+                "`capture.flange_reflector_mm` (or declare [[targets]])"
             )
-        reflector = ReflectorMount(frame="joint", positions=reflector_array)
-    else:
-        flange = np.asarray(capture.flange_reflector_mm, dtype=float)
-        if flange.shape != (3,):
-            raise InputError(f"{source}: key `capture.flange_reflector_mm` must be [x, y, z]; got shape {flange.shape}")
-        reflector = ReflectorMount(frame="flange", positions=flange)
+        if not declared[0].known:
+            raise InputError(
+                f"{source}: key `targets[0].flange_mm`: the capture plan simulates its first target, whose offset is "
+                "unknown; give `capture.flange_reflector_mm` or a known first target"
+            )
+        reflector = declared[0].mount
     try:
-        plan = CapturePlan(
+        return CapturePlan(
             start=np.deg2rad(start),
             sweep=np.deg2rad(capture.sweep_deg),
             points=capture.points,
             reflector=reflector,
             bidirectional=capture.bidirectional,
         )
-        instrument = make_instrument(**spec.instrument.model_dump())
     except InputError as exc:
         raise InputError(f"{source}: {exc}") from None
-    ident = spec.identification
-    return Scenario(
-        name=name,
-        source=source,
-        description=spec.description,
-        robot=robot,
-        instrument=instrument,
-        plan=plan,
-        tracker_from_base=_rigid(spec.tracker_from_base, source),
-        joint_errors=_joint_errors(capture.joint_errors, n, source),
-        joint_limits=capture.joint_limits,
-        identification=CPAOptions(**ident.model_dump()),
-        seed=capture.seed,
-        montecarlo=spec.montecarlo.model_dump(),
-        settings=spec.model_dump(),
-        truth=None if spec.truth is None else spec.truth.model_dump(),
-        validation=_validation(spec.validation, source),
-        tcp=None if spec.tcp is None else spec.tcp.model_dump(),
-        files=(source, *_robot_file(spec.robot, base_dir)),
-    )
+
+
+def _targets(tables: list[TargetTable], n: int, source: str) -> tuple[Target, ...]:
+    """The ``[[targets]]`` entries as :class:`Target` objects (names distinct)."""
+    targets = []
+    for k, table in enumerate(tables):
+        key = f"targets[{k}]"
+        if any(t.name == table.name for t in targets):
+            raise InputError(f"{source}: key `{key}.name`: target name {table.name!r} is declared twice")
+        if table.reflector_mm is not None:
+            try:
+                positions = np.asarray(table.reflector_mm, dtype=float)
+            except ValueError:
+                positions = np.zeros(0)
+            if positions.shape != (n, 3):
+                raise InputError(f"{source}: key `{key}.reflector_mm` must be {n} positions [x, y, z] (one per joint)")
+            targets.append(Target(name=table.name, frame="joint", positions=positions))
+            continue
+        known = table.flange_mm != "unknown"
+        position = table.flange_mm if known else (table.guess_mm if table.guess_mm is not None else [0.0, 0.0, 0.0])
+        what = "flange_mm" if known else "guess_mm"
+        if len(position) != 3:
+            raise InputError(f"{source}: key `{key}.{what}` must be [x, y, z] mm; got {len(position)} values")
+        targets.append(Target(name=table.name, frame="flange", positions=position, known=known))
+    return tuple(targets)
 
 
 def _robot_file(robot: str, base_dir: Path | None) -> tuple[str, ...]:

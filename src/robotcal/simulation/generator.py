@@ -19,11 +19,11 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rot_x, rot_y, rot_z, translation
 from robotcal.instruments import Instrument
-from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["JointErrorModel", "simulate_capture", "motion_direction", "ERROR_TERMS"]
+__all__ = ["JointErrorModel", "simulate_capture", "simulate_target_poses", "motion_direction", "ERROR_TERMS"]
 
 #: Error terms of a joint, in the order of the thesis's Err matrix rows (eq. 5-2).
 ERROR_TERMS = ("dx", "dy", "dz", "ex", "ey")
@@ -247,4 +247,79 @@ def simulate_capture(
     exact = apply_transform(tracker_from_base, base_points)
     noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
     capture = Capture(circle=circle, direction=direction, readings=readings, points=noisy, source="simulated capture")
+    return capture, exact
+
+
+def simulate_target_poses(
+    robot: RobotModel,
+    readings,
+    targets,
+    instrument: Instrument,
+    tracker_from_base,
+    *,
+    true_parameters: ParameterSet | None = None,
+    true_offsets=None,
+    u95_mm: float | None = None,
+    rng: np.random.Generator | int | None = None,
+) -> tuple[Capture, np.ndarray]:
+    """A capture of several flange targets at every one of a set of free poses (issue 14).
+
+    Each pose is measured on every target in turn (rows pose by pose, the targets in the given
+    order), ``circle = 0``, ``direction = +1``, with a ``target`` column naming them; a flange target
+    sits at ``T F_n r_t`` (the true robot, the true offset ``r_t``).
+
+    Parameters
+    ----------
+    robot : RobotModel
+    readings : array_like, shape (n_poses, n_joints)
+        Controller readings [rad].
+    targets : sequence of robotcal.identification.targets.Target
+        Flange targets (``frame="flange"``); their names go to the ``target`` column.
+    instrument : Instrument
+        Noise model (a noise-free instrument gives exact points).
+    tracker_from_base : array_like, shape (4, 4)
+    true_parameters : ParameterSet, optional
+        The "real" robot (nominal by default).
+    true_offsets : array_like, shape (n_targets, 3), optional
+        The real offsets [mm] (default: each target's ``positions``, e.g. for a target declared unknown
+        with a guess, pass the truth here).
+    u95_mm : float, optional
+        Written to the ``u95_mm`` column of every point (the instrument's stated U(95)) [mm].
+    rng : numpy.random.Generator or int or None
+        Instrument noise.
+
+    Returns
+    -------
+    capture : Capture
+    exact_points : ndarray, shape (n_poses * n_targets, 3)
+    """
+    rng = np.random.default_rng(rng)
+    readings = np.atleast_2d(np.asarray(readings, dtype=float))
+    if readings.shape[1] != robot.n_joints:
+        raise InputError(f"{readings.shape[1]} readings per pose; robot {robot.name!r} has {robot.n_joints} joints")
+    targets = tuple(targets)
+    if not targets or any(target.frame != "flange" for target in targets):
+        raise InputError("simulate_target_poses needs one or more flange targets")
+    offsets = (
+        np.array([target.positions for target in targets], dtype=float)
+        if true_offsets is None
+        else np.asarray(true_offsets, dtype=float).reshape(len(targets), 3)
+    )
+    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
+    flange = forward_kinematics(parameters.values, robot.model_joint_variables(readings))  # (n_poses, 4, 4)
+    base_points = np.einsum("pij,tj->pti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]
+    exact = apply_transform(tracker_from_base, base_points.reshape(-1, 3))
+    noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
+    n_points = exact.shape[0]
+    capture = Capture(
+        circle=np.zeros(n_points, dtype=int),
+        direction=np.ones(n_points, dtype=int),
+        readings=np.repeat(readings, len(targets), axis=0),
+        points=noisy,
+        source="simulated multi-target capture",
+        target=np.tile(np.arange(len(targets)), readings.shape[0]),
+        target_names=tuple(target.name for target in targets),
+        u95=None if u95_mm is None else np.full(n_points, float(u95_mm)),
+    )
     return capture, exact
