@@ -51,8 +51,8 @@ COMMANDS: dict[str, CommandEntry] = {
     # using the calibrated model
     "predict": CommandEntry("predict", "Forward kinematics with the calibrated model."),
     "export": CommandEntry("export", "The calibrated model as JSON, URDF, UR YAML, DH or MDH."),
-    "iso9283": CommandEntry("iso9283", "ISO 9283 accuracy and repeatability (AP, RP, AD, RD)."),
-    "iso9283-plan": CommandEntry("iso9283", "The ISO 9283 test poses P1..P5 as a pose CSV."),
+    "iso9283": CommandEntry("iso9283", "ISO 9283 pose accuracy/repeatability (AP, RP, AD, RD, APa..)."),
+    "iso9283-plan": CommandEntry("iso9283", "ISO 9283 test poses P1..P5: pose CSV and robot program."),
     # what ships with robotcal
     "robots": CommandEntry("catalog", "List the built-in robots."),
     "instruments": CommandEntry("catalog", "List the instrument presets, U(L) = A + B*L."),

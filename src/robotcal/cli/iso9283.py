@@ -1,5 +1,6 @@
-"""``robotcal iso9283``: ISO 9283 AP, RP, AD, RD of several models on measured repeated poses, and
-``robotcal iso9283-plan``: the standard's five test poses as a pose CSV (docs/iso9283.md)."""
+"""``robotcal iso9283``: ISO 9283 AP, RP, AD, RD (and APa/b/c, RPa/b/c with three or more flange
+targets per pose) of several models on measured repeated poses, and ``robotcal iso9283-plan``: the
+standard's five test poses as a pose CSV and, with ``--program``, a robot program (docs/iso9283.md)."""
 
 from __future__ import annotations
 
@@ -13,19 +14,30 @@ from rich.table import Table
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.cli.export import parse_vector
-from robotcal.diagnostics.iso9283 import ISO_CYCLES, iso_plan_readings, iso_test_positions, pose_characteristics
+from robotcal.diagnostics.iso9283 import (
+    ISO_CYCLES,
+    ORIENTATION_AXES,
+    IsoModel,
+    iso_cube_plan,
+    iso_from_capture,
+    scenario_flange_point,
+)
 from robotcal.errors import InputError
-from robotcal.geometry.transforms import apply_transform, check_rigid_transform, invert_transform
+from robotcal.geometry.transforms import check_rigid_transform
 from robotcal.io import atomic_write_text, load_scenario, read_capture, read_parameters
 from robotcal.io._validation import read_json_file
 from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.parameters_json import read_targets
 from robotcal.io.trajectory_csv import write_trajectory
-from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.model import ParameterSet
 
 app = command_app()
 
-ISO_COLUMNS = ("model", "pose", "APx", "APy", "APz", "AP", "l_bar", "S_l", "RP", "AD", "RD")
+ISO_COLUMNS = (
+    "model", "pose", "APx", "APy", "APz", "AP", "l_bar", "S_l", "RP", "AD", "RD",
+    "APa", "APb", "APc", "RPa", "RPb", "RPc",
+)  # fmt: skip
+PROGRAM_SUFFIX = {"krl": ".src", "rapid": ".mod", "urscript": ".script"}
 
 
 def _tracker_from_base(path: Path, default: np.ndarray) -> np.ndarray:
@@ -40,52 +52,53 @@ def _tracker_from_base(path: Path, default: np.ndarray) -> np.ndarray:
 
 
 def flange_target(scenario, target: str | None) -> np.ndarray:
-    """The measured flange point [mm]: ``--target``, else the scenario's flange reflector or validation target."""
+    """The measured flange point [mm]: ``--target``, else :func:`scenario_flange_point`."""
     if target is not None:
         return np.asarray(parse_vector(target, "--target"), dtype=float)
-    if scenario.plan.reflector.frame == "flange":
-        return scenario.plan.reflector.positions[0]
-    if scenario.validation and scenario.validation.get("flange_reflector_mm") is not None:
-        return np.asarray(scenario.validation["flange_reflector_mm"], dtype=float)
-    raise InputError(
-        f"scenario {scenario.name!r} declares no flange target ([validation] flange_reflector_mm); give --target x,y,z"
-    )
+    return scenario_flange_point(scenario)
 
 
-def iso_results(capture, target, sets: dict, n_test_poses: int, distance_pair: tuple[int, int]) -> dict:
-    """ISO 9283 result of every model: measured points mapped to the model's base frame.
+def parse_targets_mm(text: str) -> dict:
+    """``"name=x,y,z;name=x,y,z"`` -> ``{name: (3,) offset [mm]}`` (``--targets-mm``)."""
+    out = {}
+    for item in (part.strip() for part in text.split(";")):
+        if not item:
+            continue
+        name, sep, vector = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise InputError(f"--targets-mm: expected name=x,y,z entries separated by ';'; got {item!r}")
+        if name in out:
+            raise InputError(f"--targets-mm: target {name!r} given twice")
+        out[name] = np.asarray(parse_vector(vector, f"--targets-mm {name}", 3), dtype=float)
+    if not out:
+        raise InputError("--targets-mm: no target given (name=x,y,z;...)")
+    return out
 
-    ``sets`` maps a label to ``(ParameterSet, tracker_from_base)``; the commanded position of a
-    test pose is the model's FK of the flange ``target`` [mm] at the pose's mean readings.
-    """
-    free = capture.circle == 0
-    if not np.any(free):
-        raise InputError("the capture has no free poses (rows with circle = 0)")
-    readings, points = capture.readings[free], capture.points[free]
-    if readings.shape[0] % n_test_poses or readings.shape[0] < 2 * n_test_poses:
-        raise InputError(
-            f"the capture's {readings.shape[0]} free poses are not whole cycles of {n_test_poses} test poses "
-            "(at least 2 cycles, cycle-major)"
-        )
-    n_cycles = readings.shape[0] // n_test_poses
-    commands = readings.reshape(n_cycles, n_test_poses, -1).mean(axis=0)
-    results = {}
-    for label, (parameters, tracker_from_base) in sets.items():
-        frames = forward_kinematics(parameters.values, parameters.robot.model_joint_variables(commands))
-        commanded = apply_transform(frames, target)
-        attained = apply_transform(invert_transform(tracker_from_base), points).reshape(n_cycles, n_test_poses, 3)
-        results[label] = pose_characteristics(attained, commanded, distance_pair=distance_pair)
-    return results
+
+def scenario_offsets(scenario) -> dict:
+    """Flange offsets [mm] of the scenario's known flange targets, by name."""
+    return {t.name: t.positions for t in scenario.targets if t.frame == "flange" and t.known}
+
+
+def _model_offsets(path: Path) -> dict | None:
+    """The flange target offsets a parameter JSON carries (a refinement's ``targets``: estimates of unknown ones)."""
+    return {name: np.asarray(v, dtype=float) for name, v in read_targets(path).items()} or None
 
 
 def iso_to_csv(results: dict) -> str:
+    """The output CSV: positions [mm], distance characteristics [mm], orientation [deg] (empty when not measured)."""
     lines = [",".join(ISO_COLUMNS)]
     for label, r in results.items():
         for k in range(r.ap.shape[0]):
             values = [*r.ap_xyz[k], r.ap[k], r.l_bar[k], r.s_l[k], r.rp[k]]
-            lines.append(f"{label},P{k + 1}," + ",".join(f"{v:.6f}" for v in values) + ",,")
+            if r.has_orientation:
+                angles = ",".join(f"{v:.6f}" for v in np.rad2deg(np.r_[r.ap_abc[k], r.rp_abc[k]]))
+            else:
+                angles = "," * 5
+            lines.append(f"{label},P{k + 1}," + ",".join(f"{v:.6f}" for v in values) + ",,," + angles)
         a, b = r.distance_pair
-        lines.append(f"{label},P{a + 1}-P{b + 1}" + "," * 8 + f"{r.ad:.6f},{r.rd:.6f}")
+        lines.append(f"{label},P{a + 1}-P{b + 1}" + "," * 8 + f"{r.ad:.6f},{r.rd:.6f}" + "," * 6)
     return "\n".join(lines) + "\n"
 
 
@@ -93,44 +106,89 @@ def iso_to_csv(results: dict) -> str:
 @handle_errors
 def iso9283(
     capture: Annotated[Path, typer.Argument(help="Capture CSV of the repeated test poses (circle = 0, cycle-major).")],
-    scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot, flange target, base frame.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="CSV to write (model, pose, AP..., RP, AD, RD) [mm].")],
+    scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot, flange target(s), base frame.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="CSV to write (model, pose, AP..., RP, AD, RD, APa..RPc).")],
     params: Annotated[
         list[Path] | None, typer.Option("--params", "-p", help="Parameter JSON (repeatable): CPA, refined, ...")
     ] = None,
     nominal: Annotated[bool, typer.Option("--nominal/--no-nominal", help="Include the nominal model first.")] = True,
     poses_per_cycle: Annotated[int, typer.Option("--poses-per-cycle", min=2, help="Test poses per cycle.")] = 5,
     distance_poses: Annotated[str, typer.Option("--distance-poses", help='Poses of AD/RD, "2,4" = P2, P4.')] = "2,4",
-    target: Annotated[str | None, typer.Option("--target", help='Measured flange point "x,y,z" [mm].')] = None,
+    target: Annotated[
+        str | None,
+        typer.Option("--target", help='Flange point whose position is evaluated "x,y,z" [mm] (several targets: '
+                     "default their centroid)."),
+    ] = None,
+    targets_mm: Annotated[
+        str | None,
+        typer.Option("--targets-mm", help='Flange offsets of the capture\'s targets "name=x,y,z;..." [mm] '
+                     "(default: the parameter JSON's, else the scenario's [[targets]])."),
+    ] = None,
+    orientation_axes: Annotated[
+        str, typer.Option("--orientation-axes", help="Axes of APa/b/c, RPa/b/c: base (ISO) or flange (commanded).")
+    ] = "base",
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """ISO 9283 position accuracy (AP) and repeatability (RP), distance accuracy (AD) and repeatability (RD)."""
+    """ISO 9283 pose accuracy (AP, APa/b/c) and repeatability (RP, RPa/b/c), distance accuracy (AD) and
+    repeatability (RD). With three or more flange targets per pose (a `target` column) the flange
+    orientation is measured too."""
+    if orientation_axes not in ORIENTATION_AXES:
+        raise InputError(f"--orientation-axes must be one of {', '.join(ORIENTATION_AXES)}; got {orientation_axes!r}")
     pair = parse_vector(distance_poses, "--distance-poses", 2)
     if any(v != int(v) or not 1 <= v <= poses_per_cycle for v in pair):
         raise InputError(f"--distance-poses must be two pose numbers 1..{poses_per_cycle}; got {distance_poses!r}")
     params = list(params or [])
+    given_offsets = None if targets_mm is None else parse_targets_mm(targets_mm)
     inputs = existing_inputs(capture, scenario, *params)
     loaded = load_scenario(scenario)
     check_output_file(out, inputs=inputs, force=force)
+    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     sets = {}
     if nominal:
-        sets["nominal"] = (ParameterSet.nominal(loaded.robot), loaded.tracker_from_base)
+        sets["nominal"] = IsoModel(
+            parameters=ParameterSet.nominal(loaded.robot), tracker_from_base=loaded.tracker_from_base
+        )
     for path in params:
         label = path.stem if path.stem not in sets else str(path)
-        sets[label] = (read_parameters(path, loaded.robot), _tracker_from_base(path, loaded.tracker_from_base))
+        sets[label] = IsoModel(
+            parameters=read_parameters(path, loaded.robot),
+            tracker_from_base=_tracker_from_base(path, loaded.tracker_from_base),
+            target_offsets=None if given_offsets is not None else _model_offsets(path),
+        )
     if not sets:
         raise InputError("nothing to evaluate: give --params or leave --nominal on")
-    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
-    results = iso_results(
-        measured, flange_target(loaded, target), sets, poses_per_cycle, (int(pair[0]) - 1, int(pair[1]) - 1)
+    if measured.target is None:
+        point, offsets = flange_target(loaded, target), None
+    else:
+        point = None if target is None else np.asarray(parse_vector(target, "--target"), dtype=float)
+        offsets = given_offsets if given_offsets is not None else scenario_offsets(loaded)
+    results = iso_from_capture(
+        measured,
+        sets,
+        point=point,
+        targets=offsets,
+        n_test_poses=poses_per_cycle,
+        distance_pair=(int(pair[0]) - 1, int(pair[1]) - 1),
+        orientation_axes=orientation_axes,
     )
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, iso_to_csv(results))
-    table = Table(title=f"ISO 9283 ({next(iter(results.values())).n_cycles} cycles) [mm]")
-    for column in ("model", "max AP", "max RP", "AD", "RD"):
+    first = next(iter(results.values()))
+    table = Table(title=f"ISO 9283 ({first.n_cycles} cycles) [mm, deg]")
+    columns = ["model", "max AP", "max RP", "AD", "RD"]
+    if first.has_orientation:
+        columns += ["max |APa,b,c|", "max RPa,b,c", "max fit RMS"]
+    for column in columns:
         table.add_column(column)
     for label, r in results.items():
-        table.add_row(label, f"{r.ap.max():.4f}", f"{r.rp.max():.4f}", f"{r.ad:.4f}", f"{r.rd:.4f}")
+        row = [label, f"{r.ap.max():.4f}", f"{r.rp.max():.4f}", f"{r.ad:.4f}", f"{r.rd:.4f}"]
+        if r.has_orientation:
+            row += [
+                f"{np.rad2deg(np.abs(r.ap_abc).max()):.5f}",
+                f"{np.rad2deg(r.rp_abc.max()):.5f}",
+                f"{r.registration_rms.max():.4f}",
+            ]
+        table.add_row(*row)
     console.print(table)
     console.print(f"wrote {out}", highlight=False)
 
@@ -139,26 +197,105 @@ def iso9283(
 @handle_errors
 def iso9283_plan(
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot and flange target.")],
-    center: Annotated[str, typer.Option("--center", help='Cube centre "x,y,z" in the base frame [mm].')],
-    side: Annotated[float, typer.Option("--side", help="Cube side [mm].")],
-    start: Annotated[str, typer.Option("--start", help='Start readings "q1,...,qN" [deg]; sets the orientation.')],
     out: Annotated[Path, typer.Option("--out", "-o", help="Pose CSV to write (q1..qN in deg).")],
+    center: Annotated[
+        str | None,
+        typer.Option("--center", help='Cube centre "x,y,z" in the base frame [mm] (default: the point at --start).'),
+    ] = None,
+    side: Annotated[
+        float | None, typer.Option("--side", help="Cube side [mm] (default: 20 % of the reach, halved to fit).")
+    ] = None,
+    start: Annotated[
+        str | None,
+        typer.Option("--start", help='Start readings "q1,...,qN" [deg]; sets the orientation (default: the best '
+                     "conditioned of a grid in the limits)."),
+    ] = None,
     cycles: Annotated[int, typer.Option("--cycles", min=2, help="Cycles through P1..P5.")] = ISO_CYCLES,
     target: Annotated[str | None, typer.Option("--target", help='Flange point placed on P1..P5 "x,y,z" [mm].')] = None,
+    program: Annotated[
+        str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
+    ] = None,
+    program_out: Annotated[
+        Path | None,
+        typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
+    ] = None,
+    dwell: Annotated[float, typer.Option("--dwell", help="Dwell at every test pose in the program [s].")] = 2.0,
+    controller: Annotated[
+        str | None,
+        typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
+                     "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
+    ] = None,
+    speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
+    name: Annotated[str, typer.Option("--name", help="Program name.")] = "robotcal_iso9283",
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle."""
+    """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
+    with --program also as a robot program (a joint move and a dwell per pose)."""
+    from robotcal.planning.program import LANGUAGES
     loaded = load_scenario(scenario)
     robot = loaded.robot
-    centre = parse_vector(center, "--center")
-    start_deg = parse_vector(start, "--start", robot.n_joints)
+    centre = None if center is None else parse_vector(center, "--center")
+    start_deg = None if start is None else parse_vector(start, "--start", robot.n_joints)
+    if side is not None and not (math.isfinite(side) and side > 0):
+        raise InputError(f"--side must be > 0 mm; got {side:g}")
+    if program is not None and program not in LANGUAGES:
+        raise InputError(f"--program must be one of {', '.join(LANGUAGES)}; got {program!r}")
+    if program is None and program_out is not None:
+        raise InputError("--program-out needs --program krl|rapid|urscript")
     inputs = existing_inputs(scenario)
     check_output_file(out, inputs=inputs, force=force)
+    if program is not None:
+        program_out = program_out if program_out is not None else out.with_suffix(PROGRAM_SUFFIX[program])
+        if program_out.resolve() == out.resolve():
+            raise InputError(f"--program-out {program_out} is the pose CSV --out; give another file")
+        check_output_file(program_out, inputs=inputs, force=force)
     point = flange_target(loaded, target)
-    positions = iso_test_positions(centre, side)
-    readings = iso_plan_readings(
-        ParameterSet.nominal(robot), positions, [math.radians(v) for v in start_deg], target=point, n_cycles=cycles
-    )
+    start_readings, centre, side, readings = iso_cube_plan(
+        ParameterSet.nominal(robot), point, start_readings=None if start_deg is None else np.radians(start_deg),
+        center_mm=centre, side_mm=side, n_cycles=cycles,
+    )  # fmt: skip
+    text = None
+    if program is not None:
+        text = iso_program(
+            loaded, readings, language=program, dwell_s=dwell, controller=controller, speed_percent=speed, name=name,
+            description=f"cube centre {', '.join(f'{v:.3f}' for v in centre)} mm, side {side:g} mm, flange point "
+            f"{', '.join(f'{v:g}' for v in point)} mm",
+        )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):
-        write_trajectory(out, readings, comment=f"ISO 9283 test poses P1..P5, {cycles} cycles, cube side {side:g} mm")
-    console.print(f"wrote {out} ({readings.shape[0]} poses)", highlight=False)
+        write_trajectory(
+            out, readings, comment=f"ISO 9283 test poses P1..P5, {cycles} cycles, cube centre "
+            f"{', '.join(f'{v:.3f}' for v in centre)} mm, side {side:g} mm, start "
+            f"{', '.join(f'{v:.3f}' for v in np.degrees(start_readings))} deg",
+        )  # fmt: skip
+    console.print(
+        f"wrote {out} ({readings.shape[0]} poses; cube centre {', '.join(f'{v:.3f}' for v in centre)} mm, "
+        f"side {side:g} mm)", highlight=False,
+    )  # fmt: skip
+    if text is not None:
+        with result_file(program_out, inputs=inputs, force=force) as path:
+            atomic_write_text(path, text)
+        moves = f"{readings.shape[0]} {program} joint moves, dwell {dwell:g} s"
+        console.print(f"wrote {program_out}: {moves}", highlight=False)
+
+
+def iso_program(
+    scenario, readings, *, language: str, dwell_s: float, controller=None, speed_percent=10.0, name="robotcal_iso9283",
+    description: str = "",
+) -> str:
+    """The ISO 9283 plan (readings of the scenario's robot, cycle-major P1..P5) as a robot program:
+    one joint move per test pose, a dwell for the measurement and a comment "cycle c Pk"."""
+    from robotcal.io import load_robot
+    from robotcal.planning.program import controller_readings, write_program
+
+    target = None if controller is None else load_robot(controller)
+    angles = controller_readings(readings, scenario.robot, target)
+    n_poses = 5
+    labels = [f"ISO 9283 cycle {k // n_poses + 1} P{k % n_poses + 1}" for k in range(angles.shape[0])]
+    header = (
+        f"robotcal ISO 9283 pose test: scenario {scenario.name} ({scenario.source})\n"
+        + (f"{description}\n" if description else "")
+        + f"controller readings of robot {(target or scenario.robot).name}; {angles.shape[0] // n_poses} cycles of "
+        f"P1..P5, dwell {dwell_s:g} s"
+    )
+    return write_program(None, None, angles, language=language, dwell_s=dwell_s, name=name,
+                         speed_percent=speed_percent, header=header, labels=labels)  # fmt: skip

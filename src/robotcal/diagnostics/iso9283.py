@@ -1,7 +1,7 @@
-"""ISO 9283 position accuracy and repeatability: test poses P1..P5, AP, RP, AD, RD (docs/iso9283.md).
+"""ISO 9283 pose accuracy and repeatability: test poses P1..P5, AP, RP, AD, RD (docs/iso9283.md).
 
-Definitions (ISO 9283:1998, clauses 7.2.1, 7.2.2, 7.3.1, 7.3.2), positions only, ``n`` cycles
-visiting the test poses in order:
+Definitions (ISO 9283:1998, clauses 7.2.1, 7.2.2, 7.3.1, 7.3.2), ``n`` cycles visiting the test
+poses in order:
 
 * Pose accuracy of pose k: barycentre ``x_bar = (1/n) sum_j x_j`` of the attained positions,
   ``APx = x_bar - x_c`` (likewise y, z) and ``AP = sqrt(APx^2 + APy^2 + APz^2)``, with ``x_c`` the
@@ -11,6 +11,12 @@ visiting the test poses in order:
 * Distance accuracy between two poses (P2 and P4 by default): attained distances
   ``D_j = |x_{a,j} - x_{b,j}|``, commanded ``D_c = |x_{a,c} - x_{b,c}|``, ``AD = D_bar - D_c``;
   distance repeatability ``RD = 3 sqrt(sum_j (D_j - D_bar)^2 / (n - 1))``.
+* Orientation (when the flange orientation is measured, e.g. from three or more flange targets
+  registered onto their offsets, :func:`register_flange_poses`): the deviation of cycle j is the
+  rotation vector ``(a_j, b_j, c_j)`` of ``R_a,j R_c^T`` (small rotations about the base axes x, y,
+  z; ``axes="flange"``: of ``R_c^T R_a,j``, about the commanded flange axes); ``APa = a_bar`` (the
+  commanded deviation is 0, so this is ISO's ``a_bar - a_c`` to first order), likewise b, c;
+  ``S_a = sqrt(sum_j (a_j - a_bar)^2 / (n - 1))``, ``RPa = +-3 S_a``.
 
 The standard's test poses lie on the diagonal plane ``C1-C2-C7-C8`` of a cube in the workspace
 (edges parallel to the base axes): P1 at the cube's centre, P2..P5 on the plane's diagonals at
@@ -19,6 +25,7 @@ The standard's test poses lie on the diagonal plane ``C1-C2-C7-C8`` of a cube in
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,8 +36,20 @@ from robotcal.kinematics.forward import forward_kinematics
 
 __all__ = [
     "ISO_CYCLES",
+    "ORIENTATION_AXES",
     "Iso9283Result",
+    "IsoModel",
+    "IsoStudy",
+    "default_iso_start",
+    "iso_from_capture",
+    "orientation_deviations",
+    "pose_visits",
+    "register_flange_poses",
+    "rotation_vectors",
+    "scenario_flange_point",
+    "simulate_iso_study",
     "iso_cube_corners",
+    "iso_cube_plan",
     "iso_test_positions",
     "iso_plan_readings",
     "pose_characteristics",
@@ -65,6 +84,17 @@ class Iso9283Result:
     ad, rd : float
         Distance accuracy ``D_bar - D_c`` and repeatability ``3 S_D`` [mm].
     n_cycles : int
+    orientation_axes : {"base", "flange"} or None
+        Axes of the orientation deviations; None when the orientation was not measured (then the
+        orientation fields are None).
+    ap_abc : ndarray, shape (n_test_poses, 3), or None
+        Orientation accuracy ``APa, APb, APc`` [rad].
+    s_abc : ndarray, shape (n_test_poses, 3), or None
+        Standard deviations ``S_a, S_b, S_c`` of the orientation deviations [rad].
+    rp_abc : ndarray, shape (n_test_poses, 3), or None
+        Orientation repeatability ``RPa = +-3 S_a`` (likewise b, c; the half-width) [rad].
+    registration_rms : ndarray, shape (n_test_poses,), or None
+        Largest RMS residual over the cycles of the targets' registration [mm] (None with one target).
     """
 
     barycentre: np.ndarray
@@ -78,14 +108,37 @@ class Iso9283Result:
     ad: float
     rd: float
     n_cycles: int
+    orientation_axes: str | None = None
+    ap_abc: np.ndarray | None = None
+    s_abc: np.ndarray | None = None
+    rp_abc: np.ndarray | None = None
+    registration_rms: np.ndarray | None = None
 
     def __post_init__(self):
         for name in ("barycentre", "commanded", "ap_xyz", "ap", "rp", "l_bar", "s_l"):
             object.__setattr__(self, name, _frozen(getattr(self, name)))
+        for name in ("ap_abc", "s_abc", "rp_abc", "registration_rms"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _frozen(getattr(self, name)))
+
+    @property
+    def has_orientation(self) -> bool:
+        """Whether the orientation characteristics were measured."""
+        return self.ap_abc is not None
 
 
-def pose_characteristics(attained, commanded, *, distance_pair=(1, 3)) -> Iso9283Result:
-    """AP, RP, AD and RD of ISO 9283 (clauses 7.2.1, 7.2.2, 7.3.1, 7.3.2) from repeated poses.
+def pose_characteristics(
+    attained,
+    commanded,
+    *,
+    distance_pair=(1, 3),
+    attained_rotations=None,
+    commanded_rotations=None,
+    orientation_axes: str = "base",
+    registration_rms=None,
+) -> Iso9283Result:
+    """AP, RP, AD and RD of ISO 9283 (clauses 7.2.1, 7.2.2, 7.3.1, 7.3.2) from repeated poses, and
+    APa/b/c, RPa/b/c when the orientations are given.
 
     Parameters
     ----------
@@ -95,6 +148,14 @@ def pose_characteristics(attained, commanded, *, distance_pair=(1, 3)) -> Iso928
         Commanded positions [mm].
     distance_pair : tuple of int
         0-based test poses of the distance characteristics (default P2, P4).
+    attained_rotations : array_like, shape (n_cycles, n_test_poses, 3, 3), optional
+        Attained flange orientations (base_from_flange rotations).
+    commanded_rotations : array_like, shape (n_test_poses, 3, 3), optional
+        Commanded flange orientations; needed with ``attained_rotations``.
+    orientation_axes : {"base", "flange"}
+        Axes of the deviation angles (:func:`orientation_deviations`).
+    registration_rms : array_like, shape (n_cycles, n_test_poses), optional
+        RMS residual of each pose's target registration [mm]; the result keeps the largest per pose.
 
     Returns
     -------
@@ -124,6 +185,29 @@ def pose_characteristics(attained, commanded, *, distance_pair=(1, 3)) -> Iso928
     d_c = np.linalg.norm(commanded[a] - commanded[b])
     d_bar = distances.mean()
     rd = 3.0 * np.sqrt(((distances - d_bar) ** 2).sum() / (n - 1))
+    orientation = {}
+    if (attained_rotations is None) != (commanded_rotations is None):
+        raise InputError("give both `attained_rotations` and `commanded_rotations`, or neither")
+    if attained_rotations is not None:
+        attained_rotations = np.asarray(attained_rotations, dtype=float)
+        commanded_rotations = np.asarray(commanded_rotations, dtype=float)
+        if attained_rotations.shape != attained.shape[:2] + (3, 3):
+            raise InputError(
+                f"`attained_rotations` must have shape {attained.shape[:2] + (3, 3)}; got {attained_rotations.shape}"
+            )
+        if commanded_rotations.shape != attained.shape[1:2] + (3, 3):
+            raise InputError(
+                f"`commanded_rotations` must have shape {attained.shape[1:2] + (3, 3)}; got {commanded_rotations.shape}"
+            )
+        deviations = orientation_deviations(attained_rotations, commanded_rotations, axes=orientation_axes)
+        mean = deviations.mean(axis=0)
+        s_abc = np.sqrt(((deviations - mean) ** 2).sum(axis=0) / (n - 1))
+        orientation = {"orientation_axes": orientation_axes, "ap_abc": mean, "s_abc": s_abc, "rp_abc": 3.0 * s_abc}
+        if registration_rms is not None:
+            rms = np.asarray(registration_rms, dtype=float)
+            if rms.shape != attained.shape[:2]:
+                raise InputError(f"`registration_rms` must have shape {attained.shape[:2]}; got {rms.shape}")
+            orientation["registration_rms"] = rms.max(axis=0)
     return Iso9283Result(
         barycentre=barycentre,
         commanded=commanded,
@@ -136,6 +220,7 @@ def pose_characteristics(attained, commanded, *, distance_pair=(1, 3)) -> Iso928
         ad=float(d_bar - d_c),
         rd=float(rd),
         n_cycles=n,
+        **orientation,
     )
 
 
@@ -274,3 +359,507 @@ def simulate_attained_positions(parameters, readings, *, target=(0.0, 0.0, 0.0),
     errors = None if joint_errors is None else joint_errors.transforms(q, rng=rng)
     mount = ReflectorMount(frame="flange", positions=np.asarray(target, dtype=float))
     return target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), mount, joint_errors=errors)
+
+
+# --- orientation ------------------------------------------------------------------------------------
+
+#: Axes the orientation deviations are expressed about (see :func:`orientation_deviations`).
+ORIENTATION_AXES = ("base", "flange")
+
+
+def rotation_vectors(rotations) -> np.ndarray:
+    """Rotation vectors (axis times angle, ``|v| <= pi``) of rotation matrices ``(..., 3, 3)`` [rad]."""
+    from scipy.spatial.transform import Rotation
+
+    rotations = np.asarray(rotations, dtype=float)
+    if rotations.shape[-2:] != (3, 3):
+        raise InputError(f"rotations must have shape (..., 3, 3); got {rotations.shape}")
+    flat = rotations.reshape(-1, 3, 3)
+    return Rotation.from_matrix(flat).as_rotvec().reshape(rotations.shape[:-2] + (3,))
+
+
+def orientation_deviations(attained_rotations, commanded_rotations, *, axes: str = "base") -> np.ndarray:
+    """Orientation deviations ``(a, b, c)`` of attained from commanded flange orientations [rad].
+
+    ``axes="base"`` (ISO 9283's angles about the base axes): the rotation vector of
+    ``R_a R_c^T``, the small rotation that, applied in the base frame, turns the commanded flange
+    onto the attained one; its components are the rotations about base x, y, z. ``axes="flange"``:
+    the rotation vector of ``R_c^T R_a`` (commanded^-1 attained), the same rotation expressed about
+    the commanded flange's axes. The two differ only by the commanded rotation: ``v_base = R_c v_flange``.
+
+    Parameters
+    ----------
+    attained_rotations : array_like, shape (..., 3, 3)
+    commanded_rotations : array_like, shape (..., 3, 3)
+        Broadcast against ``attained_rotations``.
+    axes : {"base", "flange"}
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    if axes not in ORIENTATION_AXES:
+        raise InputError(f"orientation axes must be one of {', '.join(ORIENTATION_AXES)}; got {axes!r}")
+    attained = np.asarray(attained_rotations, dtype=float)
+    commanded = np.asarray(commanded_rotations, dtype=float)
+    commanded_t = np.swapaxes(commanded, -1, -2)
+    deviation = attained @ commanded_t if axes == "base" else commanded_t @ attained
+    return rotation_vectors(deviation)
+
+
+def register_flange_poses(offsets, points):
+    """Attained flange poses from targets measured at each pose: the rigid transform taking the
+    targets' flange offsets onto their measured positions (Horn's closed form, least squares).
+
+    Parameters
+    ----------
+    offsets : array_like, shape (n_targets, 3)
+        Targets in the flange frame [mm], n_targets >= 3, not collinear.
+    points : array_like, shape (..., n_targets, 3)
+        The same targets measured, in the base frame [mm].
+
+    Returns
+    -------
+    transforms : ndarray, shape (..., 4, 4)
+        ``base_from_flange`` of every pose.
+    rms : ndarray, shape (...)
+        RMS residual of each registration [mm] (offsets that do not match the targets show here).
+    """
+    from robotcal.errors import DegenerateGeometryError
+    from robotcal.geometry.registration import register_points
+
+    offsets = np.asarray(offsets, dtype=float)
+    points = np.asarray(points, dtype=float)
+    if offsets.ndim != 2 or offsets.shape[1] != 3 or offsets.shape[0] < 3:
+        raise InputError(f"the flange orientation needs >= 3 target offsets (n, 3) [mm]; got shape {offsets.shape}")
+    if points.shape[-2:] != offsets.shape:
+        raise InputError(f"`points` must have shape (..., {offsets.shape[0]}, 3); got {points.shape}")
+    try:
+        registration = register_points(np.broadcast_to(offsets, points.shape), points)
+    except DegenerateGeometryError as exc:
+        raise InputError(f"the flange targets' offsets are collinear: no orientation can be measured ({exc})") from exc
+    return registration.transform, registration.rms
+
+
+# --- from a capture ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class IsoModel:
+    """A model evaluated by the ISO 9283 test.
+
+    Attributes
+    ----------
+    parameters : ParameterSet
+        Gives the commanded poses (forward kinematics at the pose's readings).
+    tracker_from_base : ndarray, shape (4, 4)
+        Maps the measured points into this model's base frame.
+    target_offsets : dict of str to array_like, optional
+        Flange offsets [mm] of named targets for this model (e.g. a refinement's estimates); they take
+        precedence over the offsets given to :func:`iso_from_capture`.
+    """
+
+    parameters: object
+    tracker_from_base: np.ndarray
+    target_offsets: dict | None = None
+
+
+def pose_visits(capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarray:
+    """Visit index of every row of a multi-target capture (rows of the same pose form one visit).
+
+    A new visit starts at a row whose target was already measured in the current visit, or whose
+    readings differ from the visit's first row by more than ``same_pose_rad`` (any joint).
+    """
+    visits = np.empty(capture.n_points, dtype=int)
+    current, seen, first = -1, set(), None
+    for row in range(capture.n_points):
+        target = int(capture.target[row]) if capture.target is not None else 0
+        readings = capture.readings[row]
+        if first is None or target in seen or np.max(np.abs(readings - first)) > same_pose_rad:
+            current, seen, first = current + 1, set(), readings
+        seen.add(target)
+        visits[row] = current
+    return visits
+
+
+def iso_from_capture(
+    capture,
+    models: dict,
+    *,
+    point=None,
+    targets: dict | None = None,
+    n_test_poses: int = 5,
+    distance_pair=(1, 3),
+    orientation_axes: str = "base",
+) -> dict:
+    """ISO 9283 characteristics of every model on a capture of repeated test poses (``circle = 0`` rows).
+
+    Without a ``target`` column (or with one target name) each row is one visit of a test pose,
+    cycle-major, and the measured point is the flange ``point`` (the named target's offset with one
+    target name). With three or more targets per pose, consecutive rows of one pose
+    (:func:`pose_visits`) are registered onto the targets' offsets (:func:`register_flange_poses`):
+    the attained flange pose gives the attained orientation and the attained position of ``point``
+    (default: the centroid of the targets' offsets).
+
+    Parameters
+    ----------
+    capture : Capture
+    models : dict of str to IsoModel
+    point : array_like, shape (3,), optional
+        Flange point whose position is evaluated [mm]; required with a single unnamed target.
+    targets : dict of str to array_like, optional
+        Flange offsets [mm] of the capture's target names (a model's ``target_offsets`` take precedence).
+    n_test_poses : int
+    distance_pair : tuple of int
+    orientation_axes : {"base", "flange"}
+
+    Returns
+    -------
+    dict of str to Iso9283Result
+    """
+    from robotcal.geometry.transforms import apply_transform, invert_transform
+
+    free = np.flatnonzero(capture.circle == 0)
+    if not free.size:
+        raise InputError(f"{capture.source}: the capture has no free poses (rows with circle = 0)")
+    capture = capture.select(free)
+    names = () if capture.target is None else tuple(capture.target_names[k] for k in np.unique(capture.target))
+    multi = len(names) > 1
+    if multi:
+        visits = pose_visits(capture)
+        n_visits = int(visits[-1]) + 1
+        order = np.lexsort((capture.target, visits))  # rows grouped by visit, targets in name-index order
+        counts = np.bincount(visits, minlength=n_visits)
+        if np.any(counts != len(names)):
+            bad = int(np.flatnonzero(counts != len(names))[0])
+            row = int(np.flatnonzero(visits == bad)[0]) + 1
+            raise InputError(
+                f"{capture.source}: pose visit {bad + 1} (free row {row}) measured {counts[bad]} of the {len(names)} "
+                f"targets {', '.join(names)}; every visit must measure every target (three or more for the orientation)"
+            )
+        if len(names) < 3:
+            raise InputError(
+                f"{capture.source}: {len(names)} targets per pose ({', '.join(names)}): the orientation needs three or "
+                "more; keep the rows of one target for positions only"
+            )
+        row_of_visit = order.reshape(n_visits, len(names))
+        visit_readings = capture.readings[row_of_visit[:, 0]]
+    else:
+        n_visits = capture.n_points
+        visit_readings = capture.readings
+    if n_visits % n_test_poses or n_visits < 2 * n_test_poses:
+        raise InputError(
+            f"{capture.source}: the capture's {n_visits} free poses are not whole cycles of {n_test_poses} test poses "
+            "(at least 2 cycles, cycle-major)"
+        )
+    n_cycles = n_visits // n_test_poses
+    commands = visit_readings.reshape(n_cycles, n_test_poses, -1).mean(axis=0)
+    target_names = [capture.target_names[k] for k in np.unique(capture.target)] if multi else list(names)
+
+    def offsets_of(model: IsoModel) -> np.ndarray:
+        own = model.target_offsets or {}
+        rows = []
+        for name in target_names:
+            source = own if name in own else (targets or {})
+            if name not in source:
+                raise InputError(
+                    f"{capture.source}: no flange offset for target {name!r}: declare it in the scenario's [[targets]] "
+                    "(known) or give --targets-mm"
+                )
+            rows.append(np.asarray(source[name], dtype=float).reshape(3))
+        return np.array(rows)
+
+    results = {}
+    for label, model in models.items():
+        parameters = model.parameters
+        base_from_tracker = invert_transform(np.asarray(model.tracker_from_base, dtype=float))
+        frames = forward_kinematics(parameters.values, parameters.robot.model_joint_variables(commands))
+        if multi:
+            offsets = offsets_of(model)
+            flange_point = offsets.mean(axis=0) if point is None else np.asarray(point, dtype=float)
+            measured = apply_transform(base_from_tracker, capture.points[row_of_visit])
+            attained_frames, rms = register_flange_poses(offsets, measured)
+            attained = apply_transform(attained_frames, flange_point)
+            results[label] = pose_characteristics(
+                attained.reshape(n_cycles, n_test_poses, 3),
+                apply_transform(frames, flange_point),
+                distance_pair=distance_pair,
+                attained_rotations=attained_frames[:, :3, :3].reshape(n_cycles, n_test_poses, 3, 3),
+                commanded_rotations=frames[:, :3, :3],
+                orientation_axes=orientation_axes,
+                registration_rms=rms.reshape(n_cycles, n_test_poses),
+            )
+            continue
+        if names:
+            flange_point = offsets_of(model)[0]
+        elif point is None:
+            raise InputError(f"{capture.source}: which flange point was measured? give its offset")
+        else:
+            flange_point = np.asarray(point, dtype=float)
+        attained = apply_transform(base_from_tracker, capture.points).reshape(n_cycles, n_test_poses, 3)
+        commanded = apply_transform(frames, flange_point)
+        results[label] = pose_characteristics(attained, commanded, distance_pair=distance_pair)
+    return results
+
+
+# --- simulated study --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class IsoStudy:
+    """A simulated ISO 9283 pose test (:func:`simulate_iso_study`).
+
+    Attributes
+    ----------
+    results : dict of str to Iso9283Result
+        Per model, in the order given.
+    center_mm : ndarray, shape (3,)
+        Cube centre in the base frame [mm].
+    side_mm : float
+        Cube side [mm].
+    start_readings : ndarray, shape (n_joints,)
+        Start readings [rad] (they set the flange orientation of the test).
+    readings : ndarray, shape (n_test_poses, n_joints)
+        Commanded readings of P1..P5 [rad] (nominal model).
+    point_mm : ndarray, shape (3,)
+        Flange point whose position is evaluated [mm].
+    targets_mm : dict of str to ndarray
+        The measured flange targets [mm].
+    capture : Capture
+        The simulated measurement (tracker frame).
+    """
+
+    results: dict
+    center_mm: np.ndarray
+    side_mm: float
+    start_readings: np.ndarray
+    readings: np.ndarray
+    point_mm: np.ndarray
+    targets_mm: dict
+    capture: object
+
+
+def _reach_mm(robot, point) -> float:
+    """Length of the chain from joint 2 to the flange point: sum of ``sqrt(a^2 + d^2)`` of links 2..n plus |point|."""
+    nominal = robot.nominal
+    links = np.hypot(nominal[1:, 0], nominal[1:, 2]).sum()
+    return float(links + np.linalg.norm(point))
+
+
+def default_iso_start(parameters, point) -> np.ndarray:
+    """Start readings of the default cube [rad]: of the readings ``lower + f (upper - lower)``, f in
+    {0.25, 0.5, 0.75} for every joint, the one with the largest ``|det J|`` (J: the 6 x n Jacobian of
+    the flange point's position [mm] and the flange orientation [rad x reach]), i.e. the best
+    conditioned configuration of that grid; ties go to the first (joint 1 slowest)."""
+    import itertools
+
+    robot = parameters.robot
+    point = np.asarray(point, dtype=float)
+    lower, upper = robot.limits[:, 0], robot.limits[:, 1]
+    fractions = np.array(list(itertools.product((0.25, 0.5, 0.75), repeat=robot.n_joints)))
+    candidates = lower + fractions * (upper - lower)
+    reach = _reach_mm(robot, point)
+    step = 1e-6
+
+    def pose(readings):
+        frames = forward_kinematics(parameters.values, robot.model_joint_variables(readings))
+        return frames[:, :3, :3], frames[:, :3, :3] @ point + frames[:, :3, 3]
+
+    rotation, _ = pose(candidates)
+    jacobian = np.empty((candidates.shape[0], 6, robot.n_joints))
+    for j in range(robot.n_joints):
+        delta = np.zeros(robot.n_joints)
+        delta[j] = step
+        rot_p, pt_p = pose(candidates + delta)
+        rot_m, pt_m = pose(candidates - delta)
+        drot = (rot_p - rot_m) @ np.swapaxes(rotation, -1, -2) / (2 * step)
+        jacobian[:, :3, j] = (pt_p - pt_m) / (2 * step)
+        jacobian[:, 3:, j] = np.stack([drot[:, 2, 1], drot[:, 0, 2], drot[:, 1, 0]], axis=-1) * reach
+    measure = np.sqrt(np.abs(np.linalg.det(jacobian @ np.swapaxes(jacobian, -1, -2))))
+    return candidates[int(np.argmax(measure))]
+
+
+def scenario_flange_point(scenario) -> np.ndarray:
+    """The scenario's measured flange point [mm]: its ``[capture]`` flange reflector, else its
+    ``[validation]`` flange target, else its only known ``[[targets]]`` flange target."""
+    if scenario.reflector is not None and scenario.reflector.frame == "flange":
+        return np.asarray(scenario.reflector.positions[0], dtype=float)
+    known = [t for t in scenario.targets if t.frame == "flange" and t.known]
+    for target in known:
+        if target.name == "validation":
+            return np.asarray(target.positions, dtype=float)
+    if len(known) == 1:
+        return np.asarray(known[0].positions, dtype=float)
+    raise InputError(
+        f"scenario {scenario.name!r} declares no flange target ([validation] flange_reflector_mm); give --target x,y,z"
+    )
+
+
+def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, side_mm=None, n_cycles=ISO_CYCLES):
+    """The test cube and its plan, with the default rule for what is not given (docs/iso9283.md).
+
+    Start readings: :func:`default_iso_start`; centre: the flange ``point`` at the start readings;
+    side: 20 % of the reach (links 2..n, ``sqrt(a^2 + d^2)`` each, plus ``|point|``), rounded down to
+    1 mm and halved (up to four times) until P1..P5 are reachable within the joint limits. A given
+    side is not shrunk.
+
+    Parameters
+    ----------
+    parameters : ParameterSet
+        The controller's model (nominal).
+    point : array_like, shape (3,)
+        Flange point placed on P1..P5 [mm].
+    start_readings : array_like, shape (n_joints,), optional
+        [rad]
+    center_mm : array_like, shape (3,), optional
+    side_mm : float, optional
+    n_cycles : int
+
+    Returns
+    -------
+    start_readings : ndarray, shape (n_joints,) [rad]
+    center_mm : ndarray, shape (3,)
+    side_mm : float
+    readings : ndarray, shape (n_cycles * 5, n_joints)
+        :func:`iso_plan_readings` [rad].
+    """
+    robot = parameters.robot
+    point = np.asarray(point, dtype=float)
+    start = default_iso_start(parameters, point) if start_readings is None else np.asarray(start_readings, float)
+    if center_mm is None:
+        frame = forward_kinematics(parameters.values, robot.model_joint_variables(start))[0]
+        center = frame[:3, :3] @ point + frame[:3, 3]
+    else:
+        center = np.asarray(center_mm, dtype=float)
+    if side_mm is not None:
+        sides = [float(side_mm)]
+    else:
+        sides = [math.floor(0.2 * _reach_mm(robot, point)) / 2**k for k in range(5)]
+    for k, side in enumerate(sides):
+        try:
+            positions = iso_test_positions(center, side)
+            readings = iso_plan_readings(parameters, positions, start, target=point, n_cycles=n_cycles)
+            return start, center, side, readings
+        except InputError:
+            if k == len(sides) - 1:
+                raise
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def simulate_iso_study(
+    scenario,
+    parameter_sets: dict,
+    *,
+    cycles: int = ISO_CYCLES,
+    seed: int | None = None,
+    center_mm=None,
+    side_mm: float | None = None,
+    start_deg=None,
+    targets_mm: dict | None = None,
+    true_parameters=None,
+    joint_errors="scenario",
+    instrument="scenario",
+    orientation_axes: str = "base",
+) -> IsoStudy:
+    """A simulated ISO 9283 pose test of the scenario's true robot, evaluated with several models.
+
+    The plan (:func:`iso_plan_readings`, nominal model: the controller's) visits P1..P5 of the cube
+    ``cycles`` times; the true robot (``true_parameters``, else the scenario's ``[truth]`` robot,
+    else nominal) with the joint error model (eq. 5-2 and backlash, redrawn at each visit) attains
+    the flange poses (after one unmeasured warm-up cycle, so that the backlash state of every
+    measured visit is that of the cycle); the instrument measures every flange target in the tracker frame with its
+    noise; :func:`iso_from_capture` evaluates every model.
+
+    Default cube: :func:`iso_cube_plan` (``start_deg``, ``center_mm``, ``side_mm`` override it).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    parameter_sets : dict of str to ParameterSet or IsoModel
+        Models to evaluate (e.g. ``{"nominal": ..., "cpa": ..., "refined": ...}``); a ParameterSet is
+        evaluated in the scenario's base frame.
+    cycles : int
+    seed : int, optional
+        Seeds the joint errors' random part and the instrument noise (one generator).
+    center_mm, side_mm, start_deg : optional
+        Cube centre [mm], side [mm] and start readings [deg].
+    targets_mm : dict of str to array_like, optional
+        Flange targets measured at each pose [mm]; default: the scenario's known flange targets when
+        there are three or more (orientation measured), else :func:`scenario_flange_point`.
+    true_parameters : ParameterSet, optional
+    joint_errors : JointErrorModel or None or "scenario"
+        None: no joint errors.
+    instrument : Instrument or None or "scenario"
+        None: exact measurement.
+    orientation_axes : {"base", "flange"}
+
+    Returns
+    -------
+    IsoStudy
+    """
+    from robotcal.capture import Capture
+    from robotcal.geometry.transforms import apply_transform
+    from robotcal.kinematics.forward import joint_frames
+    from robotcal.kinematics.model import ParameterSet
+    from robotcal.workflow import scenario_truth
+
+    robot = scenario.robot
+    nominal = ParameterSet.nominal(robot)
+    if true_parameters is None:
+        true_parameters = scenario_truth(scenario)[0] if scenario.truth is not None else nominal
+    if isinstance(joint_errors, str):
+        joint_errors = scenario.joint_errors
+    if isinstance(instrument, str):
+        instrument = scenario.instrument if scenario.has_instrument else None
+    if targets_mm is None:
+        known = [t for t in scenario.targets if t.frame == "flange" and t.known]
+        if len(known) >= 3:
+            targets_mm = {t.name: t.positions for t in known}
+        else:
+            targets_mm = {"point": scenario_flange_point(scenario)}
+    targets_mm = {str(name): np.asarray(value, dtype=float).reshape(3) for name, value in targets_mm.items()}
+    offsets = np.array(list(targets_mm.values()))
+    point = offsets.mean(axis=0)
+    start = None if start_deg is None else np.deg2rad(np.asarray(start_deg, dtype=float))
+    start, center, side, readings = iso_cube_plan(
+        nominal, point, start_readings=start, center_mm=center_mm, side_mm=side_mm, n_cycles=cycles
+    )
+    rng = np.random.default_rng(seed)
+    # one unmeasured cycle first, so that every measured visit has the same motion history (backlash)
+    q = robot.model_joint_variables(np.vstack([readings[:5], readings]))
+    errors = None if joint_errors is None else joint_errors.transforms(q, rng=rng)[5:]
+    flange = joint_frames(true_parameters.values, q[5:], joint_errors=errors)[:, -1]
+    base_points = np.einsum("vij,tj->vti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]
+    tracker_points = apply_transform(scenario.tracker_from_base, base_points.reshape(-1, 3))
+    if instrument is not None and not instrument.is_noise_free:
+        tracker_points = tracker_points + instrument.sample_noise(tracker_points, rng=rng)
+    n_targets, n_rows = offsets.shape[0], tracker_points.shape[0]
+    capture = Capture(
+        circle=np.zeros(n_rows, dtype=int),
+        direction=np.ones(n_rows, dtype=int),
+        readings=np.repeat(readings, n_targets, axis=0),
+        points=tracker_points,
+        source=f"ISO 9283 study simulated from {scenario.name}",
+        seed=seed,
+        target=np.tile(np.arange(n_targets), readings.shape[0]),
+        target_names=tuple(targets_mm),
+    )
+    models = {
+        label: value
+        if isinstance(value, IsoModel)
+        else IsoModel(parameters=value, tracker_from_base=scenario.tracker_from_base)
+        for label, value in parameter_sets.items()
+    }
+    results = iso_from_capture(
+        capture, models, point=point, targets=targets_mm, n_test_poses=5, orientation_axes=orientation_axes
+    )
+    return IsoStudy(
+        results=results,
+        center_mm=_frozen(center),
+        side_mm=float(side),
+        start_readings=_frozen(start),
+        readings=_frozen(readings[:5]),
+        point_mm=_frozen(point),
+        targets_mm=targets_mm,
+        capture=capture,
+    )

@@ -1,4 +1,5 @@
-"""Robot programs of a capture plan (thesis 4.5.2: "genera los códigos en el lenguaje del robot").
+"""Robot programs of a capture plan (thesis 4.5.2: "genera los códigos en el lenguaje del robot"),
+and of any other sequence of joint moves with a comment per move (the ISO 9283 pose test).
 
 One joint move per measuring point, in the plan's order (forward sweep, then the return sweep when
 bidirectional), each followed by a dwell for the tracker to settle and measure, and preceded by a
@@ -63,13 +64,15 @@ def write_program(
     name: str = "robotcal_capture",
     speed_percent: float = 10.0,
     header: str = "",
+    labels=None,
 ) -> str:
     """The program text.
 
     Parameters
     ----------
-    circle, direction : array_like of int, shape (n_points,)
-        Circle (1-based turning joint) and sweep direction (+1/-1) of every point.
+    circle, direction : array_like of int, shape (n_points,), or None
+        Circle (1-based turning joint) and sweep direction (+1/-1) of every point (for the comment
+        before each move; unused, and may be None, when ``labels`` is given).
     readings : array_like, shape (n_points, n_joints)
         Controller readings [rad].
     language : {"krl", "rapid", "urscript"}
@@ -82,6 +85,9 @@ def write_program(
         RAPID speed data ``v`` of 1000 mm/s ... as a rough equivalent).
     header : str
         Comment lines placed at the top (one per line).
+    labels : sequence of str, shape (n_points,), optional
+        The comment before each move instead of "circle i forward|return point k" (e.g. the ISO
+        9283 plan's "cycle 3 P2"); one line each.
     """
     if language not in LANGUAGES:
         raise InputError(f"unknown language {language!r}; choose one of {', '.join(LANGUAGES)}")
@@ -93,8 +99,15 @@ def write_program(
     n_joints = readings.shape[1]
     if language in ("rapid", "urscript") and n_joints != 6:
         raise InputError(f"{language} programs need a 6-axis robot; this robot has {n_joints} joints")
-    circle = np.asarray(circle, dtype=int)
-    direction = np.asarray(direction, dtype=int)
+    if labels is None:
+        circle = np.asarray(circle, dtype=int)
+        direction = np.asarray(direction, dtype=int)
+    else:
+        labels = [str(label) for label in labels]
+        if len(labels) != readings.shape[0] or any("\n" in label or "\r" in label for label in labels):
+            raise InputError(
+                f"`labels` must be {readings.shape[0]} one-line comments, one per point; got {len(labels)}"
+            )
     counts = {}
     comment = {"krl": ";", "rapid": "!", "urscript": "#"}[language]
     indent = "  "
@@ -107,10 +120,13 @@ def write_program(
     else:
         lines += [f"def {name}():"]
     for index in range(readings.shape[0]):
-        key = (int(circle[index]), int(direction[index]))
-        counts[key] = counts.get(key, 0) + 1
-        sweep = "forward" if key[1] > 0 else "return"
-        lines.append(f"{indent}{comment} circle {key[0]} {sweep} point {counts[key]}")
+        if labels is None:
+            key = (int(circle[index]), int(direction[index]))
+            counts[key] = counts.get(key, 0) + 1
+            sweep = "forward" if key[1] > 0 else "return"
+            lines.append(f"{indent}{comment} circle {key[0]} {sweep} point {counts[key]}")
+        else:
+            lines.append(f"{indent}{comment} {labels[index]}")
         degrees = np.rad2deg(readings[index])
         if language == "krl":
             axes = ", ".join(f"A{j + 1} {value:.6f}" for j, value in enumerate(degrees))

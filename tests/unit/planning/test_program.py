@@ -80,3 +80,20 @@ def test_program_validation():
         write_program([1, 1, 1], [1, 1, 1], readings, language="krl", dwell_s=-1.0)
     text = write_program([1, 1, 1], [1, 1, 1], readings, language="krl", dwell_s=0.0)
     assert text.count("PTP {A1 0.000000") == 3 and "A7 0.000000" in text
+
+
+@pytest.mark.parametrize("language", ["krl", "rapid", "urscript"])
+def test_program_with_labels_instead_of_circles(language):
+    readings = np.radians([[0.0, 90.0, -90.0, 0.0, 45.0, 0.0], [10.0, 80.0, -70.0, 5.0, 40.0, -5.0]])
+    text = write_program(None, None, readings, language=language, dwell_s=0.5, labels=["cycle 1 P1", "cycle 1 P2"])
+    comment = {"krl": ";", "rapid": "!", "urscript": "#"}[language]
+    assert re.findall(rf"{comment} (cycle 1 P\d)", text) == ["cycle 1 P1", "cycle 1 P2"]
+    assert "circle" not in text
+    moves, dwell = _parse(text, language)
+    tolerance = 0.6e-6 if language == "urscript" else np.deg2rad(0.6e-6)
+    np.testing.assert_allclose(moves, readings, rtol=0, atol=tolerance)
+    assert dwell == [0.5, 0.5]
+    with pytest.raises(InputError, match="2 one-line comments"):
+        write_program(None, None, readings, language=language, dwell_s=0.5, labels=["only one"])
+    with pytest.raises(InputError, match="one-line"):
+        write_program(None, None, readings, language=language, dwell_s=0.5, labels=["a", "b\nDEF x()"])
