@@ -26,6 +26,7 @@ from robotcal.errors import InputError
 from robotcal.geometry.transforms import check_rigid_transform
 from robotcal.io import atomic_write_text, load_scenario, read_capture, read_parameters
 from robotcal.io._validation import read_json_file
+from robotcal.io.iso9283_files import iso_to_csv
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.io.parameters_json import read_targets
 from robotcal.io.trajectory_csv import write_trajectory
@@ -33,10 +34,6 @@ from robotcal.kinematics.model import ParameterSet
 
 app = command_app()
 
-ISO_COLUMNS = (
-    "model", "pose", "APx", "APy", "APz", "AP", "l_bar", "S_l", "RP", "AD", "RD",
-    "APa", "APb", "APc", "RPa", "RPb", "RPc",
-)  # fmt: skip
 PROGRAM_SUFFIX = {"krl": ".src", "rapid": ".mod", "urscript": ".script"}
 
 
@@ -84,22 +81,6 @@ def scenario_offsets(scenario) -> dict:
 def _model_offsets(path: Path) -> dict | None:
     """The flange target offsets a parameter JSON carries (a refinement's ``targets``: estimates of unknown ones)."""
     return {name: np.asarray(v, dtype=float) for name, v in read_targets(path).items()} or None
-
-
-def iso_to_csv(results: dict) -> str:
-    """The output CSV: positions [mm], distance characteristics [mm], orientation [deg] (empty when not measured)."""
-    lines = [",".join(ISO_COLUMNS)]
-    for label, r in results.items():
-        for k in range(r.ap.shape[0]):
-            values = [*r.ap_xyz[k], r.ap[k], r.l_bar[k], r.s_l[k], r.rp[k]]
-            if r.has_orientation:
-                angles = ",".join(f"{v:.6f}" for v in np.rad2deg(np.r_[r.ap_abc[k], r.rp_abc[k]]))
-            else:
-                angles = "," * 5
-            lines.append(f"{label},P{k + 1}," + ",".join(f"{v:.6f}" for v in values) + ",,," + angles)
-        a, b = r.distance_pair
-        lines.append(f"{label},P{a + 1}-P{b + 1}" + "," * 8 + f"{r.ad:.6f},{r.rd:.6f}" + "," * 6)
-    return "\n".join(lines) + "\n"
 
 
 @app.command()
