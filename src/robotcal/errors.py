@@ -14,6 +14,8 @@ __all__ = [
     "JointLimitWarning",
     "RigidTransformWarning",
     "IdentifiabilityWarning",
+    "FitHealthWarning",
+    "FitHealthError",
 ]
 
 
@@ -27,6 +29,11 @@ class InputError(RobotcalError, ValueError):
 
 class DegenerateGeometryError(InputError):
     """Points that do not define the geometry asked for (collinear circle, zero sweep, ...)."""
+
+
+class FitHealthError(RobotcalError):
+    """``--strict``: a fit failed the fit-health test (:class:`FitHealthWarning`'s cases,
+    :mod:`robotcal.identification.health`)."""
 
 
 class IdentifiabilityError(RobotcalError):
@@ -51,3 +58,8 @@ class RigidTransformWarning(RobotcalWarning):
 
 class IdentifiabilityWarning(RobotcalWarning):
     """A parameter was held at its nominal value because the data cannot determine it."""
+
+
+class FitHealthWarning(RobotcalWarning):
+    """A fit does not explain the data, is ill-conditioned, or rests on circles too small for the noise
+    (:mod:`robotcal.identification.health`)."""

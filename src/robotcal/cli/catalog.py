@@ -22,13 +22,55 @@ def robots() -> None:
     table = Table(title="Built-in robots", title_justify="left")
     models = list_robots()
     table.add_column("name", no_wrap=True, min_width=max(len(r.name) for r in models))
-    for column in ("joints", "Hayati joints", "reading signs", "description"):
+    for column in ("joints", "Hayati joints"):
         table.add_column(column)
+    table.add_column("reading signs", no_wrap=True)
+    table.add_column("description")
     for robot in models:
         hayati = ", ".join(f"J{i + 1}" for i, parallel in enumerate(robot.hayati) if parallel) or "-"
-        signs = " ".join("+" if s > 0 else "-" for s in robot.reading_sign)
-        table.add_row(robot.name, str(robot.n_joints), hayati, signs, robot.description)
+        table.add_row(robot.name, str(robot.n_joints), hayati, reading_signs(robot), robot.description)
     console.print(table)
+    coupled = [robot for robot in models if robot.is_coupled]
+    if coupled:
+        robot = coupled[0]
+        joint = next(j for j in range(robot.n_joints) if any(robot.reading_coupling[j] != 0.0))
+        console.print(
+            f"reading signs: in brackets, the other joints a coupled reading counts; e.g. {robot.name} "
+            f"J{joint + 1}: {reading_formula(robot, joint)} (q model joint variables, o reading offsets; "
+            "docs/conventions.md, coupled readings)",
+            highlight=False,
+        )
+
+
+def reading_signs(robot) -> str:
+    """``"+ + -(-J2) + + +"``: each joint's reading sign, and the terms of a coupled joint's reading."""
+    signs = []
+    for joint, sign in enumerate(robot.reading_sign):
+        text = "+" if sign > 0 else "-"
+        terms = [
+            _coupling_term(coefficient, other)
+            for other, coefficient in enumerate(robot.reading_coupling[joint])
+            if coefficient != 0.0
+        ]
+        signs.append(text + (f"({' '.join(terms)})" if terms else ""))
+    return " ".join(signs)
+
+
+def reading_formula(robot, joint: int) -> str:
+    """``"reading_3 = -(q3 - o3) - (q2 - o2)"``: one joint's row of the reading map (0-based ``joint``)."""
+    text = f"reading_{joint + 1} = {'' if robot.reading_sign[joint] > 0 else '-'}(q{joint + 1} - o{joint + 1})"
+    for other, coefficient in enumerate(robot.reading_coupling[joint]):
+        if coefficient != 0.0:
+            factor = "" if abs(coefficient) == 1.0 else f"{abs(coefficient):g} "
+            text += f" {'+' if coefficient > 0 else '-'} {factor}(q{other + 1} - o{other + 1})"
+    return text
+
+
+def _coupling_term(coefficient: float, other: int) -> str:
+    """``-J2`` for -1, ``+0.5J2`` for 0.5: one term of a coupled reading (0-based ``other``)."""
+    if abs(coefficient) == 1.0:
+        return f"{'+' if coefficient > 0 else '-'}J{other + 1}"
+    return f"{coefficient:+g}J{other + 1}"
 
 
 @app.command()

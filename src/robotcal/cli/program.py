@@ -49,7 +49,7 @@ def program(
     loaded = load_scenario(scenario)
     plan = loaded.plan if bidirectional is None else dataclasses.replace(loaded.plan, bidirectional=bidirectional)
     target = None if controller is None else load_robot(controller)
-    circle, direction, readings = plan.readings()
+    circle, direction, readings = plan.readings(loaded.robot)
     angles = controller_readings(readings, loaded.robot, target)
     header = (
         f"robotcal capture program: scenario {loaded.name} ({loaded.source})\n"

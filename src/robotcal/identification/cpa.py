@@ -5,11 +5,14 @@ Steps (algorithms 5.2.2.1 and 5.2.2.2):
 1. Per circle, an orthogonal plane fit and a circle fit give the joint axis (normal, centre) as a
    Plücker line in the tracker frame. The axis is oriented so that the target turns right-handed
    about it as the model joint variable grows, and checked against the nominal model's z axis.
-2. Every axis is brought into one common *reference configuration* (joint j at the reading where
-   its own circle ended). A circle of joint k is measured with the earlier joints at the readings
-   of that circle; by the product-of-exponentials form of the kinematics, the axis in the reference
-   configuration is ``D^-1 L`` with ``D = Rot(L_1, dq_1) ... Rot(L_{k-1}, dq_{k-1})``, the rotations
-   about the already-referenced earlier axes by the reading differences. This is exact, so real
+2. Every axis is brought into one common *reference configuration* (joint j at the model variable
+   where its own circle ended). A circle of joint k is measured with the earlier joints at the model
+   variables of that circle; by the product-of-exponentials form of the kinematics, the axis in the
+   reference configuration is ``D^-1 L`` with ``D = Rot(L_1, dq_1) ... Rot(L_{k-1}, dq_{k-1})``, the
+   rotations about the already-referenced earlier axes by the model-variable differences. Which
+   joint turns in a circle, and that the others rest, is also judged on the model variables, so a
+   robot with coupled readings (a Fanuc-style J3 reading that follows J2) is handled: in a circle of
+   J2 its J3 reading changes while J3's model variable rests. This is exact, so real
    captures whose circles start from their own configurations (Table 4.2) are handled, and the
    thesis generator's sequence (earlier joints resting where they ended) gives ``D = I``.
 3. The base frame (``tracker_from_base``) is given or registered (Horn) against the nominal model;
@@ -54,6 +57,8 @@ _D, _THETA, _A, _ALPHA, _BETA = range(5)
 MAX_COORDINATE_MM = 1e7
 #: A circle whose points all lie within this distance of their mean [mm] did not move.
 STILL_POINTS_MM = 1e-6
+#: A resting joint that moves by less than this [deg] may be the rounding of logged readings (error hint).
+ROUNDING_HINT_DEG = 0.01
 
 
 def point_rows(rows: np.ndarray, limit: int = 6) -> str:
@@ -189,7 +194,9 @@ class CPAResult:
         Joint axes in the tracker frame at the reference configuration.
     reference_readings : ndarray, shape (n_joints,)
         Controller readings of the reference configuration [rad]; identified theta is the
-        geometric angle minus this (mapped to the model variable).
+        geometric angle minus this (mapped to the model variable). Uncoupled robots: reading j of
+        the last point of circle j; coupled robots: ``readings_from_model`` of the model variables
+        (joint j's at the last point of circle j), since one reading then mixes several joints.
     circle_fits : tuple of CircleFit
         Per circle: centre, normal, radius, residuals, ``plane_rms`` and ``circle_rms`` [mm].
     pair_cases : tuple of str
@@ -235,11 +242,14 @@ def prepare_cpa(
             "CPA needs circle points only: identify from the calibration capture, use free poses for refinement "
             "or evaluation"
         )
+    # Which joint turns, and that the others rest, is decided on the MODEL joint variables: on a robot
+    # whose readings are coupled (docs/conventions.md), a circle of J2 changes J3's reading while J3's
+    # model variable rests. Uncoupled, q = sign * reading + offset, the same test as on the readings.
     model_q = robot.model_joint_variables(capture.readings)
     still_tol = np.deg2rad(options.still_tolerance_deg) + 1e-12
     indices = []
     configs = np.zeros((n, n))
-    reference_readings = np.zeros(n)
+    reference_q = np.zeros(n)
     for joint in range(n):
         rows = np.flatnonzero(capture.circle == joint + 1)
         if rows.size == 0:
@@ -248,8 +258,8 @@ def prepare_cpa(
             )
         if rows.size < 3:
             raise InputError(f"{src}: circle {joint + 1} has {rows.size} points; a circle needs at least 3")
-        readings = capture.readings[rows]
-        spread = readings.max(axis=0) - readings.min(axis=0)
+        circle_q = model_q[rows]
+        spread = circle_q.max(axis=0) - circle_q.min(axis=0)
         if spread[joint] <= still_tol:
             raise DegenerateGeometryError(f"{src}: circle {joint + 1}: joint J{joint + 1} does not turn (zero sweep)")
         moving = [k for k in range(n) if k != joint and spread[k] > still_tol]
@@ -257,13 +267,18 @@ def prepare_cpa(
             k = moving[0]
             raise InputError(
                 f"{src}: circle {joint + 1}: joint J{k + 1} moves by {np.rad2deg(spread[k]):.6g} deg while J{joint + 1} turns; "
-                f"only the turning joint may move within a circle"
+                f"only the turning joint may move within a circle{_coupling_hint(robot, joint, k)}"
+                f"{_rounding_hint(spread[k], options)}"
             )
         _check_circle_points(capture.points, rows, joint, src)
         indices.append(rows)
-        configs[joint] = model_q[rows].mean(axis=0)
-        reference_readings[joint] = capture.readings[rows[-1], joint]
-    reference_q = robot.model_joint_variables(reference_readings)
+        configs[joint] = circle_q.mean(axis=0)
+        reference_q[joint] = circle_q[-1, joint]
+    last_rows = np.array([rows[-1] for rows in indices])
+    if robot.is_coupled:  # the readings of the reference configuration (all model variables at once)
+        reference_readings = robot.readings_from_model(reference_q)
+    else:  # the readings themselves, bit for bit
+        reference_readings = capture.readings[last_rows, np.arange(n)]
     transport = configs - reference_q  # row k: dq_j for j < k used to bring axis k to the reference
     nominal_points = target_positions(robot.nominal, model_q, capture.circle - 1, reflector)
     circle1_azimuth = 0.0
@@ -287,6 +302,30 @@ def prepare_cpa(
         nominal_points=nominal_points,
         circle1_azimuth=circle1_azimuth,
         source=src,
+    )
+
+
+def _coupling_hint(robot: RobotModel, turning: int, moving: int) -> str:
+    """On a coupled robot, why a resting joint may seem to move: its model variable, not its reading, must rest."""
+    if not robot.is_coupled:
+        return ""
+    follow = robot.reading_matrix[:, turning] / robot.reading_matrix[turning, turning]
+    followers = [f"J{k + 1}'s by {follow[k]:g} times J{turning + 1}'s change" for k in np.flatnonzero(follow) if k != turning]
+    rule = f"the readings follow it ({', '.join(followers)})" if followers else "no other reading changes"
+    return (
+        f" (robot {robot.name!r} couples its readings and J{moving + 1} here is its model joint variable: while "
+        f"J{turning + 1} turns alone {rule}; docs/conventions.md, coupled readings)"
+    )
+
+
+def _rounding_hint(spread: float, options: CPAOptions) -> str:
+    """Where a resting joint moves by a tiny angle: the rounding of the logged readings? (coupled readings
+    mix two rounded values, so their model variable jitters)."""
+    if np.rad2deg(spread) > ROUNDING_HINT_DEG:
+        return ""
+    return (
+        f"; if that is the rounding of the logged readings, raise `[identification] still_tolerance_deg` "
+        f"(now {options.still_tolerance_deg:g} deg) above it"
     )
 
 

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robotcal.errors import RobotcalError, RobotcalWarning
+from robotcal.errors import FitHealthError, FitHealthWarning  # defined in robotcal.errors, re-exported here
 
 __all__ = [
     "RESIDUAL_RATIO_LIMIT",
@@ -60,14 +60,6 @@ RESIDUAL_RATIO_LIMIT = 3.0
 CONDITION_LIMIT = 1e8
 #: Largest standard uncertainty of a CPA circle's axis direction [deg].
 AXIS_LIMIT_DEG = 1.0
-
-
-class FitHealthWarning(RobotcalWarning):
-    """A fit does not explain the data, is ill-conditioned, or rests on circles too small for the noise."""
-
-
-class FitHealthError(RobotcalError):
-    """``--strict``: a fit failed the fit-health test (:class:`FitHealthWarning`'s cases)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -254,7 +254,7 @@ def check_plan(
     if cell.capsule_radius.shape != (n,):
         raise InputError(f"cell: {cell.capsule_radius.shape[0]} capsule radii for robot {robot.name!r} with {n} joints")
     values = (ParameterSet.nominal(robot) if parameters is None else parameters).values
-    circle, direction, readings = plan.readings()
+    circle, direction, readings = plan.readings(robot)
     q = robot.model_joint_variables(readings)
     frames = joint_frames(values, q)  # (n_points, n + 1, 4, 4)
     mount = _target_frames(frames, q, circle, plan)

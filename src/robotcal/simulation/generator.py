@@ -209,7 +209,7 @@ def simulate_capture(
         The "real" robot; nominal parameters by default.
     joint_errors : JointErrorModel, optional
         Joint error model of eq. 5-2 with its backlash term (none by default). The lash state of
-        each joint follows the order of ``plan.readings()``.
+        each joint follows the order of ``plan.readings(robot)`` (on a coupled robot the coupled readings follow the turning joint).
     joint_limits : {"warn", "error", "ignore"}
         What to do when the plan leaves the robot's software limits.
     rng : numpy.random.Generator or int or None
@@ -235,7 +235,7 @@ def simulate_capture(
         raise InputError(
             f"true parameters have {parameters.robot.n_joints} joints; robot {robot.name!r} has {robot.n_joints}"
         )
-    circle, direction, readings = plan.readings()
+    circle, direction, readings = plan.readings(robot)
     _check_limits(robot, readings, circle, joint_limits)
     q = robot.model_joint_variables(readings)
     errors = None

@@ -9,6 +9,13 @@ Two ways to say where circles start, both in controller readings:
   from which circle i starts; joint i then turns from ``start[i, i]`` by ``sweep_i``.
 
 A bidirectional plan goes back over the same angles after each forward sweep.
+
+Coupled readings (a Fanuc-style J3 reading that follows J2, ``RobotModel.reading_coupling``): the plan's
+``start`` and ``sweep`` stay in controller readings, the language of the robot program, and a circle of
+joint i turns **model joint i alone**, as CPA needs (docs/conventions.md). Reading i then sweeps from
+its start by ``sweep_i``, and the readings of the joints coupled to joint i follow, so that their model
+variables rest: these are the readings the robot program must command. :meth:`CapturePlan.readings`
+does this when given the robot; for an uncoupled robot (or without a robot) reading i changes alone.
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.kinematics.model import ReflectorMount
+from robotcal.kinematics.model import ReflectorMount, RobotModel
 
 __all__ = ["CapturePlan"]
 
@@ -78,8 +85,18 @@ class CapturePlan:
     def n_joints(self) -> int:
         return self.sweep.shape[0]
 
-    def readings(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def readings(self, robot: RobotModel | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The visited readings, point by point.
+
+        Parameters
+        ----------
+        robot : RobotModel, optional
+            The robot the readings are for. Needed when its readings are coupled
+            (:attr:`RobotModel.is_coupled`): circle i then turns model joint i alone, reading i
+            sweeping from its start by ``sweep_i`` and every reading k coupled to joint i following
+            by ``M[k, i] / M[i, i]`` times reading i's step (``M`` = :attr:`RobotModel.reading_matrix`),
+            i.e. ``readings_from_model`` of the swept model variables. Without a robot, or for an
+            uncoupled one, reading i changes alone (the same numbers bit for bit).
 
         Returns
         -------
@@ -91,18 +108,28 @@ class CapturePlan:
             Controller readings [rad].
         """
         n = self.n_joints
+        follow = None  # column i: how every reading moves per unit of reading i when model joint i turns alone
+        if robot is not None:
+            if robot.n_joints != n:
+                raise InputError(f"capture plan has {n} circles but robot {robot.name!r} has {robot.n_joints} joints")
+            if robot.is_coupled:
+                matrix = robot.reading_matrix
+                follow = matrix / np.diag(matrix)[None, :]
         current = self.start.copy() if self.start.ndim == 1 else None
         circles, directions, rows = [], [], []
         for i in range(n):
             base = current.copy() if current is not None else self.start[i].copy()
-            angles = base[i] + np.linspace(0.0, self.sweep[i], int(self.points[i]))
-            sweeps = [(angles, 1)] + ([(angles[::-1], -1)] if self.bidirectional else [])
-            for values, direction in sweeps:
-                block = np.tile(base, (values.size, 1))
-                block[:, i] = values
+            steps = np.linspace(0.0, self.sweep[i], int(self.points[i]))
+            sweeps = [(steps, 1)] + ([(steps[::-1], -1)] if self.bidirectional else [])
+            for offsets, direction in sweeps:
+                if follow is None:
+                    block = np.tile(base, (offsets.size, 1))
+                    block[:, i] = base[i] + offsets
+                else:  # follow[i, i] == 1: reading i is exactly base[i] + offset, as uncoupled
+                    block = base + offsets[:, None] * follow[:, i]
                 rows.append(block)
-                circles.append(np.full(values.size, i + 1))
-                directions.append(np.full(values.size, direction))
-            if current is not None:
-                current[i] = rows[-1][-1, i]
+                circles.append(np.full(offsets.size, i + 1))
+                directions.append(np.full(offsets.size, direction))
+            if current is not None:  # the next circles start where this one ended (coupled readings included)
+                current = rows[-1][-1].copy()
         return np.concatenate(circles), np.concatenate(directions), np.concatenate(rows)

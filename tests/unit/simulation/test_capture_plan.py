@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.kinematics import ReflectorMount
+from robotcal.io import load_robot
+from robotcal.kinematics import ReflectorMount, RobotModel
 from robotcal.simulation import CapturePlan
-from thesis_data import TABLE_4_2_DEG, TABLE_5_1_POINTS, TABLE_5_1_START_DEG, TABLE_5_1_SWEEP_DEG
+from thesis_data import TABLE_4_2_DEG, TABLE_5_1_POINTS, TABLE_5_1_START_DEG, TABLE_5_1_SWEEP_DEG, kr5_robot
 
 #: Thesis Table 5.1 [deg, points] and Table 4.2 (tests/thesis_data.py)
 START_DEG = TABLE_5_1_START_DEG
@@ -131,3 +132,67 @@ def test_flange_reflector_plan_and_read_only_arrays():
     assert plan.n_joints == 6
     with pytest.raises(ValueError, match="read-only"):
         plan.sweep[0] = 1.0
+
+
+# -- coupled readings (RobotModel.reading_coupling): a circle turns the MODEL joint alone -------------
+
+
+def _coupled_robot(seed):
+    """A 6-joint robot with random signs, offsets and a random coupling (J3 coupled to J2 at least)."""
+    rng = np.random.default_rng(seed)
+    coupling = rng.uniform(-1.0, 1.0, (6, 6)) * (rng.uniform(size=(6, 6)) < 0.4)
+    np.fill_diagonal(coupling, 0.0)
+    coupling[2, 1] = -1.0
+    return kr5_robot(
+        reading_sign=rng.choice([-1.0, 1.0], 6), reading_offset=rng.uniform(-1.0, 1.0, 6), reading_coupling=coupling
+    )
+
+
+@pytest.mark.parametrize("name", ["kuka-kr5-sixx-r650", "kuka-kr5-sixx-r650-krc"])
+@pytest.mark.parametrize("bidirectional", [False, True])
+@pytest.mark.parametrize("start", ["vector", "matrix"])
+def test_uncoupled_robot_gives_the_same_readings_bit_for_bit(name, bidirectional, start):
+    starts = {"vector": np.deg2rad(START_DEG), "matrix": np.deg2rad(TABLE_4_2_DEG)}
+    plan = _plan(start=starts[start], bidirectional=bidirectional)
+    for without, with_robot in zip(plan.readings(), plan.readings(load_robot(name)), strict=True):
+        np.testing.assert_array_equal(without, with_robot)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("bidirectional", [False, True])
+@pytest.mark.parametrize("start", ["vector", "matrix"])
+def test_coupled_circle_turns_the_model_joint_alone(seed, bidirectional, start):
+    robot = _coupled_robot(seed)
+    assert robot.is_coupled
+    starts = {"vector": np.deg2rad(START_DEG), "matrix": np.deg2rad(TABLE_4_2_DEG)}
+    plan = _plan(start=starts[start], bidirectional=bidirectional)
+    circle, direction, readings = plan.readings(robot)
+    plain_circle, plain_direction, plain = plan.readings()
+    np.testing.assert_array_equal(circle, plain_circle)
+    np.testing.assert_array_equal(direction, plain_direction)
+    q = robot.model_joint_variables(readings)
+    # the model variables are solved independently of the plan's arithmetic (numpy's solver)
+    q_solved = np.linalg.solve(robot.reading_matrix, readings.T).T + robot.reading_offset
+    np.testing.assert_allclose(q, q_solved, rtol=0, atol=1e-12)
+    sweep = np.deg2rad(SWEEP_DEG)
+    for i in range(6):
+        rows = circle == i + 1
+        # the plan's reading i is swept exactly as on an uncoupled robot (start and sweep in readings) ...
+        if start == "matrix":  # every circle starts from its own row, so reading i matches the plain plan
+            np.testing.assert_array_equal(readings[rows, i], plain[rows, i])
+        np.testing.assert_allclose(np.ptp(readings[rows, i]), abs(sweep[i]), rtol=0, atol=1e-14)
+        # ... model joint i turns by the same angle (|M[i, i]| = 1), every other model joint rests
+        # (cond(M) < 10 and angles < 10 rad: rounding ~1e-14 rad)
+        others = np.arange(6) != i
+        np.testing.assert_allclose(q[rows][:, others] - q[rows][0, others], 0.0, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(np.ptp(q[rows, i]), abs(sweep[i]), rtol=0, atol=1e-13)
+    if start == "vector":  # the generator sequence: each circle starts where the previous one ended,
+        for i in range(1, 6):  # the readings that followed included
+            first = np.flatnonzero(circle == i + 1)[0]
+            np.testing.assert_array_equal(readings[first], readings[first - 1])
+
+
+def test_plan_and_robot_must_agree_on_the_joint_count():
+    robot = RobotModel(name="planar", nominal=[[0, 0, 300, 0, 0], [0, 0, 200, 0, 0]], hayati=[False, False])
+    with pytest.raises(InputError, match="capture plan has 6 circles but robot 'planar' has 2 joints"):
+        _plan().readings(robot)
