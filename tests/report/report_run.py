@@ -86,8 +86,36 @@ TCP_HEADER = [
 ]
 
 
+#: Synthetic backlash per joint [mm] and the noise floor of each circle [um]: J1, J3 above it, the others not.
+BACKLASH_MM = (0.040, 0.012, 0.035, 0.010, 0.011, 0.009)
+NOISE_FLOOR_UM = 15.0
+#: Synthetic refinement: RMS per coordinate of the criterion and RMS point distance [mm].
+CRITERION_RMS_MM = 0.0108
+POINT_RMS_MM = 0.0188
+
+
+def _tcp_json(u_mm_per_pose, *, ellipsoid=None) -> dict:
+    """A tcp.json: per pose the position uncertainty sqrt(3) u [mm] (u per coordinate)."""
+    poses = [{"pose": k + 1, "position_uncertainty_mm": float(np.sqrt(3) * u)} for k, u in enumerate(u_mm_per_pose)]
+    if ellipsoid is not None:
+        poses[0]["ellipsoid"] = {"semi_axes_mm": list(ellipsoid)}
+    return {"coverage": 0.95, "poses": poses, "provenance": {"model": "refined (CPA + points refinement), Monte Carlo"}}
+
+
+def _statistics_json(rows: list[list], *, draws: int, model: str) -> dict:
+    """A Monte Carlo parameters.json from the rows of its parameters.csv."""
+    keys = ("name", "unit", "nominal", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max")
+    return {
+        "seed": 11,
+        "draws": draws,
+        "coverage": 0.95,
+        "model": model,
+        "parameters": [{**dict(zip(keys, row[:9], strict=True)), "identified": bool(row[9])} for row in rows],
+    }
+
+
 def make_run_folder(root: Path) -> Path:
-    """Write a complete run folder under ``root``; returns it."""
+    """Write a complete run folder under ``root`` (the file names and keys of docs/results.md); returns it."""
     scenario = load_scenario("thesis-laser-tracker")
     run = simulate_scenario(scenario, seed=3)
     validation = simulate_scenario(scenario, seed=4)
@@ -97,17 +125,29 @@ def make_run_folder(root: Path) -> Path:
     write_parameters(root / "cpa" / "parameters.json", result.parameters, cpa_provenance(result, run.capture, scenario))
     write_parameters(root / "truth.json", ParameterSet.nominal(scenario.robot), {"source": "nominal robot"})
     write_parameters(
-        root / "refine" / "points.json", result.parameters, {"method": "levenberg-marquardt", "iterations": 6}
+        root / "refine" / "points.json",
+        result.parameters,
+        {
+            "method": "levenberg-marquardt",
+            "criterion": "points",
+            "points": run.capture.n_points,
+            "residuals": 3 * run.capture.n_points,
+            "residual_rms_mm": POINT_RMS_MM,
+            "convergence": {"criterion": "points", "rms_mm": [0.13, CRITERION_RMS_MM]},
+            "standard_uncertainty": {"J1.a": 0.00686, "J1.alpha": 0.0012},
+        },
     )
     (root / "run.json").write_text(
         json.dumps(
             {
+                "command": "robotcal run thesis-laser-tracker --out run",
                 "scenario": {
                     "name": scenario.name,
                     "description": scenario.description,
                     "robot": scenario.robot.name,
                     "instrument": {"name": "thesis-laser-tracker", "a_um": 10.0, "b_um_per_m": 2.5},
                 },
+                "robot": scenario.robot.name,
                 "seed": 3,
                 "versions": {"robotcal": "test"},
                 "stages": {
@@ -124,30 +164,37 @@ def make_run_folder(root: Path) -> Path:
             for label, mean in (("nominal", 0.9), ("cpa", 0.12), ("points", 0.05)):
                 value = mean * scale * factor
                 rows.append([label, view, capture, 135, value, 2 * value, 1.1 * value, 100 * (1 - mean / 0.9)])
-    _write_csv(
-        evaluation / "evaluation.csv",
-        [
-            "parameter_set",
-            "view",
-            "capture",
-            "n_errors",
-            "mean_error_mm",
-            "max_error_mm",
-            "rms_error_mm",
-            "improvement_pct",
-        ],
-        rows,
+    header = ["parameter_set", "view", "capture", "n_errors", "mean_error_mm", "max_error_mm", "rms_error_mm"]
+    _write_csv(evaluation / "evaluation.csv", [*header, "improvement_pct"], rows)
+    (evaluation / "evaluation.json").write_text(
+        json.dumps(
+            {
+                "rows": [dict(zip([*header, "improvement_pct"], row, strict=True)) for row in rows],
+                "headline": {
+                    "capture": "validation",
+                    "view": "points",
+                    "before_label": "nominal",
+                    "after_label": "points",
+                    "before_mean_mm": 0.9,
+                    "after_mean_mm": 0.05,
+                },
+            }
+        )
     )
-    (evaluation / "evaluation.json").write_text(json.dumps({"points": 135, "criterion": "points"}))
-    _figure(evaluation / "convergence.png", "Convergence", "iteration", "cost (mm²)")
+    _figure(evaluation / "convergence.png", "Convergence", "iteration", "RMS residual [mm]")
     joints = root / "joints"
     _write_csv(
         joints / "summary.csv",
-        ["joint", "backlash_deg", "axial_eccentricity_mm"],
-        [[j, 0.01 * j, 0.002 * j] for j in range(1, 7)],
+        ["joint", "points", "pairs", "radius_mm", "plane_rms_mm", "circle_rms_mm", "backlash_mean_mm"],
+        [[j, 30, 14, 100.0 + j, 0.006, 0.009, BACKLASH_MM[j - 1]] for j in range(1, 7)],
     )
-    (joints / "harmonics.json").write_text(json.dumps({"J1": {"amplitude_mm": 0.003}}))
-    _figure(joints / "radial_residuals.png", "Radial residuals", "joint angle (deg)", "residual (mm)")
+    _write_csv(
+        joints / "backlash.csv",
+        ["circle", "reading_deg", "magnitude_mm", "noise_floor_um"],
+        [[j, 10.0 * k, BACKLASH_MM[j - 1], NOISE_FLOOR_UM] for j in range(1, 7) for k in range(3)],
+    )
+    (joints / "harmonics.json").write_text(json.dumps({"order": 2, "units": {"length": "mm", "angle": "deg"}}))
+    _figure(joints / "backlash_magnitude.png", "Backlash", "joint reading [deg]", "|backlash| [µm]")
     uncertainty = root / "uncertainty"
     rows = []
     nominal = ParameterSet.nominal(scenario.robot)
@@ -171,42 +218,32 @@ def make_run_folder(root: Path) -> Path:
                 shown + 2 * u,
                 shown - 4 * u,
                 shown + 4 * u,
-                flag,
+                bool(flag),
             ]
         )
-    _write_csv(
-        uncertainty / "parameters.csv",
-        [
-            "name",
-            "unit",
-            "nominal",
-            "mean",
-            "std_uncertainty",
-            "coverage_low",
-            "coverage_high",
-            "min",
-            "max",
-            "identified",
-        ],
-        rows,
-    )
-    (uncertainty / "parameters.json").write_text(json.dumps({"seed": 11, "draws": 1000, "coverage": 0.95}))
     header = ["name", "unit", "nominal", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max"]
+    _write_csv(uncertainty / "parameters.csv", [*header, "identified"], rows)
+    (uncertainty / "parameters.json").write_text(json.dumps(_statistics_json(rows, draws=1000, model="cpa")))
     refined_rows = []
     for row in rows:
         u = (U_REFINED_ANGLE_DEG if row[1] == "deg" else U_REFINED_LENGTH_MM) if row[-1] else 0.0
-        refined_rows.append(
-            [*row[:4], u, row[3] - 2 * u, row[3] + 2 * u, row[3] - 4 * u, row[3] + 4 * u, row[-1], "refined"]
-        )
-    _write_csv(root / "uncertainty-refined" / "parameters.csv", [*header, "identified", "model"], refined_rows)
+        refined_rows.append([*row[:4], u, row[3] - 2 * u, row[3] + 2 * u, row[3] - 4 * u, row[3] + 4 * u, row[-1]])
+    _write_csv(root / "uncertainty-refined" / "parameters.csv", [*header, "identified"], refined_rows)
     (root / "uncertainty-refined" / "parameters.json").write_text(
-        json.dumps({"seed": 11, "draws": 500, "coverage": 0.95, "model": "refined", "criterion": "points"})
+        json.dumps(_statistics_json(refined_rows, draws=500, model="refined"))
     )
     expected = float(np.hypot(CONSISTENCY_MM["predicted_rms_mm"], CONSISTENCY_MM["instrument_rms_mm"]))
     (root / "tcp").mkdir(exist_ok=True)
     (root / "tcp" / "consistency.json").write_text(
         json.dumps(
-            {**CONSISTENCY_MM, "expected_rms_mm": expected, "poses": 100, "model": "refined (CPA + points refinement)"}
+            {
+                **CONSISTENCY_MM,
+                "expected_rms_mm": expected,
+                "ratio": CONSISTENCY_MM["observed_rms_mm"] / expected,
+                "poses": 100,
+                "model": "refined (CPA + points refinement)",
+                "base_frame": "given",
+            }
         )
     )
     plan = root / "plan"
@@ -219,21 +256,49 @@ def make_run_folder(root: Path) -> Path:
     _write_csv(
         plan / "sensitivity" / "sensitivity.csv", ["case", "capture.sweep_deg.4", "name", "cpk"], [[1, 15, "J4.a", 0.1]]
     )
-    _figure(uncertainty / "hist_J1.d.png", "J1.d", "J1.d (mm)", "draws")
-    _write_csv(root / "tcp" / "pose" / "tcp.csv", TCP_HEADER, _tcp_rows("table-5.8", U_TCP_MM))
+    _figure(uncertainty / "hist_J1.png", "J1", "J1.d [mm]", "density [1/mm]")
+    _write_csv(root / "tcp" / "pose" / "tcp.csv", TCP_HEADER, _tcp_rows("1", U_TCP_MM))
     _figure(root / "tcp" / "pose" / "ellipsoid.png", "Ellipsoid", "X (mm)", "Y (mm)")
-    (root / "tcp" / "pose" / "tcp.json").write_text(
-        json.dumps({"coverage": 0.95, "poses": [{"pose": 1, "ellipsoid": {"semi_axes_mm": list(ELLIPSOID_MM)}}]})
-    )
+    (root / "tcp" / "pose" / "tcp.json").write_text(json.dumps(_tcp_json([U_TCP_MM], ellipsoid=ELLIPSOID_MM)))
+    trajectory_u = [0.01 + 0.001 * k for k in range(60)]
     _write_csv(
         root / "tcp" / "trajectory" / "tcp.csv",
         TCP_HEADER,
-        sum((_tcp_rows(str(k), 0.01 + 0.001 * k) for k in range(60)), []),
+        sum((_tcp_rows(str(k + 1), u) for k, u in enumerate(trajectory_u)), []),
     )
+    (root / "tcp" / "trajectory" / "tcp.json").write_text(json.dumps(_tcp_json(trajectory_u)))
     _write_csv(
         root / "tcp" / "workspace" / "tcp.csv",
         TCP_HEADER,
-        sum((_tcp_rows(str(k), u) for k, u in enumerate(WORKSPACE_U_MM)), []),
+        sum((_tcp_rows(str(k + 1), u) for k, u in enumerate(WORKSPACE_U_MM)), []),
     )
+    (root / "tcp" / "workspace" / "tcp.json").write_text(json.dumps(_tcp_json(WORKSPACE_U_MM)))
     _figure(root / "tcp" / "workspace" / "workspace.png", "Workspace", "X (mm)", "Z (mm)")
     return root
+
+
+def load_run(folder: Path):
+    """The RunResult of a run folder: ``robotcal.pipeline.folder.read_run`` where it exists, else a small
+    loader of the tests' own (JSON -> dict, CSV -> Table, other files -> Path), without its checks."""
+    try:
+        from robotcal.pipeline.folder import read_run
+    except ImportError:
+        read_run = None
+    if read_run is not None:
+        return read_run(folder)
+    from robotcal.pipeline.result import RunResult, Table
+
+    documents = {}
+    for path in sorted(p for p in Path(folder).rglob("*") if p.is_file() and not p.name.startswith(".")):
+        name = path.relative_to(folder).as_posix()
+        if name == "report.html" or any(part.startswith(".") for part in Path(name).parts):
+            continue
+        if path.suffix == ".json":
+            documents[name] = json.loads(path.read_text(encoding="utf-8"))
+        elif path.suffix == ".csv":
+            with path.open(newline="", encoding="utf-8") as stream:
+                rows = [row for row in csv.reader(stream) if row]
+            documents[name] = Table(header=tuple(rows[0]), rows=tuple(tuple(row) for row in rows[1:]))
+        else:
+            documents[name] = path
+    return RunResult(folder=Path(folder), record=documents.get("run.json", {}), documents=documents)

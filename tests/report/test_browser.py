@@ -23,6 +23,22 @@ import pytest
 
 from robotcal.report.html import build_report
 
+#: Appended to a copy of the page by the layout test: after the load event, the tables whose content is wider
+#: than their box (they would scroll sideways) and the page's own width, as attributes of <body>.
+LAYOUT_PROBE = """<script>window.addEventListener("load", function () { setTimeout(function () {
+  var wide = [], wraps = document.querySelectorAll(".rc-table-wrap");
+  for (var i = 0; i < wraps.length; i++) {
+    if (wraps[i].scrollWidth > wraps[i].clientWidth) {
+      var caption = wraps[i].querySelector("caption");
+      var name = caption ? caption.textContent : "table " + i;
+      wide.push(name + ": " + wraps[i].scrollWidth + " px in " + wraps[i].clientWidth + " px");
+    }
+  }
+  document.body.setAttribute("data-tables", String(wraps.length));
+  document.body.setAttribute("data-wide-tables", wide.join(" | "));
+  document.body.setAttribute("data-page-width", String(document.documentElement.scrollWidth));
+}, 0); });</script>"""
+
 
 def _chromium() -> str | None:
     for name in ("chromium", "chromium-browser"):
@@ -58,9 +74,9 @@ def _run_chromium(page: Path, profile: Path, *extra: str) -> subprocess.Complete
     return result
 
 
-def _load(page: Path, tmp_path: Path) -> tuple[dict, str, list[str]]:
+def _load(page: Path, tmp_path: Path, *extra: str) -> tuple[dict, str, list[str]]:
     """``(body attributes, dumped DOM, console lines)`` of ``page`` after loading it in Chromium."""
-    result = _run_chromium(page, tmp_path / "profile-dom", "--enable-logging=stderr", "--v=0", "--dump-dom")
+    result = _run_chromium(page, tmp_path / "profile-dom", "--enable-logging=stderr", "--v=0", *extra, "--dump-dom")
     body = re.search(r"<body([^>]*)>", result.stdout)
     assert body, f"no <body> in the dumped DOM: {result.stdout[:500]}"
     attributes = dict(re.findall(r'([\w-]+)="([^"]*)"', body.group(1)))
@@ -105,3 +121,47 @@ def test_self_check_catches_a_broken_figure_and_a_script_error(run_folder, tmp_p
     assert 'data-loaded="0"' in dom
     assert "undefinedFunction is not defined" in dom
     assert any("undefinedFunction" in line for line in console)
+
+
+def test_layout_at_1280_px(run_folder, tmp_path):
+    """Issue 13: every table readable without sideways scrolling at 1280 px; every section, the noise floor,
+    the figures' captions and the 3-D view (drawn, no two labels overlapping) in the rendered page."""
+    report = build_report(run_folder)
+    probed = tmp_path / "probed.html"
+    probed.write_text(report.html.replace("</body>", LAYOUT_PROBE + "</body>"), encoding="utf-8")
+    body, dom, console = _load(probed, tmp_path, "--window-size=1280,4000")
+    assert console == [] and body["data-status"] == "ok", body
+    assert int(body["data-tables"]) > 20
+    assert body["data-wide-tables"] == "", body["data-wide-tables"]
+    assert int(body["data-page-width"]) <= 1280
+    for section in (
+        "summary",
+        "parameters",
+        "evaluation",
+        "joints",
+        "montecarlo",
+        "tcp",
+        "workspace",
+        "planning",
+        "view3d",
+        "provenance",
+    ):
+        assert re.search(rf'<section id="{section}"><h2>[^<]+</h2>', dom), section
+    assert "<th>noise floor (µm)</th>" in dom
+    caption = re.search(r"<figcaption>(Backlash magnitude[^<]*)<code>joints/backlash_magnitude.png", dom)
+    assert caption and "(µm)" in caption.group(1) and "noise floor" in caption.group(1)
+    canvas = re.search(r"<canvas [^>]*>", dom).group(0)
+    attributes = dict(re.findall(r'([\w-]+)="([^"]*)"', canvas))
+    assert int(attributes["data-ink"]) > 5000 and int(attributes["data-labels"]) >= 6
+    assert attributes["data-label-overlaps"] == "0"
+
+
+def test_layout_probe_sees_a_wide_table(run_folder, tmp_path):
+    """Negative control of the layout test: a table forced wider than the page is reported."""
+    report = build_report(run_folder)
+    page = report.html.replace("</body>", LAYOUT_PROBE + "</body>")
+    page = page.replace("<table>", '<table style="min-width: 3000px">', 1)
+    probed = tmp_path / "wide.html"
+    probed.write_text(page, encoding="utf-8")
+    body, _, _ = _load(probed, tmp_path, "--window-size=1280,4000")
+    assert body["data-wide-tables"].count(" px in ") == 1

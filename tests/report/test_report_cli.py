@@ -7,6 +7,7 @@ import re
 from typer.testing import CliRunner
 
 from robotcal.cli import app
+from robotcal.pipeline.folder import read_run
 from robotcal.report.html import render_report
 
 runner = CliRunner()
@@ -21,7 +22,7 @@ def test_report_command_writes_the_library_page(run_folder):
     assert result.exit_code == 0, result.output
     assert "wrote" in result.output and "10 of 10 sections" in result.output
     written = (run_folder / "report.html").read_text(encoding="utf-8")
-    assert _strip_time(written) == _strip_time(render_report(run_folder).html)
+    assert _strip_time(written) == _strip_time(render_report(read_run(run_folder)).html)
 
 
 def test_report_command_out_option_and_missing_stages(run_folder, tmp_path):

@@ -1,28 +1,41 @@
-"""The HTML report builder on a run folder (tests/report/conftest.py): sections, numbers, robustness."""
+"""The HTML report: render_report on a RunResult (in memory or read from a folder), build_report on a folder.
+
+The run folder is tests/report/report_run.py's (conftest.py); its synthetic figures are the truths the
+headline numbers are checked against.
+"""
 
 from __future__ import annotations
 
 import base64
-import json
+import dataclasses
+import io
 import math
 import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
 from report_run import (
+    BACKLASH_MM,
     CONSISTENCY_MM,
+    CRITERION_RMS_MM,
     ELLIPSOID_MM,
+    NOISE_FLOOR_UM,
+    POINT_RMS_MM,
     U_ANGLE_DEG,
     U_LENGTH_MM,
     U_REFINED_ANGLE_DEG,
     U_REFINED_LENGTH_MM,
     U_TCP_MM,
     WORKSPACE_U_MM,
+    load_run,
 )
 
 from robotcal.errors import InputError
-from robotcal.report.html import REPORT_NAME, _fmt, _label, _length, build_report, render_report
+from robotcal.pipeline.result import RunResult, Table
+from robotcal.pipeline.summary import Summary
+from robotcal.report.html import _CAPTIONS, REPORT_NAME, _fmt, _label, _length, build_report, render_report
 
 SECTION_IDS = [
     "summary",
@@ -38,20 +51,29 @@ SECTION_IDS = [
 ]
 
 
-def _row(page: str, name: str) -> list[str]:
-    """Cells of the first table row whose first cell starts with ``name``."""
-    match = re.search(rf"<tr[^>]*><td class=rc-text>{re.escape(name)}( <small>.*?</small>)?</td>(.*?)</tr>", page)
-    assert match, f"no row {name}"
-    return re.findall(r"<td[^>]*>(.*?)</td>", match.group(2))
+def _rows(page: str, name: str) -> list[list[str]]:
+    """Cells (after the first) of every table row whose first cell is ``name``."""
+    found = re.findall(rf'<tr[^>]*><td class="rc-text">{re.escape(name)}( <small>.*?</small>)?</td>(.*?)</tr>', page)
+    assert found, f"no row {name}"
+    return [re.findall(r"<td[^>]*>(.*?)</td>", cells) for _, cells in found]
 
 
-def test_full_run_folder_gives_every_section_in_the_issue_order(run_folder):
+def _section(page: str, anchor: str) -> str:
+    start = page.index(f'<section id="{anchor}">')
+    return page[start : page.index("</section>", start)]
+
+
+def _render(folder) -> str:
+    return render_report(load_run(folder)).html
+
+
+def test_full_run_folder_gives_every_section_in_order(run_folder):
     report = build_report(run_folder)
     assert report.path == run_folder / REPORT_NAME
     assert [s.id for s in report.sections] == SECTION_IDS
     assert all(s.present for s in report.sections)
     assert report.problems == ()
-    # conftest writes 5 PNG figures and the capture gives one 3-D view
+    # report_run.py writes 5 PNG figures and the capture gives one 3-D view
     assert (report.figures, report.canvases) == (5, 1)
     page = report.path.read_text(encoding="utf-8")
     assert page == report.html
@@ -61,8 +83,8 @@ def test_full_run_folder_gives_every_section_in_the_issue_order(run_folder):
 
 
 def test_page_is_self_contained(run_folder):
-    page = render_report(run_folder).html
-    assert "Content-Security-Policy" in page and "default-src 'none'" in page
+    page = _render(run_folder)
+    assert "Content-Security-Policy" in page and "default-src &#39;none&#39;" in page
     # no external resource of any kind: every src is a data: URI, no stylesheet links, no CSS imports/urls
     assert re.findall(r'\ssrc="(?!data:)', page) == []
     assert "<link" not in page and "@import" not in page and "url(" not in page
@@ -72,7 +94,7 @@ def test_page_is_self_contained(run_folder):
 
 
 def test_figures_are_embedded_byte_for_byte(run_folder):
-    page = render_report(run_folder).html
+    page = _render(run_folder)
     uris = re.findall(r'<img src="data:image/png;base64,([^"]+)"', page)
     assert len(uris) == 5
     convergence = (run_folder / "evaluation" / "convergence.png").read_bytes()
@@ -81,10 +103,10 @@ def test_figures_are_embedded_byte_for_byte(run_folder):
 
 
 def test_headline_numbers(run_folder):
-    page = render_report(run_folder).html
-    # evaluation.csv, validation capture, points view: nominal mean 0.9 mm, last set ("points") 0.05 mm
+    page = _render(run_folder)
+    # evaluation.json headline: nominal mean 0.9 mm, the points criterion's 0.05 mm
     assert "900 µm → 50 µm" in page
-    assert "nominal → points" in page
+    assert "nominal → points (refined, points criterion)" in page
     # tcp/pose/tcp.json: largest semi-axis of the ellipsoid
     assert f"largest semi-axis of the 95 % ellipsoid {max(ELLIPSOID_MM) * 1e3:.3g} µm" in page
     # largest identified standard uncertainties: the deployed (refined) model's, CPA's beside them
@@ -103,44 +125,140 @@ def test_headline_numbers(run_folder):
     p95 = u[3] + 0.8 * (u[4] - u[3])
     assert f"{u[2]:.3g} µm / {p95:.3g} µm" in page
     # largest circle-fit RMS comes from the CPA provenance
-    circles = json.loads((run_folder / "cpa" / "parameters.json").read_text())["provenance"]["circles"]
+    circles = load_run(run_folder).json("cpa/parameters.json")["provenance"]["circles"]
     worst = max(c["circle_rms_mm"] for c in circles)
     assert f"{worst * 1e3:.2f} µm" in page
 
 
-def test_parameter_table_joins_sources_by_name(run_folder):
-    page = render_report(run_folder).html
-    cpa = json.loads((run_folder / "cpa" / "parameters.json").read_text())
-    truth = json.loads((run_folder / "truth.json").read_text())
-    # columns: nominal, truth, CPA, CPA − truth, refined (points), MC mean, u, interval low, high
+def test_summary_is_computed_once(run_folder):
+    """render_report uses RunResult.summary when the run has one (a marked summary shows in the page), and
+    computes it from the documents when the run has none."""
+    result = load_run(run_folder)
+    marked = Summary(validation_before_mm=0.123, validation_after_mm=0.0456)
+    assert "123 µm → 45.6 µm" in render_report(dataclasses.replace(result, summary=marked)).html
+    assert "900 µm → 50 µm" in render_report(dataclasses.replace(result, summary=None)).html
+
+
+def test_parameter_tables_join_sources_by_name(run_folder):
+    page = _render(run_folder)
+    result = load_run(run_folder)
+    cpa, truth = result.json("cpa/parameters.json"), result.json("truth.json")
     for joint, kind in ((1, "a"), (2, "a"), (3, "theta"), (2, "beta")):
         name = f"J{joint}.{kind}"
-        cells = _row(page, name)
+        values, uncertainty = _rows(page, name)[:2]
         cpa_value = cpa["joints"][joint - 1][kind]
         truth_value = truth["joints"][joint - 1][kind]
-        assert cells[1] == f"{truth_value:.4f}"
-        assert cells[2] == f"{cpa_value:.4f}"
-        assert float(cells[3]) == pytest.approx(cpa_value - truth_value, rel=1e-3, abs=1e-12)  # 4 digits shown
-        assert cells[4] == f"{cpa_value:.4f}"  # refine/points.json holds the CPA values
-        u = U_ANGLE_DEG if kind in ("theta", "beta") else U_LENGTH_MM
-        assert cells[6] == f"{u:.3g}"
+        # values: nominal, truth, CPA, CPA − truth, refined (points)
+        assert values[1] == f"{truth_value:.4f}"
+        assert values[2] == f"{cpa_value:.4f}"
+        assert float(values[3]) == pytest.approx(cpa_value - truth_value, rel=1e-3, abs=1e-12)  # 4 digits shown
+        assert values[4] == f"{cpa_value:.4f}"  # refine/points.json holds the CPA values
+        # uncertainty: refined MC mean, u, interval, CPA MC mean, u, interval
+        angle = kind in ("theta", "beta")
+        assert uncertainty[1] == f"{U_REFINED_ANGLE_DEG if angle else U_REFINED_LENGTH_MM:.3g}"
+        assert uncertainty[4] == f"{U_ANGLE_DEG if angle else U_LENGTH_MM:.3g}"
+        low, high = (float(v) for v in uncertainty[5].split(" … "))
+        assert high - low == pytest.approx(4 * (U_ANGLE_DEG if angle else U_LENGTH_MM), abs=2e-4)
+    section = _section(page, "parameters")
     # the structurally fixed parameters (beta of DH joints, d of the Hayati J2) have no row
-    section = page[page.index('<section id="parameters">') : page.index('<section id="evaluation">')]
-    assert "<td class=rc-text>J1.beta" not in section and "<td class=rc-text>J2.d<" not in section
+    assert '<td class="rc-text">J1.beta' not in section and '<td class="rc-text">J2.d<' not in section
     # J6.d cannot be identified by CPA: shown, marked
     assert "J6.d <small>(not identified)</small>" in section
     assert "<th>nominal (mm)</th>" in section and "<th>CPA (deg)</th>" in section
+    assert "<th>refined u (mm)</th>" in section and "<th>CPA 95 % interval (deg)</th>" in section
 
 
-def test_csv_with_a_unit_column_is_split_with_units_in_headers(run_folder):
-    page = render_report(run_folder).html
-    assert "<th>std_uncertainty (mm)</th>" in page and "<th>std_uncertainty (deg)</th>" in page
+def test_refine_provenance_facts_carry_their_units(run_folder):
+    section = _section(_render(run_folder), "parameters")
+    facts = dict(
+        (entry, unit)
+        for entry, _, unit in re.findall(
+            r'<tr><td class="rc-text">([^<]*)</td><td class="rc-text">([^<]*)</td><td class="rc-text">([^<]*)</td>',
+            section,
+        )
+    )
+    assert facts["standard uncertainty › J1.a"] == "mm"
+    assert facts["standard uncertainty › J1.alpha"] == "deg"
+    assert facts["residual rms"] == "mm"
+    assert facts["points"] == "—" and facts["method"] == ""
+
+
+def test_the_rms_figures_are_named(run_folder):
+    section = _section(_render(run_folder), "parameters")
+    criterion = _rows(section, "criterion RMS (convergence figure)")[0]
+    assert criterion[0] == _length(CRITERION_RMS_MM) and "per coordinate" in criterion[1]
+    points = _rows(section, "RMS point distance |T p − m|")[0]
+    assert points[0] == _length(POINT_RMS_MM) and "√3" in points[1]
+    validation = _rows(section, "validation RMS error")[0]
+    assert validation[0] == _length(0.05 * 1.1)  # evaluation.csv: rms = 1.1 mean of the points set
+    assert "convergence" in _CAPTIONS["convergence.png"].lower() and "per coordinate" in _CAPTIONS["convergence.png"]
+
+
+def test_statistics_tables_choose_their_columns(run_folder):
+    page = _render(run_folder)
+    montecarlo = _section(page, "montecarlo")
+    assert "<th>u (mm)</th>" in montecarlo and "<th>u (deg)</th>" in montecarlo
+    assert "<th>min (mm)</th>" not in montecarlo  # left to the file
     assert "<th>mean error (mm)</th>" in page and "<th>improvement (%)</th>" in page  # evaluation.csv
-    assert "<th>backlash (deg)</th>" in page  # joints/summary.csv
+    tcp = _section(page, "tcp")
+    # the pose number is an identifier: no unit in its header (issue 13: "pose (mm)")
+    assert "<th>pose (mm)" not in page and "<th>pose</th>" in tcp
+    assert "<th>X" not in tcp and "<th>u (mm)</th>" in tcp and "<th>u (deg)</th>" in tcp
+
+
+def test_wide_csv_is_split_into_tables_of_few_columns(run_folder):
+    result = load_run(run_folder)
+    header = ("pose", "name", *(f"c{k}_mm" for k in range(12)))
+    documents = dict(result.documents)
+    documents["plan/wide.csv"] = Table(header=header, rows=(("1", "X", *(str(k) for k in range(12))),))
+    page = render_report(RunResult(record=result.record, documents=documents)).html
+    tables = [t for t in re.findall(r"<table>.*?</table>", _section(page, "planning")) if "plan/wide.csv" in t]
+    assert len(tables) == 2
+    for table in tables:
+        headers = re.findall(r"<th(?: [^>]*)?>(.*?)</th>", table)
+        assert len(headers) <= 8 and headers[:2] == ["pose", "name"]  # the key columns repeat
+
+
+@pytest.mark.parametrize("per_joint", [False, True])
+def test_noise_floor_in_the_joints_table(run_folder, per_joint):
+    """The floor of joints/backlash.csv (per pair) or of joints/summary.csv (per joint), beside the mean."""
+    result = load_run(run_folder)
+    documents = dict(result.documents)
+    if per_joint:
+        summary = documents["joints/summary.csv"]
+        documents["joints/summary.csv"] = Table(
+            header=(*summary.header, "noise_floor_um"), rows=tuple((*row, str(NOISE_FLOOR_UM)) for row in summary.rows)
+        )
+        del documents["joints/backlash.csv"]
+    section = _section(render_report(RunResult(record=result.record, documents=documents)).html, "joints")
+    assert "<th>noise floor (µm)</th>" in section and "the instrument noise alone gives" in section
+    for joint, backlash in enumerate(BACKLASH_MM, start=1):
+        cells = re.search(rf"<tr><td>{joint}</td><td>14</td><td>([^<]*)</td>(.*?)</tr>", section)
+        assert cells, joint
+        assert float(cells.group(1)) == pytest.approx(backlash * 1e3)  # shown in µm
+        floor, ratio = re.findall(r"<td[^>]*>(.*?)</td>", cells.group(2))[-2:]
+        assert float(floor) == NOISE_FLOOR_UM
+        assert float(ratio) == pytest.approx(backlash * 1e3 / NOISE_FLOOR_UM, abs=0.005)
+
+
+def test_no_noise_floor_is_said(run_folder):
+    result = load_run(run_folder)
+    documents = {name: doc for name, doc in result.documents.items() if name != "joints/backlash.csv"}
+    section = _section(render_report(RunResult(record=result.record, documents=documents)).html, "joints")
+    assert "noise floor (µm)" not in section and "No noise floor in the tables of this run" in section
+
+
+def test_captions_name_the_unit_of_their_figure():
+    """The joints figures plot µm (report/joints.py), the TCP and convergence figures mm."""
+    for name in ("backlash_xyz.png", "backlash_magnitude.png", "eccentricity_axial.png", "eccentricity_radial.png"):
+        assert "(µm)" in _CAPTIONS[name] and "(mm)" not in _CAPTIONS[name], name
+    for name in ("convergence.png", "scatter.png", "workspace.png", "ellipsoid.png", "backlash_vectors.png"):
+        assert "(mm" in _CAPTIONS[name] and "µm" not in _CAPTIONS[name], name
+    assert "(deg)" in _CAPTIONS["histograms.png"] and "(mm)" in _CAPTIONS["histograms.png"]
 
 
 def test_long_csv_shows_its_first_rows(run_folder):
-    page = render_report(run_folder).html
+    page = _render(run_folder)
     # tcp/trajectory/tcp.csv: 60 poses x 3 length rows; the mm table shows 40 of 180
     assert "First 40 of 180 rows" in page
 
@@ -154,6 +272,15 @@ def test_number_formatting():
     assert _label("improvement_pct") == "improvement (%)" and _label("points") == "points"
 
 
+def test_page_text_is_escaped(run_folder):
+    result = load_run(run_folder)
+    record = {**result.record, "robot": "<b>robot</b>", "notes": ["<script>alert(1)</script>"]}
+    page = render_report(RunResult(record=record, documents=result.documents)).html
+    assert "<b>robot</b>" not in page and "&lt;b&gt;robot&lt;/b&gt;" in page
+    assert "<script>alert(1)</script>" not in page
+    assert "<li>&lt;script&gt;alert(1)&lt;/script&gt;</li>" in _section(page, "summary")  # the run's notes
+
+
 def test_rebuild_gives_the_same_page(run_folder):
     first = build_report(run_folder).html
     second = build_report(run_folder).html
@@ -164,12 +291,74 @@ def test_rebuild_gives_the_same_page(run_folder):
     assert strip(first) == strip(second)
 
 
+def test_in_memory_run_without_a_folder_or_figures(run_folder):
+    """render_report reads no file but figures: a run whose folder is gone, figures left out, renders whole."""
+    result = load_run(run_folder)
+    documents = {name: doc for name, doc in result.documents.items() if not isinstance(doc, Path)}
+    shutil.rmtree(run_folder)
+    report = render_report(RunResult(record=result.record, documents=documents))
+    assert [s.id for s in report.sections if s.present] == SECTION_IDS
+    assert (report.figures, report.canvases, report.problems) == (0, 1, ())
+    assert "from a run held in memory" in report.html and "900 µm → 50 µm" in report.html
+
+
+def test_render_opens_no_file_but_the_figures(run_folder, monkeypatch):
+    """Every file opened while rendering a run read from its folder is one of its figure documents (the
+    package's templates and assets are loaded once, by a first render)."""
+    result = load_run(run_folder)
+    render_report(result)
+    opened = []
+    real_open, real_read_bytes = io.open, Path.read_bytes
+
+    def recording_open(file, *args, **kwargs):
+        opened.append(str(file))
+        return real_open(file, *args, **kwargs)
+
+    def recording_read_bytes(self):
+        opened.append(str(self))
+        return real_read_bytes(self)
+
+    monkeypatch.setattr("builtins.open", recording_open)
+    monkeypatch.setattr(io, "open", recording_open)
+    monkeypatch.setattr(Path, "read_bytes", recording_read_bytes)
+    report = render_report(result)
+    figures = sorted(str(doc) for doc in result.documents.values() if isinstance(doc, Path) and doc.suffix == ".png")
+    assert report.figures == len(figures) == 5
+    assert sorted(set(opened)) == figures
+
+
+def test_hand_made_run():
+    """A RunResult built by hand: a cpa result and a workspace map only."""
+    documents = {
+        "cpa/parameters.json": {
+            "robot": "hand-made",
+            "joints": [{"d": 100.0, "theta": 0.0, "a": 10.0, "alpha": 90.0, "hayati": False}],
+            "identified": ["J1.d", "J1.a"],
+        },
+        "tcp/workspace/tcp.json": {"poses": [{"position_uncertainty_mm": 0.002}, {"position_uncertainty_mm": 0.004}]},
+    }
+    report = render_report(RunResult(documents=documents))
+    present = {s.id for s in report.sections if s.present}
+    assert present == {"summary", "parameters", "workspace", "provenance"}
+    assert "Calibration report: hand-made" in report.html
+    assert "3 µm / 3.9 µm" in report.html  # median 3 um; 95th percentile 2 + 0.95 * 2 = 3.9 um
+    assert _rows(report.html, "J1.a")[0][0] == "10.0000" and "J1.theta <small>(not identified)</small>" in report.html
+
+
+def test_missing_figure_file_is_a_problem_not_an_error(run_folder):
+    result = load_run(run_folder)
+    documents = {**result.documents, "joints/gone.png": run_folder / "joints" / "gone.png"}
+    report = render_report(RunResult(record=result.record, documents=documents))
+    assert any(p.startswith("joints/gone.png: could not read the figure") for p in report.problems)
+    assert report.figures == 5
+
+
 def test_missing_stages_give_notes_not_errors(run_folder):
     for name in ("evaluation", "joints", "uncertainty", "uncertainty-refined", "tcp", "refine", "plan"):
         shutil.rmtree(run_folder / name)
     for name in ("run.json", "truth.json", "validation.csv"):
         (run_folder / name).unlink()
-    report = render_report(run_folder)
+    report = render_report(load_run(run_folder))
     present = {s.id: s.present for s in report.sections}
     assert present == {
         "summary": True,
@@ -184,7 +373,7 @@ def test_missing_stages_give_notes_not_errors(run_folder):
         "provenance": True,
     }
     for folder in ("evaluation/", "joints/", "uncertainty/", "tcp/pose/", "tcp/trajectory/", "tcp/workspace/"):
-        assert f"Stage not run: this run folder has no <code>{folder}</code>" in report.html
+        assert f"Stage not run: this run has no <code>{folder}</code>" in report.html
     assert report.figures == 0 and report.problems == ()
     assert "uncertainty stage not run" in report.html  # summary card says why it shows n/a
 
@@ -193,7 +382,7 @@ def test_folder_with_only_a_capture(run_folder, tmp_path):
     only = tmp_path / "only"
     only.mkdir()
     shutil.copy(run_folder / "capture.csv", only / "capture.csv")
-    report = render_report(only)
+    report = render_report(load_run(only))
     assert report.canvases == 1
     assert "No identified parameters to show" in report.html
 
@@ -203,20 +392,21 @@ def test_unreadable_files_are_reported_in_the_page(run_folder):
     (run_folder / "joints" / "broken.png").write_text("not a png")
     with (run_folder / "joints" / "summary.csv").open("a") as stream:
         stream.write("7,0.1\n")
-    report = render_report(run_folder)
+    report = build_report(run_folder)
     assert any(p.startswith("uncertainty/parameters.json: not a readable JSON file") for p in report.problems)
     assert "joints/broken.png: not a PNG file" in report.problems
-    assert any(p.startswith("joints/summary.csv: row 8 has a different number of columns") for p in report.problems)
+    assert any(p.startswith("joints/summary.csv: row 8 has") for p in report.problems)
     assert "Some result files could not be read" in report.html
+    assert "joints/broken.png: not a PNG file" in report.html
     assert report.figures == 5  # the broken PNG is not embedded
 
 
 def test_invalid_run_folders(tmp_path):
     with pytest.raises(InputError, match="run folder not found"):
-        render_report(tmp_path / "nope")
+        build_report(tmp_path / "nope")
     (tmp_path / "file.txt").write_text("x")
     with pytest.raises(InputError, match="not a folder"):
-        render_report(tmp_path / "file.txt")
+        build_report(tmp_path / "file.txt")
     (tmp_path / "empty").mkdir()
     with pytest.raises(InputError, match="no results found"):
         build_report(tmp_path / "empty")

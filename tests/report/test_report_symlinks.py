@@ -1,10 +1,11 @@
-"""Issue 12: ``report.html`` never embeds a file through a symbolic link or from outside the run folder."""
+"""Issue 12: ``report.html`` never embeds a file through a symbolic link or from outside the run folder
+(read_run refuses them; build_report shows the refusals as problems)."""
 
 from __future__ import annotations
 
 import os
 
-from robotcal.report.html import render_report
+from robotcal.report.html import build_report
 
 
 def test_symlinked_files_are_refused_and_noted(run_folder, tmp_path):
@@ -18,7 +19,7 @@ def test_symlinked_files_are_refused_and_noted(run_folder, tmp_path):
     os.symlink("/etc/passwd", parameters)  # a JSON the report reads
     figure = next((run_folder / "joints").glob("*.png"))
     os.symlink(figure, run_folder / "joints" / "zz-link.png")  # a figure inside the folder, but a link
-    report = render_report(run_folder)
+    report = build_report(run_folder)
     assert "SECRET-42" not in report.html
     assert "root:" not in report.html
     refused = [p for p in report.problems if "refused: a symbolic link" in p]
@@ -33,5 +34,5 @@ def test_linked_folder_is_refused(run_folder, tmp_path):
     (outside / "summary.csv").write_text("joint,SECRET-43\n1,2\n")
     os.rename(run_folder / "joints", tmp_path / "joints-moved")
     os.symlink(outside, run_folder / "joints")
-    report = render_report(run_folder)
+    report = build_report(run_folder)
     assert "SECRET-43" not in report.html

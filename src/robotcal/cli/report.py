@@ -8,11 +8,12 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli import app
-from robotcal.cli._common import FORCE_HELP, _line, console, error_console, handle_errors
+from robotcal.cli._common import FORCE_HELP, _line, command_app, console, error_console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io.output import result_file
 from robotcal.report.html import REPORT_NAME, build_report
+
+app = command_app()
 
 
 def _run_files(run_dir: Path) -> list[Path]:

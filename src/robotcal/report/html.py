@@ -1,88 +1,87 @@
-"""The self-contained HTML calibration report of a run folder (docs/results.md, docs/report.md).
+"""The self-contained HTML calibration report of a run (docs/results.md, docs/report.md).
 
-:func:`build_report` reads only the files of a run folder (``run.json``, ``truth.json``,
-``capture.csv``, ``validation.csv``, ``cpa/``, ``refine/``, ``evaluation/``, ``joints/``,
-``uncertainty/``, ``tcp/*/``) and writes ``report.html``: a summary with the headline numbers first,
-then the parameters, evaluation, joint diagnostics, Monte Carlo, TCP, workspace, the interactive 3-D
-view of the capture and the provenance. Nothing is recomputed except the circle fits drawn in the
-3-D view. Every stage is optional: a missing folder gives a "stage not run" note, an unreadable
-file a visible problem note, never an exception.
+The report renders from the run object, never from the run folder: :func:`render_report` takes a
+:class:`~robotcal.pipeline.result.RunResult` (``record``: ``run.json``; ``documents``: every output by
+its path in the run folder, JSON objects as dicts, CSV files as :class:`~robotcal.pipeline.result.Table`,
+figures as Paths) and reads no file but the PNG bytes of the figures it embeds. :func:`build_report` is
+:func:`robotcal.pipeline.folder.read_run` (the one reader of a run folder) + :func:`render_report` + an
+atomic write, for ``robotcal report DIR``.
+
+How a page is built: one *builder* per section (``_summary``, ``_parameters``, ...) turns the run into
+the section's template context (plain strings, numbers and lists: tables as :class:`_Table`, figures as
+dicts); one Jinja2 template per section (``templates/<section>.html.j2``, autoescaped) lays it out, with
+the shared macros of ``templates/macros.html.j2``; ``templates/page.html.j2`` holds the page, the CSS
+and scripts of ``assets/`` inlined. Nothing is recomputed from the documents except the circle fits of the
+3-D view; the headline figures come from :attr:`RunResult.summary <robotcal.pipeline.result.RunResult>`
+(or :func:`robotcal.pipeline.summary.summarise` when the run has none).
 
 The page needs no network: CSS and scripts are inline, figures are PNG ``data:`` URIs, and a
-Content-Security-Policy forbids any other source. Its last script checks that every figure decoded
-and every canvas drew, then sets ``<body data-status="ok">`` (or ``"error"``, with the messages in
+Content-Security-Policy forbids any other source. Its last script checks that every figure decoded and
+every canvas drew, then sets ``<body data-status="ok">`` (or ``"error"``, with the messages in
 ``#rc-errors``); the browser test reads that.
 """
 
 from __future__ import annotations
 
 import base64
-import csv
 import datetime as _dt
-import hashlib
-import html
-import json
 import math
 import re
 import struct
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
 import robotcal
-from robotcal.errors import InputError, RobotcalError
-from robotcal.io._validation import parse_json_text
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS
+from robotcal.pipeline.plan import OUTPUTS
+from robotcal.pipeline.result import RunResult, Table
+from robotcal.pipeline.summary import Summary, set_label, summarise
+from robotcal.report import template_environment
 from robotcal.report.viewer3d import asset_text, render_viewer, viewer_scene
 
 __all__ = ["REPORT_NAME", "Report", "ReportSection", "render_report", "build_report"]
 
 REPORT_NAME = "report.html"
 
-#: Files or folders whose presence makes a folder a run folder.
-_RUN_ENTRIES = (
-    "run.json",
-    "truth.json",
-    "capture.csv",
-    "validation.csv",
-    "cpa",
-    "refine",
-    "evaluation",
-    "joints",
-    "uncertainty",
-    "tcp",
-)
-
-#: Stages in pipeline order: (name, folder or file under the run folder).
-_STAGES = (
-    ("simulate", "capture.csv"),
-    ("identify", "cpa"),
-    ("refine", "refine"),
-    ("evaluate", "evaluation"),
-    ("joints", "joints"),
-    ("uncertainty", "uncertainty"),
-    ("uncertainty", "uncertainty-refined"),
-    ("tcp", "tcp"),
-    ("plan", "plan"),
-)
-
-#: Captions of the figures the stages are known to write (others get one from the file name, or from
-#: a ``"figures": {file: caption}`` mapping in the stage's JSON).
+#: Captions of the figures the stages write, each naming the unit its figure is drawn in (the plot
+#: functions of report/joints.py, montecarlo.py, tcp.py, refine.py, planning.py); a stage's JSON may
+#: give others in a ``"figures": {file: caption}`` object.
 _CAPTIONS = {
-    "convergence.png": "Convergence of the refinement: residual RMS (mm) per iteration, per criterion.",
-    "ellipsoid.png": "95 % uncertainty ellipsoid of the TCP position (mm).",
-    "trajectory.png": "Standard uncertainty of the TCP position along the trajectory (mm).",
-    "workspace.png": "Standard uncertainty of the TCP position over the workspace (mm).",
-    "scatter.png": "Monte Carlo draws of the TCP position with the coverage ellipsoid (mm).",
-    "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg).",
-    "backlash_vectors.png": "Backlash vectors (return − forward sweep) along each circle, magnified (mm).",
-    "backlash_xyz.png": "Backlash components X, Y, Z per joint (mm).",
-    "backlash_magnitude.png": "Backlash magnitude per joint (mm).",
-    "eccentricity_axial.png": "Axial eccentricity: distance of each point to its circle's plane (mm).",
-    "eccentricity_radial.png": "Radial eccentricity: in-plane distance of each point to its circle (mm).",
+    "convergence.png": "Convergence of the refinement, per criterion: RMS residual per coordinate "
+    "√(2·cost/m) over the m residuals (mm, log scale) after each iteration.",
+    "ellipsoid.png": "95 % coverage ellipsoid of the TCP position (mm).",
+    "scatter.png": "Monte Carlo draws of the TCP position about their mean, with the coverage ellipsoid (mm).",
+    "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg), with the "
+    "nominal and the mean.",
+    "trajectory.png": "Along the trajectory: the nominal TCP path coloured by the range of X, Y, Z over the draws, "
+    "the range (max − min) per coordinate, and the standard uncertainty of the position (mm) and of the "
+    "orientation A, B, C (deg) per pose.",
+    "workspace.png": "Over the workspace: the position standard uncertainty √(trace V) of the TCP per pose (mm), "
+    "top view, side view and histogram.",
+    "backlash_vectors.png": "Backlash vectors (return − forward sweep at the same reading) drawn magnified on each "
+    "circle; circle coordinates in the circle's plane (mm).",
+    "backlash_xyz.png": "Backlash components x, y, z (return − forward) per joint against the joint reading (µm); "
+    "dashed: ±1 standard deviation of a difference of two noisy points (instrument noise alone).",
+    "backlash_magnitude.png": "Backlash magnitude |return − forward| per joint against the joint reading (µm); "
+    "dash-dot: the mean; dashed: the noise floor, the mean magnitude instrument noise alone gives (no backlash "
+    "in the joint); each panel's title says whether the joint's mean lies above it.",
+    "eccentricity_axial.png": "Axial eccentricity: signed distance of each point to its circle's plane, against the "
+    "joint reading (µm), with the harmonic fit; dashed: instrument noise ±2σ.",
+    "eccentricity_radial.png": "Radial eccentricity: in-plane distance of each point to its circle minus the "
+    "radius, against the joint reading (µm), with the harmonic fit; dashed: instrument noise ±2σ.",
+    "plan_check.png": "Cell check per capture point against the joint reading (deg): sight-line clearance (mm) "
+    "and incidence on the reflector (deg); red points are infeasible.",
 }
+
+#: What the noise floor of the backlash is, for the joints table and the backlash figure's caption.
+_NOISE_FLOOR = (
+    "noise floor: the mean backlash magnitude the instrument noise alone gives at this circle (no backlash in "
+    "the joint); a mean / floor ratio near 1 is noise, not backlash the capture can resolve"
+)
 
 _UNIT_SUFFIXES = (
     ("_um_per_m", "µm/m"),
@@ -96,7 +95,22 @@ _UNIT_SUFFIXES = (
     ("_s", "s"),
 )
 
+#: Columns that hold identifiers or counts: they never take the unit of a unit-split table.
+_COUNT_COLUMNS = frozenset(
+    ("pose", "joint", "circle", "case", "points", "pairs", "n_errors", "draws", "direction", "point", "state")
+)
+#: Friendly headers of the columns of the statistics CSV files (unit added after).
+_COLUMN_LABELS = {
+    "std_uncertainty": "u",
+    "coverage_low": "interval low",
+    "coverage_high": "interval high",
+    "lpu_std_uncertainty": "u linearised (GUM)",
+    "parameter_set": "parameter set",
+}
+
 _TABLE_ROWS = 40  # longer CSV files show their first rows and say so
+_TABLE_COLUMNS = 8  # wider CSV files are split into several tables, repeating their key columns
+_CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -128,7 +142,8 @@ class Report:
     canvases : int
         Interactive 3-D views.
     problems : tuple of str
-        Files that exist but could not be read; each is also shown in the page.
+        Documents that could not be read (``RunResult.problems``) or used (a figure that is not a PNG);
+        each is also shown in the page.
     """
 
     html: str
@@ -140,111 +155,7 @@ class Report:
 
 
 # --------------------------------------------------------------------------------------------------
-# reading the run folder
-
-
-@dataclass(slots=True)
-class _Run:
-    """Cached, forgiving reads of a run folder; what cannot be read becomes a problem note."""
-
-    root: Path
-    problems: list[str] = field(default_factory=list)
-    figures: int = 0
-    _json: dict = field(default_factory=dict)
-    _csv: dict = field(default_factory=dict)
-
-    def path(self, relative: str) -> Path:
-        return self.root / relative
-
-    def _linked(self, relative) -> str | None:
-        """Why ``relative`` may not be read: a symbolic link on its way, or a target outside the run folder."""
-        current = self.root
-        for part in Path(relative).parts:
-            current = current / part
-            if current.is_symlink():
-                return "refused: a symbolic link (the report reads only files inside the run folder)"
-        try:
-            inside = (self.root / relative).resolve().is_relative_to(self.root.resolve())
-        except (OSError, RuntimeError):
-            inside = False
-        return None if inside else "refused: resolves outside the run folder"
-
-    def readable(self, relative: str) -> Path | None:
-        """The path of a regular file inside the run folder, else None (a link or escape is noted)."""
-        why = self._linked(relative)
-        if why is not None:
-            if self.path(relative).exists() or self.path(relative).is_symlink():
-                self.problem(relative, why)
-            return None
-        path = self.path(relative)
-        return path if path.is_file() else None
-
-    def exists(self, relative: str) -> bool:
-        return self.path(relative).exists()
-
-    def problem(self, relative: str, what: str) -> str:
-        message = f"{relative}: {what}"
-        self.problems.append(message)
-        return f'<p class="rc-problem">Could not read <code>{_e(relative)}</code>: {_e(what)}</p>'
-
-    def json(self, relative: str):
-        """Parsed JSON object, or None when the file is missing or unreadable (noted)."""
-        if relative not in self._json:
-            data = None
-            path = self.readable(relative)
-            if path is not None:
-                try:
-                    data = parse_json_text(path.read_text(encoding="utf-8"), relative)
-                except InputError as exc:
-                    self.problem(relative, f"not a readable JSON file ({str(exc).removeprefix(relative + ': ')})")
-                    data = None
-                except (OSError, ValueError) as exc:
-                    self.problem(relative, f"not a readable JSON file ({exc})")
-                else:
-                    if not isinstance(data, dict):
-                        self.problem(relative, "expected a JSON object at the top level")
-                        data = None
-            self._json[relative] = data
-        return self._json[relative]
-
-    def csv(self, relative: str):
-        """``(header, rows)`` of a CSV file, or None when missing or unreadable (noted)."""
-        if relative not in self._csv:
-            table = None
-            path = self.readable(relative)
-            if path is not None:
-                try:
-                    with path.open(newline="", encoding="utf-8") as stream:
-                        rows = [row for row in csv.reader(stream) if row]
-                except (OSError, UnicodeDecodeError, csv.Error) as exc:
-                    self.problem(relative, f"not a readable CSV file ({exc})")
-                else:
-                    if not rows:
-                        self.problem(relative, "empty CSV file")
-                    else:
-                        header = [name.strip() for name in rows[0]]
-                        body = [[cell.strip() for cell in row] for row in rows[1:]]
-                        bad = [k + 2 for k, row in enumerate(body) if len(row) != len(header)]
-                        if bad:
-                            self.problem(relative, f"row {bad[0]} has a different number of columns than the header")
-                            body = [row for row in body if len(row) == len(header)]
-                        table = (header, body)
-            self._csv[relative] = table
-        return self._csv[relative]
-
-    def files(self, folder: str, pattern: str) -> list[str]:
-        base = self.path(folder)
-        if not base.is_dir():
-            return []
-        return sorted(str(p.relative_to(self.root)) for p in base.glob(pattern) if p.is_file() or p.is_symlink())
-
-
-# --------------------------------------------------------------------------------------------------
 # formatting
-
-
-def _e(text) -> str:
-    return html.escape(str(text), quote=True)
 
 
 def _number(text):
@@ -283,11 +194,30 @@ def _length(mm) -> str:
     return f"{_fmt(mm * 1e3, '.3g', exponent=False)} µm" if abs(mm) < 1.0 else f"{_fmt(mm, '.3g', exponent=False)} mm"
 
 
+def _angle(deg) -> str:
+    return "n/a" if deg is None else f"{_fmt(deg, '.3g')}°"
+
+
 def _cell(text: str) -> str:
     number = _number(text)
     if number is None or re.fullmatch(r"[+-]?\d+", text.strip() or "x"):
-        return _e(text)
-    return _e(_fmt(number))
+        return text
+    return _fmt(number)
+
+
+def _unit_of(name: str) -> str | None:
+    """The unit a key's suffix names (``plane_rms_mm`` -> ``mm``), else None."""
+    for suffix, unit in _UNIT_SUFFIXES:
+        if name.endswith(suffix) and len(name) > len(suffix):
+            return unit
+    return None
+
+
+def _bare(name: str) -> str:
+    """``"plane_rms_mm"`` -> ``"plane rms"``: the key without its unit suffix, for a table with a unit column."""
+    unit = _unit_of(name)
+    suffix = next(suffix for suffix, u in _UNIT_SUFFIXES if u == unit and name.endswith(suffix)) if unit else ""
+    return name[: len(name) - len(suffix)].replace("_", " ")
 
 
 def _label(name: str) -> str:
@@ -298,95 +228,233 @@ def _label(name: str) -> str:
     return name.replace("_", " ")
 
 
-def _lookup(data, *paths: str):
-    """First value found under one of the dotted ``paths`` of nested dicts, else None."""
-    for dotted in paths:
-        value = data
-        for key in dotted.split("."):
-            if isinstance(value, dict) and key in value:
-                value = value[key]
-            else:
-                value = None
-                break
-        if value is not None:
-            return value
-    return None
+def _is_param(name: str) -> bool:
+    return bool(re.fullmatch(r"J\d+\.(d|theta|a|alpha|beta)", name))
 
 
-def _note(text: str) -> str:
-    return f'<p class="rc-note">{text}</p>'
+def _param_unit(name: str) -> str:
+    return "mm" if name.split(".")[1] in LENGTH_KINDS else "deg"
 
 
-def _not_run(what: str) -> str:
-    return _note(f"Stage not run: this run folder has no <code>{_e(what)}</code>.")
+def _param_order(name: str):
+    if _is_param(name):
+        joint, kind = name.split(".")
+        return (int(joint[1:]), PARAMETER_KINDS.index(kind))
+    return (10**6, 0)
 
 
-def _table(header: list[str], rows: list[list[str]], *, caption: str = "", text_columns=(), dim_rows=()) -> str:
-    """An HTML table; ``header`` and cells are already-escaped HTML."""
-    parts = ['<div class="rc-table-wrap"><table>']
-    if caption:
-        parts.append(f"<caption>{caption}</caption>")
-    parts.append(
-        "<thead><tr>"
-        + "".join(f"<th{' class=rc-text' if k in text_columns else ''}>{h}</th>" for k, h in enumerate(header))
-        + "</tr></thead><tbody>"
-    )
-    for r, row in enumerate(rows):
-        parts.append(f"<tr{' class=rc-dim' if r in dim_rows else ''}>")
-        parts.extend(f"<td{' class=rc-text' if k in text_columns else ''}>{c}</td>" for k, c in enumerate(row))
-        parts.append("</tr>")
-    parts.append("</tbody></table></div>")
-    return "".join(parts)
+# --------------------------------------------------------------------------------------------------
+# template data
 
 
-def _csv_html(run: _Run, relative: str, *, title: str = "") -> str:
-    """A CSV file as HTML table(s): units in the headers; a ``unit`` column splits it per unit."""
-    table = run.csv(relative)
-    if table is None:
-        return ""
-    header, rows = table
-    numeric = [
-        all(_number(row[k]) is not None for row in rows if row[k] != "") and any(row[k] != "" for row in rows)
-        for k in range(len(header))
-    ]
-    source = f"<code>{_e(relative)}</code>"
-    heading = f"<h4>{_e(title)}</h4>" if title else ""
-    if "unit" in header and rows:
-        unit_at = header.index("unit")
-        units = list(dict.fromkeys(row[unit_at] for row in rows))
-        keep = [k for k in range(len(header)) if k != unit_at]
-        parts = [heading]
-        for unit in units:
-            group = [row for row in rows if row[unit_at] == unit]
-            labels = [_e(f"{header[k]} ({unit})" if numeric[k] and unit else _label(header[k])) for k in keep]
-            shown = group[:_TABLE_ROWS]
-            parts.append(
-                _table(
-                    labels,
-                    [[_cell(row[k]) for k in keep] for row in shown],
-                    caption=f"{source}, rows in {_e(unit or 'no unit')}",
-                    text_columns={i for i, k in enumerate(keep) if not numeric[k]},
-                )
-            )
-            parts.append(_rows_note(len(shown), len(group)))
-        return "".join(parts)
-    shown = rows[:_TABLE_ROWS]
-    return (
-        heading
-        + _table(
-            [_e(_label(h)) for h in header],
-            [[_cell(c) for c in row] for row in shown],
-            caption=source,
-            text_columns={k for k in range(len(header)) if not numeric[k]},
-        )
-        + _rows_note(len(shown), len(rows))
-    )
+@dataclass(slots=True, kw_only=True)
+class _Table:
+    """A table for ``macros.table``: plain text cells (the template escapes them)."""
+
+    header: list[str]
+    rows: list[list[str]]
+    caption: str = ""
+    source: str = ""  # a document name, shown as code after the caption
+    text_columns: frozenset = frozenset()
+    code_columns: frozenset = frozenset()
+    dim_rows: frozenset = frozenset()
+    tags: dict = field(default_factory=dict)  # row -> small text after the first cell
+    note: str = ""  # below the table
+
+    @property
+    def kind(self) -> str:
+        return "table"
+
+
+def _block(kind: str, **data) -> dict:
+    """A non-table item of a section body for ``macros.blocks``: heading, note, problem, not_run, figures."""
+    return {"kind": kind, **data}
 
 
 def _rows_note(shown: int, total: int) -> str:
-    if shown == total:
-        return ""
-    return f'<p class="rc-table-note">First {shown} of {total} rows; the file holds them all.</p>'
+    return "" if shown == total else f"First {shown} of {total} rows; the file holds them all."
+
+
+# --------------------------------------------------------------------------------------------------
+# the run as the builders see it
+
+
+class _Page:
+    """The run being rendered: its documents, and what rendering found wrong (figures that are not PNGs)."""
+
+    def __init__(self, result: RunResult):
+        self.result = result
+        self.record = result.record if isinstance(result.record, dict) else {}
+        self.problems: list[str] = list(result.problems)
+        self.figures = 0
+        self.summary: Summary = (
+            result.summary if isinstance(result.summary, Summary) else summarise(self.record, result.documents)
+        )
+
+    def json(self, name: str) -> dict | None:
+        return self.result.json(name)
+
+    def table(self, name: str) -> Table | None:
+        return self.result.table(name)
+
+    def has(self, name: str) -> bool:
+        """The run has the document ``name``, or any document under the folder ``name``."""
+        return name in self.result.documents or bool(self.result.names(name))
+
+    def children(self, folder: str, suffix: str) -> list[str]:
+        """Documents directly in ``folder`` (not in its sub-folders) ending with ``suffix``."""
+        depth = folder.count("/") + 1
+        return [n for n in self.result.names(folder, suffix) if n.count("/") == depth]
+
+    def problem(self, name: str, what: str) -> dict:
+        self.problems.append(f"{name}: {what}")
+        return _block("problem", name=name, what=what)
+
+    def figure(self, name: str, caption: str) -> dict | None:
+        """A figure document as an embedded PNG (the one file the report reads), or a problem block."""
+        path = self.result.file(name)
+        if path is None:
+            return None
+        try:
+            data = Path(path).read_bytes()
+        except OSError as exc:
+            return self.problem(name, f"could not read the figure ({exc.strerror or exc})")
+        if not data.startswith(b"\x89PNG\r\n\x1a\n"):
+            return self.problem(name, "not a PNG file")
+        self.figures += 1
+        width, height = struct.unpack(">II", data[16:24]) if len(data) >= 24 else (0, 0)
+        return {
+            "uri": "data:image/png;base64," + base64.b64encode(data).decode("ascii"),
+            "width": width,
+            "height": height,
+            "wide": width > 900 or bool(height and width / height > 1.9),
+            "caption": caption,
+            "source": name,
+        }
+
+
+def _captions(page: _Page, folder: str) -> dict:
+    """``{file name: caption}`` of the ``"figures"`` objects of a stage folder's JSON documents."""
+    captions = {}
+    for name in page.children(folder, ".json"):
+        figures = (page.json(name) or {}).get("figures")
+        if isinstance(figures, dict):
+            captions.update({str(k): str(v) for k, v in figures.items()})
+    return captions
+
+
+def _caption(name: str, captions: Mapping) -> str:
+    if name in captions:
+        return captions[name]
+    if name in _CAPTIONS:
+        return _CAPTIONS[name]
+    stem = name.rsplit(".", 1)[0]
+    if re.fullmatch(r"hist_J\d+", stem):
+        return (
+            f"Monte Carlo histograms of the identified parameters of {stem[5:]} (lengths in mm, angles in deg; "
+            "density per unit), with the mean, the coverage interval, the noise-free CPA value and the "
+            "linearised (GUM) density."
+        )
+    if stem.startswith("sensitivity_"):
+        return (
+            "Sensitivity of the CPA Monte Carlo to the swept setting: Cpk (eq. 5-5) and mean − nominal (µm for "
+            "lengths, mdeg for angles) per parameter."
+        )
+    return stem.replace("_", " ").capitalize() + "."
+
+
+def _figures(page: _Page, folder: str, *, names=None, first=(), captions=None) -> list[dict]:
+    """The figure blocks of the PNG documents directly in ``folder`` (or of ``names``), ``first`` first."""
+    names = page.children(folder, ".png") if names is None else names
+    captions = _captions(page, folder) if captions is None else captions
+    names = sorted(
+        names,
+        key=lambda n: (
+            PurePosixPath(n).name not in first,
+            first.index(PurePosixPath(n).name) if PurePosixPath(n).name in first else 0,
+            n,
+        ),
+    )
+    figures, problems = [], []
+    for name in names:
+        shown = page.figure(name, _caption(PurePosixPath(name).name, captions))
+        if shown is None:
+            continue
+        (problems if shown.get("kind") == "problem" else figures).append(shown)
+    return problems + ([_block("figures", figures=figures)] if figures else [])
+
+
+def _numeric(table: Table) -> list[bool]:
+    return [
+        all(_number(row[k]) is not None for row in table.rows if row[k] != "")
+        and any(row[k] != "" for row in table.rows)
+        for k in range(len(table.header))
+    ]
+
+
+def _column_label(name: str, unit: str | None) -> str:
+    if unit and name not in _COUNT_COLUMNS:
+        return f"{_COLUMN_LABELS.get(name, name.replace('_', ' '))} ({unit})"
+    return _COLUMN_LABELS.get(name, _label(name))
+
+
+def _split_columns(header: list[str], numeric: list[bool]) -> list[list[int]]:
+    """Column groups of at most ``_TABLE_COLUMNS``, each repeating the leading key columns (ids, names)."""
+    keys = []
+    for k, name in enumerate(header[:2]):
+        if name in _COUNT_COLUMNS or not numeric[k]:
+            keys.append(k)
+        else:
+            break
+    rest = [k for k in range(len(header)) if k not in keys]
+    if len(header) <= _TABLE_COLUMNS or not rest:
+        return [list(range(len(header)))]
+    width = max(1, _TABLE_COLUMNS - len(keys))
+    chunks = [rest[i : i + width] for i in range(0, len(rest), width)]
+    return [keys + chunk for chunk in chunks]
+
+
+def _csv(page: _Page, name: str, *, caption: str = "", columns=None, rows_limit: int = _TABLE_ROWS) -> list:
+    """A CSV document as tables: the chosen ``columns`` (all by default), one table per ``unit`` (the unit in
+    the headers), columns split so that no table is wider than ``_TABLE_COLUMNS``."""
+    table = page.table(name)
+    if table is None:
+        return []
+    header = list(table.header)
+    numeric = _numeric(table)
+    keep = [k for k in range(len(header)) if columns is None or header[k] in columns]
+    if columns is not None:
+        keep.sort(key=lambda k: list(columns).index(header[k]))
+    groups: list[tuple[str | None, list]] = [(None, list(table.rows))]
+    if "unit" in header and table.rows:
+        at = header.index("unit")
+        keep = [k for k in keep if k != at]
+        units = list(dict.fromkeys(row[at] for row in table.rows))
+        groups = [(unit, [row for row in table.rows if row[at] == unit]) for unit in units]
+    blocks = []
+    for unit, rows in groups:
+        shown = rows[:rows_limit]
+        chunks = _split_columns([header[k] for k in keep], [numeric[k] for k in keep])
+        for c, chunk in enumerate(chunks):
+            picked = [keep[i] for i in chunk]
+            parts = [caption] if caption else []
+            if unit is not None:
+                parts.append(f"rows in {unit or 'no unit'}")
+            if len(chunks) > 1:
+                parts.append(f"columns {c + 1} of {len(chunks)}")
+            blocks.append(
+                _Table(
+                    header=[
+                        _column_label(header[k], unit) if unit and numeric[k] else _label(header[k]) for k in picked
+                    ],
+                    rows=[[_cell(row[k]) for k in picked] for row in shown],
+                    caption="; ".join(parts),
+                    source=name,
+                    text_columns=frozenset(i for i, k in enumerate(picked) if not numeric[k]),
+                    note=_rows_note(len(shown), len(rows)) if c == len(chunks) - 1 else "",
+                )
+            )
+    return blocks
 
 
 def _flatten(data, prefix: str = "", depth: int = 0):
@@ -403,388 +471,212 @@ def _flatten(data, prefix: str = "", depth: int = 0):
             yield name, value
 
 
-def _facts_html(data: dict | None, *, caption: str = "", skip=(), limit: int = 60) -> str:
-    """Scalar entries of a JSON object as a two-column table (key with its unit, value)."""
+def _fact_unit(key: str, value) -> str:
+    """The unit of a provenance fact: named by a key's suffix or a parameter name (``J1.a`` mm, ``J1.alpha``
+    deg) on its path; ``—`` for a pure number (a count, a ratio); empty for text."""
+    if isinstance(value, bool) or value is None:
+        return ""
+    parts = key.split(".")
+    for k in range(len(parts) - 1, -1, -1):
+        unit = "s" if parts[k] == "seconds" else _unit_of(parts[k])
+        if unit is not None:
+            return unit
+        if k + 1 < len(parts) and _is_param(f"{parts[k]}.{parts[k + 1]}"):
+            return _param_unit(f"{parts[k]}.{parts[k + 1]}")
+    if isinstance(value, str):
+        return ""
+    return "—"
+
+
+def _facts(data: dict | None, *, caption: str = "", source: str = "", skip=(), limit: int = 60) -> list:
+    """Scalar entries of a JSON object as a table of entry, value and unit."""
     if not data:
-        return ""
+        return []
     items = [(k, v) for k, v in _flatten(data) if not any(k == s or k.startswith(s + ".") for s in skip)]
-    if not items:
-        return ""
-    rows = [
-        [_e(".".join(_label(part) for part in key.split("."))), _e(value if isinstance(value, str) else _fmt(value))]
-        for key, value in items[:limit]
+    # parameter names are dotted themselves: "standard_uncertainty.J1.a" is one entry of a parameter
+    rows = []
+    for key, value in items[:limit]:
+        parts = re.sub(r"\.(J\d+)\.(d|theta|a|alpha|beta)$", r".\1·\2", key).split(".")
+        label = " › ".join(_bare(part) for part in parts)
+        label = label.replace("·", ".")
+        shown = value if isinstance(value, str) else _fmt(value)
+        rows.append([label, shown, _fact_unit(key, value)])
+    if not rows:
+        return []
+    return [
+        _Table(
+            header=["entry", "value", "unit"],
+            rows=rows,
+            caption=caption,
+            source=source,
+            text_columns=frozenset({0, 1, 2}),
+            note=_rows_note(limit, len(items)) if len(items) > limit else "",
+        )
     ]
-    note = "" if len(items) <= limit else _rows_note(limit, len(items))
-    return _table(["entry", "value"], rows, caption=caption, text_columns={0, 1}) + note
-
-
-def _caption(name: str, captions: dict) -> str:
-    if name in captions:
-        return captions[name]
-    if name in _CAPTIONS:
-        return _CAPTIONS[name]
-    stem = name.rsplit(".", 1)[0]
-    if stem.startswith("hist_"):
-        return f"Monte Carlo histogram of {stem[5:]} (mm or deg, as the parameter)."
-    return stem.replace("_", " ").capitalize() + "."
-
-
-def _figures_html(run: _Run, folder: str, *, captions: dict | None = None, pattern: str = "*.png", first=()) -> str:
-    """Every PNG of ``folder`` (matching ``pattern``) as an embedded figure with a caption."""
-    captions = captions if isinstance(captions, dict) else {}
-    names = run.files(folder, pattern)
-    names.sort(
-        key=lambda rel: (
-            Path(rel).name not in first,
-            first.index(Path(rel).name) if Path(rel).name in first else 0,
-            rel,
-        )
-    )
-    parts = []
-    for relative in names:
-        path = run.readable(relative)
-        if path is None:
-            continue
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            parts.append(run.problem(relative, str(exc)))
-            continue
-        if not data.startswith(b"\x89PNG\r\n\x1a\n"):
-            parts.append(run.problem(relative, "not a PNG file"))
-            continue
-        name = Path(relative).name
-        caption = _caption(name, captions)
-        uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
-        run.figures += 1
-        width, height = struct.unpack(">II", data[16:24]) if len(data) >= 24 else (0, 0)
-        wide = ' class="rc-wide"' if width > 900 or (height and width / height > 1.9) else ""
-        size = f' width="{width}" height="{height}"' if width and height else ""
-        parts.append(
-            f'<figure{wide}><img src="{uri}"{size} alt="{_e(caption)}" loading="eager">'
-            f"<figcaption>{_e(caption)} <code>{_e(relative)}</code></figcaption></figure>"
-        )
-    return f'<div class="rc-figures">{"".join(parts)}</div>' if parts else ""
-
-
-# --------------------------------------------------------------------------------------------------
-# numbers taken from several files
-
-
-def _pose_uncertainties(run: _Run, relative: str) -> list[tuple[str, float]]:
-    """Per pose of a ``tcp.csv``: combined standard uncertainty of the position sqrt(uX²+uY²+uZ²) [mm]."""
-    table = run.csv(relative)
-    if table is None:
-        return []
-    header, rows = table
-    if not {"name", "std_uncertainty"} <= set(header):
-        return []
-    name_at, u_at = header.index("name"), header.index("std_uncertainty")
-    pose_at = header.index("pose") if "pose" in header else None
-    sums: dict[str, list[float]] = {}
-    for row in rows:
-        if row[name_at].upper() in ("X", "Y", "Z"):
-            u = _number(row[u_at])
-            if u is not None:
-                sums.setdefault(row[pose_at] if pose_at is not None else "1", []).append(u * u)
-    return [(pose, math.sqrt(sum(values))) for pose, values in sums.items() if len(values) == 3]
-
-
-def _evaluation_means(run: _Run):
-    """(mean validation error with nominal parameters, with the calibrated ones [mm], label), or Nones.
-
-    Tries headline keys of ``evaluation/evaluation.json`` first, then reads
-    ``evaluation/evaluation.csv`` (columns ``parameter_set, view, capture, ..., mean_error_mm``):
-    among the rows of the validation capture (if one is named so) and of the ``points`` view (if
-    any), the row whose parameter set names ``nominal`` and the last other row (the final
-    calibrated set, in the order the evaluation lists them), in the first column named ``mean...``.
-    """
-    data = run.json("evaluation/evaluation.json") or {}
-    before = _number(
-        _lookup(data, "headline.before_mean_mm", "nominal.mean_mm", "before.mean_mm", "mean_error_before_mm")
-    )
-    after = _number(_lookup(data, "headline.after_mean_mm", "refined.mean_mm", "after.mean_mm", "mean_error_after_mm"))
-    label = _lookup(data, "headline.after_label", "after.label")
-    table = run.csv("evaluation/evaluation.csv")
-    if (before is None or after is None) and table is not None:
-        header, rows = table
-        mean_at = next((k for k, h in enumerate(header) if h.lower().startswith("mean")), None)
-        for column, preferred in (("capture", "validation"), ("view", "points")):
-            if column in header and rows:
-                at = header.index(column)
-                chosen = [row for row in rows if preferred in row[at].lower()]
-                rows = chosen or [row for row in rows if row[at] == rows[0][at]]
-        name_at = header.index("parameter_set") if "parameter_set" in header else 0
-        nominal = next((row for row in rows if "nominal" in row[name_at].lower()), None)
-        others = [row for row in rows if row is not nominal]
-        if mean_at is not None and nominal is not None and others:
-            before = before if before is not None else _number(nominal[mean_at])
-            after = after if after is not None else _number(others[-1][mean_at])
-            label = label or others[-1][name_at]
-    return before, after, label
-
-
-def _largest_uncertainties(run: _Run, relative: str = "uncertainty/parameters.csv") -> dict:
-    """Largest standard uncertainty among the identified lengths and angles of a Monte Carlo's parameters.csv."""
-    table = run.csv(relative)
-    found = {}
-    if table is None:
-        return found
-    header, rows = table
-    if not {"name", "unit", "std_uncertainty"} <= set(header):
-        return found
-    index = {h: k for k, h in enumerate(header)}
-    for row in rows:
-        if "identified" in index and row[index["identified"]].lower() in ("false", "0", "no"):
-            continue
-        u = _number(row[index["std_uncertainty"]])
-        unit = row[index["unit"]]
-        if u is not None and (unit not in found or u > found[unit][1]):
-            found[unit] = (row[index["name"]], u)
-    return found
 
 
 # --------------------------------------------------------------------------------------------------
 # sections
 
 
-def _ellipsoid_note(data) -> str:
-    """``"; largest semi-axis of the 95 % ellipsoid ... µm"`` from a tcp.json, or ``""``."""
-    poses = data.get("poses") if isinstance(data, dict) else None
-    first = poses[0] if isinstance(poses, list) and poses and isinstance(poses[0], dict) else {}
-    axes = _lookup(first, "ellipsoid.semi_axes_mm")
-    coverage = _number(data.get("coverage")) if isinstance(data, dict) else None
-    if not isinstance(axes, list) or not axes or any(_number(a) is None for a in axes):
-        return ""
-    share = f"{_fmt(coverage * 100, '.3g')} % " if coverage else ""
-    return f"; largest semi-axis of the {share}ellipsoid {_length(max(_number(a) for a in axes))}"
+def _card(question: str, label: str, value: str, detail: str = "") -> dict:
+    return {"question": question, "label": label, "value": value, "detail": detail, "na": value == "n/a"}
 
 
-#: Observed / expected validation RMS error up to which the consistency card says the stated uncertainty
-#: explains the error: with 100 poses the RMS of the observed errors scatters by about 10 % about its
-#: expectation when the model holds, so 1.5 is far outside chance and flags an unmodelled error.
-CONSISTENT_RATIO = 1.5
-
-
-def _model_note(data) -> str:
-    """``"; refined model ..."``: the model whose draws a tcp.json was computed from, or ``""``."""
-    model = _lookup(data, "provenance.model") if isinstance(data, dict) else None
-    return f"; {_e(model)}" if isinstance(model, str) and model else ""
-
-
-def _card(question: str, label: str, value: str, detail: str = "") -> str:
-    na = " rc-na" if value == "n/a" else ""
-    return (
-        f'<div class="rc-card{na}"><div class="rc-q">{_e(question)}</div><div class="rc-label">{_e(label)}</div>'
-        f'<div class="rc-value">{_e(value)}</div><div class="rc-detail">{detail}</div></div>'
-    )
-
-
-def _stage_status(run: _Run, stage: str):
-    """(status text, seconds) of a stage from run.json, tolerant of a dict or a list of stages."""
-    data = run.json("run.json") or {}
-    stages = data.get("stages")
-    entry = None
-    if isinstance(stages, dict):
-        entry = stages.get(stage)
-    elif isinstance(stages, list):
-        entry = next((s for s in stages if isinstance(s, dict) and s.get("name") == stage), None)
-    status = seconds = None
-    if isinstance(entry, dict):
-        status = entry.get("status")
-        seconds = _number(_lookup(entry, "seconds", "time_s", "elapsed_s", "wall_s"))
-    elif isinstance(entry, str):
-        status = entry
-    if seconds is None:
-        seconds = _number(_lookup(data, f"timings_s.{stage}", f"timings.{stage}"))
-    return status, seconds
-
-
-def _summary(run: _Run) -> tuple[str, bool]:
-    data = run.json("run.json") or {}
-    cpa = run.json("cpa/parameters.json") or {}
-    provenance = cpa.get("provenance") if isinstance(cpa.get("provenance"), dict) else {}
-    robot = _lookup(data, "robot", "scenario.robot") or cpa.get("robot")
-    scenario_name = _lookup(data, "scenario.name", "scenario_name") or _lookup(provenance, "scenario.name")
-    if isinstance(_lookup(data, "scenario"), str):
-        scenario_name = data["scenario"]
-    description = _lookup(data, "scenario.description", "description")
-    instrument = _lookup(
-        data, "scenario.instrument.name", "scenario.instrument.preset", "instrument.name", "instrument"
-    )
-    a_um = _number(_lookup(data, "scenario.instrument.a_um", "instrument.a_um"))
-    b_um = _number(_lookup(data, "scenario.instrument.b_um_per_m", "instrument.b_um_per_m"))
-    seed = _lookup(data, "seed", "scenario.seed")
-    if seed is None:
-        seed = provenance.get("capture_seed")
-
+def _facts_of_run(page: _Page) -> list[dict]:
+    """Robot, scenario, instrument, captures, seed, method: ``[{"label", "text", "code"}]``."""
+    record = page.record
+    scenario = record.get("scenario") if isinstance(record.get("scenario"), dict) else {}
     facts = []
-    if robot:
-        facts.append(("robot", _e(robot if isinstance(robot, str) else json.dumps(robot))))
-    if scenario_name:
-        facts.append(("scenario", _e(scenario_name) + (f" — {_e(description)}" if description else "")))
-    if instrument:
-        text = _e(instrument if isinstance(instrument, str) else json.dumps(instrument))
+    if isinstance(record.get("robot"), str):
+        facts.append({"label": "robot", "text": record["robot"], "code": None})
+    if isinstance(scenario.get("name"), str):
+        description = scenario.get("description")
+        text = scenario["name"] + (f" — {description}" if isinstance(description, str) and description else "")
+        facts.append({"label": "scenario", "text": text, "code": None})
+    instrument = scenario.get("instrument") if isinstance(scenario.get("instrument"), dict) else {}
+    if isinstance(instrument.get("name"), str):
+        a_um, b_um = _number(instrument.get("a_um")), _number(instrument.get("b_um_per_m"))
+        text = instrument["name"]
         if a_um is not None and b_um is not None:
             text += f", U(L) = {_fmt(a_um)} µm + {_fmt(b_um)} µm/m · L"
-        facts.append(("instrument", text))
-    for relative, what in (("capture.csv", "calibration capture"), ("validation.csv", "validation points")):
-        table = run.csv(relative)
+        facts.append({"label": "instrument", "text": text, "code": None})
+    for name, what in (("capture.csv", "calibration capture"), ("validation.csv", "validation points")):
+        table = page.table(name)
         if table is not None:
-            header, rows = table
-            circles = {row[0] for row in rows} if header and header[0] == "circle" else set()
-            detail = f"{len(rows)} points" + (
-                f" in {len(circles)} circles" if circles and relative == "capture.csv" else ""
-            )
-            facts.append((what, f"{detail} (<code>{_e(relative)}</code>)"))
-    if seed is not None:
-        facts.append(("seed", _e(seed)))
-    method = provenance.get("method")
-    if method:
-        facts.append(("identification", _e(method)))
+            text = f"{len(table.rows)} points"
+            if name == "capture.csv" and "circle" in table.header:
+                text += f" in {len(set(table.column('circle')))} circles"
+            facts.append({"label": what, "text": text, "code": name})
+    if record.get("seed") is not None:
+        facts.append({"label": "seed", "text": str(record["seed"]), "code": None})
+    provenance = (page.json("cpa/parameters.json") or {}).get("provenance")
+    if isinstance(provenance, dict) and isinstance(provenance.get("method"), str):
+        facts.append({"label": "identification", "text": provenance["method"], "code": None})
+    return facts
 
+
+def _cards(page: _Page) -> list[dict]:
+    summary = page.summary
     cards = []
-    before, after, after_label = _evaluation_means(run)
-    if before is not None or after is not None:
-        value = f"{_length(before)} → {_length(after)}"
-        detail = "mean position error at the validation points, nominal → " + _e(after_label or "calibrated")
+    if summary.validation_before_mm is not None and summary.validation_after_mm is not None:
+        before, after = summary.validation_before_set or "before", summary.validation_after_set or "after"
+        detail = (
+            f"mean position error at the {summary.validation_capture or 'validation'} points, {before} → {after}"
+            + (f" ({set_label(after)})" if set_label(after) != after else "")
+        )
+        cards.append(
+            _card(
+                "How good is it?",
+                "validation error, before → after",
+                f"{_length(summary.validation_before_mm)} → {_length(summary.validation_after_mm)}",
+                detail,
+            )
+        )
     else:
-        value, detail = "n/a", "evaluation stage not run" if not run.exists("evaluation") else "no mean error found"
-    cards.append(_card("How good is it?", "validation error, before → after", value, detail))
-    circles = provenance.get("circles") if isinstance(provenance.get("circles"), list) else []
-    rms = [_number(c.get("circle_rms_mm")) for c in circles if isinstance(c, dict)]
-    rms = [r for r in rms if r is not None]
-    if rms:
-        worst = int(np.argmax(rms))
+        why = "evaluation stage not run" if not page.has("evaluation") else "no headline in evaluation.json"
+        cards.append(_card("How good is it?", "validation error, before → after", "n/a", why))
+    if summary.circle_rms_mm is not None:
+        circle = f"circle J{summary.circle_rms_circle}; " if summary.circle_rms_circle is not None else ""
         cards.append(
             _card(
                 "How good is it?",
                 "largest circle-fit RMS",
-                f"{_fmt(rms[worst] * 1e3, '.2f')} µm",
-                f"circle J{worst + 1}; {len(rms)} circles fitted by CPA",
+                f"{_fmt(summary.circle_rms_mm * 1e3, '.2f')} µm",
+                f"{circle}{summary.circles} circles fitted by CPA",
             )
         )
-    # the deployed model's uncertainty first (refined, uncertainty-refined/), CPA's beside it
-    refined_largest = _largest_uncertainties(run, "uncertainty-refined/parameters.csv")
-    cpa_largest = _largest_uncertainties(run)
-    largest = refined_largest or cpa_largest
-    model = "refined model (deployed)" if refined_largest else "CPA model"
-    for unit, label in (
-        ("mm", "largest standard uncertainty, lengths"),
-        ("deg", "largest standard uncertainty, angles"),
+    refined, cpa = summary.uncertainty("uncertainty-refined"), summary.uncertainty("uncertainty")
+    shown = refined or cpa
+    model = "refined model (deployed)" if refined is not None else "CPA model"
+    for label, value_of, name_of, fmt in (
+        ("largest standard uncertainty, lengths", "length_mm", "length_name", _length),
+        ("largest standard uncertainty, angles", "angle_deg", "angle_name", _angle),
     ):
-        if unit in largest:
-            name, u = largest[unit]
-            shown = _length(u) if unit == "mm" else f"{_fmt(u, '.3g')}°"
-            detail = f"{_e(name)}, {model}, Monte Carlo (GUM-S1)"
-            if refined_largest and unit in cpa_largest:
-                cpa_name, cpa_u = cpa_largest[unit]
-                cpa_shown = _length(cpa_u) if unit == "mm" else f"{_fmt(cpa_u, '.3g')}°"
-                detail += f"; CPA alone: {cpa_shown} ({_e(cpa_name)})"
-            cards.append(_card("How sure are we?", label, shown, detail))
-        else:
+        value = getattr(shown, value_of) if shown is not None else None
+        if value is None:
             cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
-    pose = _pose_uncertainties(run, "tcp/pose/tcp.csv")
-    if pose:
-        name, u = pose[0]
-        cards.append(
-            _card(
-                "How sure are we?",
-                "TCP position uncertainty at the pose",
-                _length(u),
-                f"√(u_X² + u_Y² + u_Z²), pose {_e(name)}"
-                + _model_note(run.json("tcp/pose/tcp.json"))
-                + (f" (of {len(pose)})" if len(pose) > 1 else "")
-                + _ellipsoid_note(run.json("tcp/pose/tcp.json")),
-            )
-        )
+            continue
+        detail = f"{getattr(shown, name_of)}, {model}, Monte Carlo (GUM-S1)"
+        if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
+            detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
+        cards.append(_card("How sure are we?", label, fmt(value), detail))
+    pose = summary.tcp_pose
+    if pose is not None:
+        detail = "√(u_X² + u_Y² + u_Z²) at the first pose" + (f" (of {pose.poses})" if pose.poses > 1 else "")
+        detail += f"; {pose.model}" if pose.model else ""
+        if pose.ellipsoid_mm is not None:
+            share = f"{_fmt(pose.coverage * 100, '.3g')} % " if pose.coverage else ""
+            detail += f"; largest semi-axis of the {share}ellipsoid {_length(pose.ellipsoid_mm)}"
+        cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", _length(pose.first_mm), detail))
     else:
         cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", "n/a", "tcp pose not run"))
-    workspace = _pose_uncertainties(run, "tcp/workspace/tcp.csv")
-    if workspace:
-        values = np.array([u for _, u in workspace])
-        p50, p95 = np.percentile(values, [50, 95])
+    workspace = summary.tcp_workspace
+    if workspace is not None:
         cards.append(
             _card(
                 "Where can I trust it?",
                 "TCP position uncertainty over the workspace",
-                f"{_length(p50)} / {_length(p95)}",
-                f"median / 95th percentile of {len(values)} poses; worst {_length(values.max())}"
-                + _model_note(run.json("tcp/workspace/tcp.json")),
+                f"{_length(workspace.median_mm)} / {_length(workspace.p95_mm)}",
+                f"median / 95th percentile of {workspace.poses} poses; worst {_length(workspace.max_mm)}"
+                + (f"; {workspace.model}" if workspace.model else ""),
             )
         )
     else:
         cards.append(
             _card("Where can I trust it?", "TCP uncertainty over the workspace", "n/a", "workspace map not run")
         )
-    trajectory = _pose_uncertainties(run, "tcp/trajectory/tcp.csv")
-    if trajectory:
-        values = np.array([u for _, u in trajectory])
+    trajectory = summary.tcp_trajectory
+    if trajectory is not None:
         cards.append(
             _card(
                 "Where can I trust it?",
                 "TCP uncertainty along the trajectory",
-                f"≤ {_length(values.max())}",
-                f"largest of {len(values)} poses; smallest {_length(values.min())}"
-                + _model_note(run.json("tcp/trajectory/tcp.json")),
+                f"≤ {_length(trajectory.max_mm)}",
+                f"largest of {trajectory.poses} poses; smallest {_length(trajectory.min_mm)}"
+                + (f"; {trajectory.model}" if trajectory.model else ""),
             )
         )
-    check = run.json("tcp/consistency.json")
-    expected, observed = (_number(_lookup(check or {}, key)) for key in ("expected_rms_mm", "observed_rms_mm"))
-    if expected is not None and observed is not None:
-        predicted = _number(_lookup(check, "predicted_rms_mm"))
-        instrument = _number(_lookup(check, "instrument_rms_mm"))
-        ratio = _number(_lookup(check, "ratio"))
-        if ratio is None:
-            ratio = observed / expected if expected > 0 else float("inf")
-        verdict = (
-            "the stated uncertainty explains the error"
-            if ratio <= CONSISTENT_RATIO
-            else "the error exceeds what the parameter uncertainty and the instrument explain: the rest is what "
-            "the kinematic model does not hold (joint errors such as backlash and eccentricity, see Joints)"
-        )
+    check = summary.consistency
+    if check is not None:
+        registered = check.base_frame == "registered"
         cards.append(
             _card(
                 "Does the uncertainty explain the error?",
                 "validation RMS error, expected → observed",
-                f"{_length(expected)} → {_length(observed)}",
-                f"expected = √(predicted² + instrument²) = √({_length(predicted)}² + {_length(instrument)}²) at "
-                f"{_e(_lookup(check, 'poses'))} validation poses ({_e(_lookup(check, 'model'))}"
-                + (
-                    ", base frame registered: the registration absorbs part of the error"
-                    if _lookup(check, "base_frame") == "registered"
-                    else ""
-                )
-                + f"); {verdict}",
+                f"{_length(check.expected_rms_mm)} → {_length(check.observed_rms_mm)}",
+                f"expected = √(predicted² + instrument²) = √({_length(check.predicted_rms_mm)}² + "
+                f"{_length(check.instrument_rms_mm)}²) at {check.poses} validation poses ({check.model}"
+                + (", base frame registered: the registration absorbs part of the error" if registered else "")
+                + f"); observed / expected = {_fmt(check.ratio, '.3g')}: {check.verdict}",
             )
         )
+    return cards
 
-    stage_rows = []
-    for stage, where in _STAGES:
-        present = run.exists(where)
-        status, seconds = _stage_status(run, stage)
+
+def _summary(page: _Page) -> dict:
+    stages = page.record.get("stages") if isinstance(page.record.get("stages"), dict) else {}
+    rows = []
+    for stage, outputs in OUTPUTS.items():
+        if stage == "report":
+            continue
+        entry = stages.get(stage) if isinstance(stages.get(stage), dict) else {}
+        present = any(page.has(name) for name in outputs)
+        status = entry.get("status") if isinstance(entry.get("status"), str) else None
         shown = status or ("done" if present else "not run")
-        css = (
-            "rc-status-failed"
-            if str(shown).lower() in ("failed", "error")
-            else ("rc-status-ok" if present else "rc-status-missing")
+        css = "failed" if shown in ("failed", "error") else ("ok" if present else "missing")
+        detail = entry.get("detail") if isinstance(entry.get("detail"), str) else ""
+        seconds = _fmt(_number(entry.get("seconds")), ".2f")
+        rows.append(
+            {"stage": stage, "outputs": outputs, "status": shown, "css": css, "seconds": seconds, "detail": detail}
         )
-        stage_rows.append(
-            [
-                _e(stage),
-                f"<code>{_e(where)}</code>",
-                f'<span class="{css}">{_e(shown)}</span>',
-                _e(_fmt(seconds, ".2f")),
-            ]
-        )
-    body = (
-        ('<dl class="rc-facts">' + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in facts) + "</dl>" if facts else "")
-        + f'<div class="rc-cards">{"".join(cards)}</div>'
-        + _table(
-            ["stage", "results", "status", "time (s)"], stage_rows, caption="Stages of this run", text_columns={0, 1, 2}
-        )
-    )
-    return body, True
+    return {
+        "present": True,
+        "facts": _facts_of_run(page),
+        "cards": _cards(page),
+        "stages": rows,
+        "notes": page.summary.notes,
+    }
 
 
 def _parameter_values(data: dict | None) -> tuple[dict, set, set]:
@@ -805,370 +697,516 @@ def _parameter_values(data: dict | None) -> tuple[dict, set, set]:
     return values, set(identified) if isinstance(identified, list) else set(), fixed
 
 
-def _nominal_values(run: _Run, robot_name) -> dict:
-    """Nominal values [mm, deg] from uncertainty/parameters.csv, else from the built-in robot file."""
-    table = run.csv("uncertainty/parameters.csv")
-    if table is not None and {"name", "nominal"} <= set(table[0]):
-        header, rows = table
-        at_name, at_nominal = header.index("name"), header.index("nominal")
-        values = {row[at_name]: _number(row[at_nominal]) for row in rows}
-        return {k: v for k, v in values.items() if v is not None}
-    if not isinstance(robot_name, str):
+def _statistics(data: dict | None) -> dict:
+    """``name -> parameter entry`` of a Monte Carlo's ``parameters.json`` (``parameters`` list)."""
+    parameters = (data or {}).get("parameters")
+    if not isinstance(parameters, list):
         return {}
-    try:
-        from robotcal.io.robots import load_robot
+    return {p["name"]: p for p in parameters if isinstance(p, dict) and isinstance(p.get("name"), str)}
 
-        robot = load_robot(robot_name)
-    except RobotcalError:
-        return {}
-    return {
-        name: (math.degrees(value) if name.split(".")[1] not in LENGTH_KINDS else float(value))
-        for name, value in zip(robot.parameter_names, robot.nominal.reshape(-1), strict=True)
+
+def _refinement_rms(page: _Page, label: str, data: dict) -> list:
+    """Which RMS is which, for one refinement: the criterion's, the points', and the validation's."""
+    provenance = data.get("provenance") if isinstance(data.get("provenance"), dict) else {}
+    convergence = provenance.get("convergence") if isinstance(provenance.get("convergence"), dict) else {}
+    history = convergence.get("rms_mm") if isinstance(convergence.get("rms_mm"), list) else []
+    final = _number(history[-1]) if history else None
+    residuals, points = provenance.get("residuals"), provenance.get("points")
+    distance = "point distance |T p − m|" if label == "points" else "distance error |D model − D measured|"
+    rows = []
+    if final is not None:
+        rows.append(
+            [
+                "criterion RMS (convergence figure)",
+                _length(final),
+                f"√(2·cost/m): RMS of the {residuals} residuals, per coordinate"
+                if label == "points"
+                else f"√(2·cost/m): RMS of the {residuals} distance residuals",
+            ]
+        )
+    rms = _number(provenance.get("residual_rms_mm"))
+    if rms is not None:
+        what = (
+            f"at the {points} capture points: a distance in 3-D, so about √3 × the per-coordinate RMS"
+            if label == "points"
+            else "over the capture's point pairs: the same residuals as the criterion's"
+        )
+        rows.append([f"RMS {distance}", _length(rms), what])
+    evaluation = page.json("evaluation/evaluation.json") or {}
+    for row in evaluation.get("rows") or []:
+        if isinstance(row, dict) and row.get("parameter_set") == label and row.get("capture") == "validation":
+            if row.get("view") == "points" and _number(row.get("rms_error_mm")) is not None:
+                rows.append(
+                    [
+                        "validation RMS error",
+                        _length(_number(row["rms_error_mm"])),
+                        f"RMS of the {row.get('n_errors')} validation point errors after registration "
+                        "(evaluation, points view): not fitted, so the honest figure",
+                    ]
+                )
+    if not rows:
+        return []
+    return [
+        _Table(
+            header=["RMS", "value", "what it is"],
+            rows=rows,
+            caption=f"The RMS figures of the {label} refinement",
+            text_columns=frozenset({0, 2}),
+        )
+    ]
+
+
+def _parameters(page: _Page) -> dict:
+    cpa = page.json("cpa/parameters.json")
+    truth = page.json("truth.json")
+    refined = {label: page.json(f"refine/{label}.json") for label in ("points", "distances")}
+    mc = {
+        folder: _statistics(page.json(f"{folder}/parameters.json")) for folder in ("uncertainty-refined", "uncertainty")
     }
-
-
-def _parameters(run: _Run) -> tuple[str, bool]:
-    cpa = run.json("cpa/parameters.json")
-    truth = run.json("truth.json")
-    refined = {label: run.json(f"refine/{label}.json") for label in ("points", "distances")}
-    mc = run.csv("uncertainty/parameters.csv")
-    if cpa is None and mc is None and not any(refined.values()):
-        return _not_run("cpa/parameters.json") + _note("No identified parameters to show."), False
+    if cpa is None and not any(mc.values()) and not any(refined.values()):
+        return {"present": False, "blocks_": [_block("not_run", what="cpa/parameters.json")]}
     cpa_values, identified, fixed = _parameter_values(cpa)
-    robot_name = (cpa or {}).get("robot") or (truth or {}).get("robot")
-    columns: list[tuple[str, dict]] = [("nominal", _nominal_values(run, robot_name))]
     truth_values = _parameter_values(truth)[0]
+    nominal = {}
+    for stats in mc.values():
+        nominal.update(
+            {n: _number(p.get("nominal")) for n, p in stats.items() if _number(p.get("nominal")) is not None}
+        )
+    values: list[tuple[str, dict, str]] = [("nominal", nominal, ".4f")] if nominal else []
     if truth_values:
-        columns.append(("truth", truth_values))
+        values.append(("truth", truth_values, ".4f"))
     if cpa_values:
-        columns.append(("CPA", cpa_values))
+        values.append(("CPA", cpa_values, ".4f"))
         if truth_values:
-            columns.append(
-                ("CPA − truth", {k: v - truth_values[k] for k, v in cpa_values.items() if k in truth_values})
+            values.append(
+                ("CPA − truth", {k: v - truth_values[k] for k, v in cpa_values.items() if k in truth_values}, ".3e")
             )
     for label, data in refined.items():
-        values, more, more_fixed = _parameter_values(data)
-        if values:
-            columns.append((f"refined ({label})", values))
+        found, more, more_fixed = _parameter_values(data)
+        if found:
+            values.append((f"refined ({label})", found, ".4f"))
             identified |= more
             fixed |= more_fixed
-    mc_data = run.json("uncertainty/parameters.json") or {}
-    coverage = _number(_lookup(mc_data, "coverage", "coverage_probability", "scenario.montecarlo.coverage"))
-    if mc is not None:
-        header, rows = mc
-        index = {h: k for k, h in enumerate(header)}
-        interval = f"{_fmt(coverage * 100, '.3g')} % interval" if coverage else "interval"
-        for column, label in (
-            ("mean", "MC mean"),
-            ("std_uncertainty", "u"),
-            ("coverage_low", f"{interval} low"),
-            ("coverage_high", f"{interval} high"),
-        ):
-            if column in index and "name" in index:
-                values = {row[index["name"]]: _number(row[index[column]]) for row in rows}
-                columns.append((label, {k: v for k, v in values.items() if v is not None}))
-        if "identified" in index and "name" in index and not identified:
-            identified = {
-                row[index["name"]] for row in rows if row[index["identified"]].lower() in ("true", "1", "yes")
-            }
-    names = []
-    for _, values in columns:
-        names.extend(n for n in values if n not in names)
-    names.sort(
-        key=lambda n: (int(n.split(".")[0][1:]), PARAMETER_KINDS.index(n.split(".")[1])) if _is_param(n) else (10**6, 0)
-    )
-    names = [n for n in names if n not in fixed]
-    parts = []
-    for unit, kinds in (("mm", LENGTH_KINDS), ("deg", ("theta", "alpha", "beta"))):
-        group = [n for n in names if _is_param(n) and n.split(".")[1] in kinds]
+    uncertainty: list[tuple[str, dict, str]] = []
+    for folder, model in (("uncertainty-refined", "refined"), ("uncertainty", "CPA")):
+        stats = mc[folder]
+        if not stats:
+            continue
+        coverage = _number((page.json(f"{folder}/parameters.json") or {}).get("coverage"))
+        share = f"{_fmt(coverage * 100, '.3g')} % " if coverage else ""
+        uncertainty += [
+            (f"{model} MC mean", {n: _number(p.get("mean")) for n, p in stats.items()}, ".4f"),
+            (f"{model} u", {n: _number(p.get("std_uncertainty")) for n, p in stats.items()}, ".3g"),
+            (
+                f"{model} {share}interval",
+                {n: (_number(p.get("coverage_low")), _number(p.get("coverage_high"))) for n, p in stats.items()},
+                ".4f",
+            ),
+        ]
+        if not identified:
+            identified = {n for n, p in stats.items() if p.get("identified") is True}
+    names = sorted({n for _, found, _ in values + uncertainty for n in found if _is_param(n)} - fixed, key=_param_order)
+    blocks = []
+    for unit, kinds, title in (("mm", LENGTH_KINDS, "Lengths"), ("deg", ("theta", "alpha", "beta"), "Angles")):
+        group = [n for n in names if n.split(".")[1] in kinds]
         if not group:
             continue
-        rows_html, dim = [], set()
-        for r, name in enumerate(group):
-            row = [_e(name)]
-            for label, values in columns:
-                value = values.get(name)
-                spec = ".3g" if label == "u" else (".3e" if "−" in label else ".4f")
-                row.append(_e(_fmt(value, spec, exponent=spec != ".4f")) if value is not None else "")
-            if identified and name not in identified:
-                dim.add(r)
-                row[0] += " <small>(not identified)</small>"
-            rows_html.append(row)
-        title = "Lengths" if unit == "mm" else "Angles"
-        parts.append(f"<h3>{title} ({unit})</h3>")
-        parts.append(
-            _table(
-                ["parameter"] + [_e(f"{label} ({unit})") for label, _ in columns],
-                rows_html,
-                caption=f"every value in {unit}; grey rows are not identified by CPA and stay nominal",
-                text_columns={0},
-                dim_rows=dim,
+        dim = frozenset(r for r, n in enumerate(group) if identified and n not in identified)
+        tags = {r: "(not identified)" for r in dim}
+        blocks.append(_block("heading", text=f"{title} ({unit})"))
+        for columns, what in ((values, "values"), (uncertainty, "Monte Carlo uncertainty")):
+            if not columns:
+                continue
+            rows = []
+            for name in group:
+                row = [name]
+                for _, found, spec in columns:
+                    value = found.get(name)
+                    if isinstance(value, tuple):
+                        row.append(
+                            f"{_fmt(value[0], spec, exponent=False)} … {_fmt(value[1], spec, exponent=False)}"
+                            if None not in value
+                            else ""
+                        )
+                    else:
+                        row.append(_fmt(value, spec, exponent=spec != ".4f") if value is not None else "")
+                rows.append(row)
+            blocks.append(
+                _Table(
+                    header=["parameter"] + [f"{label} ({unit})" for label, _, _ in columns],
+                    rows=rows,
+                    caption=f"{what}, every one in {unit}; grey rows are not identified and stay nominal",
+                    text_columns=frozenset({0}),
+                    dim_rows=dim,
+                    tags=tags,
+                )
             )
-        )
-    provenance = (cpa or {}).get("provenance")
-    if isinstance(provenance, dict):
-        circles = provenance.get("circles")
-        if isinstance(circles, list) and circles:
-            rows_html = [
-                [
-                    _e(c.get("circle", "")),
-                    _e(c.get("points", "")),
-                    _e(_fmt(_number(c.get("radius_mm")), ".4f")),
-                    _e(
-                        _fmt(
-                            _number(c.get("plane_rms_mm")) * 1e3
-                            if _number(c.get("plane_rms_mm")) is not None
-                            else None,
-                            ".3g",
-                        )
-                    ),
-                    _e(
-                        _fmt(
-                            _number(c.get("circle_rms_mm")) * 1e3
-                            if _number(c.get("circle_rms_mm")) is not None
-                            else None,
-                            ".3g",
-                        )
-                    ),
-                ]
-                for c in circles
-                if isinstance(c, dict)
-            ]
-            parts.append("<h3>CPA circle fits</h3>")
-            parts.append(
-                _table(
-                    ["circle", "points", "radius (mm)", "plane RMS (µm)", "circle RMS (µm)"],
-                    rows_html,
-                    caption="<code>cpa/parameters.json</code> provenance",
+    provenance = (cpa or {}).get("provenance") if isinstance((cpa or {}).get("provenance"), dict) else None
+    if provenance is not None:
+        circles = [c for c in provenance.get("circles") or [] if isinstance(c, dict)]
+        if circles:
+            blocks.append(_block("heading", text="CPA circle fits"))
+            blocks.append(
+                _Table(
+                    header=["circle", "points", "radius (mm)", "plane RMS (µm)", "circle RMS (µm)"],
+                    rows=[
+                        [
+                            str(c.get("circle", "")),
+                            str(c.get("points", "")),
+                            _fmt(_number(c.get("radius_mm")), ".4f"),
+                            _fmt(
+                                None if _number(c.get("plane_rms_mm")) is None else _number(c["plane_rms_mm"]) * 1e3,
+                                ".3g",
+                            ),
+                            _fmt(
+                                None if _number(c.get("circle_rms_mm")) is None else _number(c["circle_rms_mm"]) * 1e3,
+                                ".3g",
+                            ),
+                        ]
+                        for c in circles
+                    ],
+                    caption="plane RMS: distance of the points to the fitted plane; circle RMS: in-plane distance to "
+                    "the fitted circle",
+                    source="cpa/parameters.json",
                 )
             )
         pairs = provenance.get("line_pairs")
         if isinstance(pairs, list) and pairs:
-            parts.append("<p>Adjacent joint axes: " + "; ".join(_e(p) for p in pairs) + ".</p>")
-        parts.append(
-            _facts_html(
-                provenance,
-                caption="CPA provenance (<code>cpa/parameters.json</code>)",
-                skip=("circles", "line_pairs", "versions", "tracker_from_base"),
-            )
+            blocks.append(_block("note", text="Adjacent joint axes: " + "; ".join(str(p) for p in pairs) + "."))
+        blocks += _facts(
+            provenance,
+            caption="CPA provenance",
+            source="cpa/parameters.json",
+            skip=("circles", "line_pairs", "versions", "tracker_from_base"),
         )
     for label, data in refined.items():
         if data and isinstance(data.get("provenance"), dict):
-            parts.append(f"<h3>Refinement ({_e(label)})</h3>")
-            parts.append(
-                _facts_html(
-                    data["provenance"], caption=f"<code>refine/{label}.json</code> provenance", skip=("versions",)
+            blocks.append(_block("heading", text=f"Refinement ({label} criterion)"))
+            blocks += _refinement_rms(page, label, data)
+            blocks += _facts(
+                data["provenance"],
+                caption="provenance",
+                source=f"refine/{label}.json",
+                skip=("versions", "convergence", "correlation", "tracker_from_base"),
+            )
+    return {"present": True, "blocks_": blocks}
+
+
+def _stage(page: _Page, folder: str, *, first_csv=(), first_png=(), csv_options=None, skip_csv=()) -> list:
+    """Every CSV (as tables), PNG (figures) and JSON (scalar entries) directly in a stage folder."""
+    csv_options = csv_options or {}
+    blocks = []
+    names = [n for n in page.children(folder, ".csv") if PurePosixPath(n).name not in skip_csv]
+    names.sort(key=lambda n: (PurePosixPath(n).name not in first_csv, n))
+    for name in names:
+        blocks += _csv(page, name, **csv_options.get(PurePosixPath(name).name, {}))
+    blocks += _figures(page, folder, first=tuple(first_png))
+    for name in page.children(folder, ".json"):
+        blocks += _facts(page.json(name), source=name, skip=("figures", "versions", "rows", "convergence", "poses"))
+    return blocks
+
+
+def _evaluation(page: _Page) -> dict:
+    if not page.has("evaluation"):
+        return {"present": False, "blocks_": [_block("not_run", what="evaluation/")]}
+    return {
+        "present": True,
+        "blocks_": _stage(page, "evaluation", first_csv=("evaluation.csv",), first_png=("convergence.png",)),
+    }
+
+
+def _noise_floors(page: _Page) -> tuple[dict, str]:
+    """``(joint -> noise floor [µm], document)``: the ``noise_floor_um`` column of ``joints/summary.csv`` (one
+    row per joint) or, where the joints stage writes it per pair, of ``joints/backlash.csv`` (``circle``)."""
+    for name, key in (("joints/summary.csv", "joint"), ("joints/backlash.csv", "circle")):
+        table = page.table(name)
+        if table is not None and {key, "noise_floor_um"} <= set(table.header):
+            floors = {}
+            for joint, value in zip(table.column(key), table.column("noise_floor_um"), strict=True):
+                if _number(value) is not None:
+                    floors.setdefault(joint, _number(value))
+            return floors, name
+    return {}, ""
+
+
+def _joints(page: _Page) -> dict:
+    if not page.has("joints"):
+        return {"present": False, "blocks_": [_block("not_run", what="joints/")]}
+    blocks = []
+    summary = page.table("joints/summary.csv")
+    floors, floor_source = _noise_floors(page)
+    if summary is not None:
+        records = summary.records()
+        fits = [
+            "joint",
+            "points",
+            "radius_mm",
+            "plane_rms_mm",
+            "circle_rms_mm",
+            "axial_min_mm",
+            "axial_max_mm",
+            "radial_min_mm",
+            "radial_max_mm",
+        ]
+        um = {name for name in fits if name.endswith("_mm") and name != "radius_mm"}
+        present = [c for c in fits if c in summary.header]
+        blocks.append(_block("heading", text="Circle fits and eccentricity"))
+        blocks.append(
+            _Table(
+                header=[_label(c[:-3] + "_um") if c in um else _label(c) for c in present],
+                rows=[
+                    [
+                        _fmt(_number(r[c]) * 1e3, ".3g") if c in um and _number(r[c]) is not None else _cell(r[c])
+                        for c in present
+                    ]
+                    for r in records
+                ],
+                caption="per joint; small lengths in µm",
+                source="joints/summary.csv",
+            )
+        )
+        lash = [
+            c
+            for c in ("backlash_mean_mm", "backlash_min_mm", "backlash_max_mm", "backlash_std_mm")
+            if c in summary.header
+        ]
+        if lash:
+            header = ["joint", "pairs"] + [_label(c[:-3] + "_um") for c in lash]
+            rows = []
+            for r in records:
+                row = [r.get("joint", ""), r.get("pairs", "")]
+                row += [_fmt(_number(r[c]) * 1e3, ".3g") if _number(r[c]) is not None else r[c] for c in lash]
+                if "backlash_angle_mean_deg" in summary.header:
+                    row.append(_cell(r["backlash_angle_mean_deg"]))
+                if floors:
+                    floor, mean = floors.get(r.get("joint")), _number(r.get("backlash_mean_mm"))
+                    row.append(_fmt(floor, ".3g") if floor is not None else "n/a")
+                    ratio = mean * 1e3 / floor if floor and mean is not None else None
+                    row.append(_fmt(ratio, ".2f", exponent=False))
+                rows.append(row)
+            if "backlash_angle_mean_deg" in summary.header:
+                header.append("backlash angle mean (deg)")
+            if floors:
+                header += ["noise floor (µm)", "mean / floor"]
+            blocks.append(_block("heading", text="Backlash"))
+            blocks.append(
+                _Table(
+                    header=header,
+                    rows=rows,
+                    caption="per joint: magnitude of return − forward at the same reading; "
+                    + (f"{_NOISE_FLOOR} (from {floor_source})" if floors else "no noise floor in this run"),
+                    source="joints/summary.csv",
                 )
             )
-    return "".join(parts), True
-
-
-def _is_param(name: str) -> bool:
-    return bool(re.fullmatch(r"J\d+\.(d|theta|a|alpha|beta)", name))
-
-
-def _stage_generic(run: _Run, folder: str, *, first_csv=(), first_png=(), csv_titles=None) -> str:
-    """Every CSV (as tables), JSON (scalar entries) and PNG (figures) of a stage folder."""
-    parts = []
-    csv_titles = csv_titles or {}
-    json_files = run.files(folder, "*.json")
-    captions = {}
-    for relative in json_files:
-        data = run.json(relative)
-        if isinstance(data, dict) and isinstance(data.get("figures"), dict):
-            captions.update({str(k): str(v) for k, v in data["figures"].items()})
-    csv_files = run.files(folder, "*.csv")
-    csv_files.sort(key=lambda rel: (Path(rel).name not in first_csv, rel))
-    for relative in csv_files:
-        parts.append(_csv_html(run, relative, title=csv_titles.get(Path(relative).name, "")))
-    parts.append(_figures_html(run, folder, captions=captions, first=tuple(first_png)))
-    for relative in json_files:
-        parts.append(
-            _facts_html(run.json(relative), caption=f"<code>{_e(relative)}</code>", skip=("figures", "versions"))
+    captions = _captions(page, "joints")
+    per_point = [n for n in page.children("joints", ".csv") if n != "joints/summary.csv"]
+    if per_point:
+        blocks.append(
+            _block("note", text="Per point and per pair of forward and return points: " + ", ".join(per_point) + ".")
         )
-    return "".join(parts)
+    blocks += _figures(page, "joints", captions=captions, first=("backlash_magnitude.png", "backlash_xyz.png"))
+    for name in page.children("joints", ".json"):
+        blocks += _facts(page.json(name), source=name, skip=("figures", "versions", "joints"))
+    return {"present": True, "blocks_": blocks, "noise_floor": bool(floors)}
 
 
-def _evaluation(run: _Run) -> tuple[str, bool]:
-    if not run.exists("evaluation"):
-        return _not_run("evaluation/"), False
-    note = _note(
-        "The points criterion (eq. 4-101) fits the measured positions themselves (with the base frame given or "
-        "estimated) and is the deployed result. The distances criterion (eq. 4-102) is registration-free: it uses "
-        "only the distances between points and so no absolute position; from the same capture it can determine "
-        "the parameters markedly less precisely (compare the standard uncertainties in refine/*.json) and end "
-        "worse than CPA on the validation poses. Use it when the base frame cannot be known."
-    )
-    return note + _stage_generic(run, "evaluation", first_csv=("evaluation.csv",), first_png=("convergence.png",)), True
+#: Columns of a Monte Carlo's parameters.csv shown in the report (the file holds more).
+_MC_COLUMNS = (
+    "name",
+    "nominal",
+    "mean",
+    "std_uncertainty",
+    "coverage_low",
+    "coverage_high",
+    "lpu_std_uncertainty",
+    "identified",
+)
+_TCP_COLUMNS = (
+    "pose",
+    "name",
+    "nominal",
+    "mean",
+    "std_uncertainty",
+    "coverage_low",
+    "coverage_high",
+    "lpu_std_uncertainty",
+)
 
 
-def _joints(run: _Run) -> tuple[str, bool]:
-    if not run.exists("joints"):
-        return _not_run("joints/"), False
-    return _stage_generic(run, "joints", first_csv=("summary.csv",)), True
-
-
-def _montecarlo(run: _Run) -> tuple[str, bool]:
-    if not run.exists("uncertainty") and not run.exists("uncertainty-refined"):
-        return _not_run("uncertainty/"), False
-    parts = [
-        _note(
-            "Two Monte Carlos of the same capture. The refined model is the one a user deploys: every draw runs "
-            "CPA and then the points-criterion refinement, simulated around the refined estimate; the TCP "
-            "figures use its draws. The CPA model is the thesis's (ch. 5.2.3): every draw runs CPA alone, "
-            "simulated around the CPA estimate. Both use the same seed, so they see the same instrument noise."
-        )
-    ]
+def _montecarlo(page: _Page) -> dict:
+    if not page.has("uncertainty") and not page.has("uncertainty-refined"):
+        return {"present": False, "blocks_": [_block("not_run", what="uncertainty/")]}
+    models = []
     for folder, title in (
         ("uncertainty-refined", "Refined model (deployed)"),
         ("uncertainty", "CPA model (thesis ch. 5.2.3)"),
     ):
-        parts.append(f"<h3>{_e(title)}: <code>{_e(folder)}/</code></h3>")
-        if not run.exists(folder):
-            parts.append(_not_run(folder + "/"))
+        if not page.has(folder):
+            models.append({"title": title, "folder": folder, "blocks_": [_block("not_run", what=folder + "/")]})
             continue
-        data = run.json(f"{folder}/parameters.json")
-        parts += [
-            _facts_html(
-                data, caption=f"<code>{folder}/parameters.json</code>", skip=("figures", "versions", "scenario")
-            ),
-            _figures_html(run, folder, pattern="hist_*.png"),
-            _figures_html(run, folder, pattern="[!h]*.png"),
-            _csv_html(run, f"{folder}/parameters.csv", title="Parameter statistics of the Monte Carlo draws"),
-        ]
-        others = [r for r in run.files(folder, "*.csv") if r != f"{folder}/parameters.csv"]
-        parts.extend(_csv_html(run, r) for r in others)
-    return "".join(parts), True
+        blocks = _facts(
+            page.json(f"{folder}/parameters.json"),
+            caption="settings and outcome",
+            source=f"{folder}/parameters.json",
+            skip=("figures", "versions", "scenario", "parameters", "covariance", "correlation", "linearised"),
+        )
+        pngs = page.children(folder, ".png")
+        blocks += _figures(page, folder, names=[n for n in pngs if PurePosixPath(n).name.startswith("hist_")])
+        blocks += _figures(page, folder, names=[n for n in pngs if not PurePosixPath(n).name.startswith("hist_")])
+        blocks += _csv(
+            page,
+            f"{folder}/parameters.csv",
+            caption="parameter statistics of the draws (the file has more columns: min, max, shortest interval, "
+            "linearised interval)",
+            columns=_MC_COLUMNS,
+            rows_limit=200,
+        )
+        for name in page.children(folder, ".csv"):
+            if name != f"{folder}/parameters.csv":
+                blocks += _csv(page, name)
+        models.append({"title": title, "folder": folder, "blocks_": blocks})
+    return {"present": True, "models": models}
 
 
-def _tcp(run: _Run) -> tuple[str, bool]:
-    parts, present = [], False
+def _tcp_stage(page: _Page, folder: str) -> list:
+    return _stage(
+        page,
+        folder,
+        first_csv=("tcp.csv",),
+        csv_options={"tcp.csv": {"columns": _TCP_COLUMNS, "caption": "the file has more columns: min, max"}},
+    )
+
+
+def _tcp(page: _Page) -> dict:
+    parts = []
     for sub, title in (("pose", "At the pose"), ("trajectory", "Along the trajectory")):
         folder = f"tcp/{sub}"
-        parts.append(f"<h3>{title}</h3>")
-        if run.exists(folder):
-            present = True
-            parts.append(_stage_generic(run, folder, first_csv=("tcp.csv",)))
-        else:
-            parts.append(_not_run(folder + "/"))
-    return "".join(parts), present
+        present = page.has(folder)
+        blocks = _tcp_stage(page, folder) if present else [_block("not_run", what=folder + "/")]
+        parts.append({"title": title, "blocks_": blocks, "present": present})
+    consistency = _facts(
+        page.json("tcp/consistency.json"), caption="validation consistency", source="tcp/consistency.json"
+    )
+    return {"present": any(p["present"] for p in parts), "parts": parts, "consistency": consistency}
 
 
-def _workspace(run: _Run) -> tuple[str, bool]:
-    if not run.exists("tcp/workspace"):
-        return _not_run("tcp/workspace/"), False
-    return _stage_generic(run, "tcp/workspace", first_csv=("tcp.csv",)), True
+def _workspace(page: _Page) -> dict:
+    if not page.has("tcp/workspace"):
+        return {"present": False, "blocks_": [_block("not_run", what="tcp/workspace/")]}
+    return {"present": True, "blocks_": _tcp_stage(page, "tcp/workspace")}
 
 
-def _planning(run: _Run) -> tuple[str, bool]:
-    if not run.exists("plan"):
-        return _not_run("plan/"), False
-    parts = [
-        "<h3>The capture plan in the cell (thesis 4.5.2)</h3>",
-        _note(
-            "Every capture point checked against the joint limits of the robot file, the instrument's range, "
-            "the reflector's acceptance angle and the line of sight from the tracker, past the robot's links "
-            "modelled as capsules (docs/planning.md). A synthetic plan may fail these checks and still be a "
-            "valid study; a plan for a real cell must pass them."
-        ),
-        _stage_generic(run, "plan", first_csv=("plan_check.csv",), first_png=("plan_check.png",)),
-        "<h3>Sensitivity to the angle joint 4 covers (thesis 5.2.4, Fig. 5.15)</h3>",
-        _note(
-            "One CPA Monte Carlo per J4 sweep, all with the same seed; Cpk is eq. 5-5 with the limits in "
-            "<code>plan/sensitivity/</code>'s JSON. The thesis plan turns J4's 20 mm target through 50 deg."
-        ),
-    ]
-    if run.exists("plan/sensitivity"):
-        parts.append(_stage_generic(run, "plan/sensitivity"))
+def _planning(page: _Page) -> dict:
+    if not page.has("plan"):
+        return {"present": False, "blocks_": [_block("not_run", what="plan/")]}
+    check = _stage(page, "plan", first_csv=("plan_check.csv",), first_png=("plan_check.png",))
+    if page.has("plan/sensitivity"):
+        sensitivity = _stage(page, "plan/sensitivity")
     else:
-        parts.append(_not_run("plan/sensitivity/"))
-    return "".join(parts), True
+        sensitivity = [_block("not_run", what="plan/sensitivity/")]
+    return {"present": True, "check": check, "sensitivity": sensitivity}
 
 
-def _view3d(run: _Run) -> tuple[str, bool]:
-    if not run.exists("capture.csv"):
-        return _not_run("capture.csv"), False
-    from robotcal.io.capture_csv import read_capture
+def _capture(table: Table):
+    """The Capture of a ``capture.csv`` document (circle, direction, q1..qN in deg, x, y, z in mm)."""
+    from robotcal.capture import Capture
+
+    header = [h.strip().lower() for h in table.header]
+    joints = sorted((h for h in header if re.fullmatch(r"q\d+", h)), key=lambda h: int(h[1:]))
+    missing = [c for c in ("circle", "direction", "x", "y", "z") if c not in header] + ([] if joints else ["q1..qN"])
+    if missing:
+        raise ValueError(f"missing column(s) {', '.join(missing)}")
+    columns = ["circle", "direction", *joints, "x", "y", "z"]
+    data = np.array([[float(row[header.index(c)]) for c in columns] for row in table.rows], dtype=float)
+    if data.size == 0 or not np.all(np.isfinite(data)):
+        raise ValueError("no rows, or a value that is not a finite number")
+    return Capture(
+        circle=data[:, 0].astype(int),
+        direction=data[:, 1].astype(int),
+        readings=np.deg2rad(data[:, 2 : 2 + len(joints)]),
+        points=data[:, -3:],
+    )
+
+
+def _view3d(page: _Page) -> dict:
+    table = page.table("capture.csv")
+    if table is None:
+        return {"present": False, "blocks_": [_block("not_run", what="capture.csv")]}
+    from robotcal.errors import RobotcalError
 
     try:
-        capture = read_capture(run.path("capture.csv"))
-    except RobotcalError as exc:
-        return run.problem("capture.csv", str(exc)), False
-    provenance = (run.json("cpa/parameters.json") or {}).get("provenance") or {}
-    pose = provenance.get("tracker_from_base") if isinstance(provenance, dict) else None
+        capture = _capture(table)
+    except (ValueError, IndexError, RobotcalError) as exc:
+        return {"present": False, "blocks_": [page.problem("capture.csv", f"not a capture ({exc})")]}
+    provenance = (page.json("cpa/parameters.json") or {}).get("provenance")
+    provenance = provenance if isinstance(provenance, dict) else {}
+    pose = provenance.get("tracker_from_base")
     try:
         pose = np.asarray(pose, dtype=float) if pose is not None else None
         if pose is not None and pose.shape != (4, 4):
             pose = None
     except (TypeError, ValueError):
         pose = None
-    circle_fit = _lookup(provenance, "options.circle_fit") if isinstance(provenance, dict) else None
+    options = provenance.get("options") if isinstance(provenance.get("options"), dict) else {}
+    circle_fit = options.get("circle_fit")
     scene = viewer_scene(
         capture,
         tracker_from_base=pose,
         circle_fit=circle_fit if circle_fit in ("geometric", "algebraic") else "geometric",
     )
-    notes = "".join(f'<p class="rc-problem">{_e(n)}</p>' for n in scene["notes"])
-    intro = (
-        "<p>The measured points of every circle (tracker frame, mm), the circle fitted to each "
-        "(plane, then circle in the plane, as CPA fits it) and the joint axis taken from it: the line "
-        "through the circle centre along the plane normal"
-        + (", with the robot base frame <code>tracker_from_base</code> of the CPA result." if pose is not None else ".")
-        + "</p>"
+    return {"present": True, "notes": scene["notes"], "frame": pose is not None, "viewer": render_viewer(scene)}
+
+
+def _provenance(page: _Page) -> dict:
+    record = page.record
+    blocks = (
+        _facts(record, caption="run record", source="run.json", skip=("versions", "scenario.settings"), limit=80)
+        if record
+        else [_block("note", text="No run.json: this run was not recorded by robotcal run.")]
     )
-    return intro + notes + render_viewer(scene), True
-
-
-def _provenance(run: _Run) -> tuple[str, bool]:
-    data = run.json("run.json")
-    parts = []
-    if data is not None:
-        parts.append(_facts_html(data, caption="<code>run.json</code>", skip=("versions",), limit=80))
-    else:
-        parts.append(_note("No <code>run.json</code>: this folder was not written by <code>robotcal run</code>."))
     versions = {}
-    for relative in ("cpa/parameters.json", "uncertainty/parameters.json", "run.json"):
-        found = _lookup(run.json(relative) or {}, "versions", "provenance.versions")
-        if isinstance(found, dict):
-            versions.update({str(k): str(v) for k, v in found.items()})
+    for name in ("cpa/parameters.json", "uncertainty/parameters.json"):
+        found = (page.json(name) or {}).get("provenance", {})
+        if isinstance(found, dict) and isinstance(found.get("versions"), dict):
+            versions.update({str(k): str(v) for k, v in found["versions"].items()})
+    if isinstance(record.get("versions"), dict):
+        versions.update({str(k): str(v) for k, v in record["versions"].items()})
     versions.setdefault("robotcal (this report)", robotcal.__version__)
-    parts.append(
-        _table(
-            ["software", "version"],
-            [[_e(k), _e(v)] for k, v in versions.items()],
+    blocks.append(
+        _Table(
+            header=["software", "version"],
+            rows=[[k, v] for k, v in versions.items()],
             caption="Versions",
-            text_columns={0, 1},
+            text_columns=frozenset({0, 1}),
         )
     )
     rows = []
-    for path in sorted(p for p in run.root.rglob("*") if p.is_file() or p.is_symlink()):
-        relative = path.relative_to(run.root)
-        if relative.name == REPORT_NAME or any(part.startswith(".") for part in relative.parts):
-            continue
-        if run._linked(relative) is not None:
-            rows.append([f"<code>{_e(relative)}</code>", "", _e(run._linked(relative))])
-            continue
-        try:
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()
-        except OSError:
-            continue
-        rows.append(
-            [f"<code>{_e(relative)}</code>", _e(f"{path.stat().st_size / 1024:.1f}"), f"<code>{digest[:16]}</code>"]
-        )
-    parts.append(
-        _table(
-            ["file", "size (KiB)", "SHA-256 (first 16 hex digits)"],
-            rows[:300],
-            caption="Files this report was built from",
-            text_columns={0, 2},
+    for name in sorted(n for n in page.result.documents if n != REPORT_NAME):
+        document = page.result.documents[name]
+        if isinstance(document, Table):
+            rows.append([name, "CSV", f"{len(document.rows)} rows of {len(document.header)} columns"])
+        elif isinstance(document, dict):
+            rows.append([name, "JSON", f"{len(document)} top-level entries"])
+        else:
+            rows.append([name, "figure" if name.endswith(".png") else "binary file", ""])
+    blocks.append(
+        _Table(
+            header=["document", "kind", "contents"],
+            rows=rows[:300],
+            caption="The documents of the run this report was built from",
+            text_columns=frozenset({0, 1, 2}),
+            code_columns=frozenset({0}),
+            note=_rows_note(min(len(rows), 300), len(rows)),
         )
     )
-    generated = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
-    parts.append(
-        f"<p>Report generated {generated} by robotcal {_e(robotcal.__version__)} from <code>{_e(run.root)}</code>, "
-        "from the saved files only (no recomputation except the circle fits of the 3-D view).</p>"
-    )
-    return "".join(parts), True
+    folder = page.result.folder
+    return {
+        "present": True,
+        "blocks_": blocks,
+        "generated": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        "version": robotcal.__version__,
+        "folder": str(folder) if folder is not None else None,
+    }
 
 
 _SECTIONS = (
@@ -1184,107 +1222,93 @@ _SECTIONS = (
     ("provenance", "Provenance", _provenance),
 )
 
-_CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'"
 
-
-def _check_run_dir(run_dir) -> Path:
-    root = Path(run_dir)
-    if not root.exists():
-        raise InputError(f"{root}: run folder not found")
-    if not root.is_dir():
-        raise InputError(f"{root}: not a folder (expected a run folder written by `robotcal run`)")
-    if not any((root / entry).exists() for entry in _RUN_ENTRIES):
-        raise InputError(
-            f"{root}: no results found (expected at least one of {', '.join(_RUN_ENTRIES)}; see docs/results.md)"
-        )
-    return root
-
-
-def render_report(run_dir) -> Report:
-    """Render the report of ``run_dir`` as one HTML string, without writing anything.
+def render_report(result: RunResult) -> Report:
+    """Render the report of a run as one HTML string, without writing anything.
 
     Parameters
     ----------
-    run_dir : path
-        A run folder (docs/results.md). Every stage is optional.
+    result : RunResult
+        The run (from :func:`robotcal.pipeline.run_calibration` or :func:`robotcal.pipeline.folder.read_run`).
+        Every stage is optional. No file is read but the PNG figures among its documents.
 
     Returns
     -------
     Report
+
+    Examples
+    --------
+    A run held in memory, here built by hand: a workspace map and nothing else.
+
+    >>> from robotcal.pipeline.result import RunResult
+    >>> workspace = {"poses": [{"position_uncertainty_mm": u} for u in (0.002, 0.004)]}
+    >>> report = render_report(RunResult(documents={"tcp/workspace/tcp.json": workspace}))
+    >>> [section.id for section in report.sections if section.present]
+    ['summary', 'workspace', 'provenance']
+    >>> "3 µm / 3.9 µm" in report.html  # median / 95th percentile of the two poses
+    True
+    """
+    from markupsafe import Markup
+
+    page = _Page(result)
+    environment = template_environment()
+    sections, bodies = [], []
+    for anchor, title, build in _SECTIONS:
+        context = build(page)
+        sections.append(ReportSection(id=anchor, title=title, present=bool(context["present"])))
+        if "viewer" in context:
+            context["viewer"] = Markup(context["viewer"])  # render_viewer escapes what it embeds (tested)
+        body = environment.get_template(f"{anchor}.html.j2").render(**context)
+        bodies.append({"id": anchor, "title": title, "body": Markup(body)})
+    robot = page.record.get("robot") or (page.json("cpa/parameters.json") or {}).get("robot") or "robot"
+    scenario = page.record.get("scenario") if isinstance(page.record.get("scenario"), dict) else {}
+    canvases = sum(str(b["body"]).count("<canvas") for b in bodies)
+    html = environment.get_template("page.html.j2").render(
+        title=f"Calibration report: {robot}",
+        scenario=scenario.get("name") if isinstance(scenario.get("name"), str) else None,
+        folder=result.folder.name if result.folder is not None else None,
+        version=robotcal.__version__,
+        csp=_CSP,
+        sections=sections,
+        bodies=bodies,
+        problems=page.problems,
+        css=Markup(asset_text("report.css")),
+        errors_js=Markup(asset_text("errors.js")),
+        viewer_js=Markup(asset_text("viewer3d.js")) if canvases else None,
+        check_js=Markup(asset_text("check.js")),
+    )
+    return Report(
+        html=html,
+        sections=tuple(sections),
+        figures=page.figures,
+        canvases=canvases,
+        problems=tuple(page.problems),
+    )
+
+
+def build_report(run_dir, out=None) -> Report:
+    """Read the run folder ``run_dir``, render its report and write it atomically to ``out``.
+
+    Parameters
+    ----------
+    run_dir : path
+        A run folder (docs/results.md), read by :func:`robotcal.pipeline.folder.read_run`.
+    out : path, optional
+        The HTML file to write (default ``run_dir/report.html``).
+
+    Returns
+    -------
+    Report
+        With ``path`` set. See :func:`render_report`.
 
     Raises
     ------
     InputError
         ``run_dir`` is missing, not a folder, or holds none of the result files.
     """
-    run = _Run(root=_check_run_dir(run_dir))
-    sections, bodies = [], []
-    for anchor, title, render in _SECTIONS:
-        body, present = render(run)
-        sections.append(ReportSection(id=anchor, title=title, present=present))
-        bodies.append(f'<section id="{anchor}"><h2>{_e(title)}</h2>{body}</section>')
-    toc = "".join(
-        f'<li{"" if s.present else " class=rc-missing"}><a href="#{s.id}">{_e(s.title)}</a></li>' for s in sections
-    )
-    cpa = run.json("cpa/parameters.json") or {}
-    data = run.json("run.json") or {}
-    robot = cpa.get("robot") or _lookup(data, "robot", "scenario.robot") or "robot"
-    scenario = _lookup(data, "scenario.name") or _lookup(cpa, "provenance.scenario.name")
-    if isinstance(data.get("scenario"), str):
-        scenario = data["scenario"]
-    title = f"Calibration report: {robot}"
-    subtitle = f"scenario {scenario} · " if scenario else ""
-    problems = "".join(f"<li>{_e(p)}</li>" for p in run.problems)
-    problems_html = (
-        f'<div class="rc-problem"><strong>Some result files could not be read:</strong><ul>{problems}</ul></div>'
-        if problems
-        else ""
-    )
-    canvases = sum(body.count("<canvas") for body in bodies)
-    page = "".join(
-        [
-            '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">',
-            f'<meta http-equiv="Content-Security-Policy" content="{_CSP}">',
-            '<meta name="viewport" content="width=device-width, initial-scale=1">',
-            f'<meta name="generator" content="robotcal {_e(robotcal.__version__)}">',
-            f"<title>{_e(title)}</title>",
-            f"<style>{asset_text('report.css')}</style>",
-            f"<script>{asset_text('errors.js')}</script>",
-            '</head><body data-status="loading"><div class="rc-layout">',
-            f'<nav class="rc-toc" aria-label="Contents"><div class="rc-brand">robotcal report</div><ol>{toc}</ol></nav>',
-            f'<main><header class="rc-title"><h1>{_e(title)}</h1>',
-            f"<p>{_e(subtitle)}run folder <code>{_e(run.root.resolve().name)}</code> · lengths in mm, angles in degrees</p></header>",
-            '<pre id="rc-errors" hidden></pre>',
-            problems_html,
-            "".join(bodies),
-            "</main></div>",
-            f"<script>{asset_text('viewer3d.js')}</script>" if canvases else "",
-            f"<script>{asset_text('check.js')}</script>",
-            "</body></html>\n",
-        ]
-    )
-    return Report(
-        html=page,
-        sections=tuple(sections),
-        figures=run.figures,
-        canvases=canvases,
-        problems=tuple(run.problems),
-    )
+    from robotcal.pipeline.folder import read_run
 
-
-def build_report(run_dir, out=None) -> Report:
-    """Render the report of ``run_dir`` and write it atomically to ``out`` (default ``run_dir/report.html``).
-
-    Returns the :class:`Report` with ``path`` set. See :func:`render_report`.
-    """
-    report = render_report(run_dir)
+    report = render_report(read_run(run_dir))
     path = Path(out) if out is not None else Path(run_dir) / REPORT_NAME
     atomic_write_text(path, report.html)
-    return Report(
-        html=report.html,
-        path=path,
-        sections=report.sections,
-        figures=report.figures,
-        canvases=report.canvases,
-        problems=report.problems,
-    )
+    return replace(report, path=path)

@@ -9,8 +9,8 @@ small hand-written canvas renderer inlined into the page: no library, no WebGL, 
 
 from __future__ import annotations
 
-import html
 import json
+from functools import cache
 from importlib import resources
 
 import numpy as np
@@ -38,8 +38,9 @@ CIRCLE_COLOURS = (
 _DECIMALS = 4  # coordinates are sent rounded to 0.1 µm; far below any instrument resolution
 
 
+@cache
 def asset_text(name: str) -> str:
-    """Text of a file in ``robotcal/report/assets`` (CSS and scripts inlined into the report)."""
+    """Text of a file in ``robotcal/report/assets`` (CSS and scripts inlined into the report), read once."""
     return resources.files("robotcal.report").joinpath("assets", name).read_text(encoding="utf-8")
 
 
@@ -157,15 +158,11 @@ def _script_json(data: dict) -> str:
 
 
 def render_viewer(scene: dict, *, element_id: str = "rc-view3d") -> str:
-    """HTML of one viewer (canvas, embedded scene, legend, controls); needs ``viewer3d.js`` on the page."""
-    label = "3-D view of the measured circle points, fitted circles and joint axes (tracker frame, mm)"
-    return (
-        f'<div class="rc-viewer" id="{html.escape(element_id)}">'
-        f'<canvas tabindex="0" role="img" aria-label="{html.escape(label)}"></canvas>'
-        f'<script type="application/json">{_script_json(scene)}</script>'
-        '<div class="rc-viewer-bar"><div class="rc-legend"></div>'
-        '<button type="button" class="rc-reset">reset view</button>'
-        '<span class="rc-readout"></span>'
-        '<span class="rc-hint">drag: rotate · wheel: zoom · shift-drag: pan · double-click: reset · '
-        "arrow keys, + and - when focused</span></div></div>"
-    )
+    """HTML of one viewer (``templates/viewer.html.j2``: canvas, embedded scene, legend, controls); needs
+    ``viewer3d.js`` on the page."""
+    from markupsafe import Markup
+
+    from robotcal.report import template_environment
+
+    template = template_environment().get_template("viewer.html.j2")
+    return template.render(element_id=element_id, scene_json=Markup(_script_json(scene)))

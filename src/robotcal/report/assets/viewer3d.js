@@ -183,11 +183,57 @@
     g.setLineDash([]);
   };
 
-  Viewer.prototype.text = function (p, label, colour, align) {
-    var g = this.context, s = this.project(p);
-    g.fillStyle = colour;
-    g.textAlign = align || "center";
-    g.fillText(label, s[0], s[1]);
+  /* Labels are queued while the scene is drawn and placed last (flushLabels), most important first, each
+   * where it overlaps no label placed before it: tick labels that would overlap are left out, titles and
+   * axis labels are moved up or down a line until they fit. */
+  var FONT = "11px system-ui, -apple-system, 'Segoe UI', sans-serif";
+  var BOLD = "bold 12px system-ui, -apple-system, 'Segoe UI', sans-serif";
+
+  Viewer.prototype.text = function (p, label, colour, align, font, priority) {
+    var s = this.project(p);
+    this.labels.push({ x: s[0], y: s[1], label: label, colour: colour, align: align || "center",
+      font: font || FONT, priority: priority || 1, order: this.labels.length });
+  };
+
+  Viewer.prototype.flushLabels = function () {
+    var g = this.context, placed = [], overlaps = 0;
+    g.textBaseline = "middle";
+    this.labels.sort(function (a, b) { return b.priority - a.priority || a.order - b.order; });
+    function box(item, dy, width) {
+      var left = item.align === "left" ? item.x : item.align === "right" ? item.x - width : item.x - width / 2;
+      return [left - 2, item.y + dy - 8, left + width + 2, item.y + dy + 8];
+    }
+    function free(r) {
+      for (var i = 0; i < placed.length; i++) {
+        var q = placed[i];
+        if (r[0] < q[2] && q[0] < r[2] && r[1] < q[3] && q[1] < r[3]) return false;
+      }
+      return true;
+    }
+    var shifts = [0, 14, -14, 28, -28, 42, -42, 56, -56, 70, -70];
+    for (var k = 0; k < this.labels.length; k++) {
+      var item = this.labels[k];
+      g.font = item.font;
+      var width = g.measureText(item.label).width, chosen = null;
+      var tries = item.priority > 1 ? shifts : [0];
+      for (var t = 0; t < tries.length && chosen === null; t++) {
+        if (free(box(item, tries[t], width))) chosen = tries[t];
+      }
+      if (chosen === null) {
+        if (item.priority === 1) continue;  // a tick label that would overlap: left out
+        chosen = 0;
+        overlaps++;
+      }
+      placed.push(box(item, chosen, width));
+      g.textAlign = item.align;
+      g.lineWidth = 3;
+      g.strokeStyle = "rgba(255, 255, 255, 0.85)";  // a halo keeps the label legible over points and lines
+      g.strokeText(item.label, item.x, item.y + chosen);
+      g.fillStyle = item.colour;
+      g.fillText(item.label, item.x, item.y + chosen);
+    }
+    this.canvas.dataset.labels = String(placed.length);
+    this.canvas.dataset.labelOverlaps = String(overlaps);
   };
 
   Viewer.prototype.drawBox = function () {
@@ -198,9 +244,6 @@
     }
     [[0, 1], [2, 3], [4, 5], [6, 7], [0, 2], [1, 3], [4, 6], [5, 7], [0, 4], [1, 5], [2, 6], [3, 7]]
       .forEach(function (e) { self.line(corners[e[0]], corners[e[1]], "#c8ccd2", 1); });
-    var g = this.context;
-    g.font = "11px system-ui, -apple-system, 'Segoe UI', sans-serif";
-    g.textBaseline = "middle";
     var names = ["X", "Y", "Z"];
     // ticks of X along (y = lo, z = lo), Y along (x = hi, z = lo), Z along (x = lo, y = lo)
     var anchors = [[null, lo[1], lo[2]], [hi[0], null, lo[2]], [lo[0], lo[1], null]];
@@ -220,9 +263,7 @@
       var middle = anchors[k].slice();
       middle[k] = 0.5 * (lo[k] + hi[k]);
       var titleAt = middle.map(function (value, j) { return value + offsets[k][j] * pad * 4.2; });
-      g.font = "bold 12px system-ui, -apple-system, 'Segoe UI', sans-serif";
-      this.text(titleAt, names[k] + " (mm)", "#1d2733");
-      g.font = "11px system-ui, -apple-system, 'Segoe UI', sans-serif";
+      this.text(titleAt, names[k] + " (mm)", "#1d2733", "center", BOLD, 3);
     }
   };
 
@@ -232,9 +273,9 @@
       ["x", "y", "z"].forEach(function (axis, k) {
         var end = frame.origin.map(function (value, j) { return value + frame.length * frame[axis][j]; });
         self.line(frame.origin, end, colours[k], 2);
-        self.text(end, axis, colours[k]);
+        self.text(end, axis, colours[k], "center", BOLD, 2);
       });
-      self.text(frame.origin, frame.label, "#1d2733", "right");
+      self.text(frame.origin, frame.label, "#1d2733", "right", BOLD, 2);
     });
   };
 
@@ -259,8 +300,7 @@
       b.push(axis.point[k] + axis.half_length * axis.direction[k]);
     }
     this.line(a, b, colour, 1.8, [7, 4]);
-    this.context.font = "bold 12px system-ui, -apple-system, 'Segoe UI', sans-serif";
-    this.text(b, axis.label, colour, "left");
+    this.text(b, axis.label, colour, "left", BOLD, 2);
   };
 
   Viewer.prototype.draw = function () {
@@ -269,6 +309,7 @@
     g.setTransform(this.ratio, 0, 0, this.ratio, 0, 0);
     g.fillStyle = "#ffffff";
     g.fillRect(0, 0, this.width, this.height);
+    this.labels = [];
     this.drawBox();
     if (this.show.frames) this.drawFrames();
     var circles = this.scene.circles;
@@ -298,6 +339,7 @@
         g.stroke();
       });
     }
+    this.flushLabels();
     if (this.readout) {
       this.readout.textContent = "azimuth " + (this.view.yaw * 180 / Math.PI).toFixed(0) + "°, elevation " +
         (this.view.pitch * 180 / Math.PI).toFixed(0) + "°, zoom " + this.view.zoom.toFixed(2) + "×";
