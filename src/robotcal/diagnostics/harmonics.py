@@ -314,12 +314,19 @@ def fit_harmonic_series(theta, values, *, order: int = 2, joint: int = 0, quanti
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CircleGeometry:
-    """The fitted circle a joint's model refers to (tracker frame, mm)."""
+    """The fitted circle a joint's model refers to (tracker frame, mm), with the joint's noise level.
+
+    ``noise_sigma`` is the instrument noise per coordinate estimated from the capture and
+    ``backlash_noise_floor`` the backlash magnitude that noise alone gives (mm, NaN when unknown;
+    :attr:`robotcal.diagnostics.CircleDiagnostics.noise_sigma`, ``backlash_noise_floor``).
+    """
 
     joint: int
     centre: np.ndarray
     normal: np.ndarray
     radius: float
+    noise_sigma: float = float("nan")
+    backlash_noise_floor: float = float("nan")
 
     def __post_init__(self):
         centre = np.asarray(self.centre, dtype=float)
@@ -432,6 +439,8 @@ class HarmonicModel:
                     "centre_mm": circle.centre.tolist(),
                     "normal": circle.normal.tolist(),
                     "radius_mm": float(circle.radius),
+                    "noise_sigma_um": _um_or_none(circle.noise_sigma),
+                    "noise_floor_um": _um_or_none(circle.backlash_noise_floor),
                     "terms": {f.quantity: f.to_dict() for f in self.fits if f.joint == circle.joint},
                 }
             )
@@ -458,9 +467,17 @@ class HarmonicModel:
             order = int(data["order"])
             for entry in data["joints"]:
                 joint = int(entry["joint"])
+                noise = {
+                    name: float("nan") if entry.get(key) is None else float(entry[key]) / 1000.0
+                    for name, key in (("noise_sigma", "noise_sigma_um"), ("backlash_noise_floor", "noise_floor_um"))
+                }  # optional: documents written before the noise floor lack them
                 circles.append(
                     CircleGeometry(
-                        joint=joint, centre=entry["centre_mm"], normal=entry["normal"], radius=float(entry["radius_mm"])
+                        joint=joint,
+                        centre=entry["centre_mm"],
+                        normal=entry["normal"],
+                        radius=float(entry["radius_mm"]),
+                        **noise,
                     )
                 )
                 for quantity, term in entry.get("terms", {}).items():
@@ -473,6 +490,12 @@ class HarmonicModel:
                 raise
             raise InputError(f"{source}: missing or invalid key {exc}") from None
         return cls(fits=tuple(fits), circles=tuple(circles), order=order, messages=tuple(data.get("messages", ())))
+
+
+def _um_or_none(value_mm: float) -> float | None:
+    """A length in µm for JSON, rounded to 1e-4 µm; None when not finite (strict JSON)."""
+    value = float(value_mm)
+    return round(value * 1000.0, 4) if np.isfinite(value) else None
 
 
 def fit_harmonics(diagnostics: JointDiagnostics, *, order: int = 2) -> HarmonicModel:
@@ -488,7 +511,16 @@ def fit_harmonics(diagnostics: JointDiagnostics, *, order: int = 2) -> HarmonicM
         raise InputError(f"`order` must be an integer >= 1; got {order!r}")
     fits, circles, messages = [], [], []
     for c in diagnostics.circles:
-        circles.append(CircleGeometry(joint=c.joint, centre=c.centre, normal=c.normal, radius=c.radius))
+        circles.append(
+            CircleGeometry(
+                joint=c.joint,
+                centre=c.centre,
+                normal=c.normal,
+                radius=c.radius,
+                noise_sigma=c.noise_sigma,
+                backlash_noise_floor=c.backlash_noise_floor if c.n_pairs else float("nan"),
+            )
+        )
         series = [("axial", c.reading, c.axial), ("radial", c.reading, c.radial)]
         if diagnostics.backlash:
             keep = ~c.turnaround

@@ -14,11 +14,22 @@ and back (``-1``) over the same readings of its turning joint. Per circle:
   along the axis, the radial and the tangential direction at the pair's mid-point, with the signed
   angle from the forward to the return point about the axis.
 
+**Noise floor**: instrument noise alone gives every pair a backlash vector too. With independent noise
+of standard deviation ``sigma`` per coordinate (isotropic, as the instrument models of
+:mod:`robotcal.instruments`), the difference of two points has ``2 sigma^2`` per component and its
+length follows a Maxwell distribution of mean ``2 sqrt(2) sigma sqrt(2/pi) = 4 sigma / sqrt(pi)``
+(:attr:`CircleDiagnostics.backlash_noise_floor`). ``sigma`` is estimated from the axial and radial
+components of the pair differences, which the joint's systematic errors cancel (same reading) and a
+rotational backlash hardly reaches (it turns the point along the tangent); without pairs, from the fit
+residuals. A joint's backlash is told apart from noise when its mean magnitude exceeds the floor by
+three standard deviations of a noise-only mean (:attr:`JointSummary.backlash_exceeds_noise`).
+
 Lengths in mm, angles in radians, points in the tracker frame.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,11 +47,19 @@ __all__ = [
     "lash_state",
     "local_frame",
     "DEFAULT_MATCH_TOLERANCE",
+    "MAXWELL_MEAN_PER_SIGMA",
 ]
 
 #: Largest difference between a forward and a return reading that still counts as the same
 #: commanded angle [rad] (1e-3 deg: controllers and CSV exports round readings to ~1e-4 deg).
 DEFAULT_MATCH_TOLERANCE = float(np.deg2rad(1e-3))
+#: Mean length of the difference of two points with isotropic noise, per unit point standard deviation:
+#: ``|e_r - e_f|`` is Maxwell distributed with scale ``sqrt(2) sigma``, mean ``sqrt(2) sigma 2 sqrt(2/pi)``.
+MAXWELL_MEAN_PER_SIGMA = 4.0 / math.sqrt(math.pi)
+#: Coefficient of variation of a Maxwell variable, ``sqrt(3 pi / 8 - 1)`` (std / mean).
+MAXWELL_CV = math.sqrt(3.0 * math.pi / 8.0 - 1.0)
+#: Circle fit parameters absorbed by the residuals (plane: 3, circle in the plane: 3).
+_FIT_DOF = 6
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -128,6 +147,33 @@ class CircleDiagnostics:
         """Axial, radial and tangential unit vectors at ``points (..., 3)``: shape ``(..., 3, 3)``."""
         return local_frame(self.centre, self.normal, points, joint=self.joint)
 
+    @property
+    def noise_sigma(self) -> float:
+        """Estimated instrument noise per coordinate of one point [mm] (standard deviation).
+
+        From the matched pairs (turnarounds included: they repeat one pose): each axial and radial
+        component of ``p_return - p_forward`` has variance ``2 sigma^2`` whatever the joint's
+        eccentricity, so ``sigma^2 = sum(axial^2 + radial^2) / (4 n_pairs)``. Without pairs, from
+        the fit residuals, ``sigma^2 = sum(axial^2 + radial^2) / (2 n_points - 6)``, which the
+        joint's eccentricity inflates. NaN when neither is available.
+        """
+        if self.n_pairs:
+            parts = self.backlash_local[:, :2]
+            return float(np.sqrt(np.sum(parts**2) / (4.0 * self.n_pairs)))
+        dof = 2 * self.n_points - _FIT_DOF
+        if dof <= 0:
+            return float("nan")
+        return float(np.sqrt((np.sum(self.axial**2) + np.sum(self.radial**2)) / dof))
+
+    @property
+    def backlash_noise_floor(self) -> float:
+        """Backlash magnitude expected from the instrument noise alone [mm]: ``4 sigma / sqrt(pi)``.
+
+        The mean length of the difference of two noisy measurements of one point (Maxwell mean of a
+        3-D vector with ``2 sigma^2`` per component, :attr:`noise_sigma`).
+        """
+        return MAXWELL_MEAN_PER_SIGMA * self.noise_sigma
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class JointSummary:
@@ -152,6 +198,20 @@ class JointSummary:
     backlash_mean: float
     backlash_std: float
     backlash_angle_mean: float
+    noise_sigma: float = float("nan")
+    backlash_noise_floor: float = float("nan")
+
+    @property
+    def backlash_exceeds_noise(self) -> bool:
+        """The mean backlash magnitude lies above the noise floor by more than three standard deviations
+        of a noise-only mean: ``mean > floor (1 + 3 sqrt(CV^2 + 1/4) / sqrt(n))`` over ``n`` pairs, with
+        ``CV^2 / n`` the relative variance of a mean of ``n`` Maxwell lengths (CV = 0.42) and ``1 / (4 n)``
+        that of the floor, whose ``sigma^2`` comes from ``2 n`` squared components. False without pairs."""
+        n = self.pairs
+        if n == 0 or not math.isfinite(self.backlash_mean) or not math.isfinite(self.backlash_noise_floor):
+            return False
+        spread = math.sqrt(MAXWELL_CV**2 + 0.25) / math.sqrt(n)
+        return self.backlash_mean > self.backlash_noise_floor * (1.0 + 3.0 * spread)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -218,6 +278,8 @@ class JointDiagnostics:
                     backlash_mean=stat(np.mean, magnitude),
                     backlash_std=float(np.std(magnitude, ddof=1)) if magnitude.size > 1 else float("nan"),
                     backlash_angle_mean=stat(np.mean, angle),
+                    noise_sigma=c.noise_sigma,
+                    backlash_noise_floor=c.backlash_noise_floor if c.n_pairs else float("nan"),
                 )
             )
         return tuple(rows)

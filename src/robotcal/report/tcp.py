@@ -15,6 +15,24 @@ from robotcal.uncertainty.workspace import WorkspaceUncertainty
 __all__ = ["plot_tcp_scatter", "plot_tcp_histograms", "plot_trajectory", "plot_workspace"]
 
 _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
+_DPI = 110
+
+
+def _margins(figure, *, left: float, right: float, bottom: float, top: float, wspace=0.0, hspace=0.0, cell=(1.0, 1.0)):
+    """Fixed margins and gaps in inches (``cell``: a panel's width and height, for the gaps).
+
+    The figures here used constrained layout, which measures every artist's extent on each draw and
+    took about half of their drawing time; the margins below leave room for the same labels.
+    """
+    width, height = figure.get_size_inches()
+    figure.subplots_adjust(
+        left=left / width,
+        right=1.0 - right / width,
+        bottom=bottom / height,
+        top=1.0 - top / height,
+        wspace=wspace / max(cell[0] - wspace, 1e-6),
+        hspace=hspace / max(cell[1] - hspace, 1e-6),
+    )
 
 
 def _need_draws(result: TCPUncertainty, pose: int) -> np.ndarray:
@@ -44,29 +62,33 @@ def plot_tcp_scatter(result: TCPUncertainty, path, *, pose: int = 0, max_points:
     draws = _need_draws(result, pose)[:, :3] - mean
     if draws.shape[0] > max_points:
         draws = draws[rng.choice(draws.shape[0], max_points, replace=False)]
-    figure = plt.figure(figsize=(6.4, 5.6), dpi=110, layout="constrained")
-    axes = figure.add_subplot(projection="3d")
+    figure = plt.figure(figsize=(6.4, 5.6), dpi=_DPI)
+    axes = figure.add_axes((0.0, 0.04, 0.94, 0.82), projection="3d")
     axes.scatter(draws[:, 0], draws[:, 1], draws[:, 2], s=2, alpha=0.25, color="tab:blue", label="draws")
     x, y, z = _ellipsoid_mesh(result.ellipsoid.semi_axes[pose], result.ellipsoid.directions[pose])
     axes.plot_wireframe(x, y, z, color="tab:red", linewidth=0.5, alpha=0.6, label=f"{result.coverage:.0%} ellipsoid")
-    axes.set_xlabel("X - mean [mm]")
-    axes.set_ylabel("Y - mean [mm]")
-    axes.set_zlabel("Z - mean [mm]")
+    axes.set_xlabel("X - mean [mm]", labelpad=10)
+    axes.set_ylabel("Y - mean [mm]", labelpad=10)
+    axes.set_zlabel("Z - mean [mm]", labelpad=10)
+    for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
+        axis.set_major_locator(MaxNLocator(5, symmetric=True))  # fewer tick labels, no overlaps
     semi = ", ".join(f"{a:.3g}" for a in result.ellipsoid.semi_axes[pose])
     offset = ", ".join(f"{v:+.3g}" for v in mean - result.nominal[pose, :3])
-    axes.set_title(
+    figure.suptitle(  # above the 3-D box, clear of the legend
         f"TCP positions of {result.n_draws} draws, pose {pose + 1}; mean - nominal = ({offset}) mm\n"
         f"{result.coverage:.0%} ellipsoid semi-axes {semi} mm",
         fontsize=9,
+        y=0.985,
     )
-    axes.legend(loc="upper left", fontsize=8)
+    figure.legend(*axes.get_legend_handles_labels(), loc="upper left", bbox_to_anchor=(0.02, 0.9), fontsize=8)
     return save_figure(figure, path)
 
 
 def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: int = 60) -> Path:
     """Histograms of X, Y, Z [mm] and A, B, C [deg] over the draws at one pose (Figs 5.17/5.18)."""
     draws = _need_draws(result, pose)
-    figure, axes = new_figure(2, 3, width_in=10.0, height_in=5.6)
+    figure, axes = new_figure(2, 3, width_in=10.0, height_in=5.6, layout=None)
+    _margins(figure, left=0.65, right=0.15, bottom=0.6, top=0.55, wspace=0.75, hspace=0.95, cell=(3.07, 2.23))
     low, high = result.summary.interval("symmetric")
     for k, ax in enumerate(axes.ravel()):
         f = _DEG[k]
@@ -79,9 +101,11 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
         angle = " (KUKA, about " + "ZYX"[k - 3] + ")" if k >= 3 else ""
         ax.set_xlabel(f"{TCP_COORDINATES[k]}{angle} [{TCP_UNITS[k]}]")
         ax.set_ylabel("draws")
-        ax.set_title(f"u = {result.summary.std_uncertainty[pose, k] * f:.4g} {TCP_UNITS[k]}", fontsize=9)
+        ax.set_title(f"u = {result.summary.std_uncertainty[pose, k] * f:.4g} {TCP_UNITS[k]}", fontsize=9, y=1.0)
+        ax.ticklabel_format(axis="x", useOffset=False)  # an offset label ("-1.65e2") would sit on the x label
         ax.xaxis.set_major_locator(MaxNLocator(4))
-    axes[0, 0].legend(fontsize=7)
+        ax.yaxis.set_major_locator(MaxNLocator(5))
+    axes[0, 0].legend(fontsize=7, loc="upper left")
     figure.suptitle(
         f"TCP at pose {pose + 1}: {result.n_draws} draws, {result.coverage:.0%} interval dashed", fontsize=10
     )
@@ -90,19 +114,25 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
 
 def plot_trajectory(result: TCPUncertainty, path) -> Path:
     """The trajectory coloured by its uncertainty (Fig. 5.20) with per-pose u and ranges."""
-    figure = plt.figure(figsize=(11.0, 8.0), dpi=110, layout="constrained")
-    grid = figure.add_gridspec(2, 2)
+    figure = plt.figure(figsize=(11.0, 8.0), dpi=_DPI)
+    # fixed positions [figure fraction]; the 3-D panel and its colour bar keep clear of each other's labels
+    grid = figure.add_gridspec(2, 2, left=0.085, right=0.985, bottom=0.065, top=0.93, wspace=0.25, hspace=0.3)
     axes3d = figure.add_subplot(grid[0, 0], projection="3d")
     position = result.nominal[:, :3]
     value_range = result.value_range * _DEG
     colour = value_range[:, :3].max(axis=1)
     axes3d.plot(position[:, 0], position[:, 1], position[:, 2], color="0.7", linewidth=0.8)
     points = axes3d.scatter(position[:, 0], position[:, 1], position[:, 2], c=colour, cmap="viridis", s=18)
-    figure.colorbar(points, ax=axes3d, shrink=0.7, label="largest range of X, Y, Z over the draws [mm]")
-    axes3d.set_xlabel("X [mm]")
-    axes3d.set_ylabel("Y [mm]")
-    axes3d.set_zlabel("Z [mm]")
-    axes3d.set_title("nominal TCP path, coloured by max - min", fontsize=9)
+    colour_axes = figure.add_axes((0.075, 0.6, 0.012, 0.28))  # left of the 3-D box, in its empty margin
+    colour_bar = figure.colorbar(points, cax=colour_axes, label="largest range of X, Y, Z [mm]")
+    colour_bar.ax.yaxis.set_ticks_position("left")
+    colour_bar.ax.yaxis.set_label_position("left")
+    axes3d.set_xlabel("X [mm]", labelpad=8)
+    axes3d.set_ylabel("Y [mm]", labelpad=8)
+    axes3d.set_zlabel("Z [mm]", labelpad=8)
+    for axis in (axes3d.xaxis, axes3d.yaxis, axes3d.zaxis):
+        axis.set_major_locator(MaxNLocator(4))
+    axes3d.set_title("nominal TCP path, coloured by max - min", fontsize=9, y=1.0)
     pose = np.arange(1, result.n_poses + 1)
     std = result.std_uncertainty * _DEG
     ax = figure.add_subplot(grid[0, 1])
@@ -110,22 +140,22 @@ def plot_trajectory(result: TCPUncertainty, path) -> Path:
         ax.plot(pose, value_range[:, k], marker=".", label=TCP_COORDINATES[k])
     ax.set_xlabel("pose")
     ax.set_ylabel("max - min over the draws [mm]")
-    ax.set_title("range per coordinate (thesis Fig. 5.20)", fontsize=9)
-    ax.legend(fontsize=8)
+    ax.set_title("range per coordinate (thesis Fig. 5.20)", fontsize=9, y=1.0)
+    ax.legend(fontsize=8, loc="upper right")
     ax = figure.add_subplot(grid[1, 0])
     for k in range(3):
         ax.plot(pose, std[:, k], marker=".", label=TCP_COORDINATES[k])
     ax.set_xlabel("pose")
     ax.set_ylabel("standard uncertainty [mm]")
-    ax.set_title("position", fontsize=9)
-    ax.legend(fontsize=8)
+    ax.set_title("position", fontsize=9, y=1.0)
+    ax.legend(fontsize=8, loc="upper right")
     ax = figure.add_subplot(grid[1, 1])
     for k in range(3, 6):
         ax.plot(pose, std[:, k], marker=".", label=f"{TCP_COORDINATES[k]} (about {'ZYX'[k - 3]})")
     ax.set_xlabel("pose")
     ax.set_ylabel("standard uncertainty [deg]")
-    ax.set_title("orientation (KUKA A, B, C)", fontsize=9)
-    ax.legend(fontsize=8)
+    ax.set_title("orientation (KUKA A, B, C)", fontsize=9, y=1.0)
+    ax.legend(fontsize=8, loc="upper right")
     figure.suptitle(f"TCP uncertainty along {result.n_poses} poses, {result.n_draws} draws", fontsize=10)
     return save_figure(figure, path)
 
@@ -135,27 +165,29 @@ def plot_workspace(workspace: WorkspaceUncertainty, path) -> Path:
     result = workspace.tcp
     position = result.nominal[:, :3]
     value = workspace.position_uncertainty
-    figure, axes = new_figure(1, 3, width_in=13.0, height_in=4.4)
+    figure, axes = new_figure(1, 3, width_in=13.0, height_in=4.4, layout=None)
+    _margins(figure, left=0.75, right=0.2, bottom=0.6, top=0.4, wspace=0.9, cell=(3.77, 3.4))
     norm = plt.Normalize(vmin=float(value.min()), vmax=float(value.max()))
     order = np.argsort(value)  # most uncertain drawn last, on top
     axes[0].scatter(position[order, 0], position[order, 1], c=value[order], cmap="viridis", norm=norm, s=10)
     axes[0].set_xlabel("X [mm]")
     axes[0].set_ylabel("Y [mm]")
-    axes[0].set_title("top view", fontsize=9)
+    axes[0].set_title("top view", fontsize=9, y=1.0)
     axes[0].set_aspect("equal", adjustable="datalim")
     radial = np.hypot(position[:, 0], position[:, 1])
     points = axes[1].scatter(radial[order], position[order, 2], c=value[order], cmap="viridis", norm=norm, s=10)
     axes[1].set_xlabel("distance from the base axis sqrt(X^2 + Y^2) [mm]")
     axes[1].set_ylabel("Z [mm]")
-    axes[1].set_title("side view", fontsize=9)
+    axes[1].set_title("side view", fontsize=9, y=1.0)
     axes[1].set_aspect("equal", adjustable="datalim")
-    figure.colorbar(points, ax=axes[:2], label="position standard uncertainty sqrt(trace V) [mm]")
-    axes[2].hist(value, bins=40, color="tab:blue", alpha=0.8)
+    figure.colorbar(points, ax=axes[:2], label="position standard uncertainty sqrt(trace V) [mm]", pad=0.02)
+    counts, edges = np.histogram(value, bins=40)  # one step artist, not a patch per bin
+    axes[2].stairs(counts, edges, fill=True, color="tab:blue", alpha=0.8, linewidth=0)
     for level, mark in zip(workspace.percentiles, workspace.position_uncertainty_percentiles, strict=True):
         if level in (5.0, 50.0, 95.0):
             axes[2].axvline(mark, color="tab:red", linestyle="--", linewidth=1.0)
             axes[2].text(mark, axes[2].get_ylim()[1] * 0.95, f"P{level:g}", fontsize=7, rotation=90, va="top")
     axes[2].set_xlabel("position standard uncertainty [mm]")
     axes[2].set_ylabel("poses")
-    axes[2].set_title(f"{result.n_poses} random poses, {result.n_draws} draws", fontsize=9)
+    axes[2].set_title(f"{result.n_poses} random poses, {result.n_draws} draws", fontsize=9, y=1.0)
     return save_figure(figure, path)

@@ -18,8 +18,8 @@ kinematics ``batch_size`` at a time. Only the 6 coordinates per draw and pose of
 (and the link transforms ``B_i`` of one batch), never the 4x4 frames of all draws and poses.
 
 Speed (``benchmarks/bench_tcp.py``): the chunk holds the draws *last*, ``(poses, 6, draws)``, so one
-vectorised sort per chunk gives every order statistic of both coverage intervals and the min/max
-(the previous code copied and sorted each column twice); the chain is carried as contiguous column
+vectorised partition and two sorts of the 5 % tails per chunk give every order statistic of both
+coverage intervals and the min/max (a full sort took twice as long); the chain is carried as contiguous column
 slabs with one ``(4, 4) @ (4, 3 P)`` product per draw and joint; the first joint is applied
 analytically (``Rz(q_1)`` turns X, Y and adds ``q_1`` to A); the angles use ``arctan`` (about 2.5x
 cheaper than ``arctan2`` here) with the quadrant restored by the wrap near the nominal. The results
@@ -559,7 +559,17 @@ def _summarize_rows(values: np.ndarray, coverage: float) -> dict[str, np.ndarray
             f"{math.ceil(1.0 / (1.0 - coverage))} (JCGM 101 §7.2 recommends 10^4 or more)"
         )
     out = {"mean": values.mean(axis=-1), "std_uncertainty": values.std(axis=-1, ddof=1)}
-    values.sort(axis=-1)
+    # only the M - q smallest and the M - q largest draws need their order (every order statistic used
+    # below lies there when q > M / 2): two single-index partitions and two sorts of the ~5 % tails take
+    # half the time of a full sort (a partition at two indices at once is slower than numpy's SIMD sort)
+    tail = n_draws - q
+    if tail < q:
+        values.partition(q, axis=-1)
+        values[:, :q].partition(tail - 1, axis=-1)
+        values[:, :tail].sort(axis=-1)
+        values[:, q:].sort(axis=-1)
+    else:
+        values.sort(axis=-1)
     half = (n_draws - q) / 2.0
     r = int(half) if half == int(half) else int(math.floor((n_draws - q + 1) / 2.0))
     r = max(r, 1)
@@ -584,7 +594,7 @@ def _ellipsoid_rows(centred: np.ndarray, covariance: np.ndarray, coverage: float
     with np.errstate(invalid="ignore"):
         inside = np.mean(d2 <= scale**2, axis=-1)
         inside = np.where(np.isnan(d2[:, 0]), np.nan, inside)
-        d2.sort(axis=-1)
+        d2.partition(rank - 1, axis=-1)  # the rank-th smallest (NaN last, as in a sort): 4x quicker than sorting
         k_mc = np.sqrt(d2[:, rank - 1])
     return CoverageEllipsoid(
         coverage=coverage,

@@ -180,3 +180,18 @@ def test_invalid_model_documents_and_calls_are_refused():
         model.predict(6, "tilt", [0.0])
     with pytest.raises(InputError, match="order"):
         fit_harmonics(analyze_joints(measured), order=0)
+
+
+def test_json_carries_the_noise_floor_of_each_joint():
+    measured, _ = _full_turn_capture(_errors(), SCENARIO.instrument, rng=2)
+    diagnostics = analyze_joints(measured)
+    document = fit_harmonics(diagnostics, order=2).to_dict()
+    again = HarmonicModel.from_dict(json.loads(json.dumps(document, allow_nan=False)))
+    for entry, circle, geometry in zip(document["joints"], diagnostics.circles, again.circles, strict=True):
+        assert entry["noise_floor_um"] == pytest.approx(circle.backlash_noise_floor * 1000.0, abs=1e-4)
+        assert entry["noise_sigma_um"] == pytest.approx(circle.noise_sigma * 1000.0, abs=1e-4)
+        assert geometry.backlash_noise_floor == pytest.approx(circle.backlash_noise_floor, abs=1e-7)
+    # documents written before the noise floor still read, with NaN
+    for entry in document["joints"]:
+        del entry["noise_floor_um"], entry["noise_sigma_um"]
+    assert np.isnan(HarmonicModel.from_dict(document).circles[0].backlash_noise_floor)

@@ -305,3 +305,66 @@ def test_diagnostics_import_no_edge_libraries():
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout.strip() == ""
+
+
+# ----------------------------------------------------------------------------------------- noise floor
+def _laser_capture(backlash_deg, rng):
+    zeros = np.zeros((6, 5))
+    errors = JointErrorModel(
+        amplitude=zeros, period=np.full((6, 5), np.pi), phase=zeros, noise_sd=zeros, backlash=np.deg2rad(backlash_deg)
+    )
+    capture, _ = simulate_capture(
+        LASER.robot, _bidirectional_scenario(), LASER.instrument, LASER.tracker_from_base, joint_errors=errors,
+        joint_limits="ignore", rng=rng,
+    )  # fmt: skip
+    return capture
+
+
+def test_noise_floor_of_a_noise_only_capture_matches_the_instrument_and_the_backlash_estimates():
+    """No joint errors, laser-tracker noise (uniform +-U per coordinate, sigma = U / sqrt(3)): the estimated
+    sigma matches the instrument's, the backlash means lie at the floor, and no joint is flagged."""
+    capture = _laser_capture(np.zeros(6), rng=23)
+    diagnostics = analyze_joints(capture)
+    for circle, row in zip(diagnostics.circles, diagnostics.summary(), strict=True):
+        sigma_true = float(np.sqrt(np.mean(LASER.instrument.error_bound(circle.points) ** 2) / 3.0))
+        n = circle.n_pairs
+        # sigma^2 from 2 n squared components: relative standard deviation of sigma ~ 1 / sqrt(4 n) (< 0.13)
+        assert abs(circle.noise_sigma / sigma_true - 1.0) <= 3.0 / np.sqrt(4 * n)
+        # the closed-form floor is the Maxwell mean 4 sigma / sqrt(pi) of the estimated sigma
+        assert row.backlash_noise_floor == pytest.approx(4.0 / np.sqrt(np.pi) * circle.noise_sigma, rel=1e-12)
+        # a noise-only mean of n magnitudes: within 3 standard deviations (Maxwell CV 0.42, and the floor's own)
+        spread = np.sqrt(0.4220**2 + 0.25) / np.sqrt(row.pairs)
+        assert abs(row.backlash_mean / row.backlash_noise_floor - 1.0) <= 3.0 * spread
+        assert not row.backlash_exceeds_noise
+    # pooled over the 6 joints (~140 pairs) the checks are tight enough to catch a factor sqrt(2) in the floor
+    ratios = np.concatenate(
+        [c.backlash_magnitude[~c.turnaround] / c.backlash_noise_floor for c in diagnostics.circles]
+    )
+    assert abs(ratios.mean() - 1.0) <= 3.0 * np.sqrt(0.4220**2 + 0.25) / np.sqrt(ratios.size)  # <= 0.17
+    sigmas = np.array([c.noise_sigma for c in diagnostics.circles])
+    truths = np.array([np.sqrt(np.mean(LASER.instrument.error_bound(c.points) ** 2) / 3.0) for c in diagnostics.circles])
+    pairs = sum(c.n_pairs for c in diagnostics.circles)
+    assert abs(np.mean(sigmas / truths) - 1.0) <= 3.0 / np.sqrt(4 * pairs)  # <= 0.13
+
+
+def test_a_true_backlash_of_50_um_exceeds_the_noise_floor():
+    reflector = np.asarray(LASER.plan.reflector.positions)
+    rho = np.hypot(*reflector[5, :2])  # J6: the reflector's distance from the axis [mm]
+    lash = np.zeros(6)
+    lash[5] = np.rad2deg(2.0 * np.arcsin(0.050 / (2.0 * rho)))  # a tangential chord of 50 um
+    diagnostics = analyze_joints(_laser_capture(lash, rng=23))
+    rows = {row.joint: row for row in diagnostics.summary()}
+    assert rows[6].backlash_exceeds_noise
+    assert rows[6].backlash_mean >= 0.050 > 2.0 * rows[6].backlash_noise_floor
+    # the lash turns points along the tangent: the floor, from the axial and radial parts, does not see it
+    assert rows[6].noise_sigma == pytest.approx(diagnostics.circle(6).noise_sigma)
+    assert abs(rows[6].noise_sigma / np.mean([rows[j].noise_sigma for j in range(1, 6)]) - 1.0) < 0.5
+    assert not any(rows[j].backlash_exceeds_noise for j in range(1, 6))
+
+
+def test_noise_sigma_without_pairs_comes_from_the_fit_residuals():
+    capture, _centre, _normal = _synthetic_circle(n=24, radius=80.0, axial=lambda q: 0.01 * np.sin(2 * q))
+    circle = analyze_joints(capture, backlash=False).circles[0]
+    assert circle.n_pairs == 0
+    expected = np.sqrt((np.sum(circle.axial**2) + np.sum(circle.radial**2)) / (2 * circle.n_points - 6))
+    assert circle.noise_sigma == pytest.approx(expected, rel=1e-12) and circle.noise_sigma > 0.0
