@@ -1,5 +1,27 @@
-"""Geometry: batched fits, Plücker lines, line-pair analysis, rigid transforms, registration."""
+"""Geometry: batched fits, Plücker lines, line-pair analysis, rigid transforms, registration, KUKA A, B, C.
 
+Everything in mm and radians; batched over leading axes, last axis the coordinates.
+
+Examples
+--------
+A circle fitted to points of a known circle gives its centre, radius and axis back:
+
+>>> import numpy as np
+>>> from robotcal.geometry import fit_circle_3d
+>>> angle = np.linspace(0.0, 1.5, 12)
+>>> points = np.stack([10 + 50 * np.cos(angle), -5 + 50 * np.sin(angle), np.full(12, 3.0)], axis=-1)
+>>> fit = fit_circle_3d(points)
+>>> np.round(fit.centre, 9).tolist(), round(float(fit.radius), 9), np.round(np.abs(fit.normal), 9).tolist()
+([10.0, -5.0, 3.0], 50.0, [0.0, 0.0, 1.0])
+"""
+
+from robotcal.geometry.euler import (
+    GIMBAL_TOLERANCE,
+    kuka_abc_from_matrix,
+    matrix_from_kuka_abc,
+    thesis_order,
+    wrap_angle_near,
+)
 from robotcal.geometry.fits import CircleFit, PlaneFit, check_points, fit_circle_3d, fit_plane
 from robotcal.geometry.lines import (
     INTERSECTION_TOLERANCE_MM,
@@ -47,4 +69,9 @@ __all__ = [
     "rot_z",
     "rotation_about_line",
     "translation",
+    "GIMBAL_TOLERANCE",
+    "kuka_abc_from_matrix",
+    "matrix_from_kuka_abc",
+    "thesis_order",
+    "wrap_angle_near",
 ]

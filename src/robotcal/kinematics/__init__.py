@@ -1,5 +1,24 @@
-"""Kinematics: hybrid DH / Hayati robot model, parameter sets, batched forward kinematics."""
+"""Kinematics: hybrid DH / Hayati robot model, parameter sets, batched forward kinematics, Jacobians.
 
+Parameters per joint ``d, theta, a, alpha, beta`` [mm, rad] (thesis Table 3.1); a DH joint is
+``Rz(theta + q) Tz(d) Tx(a) Rx(alpha)``, a Hayati joint ``Rz(theta + q) Tx(a) Rx(alpha) Ry(beta)``
+(eqs 3-72, 3-82).
+
+Examples
+--------
+A planar two-link arm (links of 300 and 200 mm): at q = (90, -90) deg the flange is at (200, 300, 0):
+
+>>> import numpy as np
+>>> from robotcal.kinematics import RobotModel, forward_kinematics
+>>> arm = RobotModel(name="planar-2r", nominal=[[0, 0, 300, 0, 0], [0, 0, 200, 0, 0]], hayati=[False, False])
+>>> pose = forward_kinematics(arm.nominal, np.deg2rad([[90.0, -90.0]]))
+>>> pose.shape
+(1, 4, 4)
+>>> np.round(pose[0, :3, 3], 9).tolist()
+[200.0, 300.0, 0.0]
+"""
+
+from robotcal import _lazy_exports
 from robotcal.kinematics.forward import (
     check_joint_variables,
     forward_kinematics,
@@ -16,6 +35,13 @@ from robotcal.kinematics.model import (
     check_parameter_array,
 )
 
+_LAZY = {
+    "target_jacobian": "robotcal.kinematics.jacobian",
+    **dict.fromkeys(
+        ("ANGLE_KINDS", "LENGTH_COLUMNS", "ANGLE_COLUMNS", "KIND_UNITS", "DISPLAY_UNITS"), "robotcal.kinematics.model"
+    ),
+}
+
 __all__ = [
     "check_joint_variables",
     "forward_kinematics",
@@ -28,4 +54,7 @@ __all__ = [
     "ReflectorMount",
     "RobotModel",
     "check_parameter_array",
+    *_LAZY,
 ]
+
+__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)

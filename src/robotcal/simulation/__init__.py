@@ -1,6 +1,45 @@
-"""Simulation: capture plans and the synthetic Circle Point generator (thesis ch. 5.2.1)."""
+"""Simulation: capture plans and the synthetic Circle Point generator (thesis ch. 5.2.1), validation poses,
+perturbed "true" robots.
 
-from robotcal.simulation.generator import JointErrorModel, simulate_capture
+Examples
+--------
+A noise-free capture of a planar two-link arm: circle 1 turns J1 with its target 100 mm from the J1
+axis, so its points lie 100 mm from the base origin:
+
+>>> import numpy as np
+>>> from robotcal.instruments import Instrument
+>>> from robotcal.kinematics import ReflectorMount, RobotModel
+>>> from robotcal.simulation import CapturePlan, simulate_capture
+>>> arm = RobotModel(name="planar-2r", nominal=[[0, 0, 300, 0, 0], [0, 0, 200, 0, 0]], hayati=[False, False])
+>>> plan = CapturePlan(start=[0.0, 0.0], sweep=np.deg2rad([90.0, 60.0]), points=[5, 4],
+...                    reflector=ReflectorMount(frame="joint", positions=[[100, 0, 0], [50, 0, 0]]))
+>>> capture, exact = simulate_capture(arm, plan, Instrument(a_mm=0.0, b_mm_per_m=0.0), np.eye(4), rng=1)
+>>> capture.n_points, capture.circle.tolist()
+(9, [1, 1, 1, 1, 1, 2, 2, 2, 2])
+>>> np.round(np.linalg.norm(capture.points[capture.circle == 1], axis=1), 9).tolist()
+[100.0, 100.0, 100.0, 100.0, 100.0]
+"""
+
+from robotcal import _lazy_exports
+from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel, motion_direction, simulate_capture
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["CapturePlan", "JointErrorModel", "simulate_capture"]
+_LAZY = {
+    "simulate_target_poses": "robotcal.simulation.generator",
+    **dict.fromkeys(("perturb_parameters", "perturbable_mask"), "robotcal.simulation.perturb"),
+    **dict.fromkeys(
+        (
+            "random_poses",
+            "simulate_poses",
+            "thesis_test2_plan",
+            "TABLE_4_1_RANGE_DEG",
+            "TABLE_4_2_START_DEG",
+            "TABLE_4_4_POINTS",
+        ),
+        "robotcal.simulation.poses",
+    ),
+}
+
+__all__ = ["CapturePlan", "ERROR_TERMS", "JointErrorModel", "motion_direction", "simulate_capture", *_LAZY]
+
+__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)

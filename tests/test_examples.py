@@ -1,0 +1,109 @@
+"""The scripts of ``examples/`` run (each in a fresh interpreter, in a temporary folder, at its ``--quick``
+size) and produce what their docstrings promise: files that read back, and figures that say the
+calibration worked.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import robotcal
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+#: Generous: the examples take a few seconds each on an idle machine, much more on a loaded CI runner.
+TIMEOUT_S = 600
+
+
+def run_example(name: str, *args: str, cwd: Path) -> str:
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLES / name), *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_S,
+    )
+    assert result.returncode == 0, f"{name} failed:\n{result.stdout}\n{result.stderr}"
+    return result.stdout
+
+
+def test_every_example_has_a_docstring_and_a_test():
+    scripts = sorted(path.name for path in EXAMPLES.glob("*.py"))
+    assert scripts == [
+        "calibrate_from_capture.py",
+        "run_and_report.py",
+        "study_a_plan.py",
+        "trajectory_uncertainty.py",
+    ]
+    for name in scripts:
+        text = (EXAMPLES / name).read_text(encoding="utf-8")
+        assert text.startswith('"""'), name
+        docstring = text.split('"""')[1]
+        assert "What it shows" in docstring and "Run" in docstring, name
+
+
+def test_calibrate_from_capture(tmp_path):
+    out = tmp_path / "calibration"
+    stdout = run_example("calibrate_from_capture.py", "--quick", "--out", str(out), cwd=tmp_path)
+    scenario = robotcal.load_scenario("kr5-demo")
+    # the capture files it simulated read back, and the parameters it wrote belong to the robot
+    assert robotcal.read_capture(out / "capture.csv", n_joints=6).n_points == 270
+    assert robotcal.read_capture(out / "validation.csv", n_joints=6).n_points == 100
+    refined = robotcal.read_parameters(out / "refined.json", scenario.robot)
+    assert refined.identified.any()
+    match = re.search(r"validation mean error: nominal ([\d.]+) um -> refined ([\d.]+) um", stdout)
+    assert match, stdout
+    nominal_um, refined_um = (float(value) for value in match.groups())
+    # the demo's truth deviates by ~0.5 mm; the refined model is within its joint errors (< 0.1 mm)
+    assert refined_um < 0.25 * nominal_um
+
+
+def test_calibrate_from_given_capture_files(tmp_path):
+    # the path of a real calibration: the user's capture files, no simulation
+    scenario = robotcal.load_scenario("kr5-demo")
+    truth = robotcal.perturb(scenario, rng=5)
+    robotcal.write_capture(tmp_path / "mine.csv", robotcal.simulate(scenario, rng=6, true_parameters=truth))
+    out = tmp_path / "calibration"
+    stdout = run_example("calibrate_from_capture.py", "--capture", "mine.csv", "--out", str(out), cwd=tmp_path)
+    assert "simulated" not in stdout
+    assert "calibration mean error: nominal" in stdout
+    assert (out / "refined.json").is_file() and not (out / "capture.csv").exists()
+
+
+def test_study_a_plan(tmp_path):
+    stdout = run_example("study_a_plan.py", "--quick", cwd=tmp_path)
+    assert "thesis plan (kr5-demo) in the cell: does not pass" in stdout
+    rows = re.findall(r"^(thesis plan|J4 target at \d+ mm)\s+(passes|FAILS)\s+([\d.]+)", stdout, flags=re.MULTILINE)
+    verdicts = {name: (verdict, float(u_um)) for name, verdict, u_um in rows}
+    assert verdicts["thesis plan"][0] == "FAILS"
+    assert verdicts["J4 target at 20 mm"][0] == verdicts["J4 target at 120 mm"][0] == "passes"
+    # u(J4.a) scales about as 1 / arm length (6x longer arm); 300 draws give u to ~4 %
+    ratio = verdicts["J4 target at 20 mm"][1] / verdicts["J4 target at 120 mm"][1]
+    assert 3.0 < ratio < 9.0
+
+
+def test_trajectory_uncertainty(tmp_path):
+    out = tmp_path / "trajectory"
+    stdout = run_example("trajectory_uncertainty.py", "--quick", "--out", str(out), cwd=tmp_path)
+    figure = out / "tcp_along_trajectory.png"
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    match = re.search(r"along 75 poses of kr5-sweep-75.csv: ([\d.]+) to ([\d.]+) um", stdout)
+    assert match, stdout
+    low, high = (float(value) for value in match.groups())
+    # the deployed model of the demo: tens of micrometres (docs/tcp.md), never zero
+    assert 1.0 < low <= high < 200.0
+
+
+@pytest.mark.skipif(not hasattr(robotcal, "run_calibration"), reason="robotcal.run_calibration is not available")
+def test_run_and_report(tmp_path):
+    out = tmp_path / "run"
+    stdout = run_example("run_and_report.py", "--quick", "--out", str(out), cwd=tmp_path)
+    assert (out / "run.json").is_file() and (out / "report.html").is_file()
+    assert "the same headline figures: True" in stdout
+    html = (tmp_path / "run-report.html").read_text(encoding="utf-8")
+    assert html.lstrip().lower().startswith("<!doctype html")
+    assert "how good: mean validation error" in stdout
