@@ -12,6 +12,10 @@ Prints, side by side in one run (scenario ``kr5-demo``: 270 points, points crite
 - the speed-up of the batched engine over the loop (same core count: 1 worker vs the loop) and the
   extrapolated loop time for ``--draws`` draws.
 
+With ``--command N`` it also times the whole command ``robotcal uncertainty kr5-demo -n N --model refined``
+as a subprocess (wall, draws from its ``parameters.json``, and the difference; see ``bench_montecarlo.py``);
+``--command-only`` times just that.
+
 Targets (issue 11, docs/uncertainty.md): 100,000 draws <= 120 s on 2 cores; >= 20x the per-draw loop.
 """
 
@@ -24,6 +28,7 @@ import time
 import warnings
 
 import numpy as np
+from bench_montecarlo import whole_command  # sibling script (this folder is on sys.path when run as one)
 
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.cpa import identify_cpa_batch
@@ -95,7 +100,13 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=100_000)
     parser.add_argument("--loop", type=int, default=200)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--command", type=int, default=0, help="also time the whole command with this many draws")
+    parser.add_argument("--command-only", action="store_true", help="only time the whole command (--command N)")
     args = parser.parse_args()
+    if args.command_only:
+        figures = whole_command(args.command or args.draws, model="refined", scenario=SCENARIO)
+        print(json.dumps({"whole_command": figures}, indent=2))
+        return
     began = time.perf_counter()
     problem = scenario_monte_carlo(load_scenario(SCENARIO), model="refined")
     report = {"scenario": SCENARIO, "points": problem.n_points, "prepare_s": round(time.perf_counter() - began, 3)}
@@ -110,6 +121,8 @@ def main() -> None:
     report[f"engine_{args.workers}_workers"] = full
     report["speedup_vs_loop_on_1_core"] = round(full["draws_per_s"] * loop, 1)
     report["cpu_time_speedup"] = round(report["loop_cpu_ms_per_draw"] / full["cpu_ms_per_draw"], 1)
+    if args.command:
+        report["whole_command"] = whole_command(args.command, model="refined", scenario=SCENARIO)
     report["load_average"] = [round(x, 2) for x in os.getloadavg()]
     print(json.dumps(report, indent=2))
 

@@ -330,11 +330,28 @@ def _rounding_hint(spread: float, options: CPAOptions) -> str:
 
 
 def _oriented_axis(fit: CircleFit, points: np.ndarray, q_turn: np.ndarray) -> np.ndarray:
-    """Flip the fitted normal where the target does not turn right-handed as q grows."""
-    radial = points - fit.centre[..., None, :]
-    turn = _dot(_cross(radial[..., :-1, :], radial[..., 1:, :]), fit.normal[..., None, :])
+    """Flip the fitted normal where the target does not turn right-handed as q grows.
+
+    The turn between consecutive points is ``(r_k x r_k+1) . n`` with ``r`` from the centre; with the
+    fit's in-plane coordinates ``(du, dv)`` along ``u, v`` (``u x v = n``) it is the 2-D cross product
+    ``du_k dv_k+1 - dv_k du_k+1`` (the axial parts drop out), a few passes over the points instead of ~15.
+    """
+    if fit.in_plane is not None:
+        du, dv = fit.in_plane[..., 0], fit.in_plane[..., 1]
+        turn = du[..., :-1] * dv[..., 1:] - dv[..., :-1] * du[..., 1:]
+    else:
+        radial = points - fit.centre[..., None, :]
+        turn = _dot(_cross(radial[..., :-1, :], radial[..., 1:, :]), fit.normal[..., None, :])
     sense = np.sum(turn * np.diff(q_turn), axis=-1)
     return np.where((sense < 0.0)[..., None], -fit.normal, fit.normal)
+
+
+def _row_selector(rows: np.ndarray) -> slice | np.ndarray:
+    """``rows`` as a slice where they are consecutive, else ``rows`` itself: a slice is a view of the
+    batch, where indexing by an array copies every draw's points (~23 ms per 2,000 kr5-demo draws, ~12 us a draw)."""
+    if rows.size and rows[-1] - rows[0] == rows.size - 1 and np.all(np.diff(rows) == 1):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    return rows
 
 
 def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) -> CPABatch:
@@ -349,7 +366,7 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
     # 1. circles -> oriented axes (measured configuration)
     fits, lines = [], []
     for joint, rows in enumerate(structure.circle_indices):
-        circle_points = points[..., rows, :]
+        circle_points = points[..., _row_selector(rows), :]
         try:
             fit = fit_circle_3d(circle_points, method=options.circle_fit)
         except DegenerateGeometryError as exc:

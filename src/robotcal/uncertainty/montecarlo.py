@@ -30,10 +30,10 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal
+from statistics import NormalDist
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy.stats import norm
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError, RobotcalError
@@ -45,7 +45,6 @@ from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.generator import JointErrorModel, simulate_capture
 from robotcal.simulation.plan import CapturePlan
-from robotcal.uncertainty.refined import RefinedModel, prepare_refined_model, refine_batch, refined_covariance
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
     SampleSummary,
@@ -54,6 +53,9 @@ from robotcal.uncertainty.statistics import (
     numerical_tolerance,
     summarize_draws,
 )
+
+if TYPE_CHECKING:  # the refinement (and SciPy's optimizer behind it) is imported only for model="refined"
+    from robotcal.uncertainty.refined import RefinedModel
 
 __all__ = [
     "MonteCarloProblem",
@@ -195,6 +197,8 @@ def prepare_monte_carlo(
     reference = identify_cpa_batch(exact, structure, tracker_from_base)
     values, identified, refined = reference.values, reference.identified, None
     if model == "refined":
+        from robotcal.uncertainty.refined import prepare_refined_model
+
         start = ParameterSet(robot=robot, values=reference.values, identified=reference.identified)
         refined = prepare_refined_model(
             capture,
@@ -424,8 +428,12 @@ def _noise(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -
     if problem.instrument.is_noise_free:
         return np.zeros(shape)
     if problem.instrument.noise == "uniform":
-        return rng.uniform(-1.0, 1.0, size=shape) * bound
-    return rng.standard_normal(size=shape) * (bound / problem.instrument.coverage_factor)
+        noise = rng.uniform(-1.0, 1.0, size=shape)
+        noise *= bound  # in place: the batch is millions of numbers
+        return noise
+    noise = rng.standard_normal(size=shape)
+    noise *= bound / problem.instrument.coverage_factor
+    return noise
 
 
 def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, batch_size: int) -> np.ndarray:
@@ -444,7 +452,8 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
             exact = _noisy_exact_points(problem, count, joint_rng)
         else:
             exact = problem.exact_points
-        points = np.broadcast_to(exact + _noise(problem, count, instrument_rng), (count, problem.n_points, 3))
+        points = _noise(problem, count, instrument_rng)
+        points += exact  # noise + exact, in place (the same numbers as exact + noise)
         if count == 1:
             points = np.concatenate([points, points])
         try:
@@ -460,6 +469,8 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
 
 def _refine_draws(model: RefinedModel, points: np.ndarray, batch) -> np.ndarray:
     """Refine every CPA draw of ``batch`` from its own estimate, ``REFINE_BATCH`` draws at a time."""
+    from robotcal.uncertainty.refined import refine_batch
+
     out = np.empty(batch.values.shape)
     for start, count in _chunks(points.shape[0], REFINE_BATCH):
         part = slice(start, start + count)
@@ -561,8 +572,11 @@ def _covariance(values: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray,
     covariance = np.zeros((n_params, n_params))
     correlation = np.eye(n_params)
     if mask.sum() >= 1:
-        free = flat[:, mask]
-        sub = np.atleast_2d(np.cov(free, rowvar=False))
+        # np.cov(free, rowvar=False) without BLAS: on a busy 2-core machine multi-threaded OpenBLAS spent
+        # ~0.65 s on this (22 x 20,000) product, einsum ~7 ms (1 ms with OPENBLAS_NUM_THREADS=1)
+        centred = np.ascontiguousarray(flat[:, mask].T)
+        centred -= centred.mean(axis=1, keepdims=True)
+        sub = np.atleast_2d(np.einsum("ik,jk->ij", centred, centred) / (flat.shape[0] - 1))
         covariance[np.ix_(mask, mask)] = sub
         scale = np.sqrt(np.diag(sub))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -760,7 +774,7 @@ def linearised_uncertainty(
         covariance = _refined_full_covariance(problem, covariance)
     n_joints = problem.robot.n_joints
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n_joints, 5)
-    k = float(norm.ppf(0.5 + settings.coverage / 2.0))
+    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)  # statistics, not scipy.stats: ~0.5 s of import
     estimate = problem.noise_free_values
     low, high = estimate - k * std, estimate + k * std
     tolerance = numerical_tolerance(std, settings.ndig)
@@ -789,6 +803,8 @@ def _refined_full_covariance(problem: MonteCarloProblem, cpa_covariance: np.ndar
     parameters it estimates (:func:`robotcal.uncertainty.refined.refined_covariance`, exact to first
     order); CPA's for identified parameters the refinement holds at their CPA value (their
     cross-covariance with the refined ones is left out)."""
+    from robotcal.uncertainty.refined import refined_covariance
+
     model = problem.refined
     free_cov = refined_covariance(model, problem.exact_points, _input_variance(problem))
     mask = model.free.reshape(-1)
@@ -814,4 +830,4 @@ def _cpa_covariance(problem: MonteCarloProblem, step: float) -> np.ndarray:
     flat = values.reshape(2 * n_inputs, -1)
     jacobian = ((flat[:n_inputs] - flat[n_inputs:]) / (2.0 * step)).T  # (n_params, n_inputs)
     variance = _input_variance(problem).reshape(-1)
-    return (jacobian * variance) @ jacobian.T
+    return np.einsum("ik,jk->ij", jacobian * variance, jacobian)  # not BLAS: see _covariance

@@ -51,6 +51,7 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityWarning, InputError
+from robotcal.geometry._vectors import cross as _cross
 from robotcal.geometry.transforms import rot_z
 from robotcal.identification.refine import (
     CRITERIA,
@@ -311,7 +312,7 @@ def _kinematics(model: RefinedModel, values: np.ndarray) -> tuple[np.ndarray, np
             omega, v = None, before[..., 2]
         elif kind == 1:
             omega = before[..., 2]
-            v = np.cross(before[..., 3], omega)
+            v = _cross(before[..., 3], omega)  # np.cross's formula, without its moveaxis copies
         else:
             angle = (values[:, joint, 1][:, None] + config_q[None, :, joint])[..., None]
             x_common = np.cos(angle) * before[..., 0] + np.sin(angle) * before[..., 1]
@@ -320,7 +321,7 @@ def _kinematics(model: RefinedModel, values: np.ndarray) -> tuple[np.ndarray, np
                 omega, v = None, x_common
             else:
                 omega = x_common if kind == 3 else frames[:, :, joint + 1, :3, 1]
-                v = np.cross(o_after, omega)
+                v = _cross(o_after, omega)
         active = (joint < carrier)[None, :, None]
         if omega is not None:
             twists[:, :, :3, column] = np.where(active, omega, 0.0)
@@ -423,13 +424,18 @@ class _Batch:
         in_base = (self.measured[index] - shift[:, None, :]) @ total  # R_tot^T (m - t), row-wise
         error = points - in_base
         cost = 0.5 * np.einsum("bnc,bnc->b", error, error)
-        moments = np.concatenate([np.cross(points, error), error], axis=-1)
+        moments = np.concatenate([_cross(points, error), error], axis=-1)
         sums = np.add.reduceat(moments, model.groups["starts"], axis=1)  # (B, U, 6)
         base = _base_twists(model, x_base)
         xi = np.concatenate([twists, np.broadcast_to(base[:, None], twists.shape[:3] + base.shape[-1:])], axis=-1)
         xi = xi * model.x_scale
         gradient = np.einsum("busk,bus->bk", xi, sums)
-        normal = (np.swapaxes(xi, -1, -2) @ _group_normal(model, rotation, origin) @ xi).sum(axis=1)
+        # sum_u Xi_u^T (G_u Xi_u) as one product over the stacked groups: (B, p, 6U) @ (B, 6U, p); the
+        # per-group products Xi_u^T G_u Xi_u made a (B, U, p, p) array to sum and 2 B U small matmuls
+        weighted = _group_normal(model, rotation, origin) @ xi  # (B, U, 6, p)
+        batch, units, _, width = xi.shape
+        stacked = (batch, units * 6, width)
+        normal = np.swapaxes(xi.reshape(stacked), -1, -2) @ weighted.reshape(stacked)
         return cost, normal, gradient
 
     def _distance_equations(self, points, twists, index):

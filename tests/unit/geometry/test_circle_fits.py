@@ -265,3 +265,24 @@ def test_collinear_item_in_batch_is_named():
 def test_unknown_method():
     with pytest.raises(InputError, match="`method` must be 'geometric' or 'algebraic'"):
         fit_circle_3d(_random_circle(np.random.default_rng(0))[0], method="kasa")
+
+
+@pytest.mark.parametrize("method", ["geometric", "algebraic"])
+def test_in_plane_coordinates_are_the_projected_points_about_the_centre(method):
+    """``in_plane`` (du, dv along u, v with u x v = normal): checked against the points projected with numpy."""
+    points = np.stack([_noisy_circle(seed, arc_deg=120.0, n_points=15)[0] for seed in range(4)])
+    fit = fit_circle_3d(points, method=method)
+    du, dv = fit.in_plane[..., 0], fit.in_plane[..., 1]
+    assert fit.in_plane.shape == points.shape[:-1] + (2,)
+    # radial residuals are |w - c| - R of the same numbers (radius 50..500 mm: 1e-9 mm is ~1e5 ulps)
+    np.testing.assert_allclose(np.hypot(du, dv) - fit.radius[:, None], fit.radial_residuals, rtol=0, atol=1e-9)
+    # the projection onto the plane is an isometry: pairwise distances of (du, dv) = those of the projected points
+    radial = points - fit.centre[:, None, :]
+    projected = radial - np.einsum("bnc,bc->bn", radial, fit.normal)[..., None] * fit.normal[:, None, :]
+    distance_3d = np.linalg.norm(projected[:, :, None, :] - projected[:, None, :, :], axis=-1)
+    distance_2d = np.hypot(du[:, :, None] - du[:, None, :], dv[:, :, None] - dv[:, None, :])
+    np.testing.assert_allclose(distance_2d, distance_3d, rtol=0, atol=1e-9)
+    # the 2-D cross product is the 3-D turn about the normal (u x v = normal, not -normal)
+    turn_3d = np.einsum("bnc,bc->bn", np.cross(radial[:, :-1], radial[:, 1:]), fit.normal)
+    turn_2d = du[:, :-1] * dv[:, 1:] - dv[:, :-1] * du[:, 1:]
+    np.testing.assert_allclose(turn_2d, turn_3d, rtol=1e-9, atol=1e-6)  # turns ~1e3..1e5 mm^2
