@@ -1,4 +1,6 @@
-"""``robotcal uncertainty SCENARIO --out DIR``: GUM Supplement 1 Monte Carlo of the calibration."""
+"""``robotcal uncertainty SCENARIO --out DIR``: GUM Supplement 1 Monte Carlo of the calibration;
+``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``: of the
+refinement of a measured capture (:mod:`robotcal.uncertainty.measured`)."""
 
 from __future__ import annotations
 
@@ -24,7 +26,6 @@ from robotcal.cli._common import (
     styled,
 )
 from robotcal.errors import InputError
-from robotcal.identification.refine import CRITERIA
 from robotcal.io import load_scenario, read_parameters
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 from robotcal.io.scenario import Scenario
@@ -86,6 +87,9 @@ def compute_uncertainty(
 
 
 def _model_name(result: MonteCarloResult) -> str:
+    from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL  # scipy: imported when this runs, not for --help
+    if result.model == MEASURED_MODEL:
+        return f"measured capture ({result.criterion} refinement, noise from each point's U(95))"
     if result.model == "refined":
         return f"refined model (CPA + {result.criterion} refinement)"
     return "CPA model"
@@ -123,11 +127,19 @@ def uncertainty_table(result: MonteCarloResult) -> Table:
 @app.command()
 @handle_errors
 def uncertainty(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (replaced if it exists).")],
+    scenario: Annotated[
+        str | None, typer.Argument(help="Built-in scenario name or scenario TOML path (or --scenario).")
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Result folder to write (replaced if it exists).")
+    ] = None,
     iterations: Annotated[
         int | None,
-        typer.Option("--iterations", "-n", help="Number of draws (default: the scenario's montecarlo.iterations)."),
+        typer.Option(
+            "--iterations",
+            "-n",
+            help="Number of draws (default: the scenario's montecarlo.iterations; with --capture, 300).",
+        ),
     ] = None,
     adaptive: Annotated[
         bool, typer.Option("--adaptive", help="JCGM 101 §7.9 adaptive mode: blocks of 10^4 draws until stable.")
@@ -169,8 +181,13 @@ def uncertainty(
         ),
     ] = "cpa",
     criterion: Annotated[
-        str, typer.Option("--criterion", help="Refinement objective of --model refined: points | distances.")
-    ] = "points",
+        str | None,
+        typer.Option(
+            "--criterion",
+            help="Refinement objective of --model refined or --capture: points | distances (default: points; with "
+            "--capture, the one recorded in --params).",
+        ),
+    ] = None,
     scheduler: Annotated[
         str | None,
         typer.Option(
@@ -179,8 +196,44 @@ def uncertainty(
             "else local worker processes). Needs robotcal[distributed].",
         ),
     ] = None,
+    scenario_option: Annotated[
+        str | None, typer.Option("--scenario", "-s", help="Scenario name or TOML (instead of the argument).")
+    ] = None,
+    capture: Annotated[
+        Path | None,
+        typer.Option(
+            "--capture",
+            help="Monte Carlo of this measured capture (with --params): its poses and targets are simulated on the "
+            "refined parameters, each point's noise drawn from its U(95) (k = 2, normal; else the instrument's), and "
+            "refined again, draw after draw.",
+        ),
+    ] = None,
+    params: Annotated[
+        Path | None,
+        typer.Option("--params", help="With --capture: the parameter JSON `robotcal refine` wrote for that capture."),
+    ] = None,
 ) -> None:
-    """Monte Carlo (GUM Supplement 1) uncertainty of the CPA or refined parameters, with the linearised comparison."""
+    """Monte Carlo (GUM Supplement 1) uncertainty of the CPA or refined parameters, with the linearised comparison;
+    with --capture and --params, of the refinement of a measured capture."""
+    from robotcal.identification.refine import CRITERIA  # scipy: imported when this runs, not for --help
+    if scenario is not None and scenario_option is not None and scenario != scenario_option:
+        raise InputError(f"two scenarios given: {scenario!r} and --scenario {scenario_option!r}; give one")
+    scenario = scenario if scenario is not None else scenario_option
+    if scenario is None:
+        raise InputError("which scenario? give it as the argument or with --scenario")
+    if out is None:
+        raise InputError("--out is required: the result folder to write")
+    if capture is not None or params is not None:
+        if capture is None or params is None:
+            raise InputError("--capture and --params go together: the measured capture and its refined parameter JSON")
+        if model != "cpa" or adaptive or true_params is not None:
+            raise InputError("--capture does not combine with --model, --adaptive or --true-params")
+        _measured_capture_command(
+            scenario, capture, params, out, iterations=iterations, seed=seed, coverage=coverage, interval=interval,
+            workers=workers, scheduler=scheduler, save_draws=save_draws, criterion=criterion, force=force,
+        )  # fmt: skip
+        return
+    criterion = "points" if criterion is None else criterion
     if model not in MODELS:
         raise InputError(f"--model must be one of {', '.join(MODELS)}; got {model!r}")
     if criterion not in CRITERIA:
@@ -191,8 +244,8 @@ def uncertainty(
     inputs += existing_inputs(*loaded.files)
     table = loaded.montecarlo
     settings = MonteCarloSettings(
-        iterations=int(table["iterations"]) if iterations is None else iterations,
-        coverage=float(table["coverage"]) if coverage is None else coverage,
+        iterations=table.iterations if iterations is None else iterations,
+        coverage=table.coverage if coverage is None else coverage,
         interval=interval,
         adaptive=adaptive,
         ndig=ndig,
@@ -214,7 +267,7 @@ def uncertainty(
         "use fewer draws (--iterations, or --max-draws in adaptive mode) or a smaller --batch-size",
     )
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
-    run_seed = resolve_seed(seed, table.get("seed"))
+    run_seed = resolve_seed(seed, table.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")  # checked before any draw
     result = compute_uncertainty(
         loaded, settings, seed=run_seed, true_parameters=truth, model=model, criterion=criterion
@@ -242,3 +295,227 @@ def uncertainty(
     if result.adaptive is not None and not result.adaptive.stable:
         console.print(_line("warning:", "yellow", result.adaptive.reason), highlight=False)
     console.print(f"wrote {out}", highlight=False)
+
+
+# ------------------------------------------------------------------ --capture: Monte Carlo of a measured capture
+
+#: Draws of ``--capture`` without ``-n``: each draw is a full refinement (~0.1 s), see docs/uncertainty.md.
+MEASURED_DEFAULT_DRAWS = 300
+#: Columns of ``targets.csv`` (estimated flange offsets, mm).
+TARGET_COLUMNS = (
+    "name", "axis", "unit", "estimate", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max",
+    "lpu_std_uncertainty",
+)  # fmt: skip
+
+
+def _parameter_document(path: Path) -> dict:
+    """The parameter JSON as a dict for its ``robot`` and ``provenance`` keys ({} if unreadable: then
+    :func:`read_parameters` reports the problem)."""
+    import json
+
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return document if isinstance(document, dict) else {}
+
+
+def _measured_capture_command(
+    scenario: str,
+    capture: Path,
+    params: Path,
+    out: Path,
+    *,
+    iterations: int | None,
+    seed: int | None,
+    coverage: float | None,
+    interval: str,
+    workers: int | None,
+    scheduler: str | None,
+    save_draws: bool,
+    criterion: str | None,
+    force: bool,
+) -> None:
+    """``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``."""
+    from robotcal.identification.refine import CRITERIA  # scipy: imported when this runs, not for --help
+    from robotcal.io import read_capture
+    from robotcal.io.parameters_json import read_targets
+    from robotcal.uncertainty.measured import measured_monte_carlo
+
+    if criterion is not None and criterion not in CRITERIA:
+        raise InputError(f"--criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
+    inputs = existing_inputs(scenario, capture, params)
+    check_output_folder(out, inputs=inputs, force=force)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(*loaded.files)
+    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    document = _parameter_document(params)
+    recorded_robot = document.get("robot")
+    if isinstance(recorded_robot, str) and recorded_robot != loaded.robot.name:
+        raise InputError(
+            f"{params}: parameters of robot {recorded_robot!r}, but the scenario's robot is {loaded.robot.name!r}: "
+            "give the parameter JSON that `robotcal refine` wrote for this capture and scenario"
+        )
+    estimate = read_parameters(params, loaded.robot)
+    provenance = document.get("provenance") if isinstance(document.get("provenance"), dict) else {}
+    points = provenance.get("points")
+    if isinstance(points, int) and points != measured.n_points:
+        raise InputError(
+            f"{params}: refined on a capture of {points} points, but {capture} has {measured.n_points}: "
+            "give the capture the parameters were refined on"
+        )
+    recorded = provenance.get("criterion")
+    if criterion is None:
+        criterion = recorded if recorded in CRITERIA else "points"
+    elif recorded in CRITERIA and recorded != criterion:
+        raise InputError(
+            f"{params} was refined with the {recorded} criterion; --criterion {criterion} would repeat another "
+            "refinement than the one the parameters come from"
+        )
+    weights = "none" if provenance.get("weights") == "equal" else "auto"
+    estimate_base = provenance.get("base_frame") == "estimated" and loaded.identification.base_frame == "given"
+    table = loaded.montecarlo
+    settings = MonteCarloSettings(
+        iterations=MEASURED_DEFAULT_DRAWS if iterations is None else iterations,
+        coverage=table.coverage if coverage is None else coverage,
+        interval=interval,
+        workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
+        scheduler=scheduler,
+    )
+    run_seed = resolve_seed(seed, table.seed)
+    seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")
+    with Progress(
+        TextColumn("Monte Carlo of the capture"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("draws"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=console,
+        transient=True,
+    ) as display:
+        task = display.add_task("draws", total=settings.iterations)
+        result = measured_monte_carlo(
+            measured,
+            loaded,
+            estimate,
+            settings,
+            seed=run_seed,
+            criterion=criterion,
+            targets=read_targets(params),
+            estimate_base=estimate_base,
+            weights=weights,
+            progress=lambda done, total: display.update(task, completed=done, total=total),
+        )
+    echo = {"name": loaded.name, "source": loaded.source, "settings": loaded.settings}
+    with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty --capture") as folder:
+        _write_measured_folder(
+            folder, result, echo, capture=str(capture), params=str(params), n_points=measured.n_points,
+            save_draws=save_draws,
+        )  # fmt: skip
+    console.print(uncertainty_table(result.parameters))
+    if result.target_summary is not None:
+        offsets = Table(title="Estimated target offsets [mm]", title_justify="left")
+        for column in ("target", "axis", "estimate", "mean", "u", "u (refine)"):
+            offsets.add_column(column, justify="left" if column in ("target", "axis") else "right")
+        for row in _target_rows(result):
+            offsets.add_row(
+                row["name"], row["axis"], f"{row['estimate']:.4f}", f"{row['mean']:.4f}",
+                f"{row['std_uncertainty']:.2e}", f"{row['lpu_std_uncertainty']:.2e}",
+            )  # fmt: skip
+        console.print(offsets)
+    timings = result.parameters.timings_s
+    console.print(
+        f"{result.parameters.message}; noise: {result.noise_source}; {timings['draws']:.2f} s for the draws "
+        f"({timings['per_draw'] * settings.workers:.3f} s per draw and worker, {settings.workers} worker(s))",
+        highlight=False,
+    )
+    console.print(f"wrote {out}", highlight=False)
+
+
+def _target_rows(result) -> list[dict]:
+    """One dict per estimated offset component (mm)."""
+    rows = []
+    summary = result.target_summary
+    if summary is None:
+        return rows
+    low, high = summary.interval(result.parameters.settings.interval)
+    for t, name in enumerate(result.target_names):
+        for a, axis in enumerate("xyz"):
+            lpu = result.target_linearised_u[t, a]
+            rows.append(
+                {
+                    "name": name,
+                    "axis": axis,
+                    "unit": "mm",
+                    "estimate": float(result.target_estimate[t, a]),
+                    "mean": float(summary.mean[t, a]),
+                    "std_uncertainty": float(summary.std_uncertainty[t, a]),
+                    "coverage_low": float(low[t, a]),
+                    "coverage_high": float(high[t, a]),
+                    "min": float(summary.minimum[t, a]),
+                    "max": float(summary.maximum[t, a]),
+                    "lpu_std_uncertainty": float(lpu) if np.isfinite(lpu) else None,
+                }
+            )
+    return rows
+
+
+def _write_measured_folder(
+    folder: Path, result, echo: dict, *, capture: str, params: str, n_points: int, save_draws: bool
+) -> None:
+    """``parameters.csv``, ``parameters.json`` (``model: "measured capture"``), ``targets.csv``, the
+    histograms and (``save_draws``) ``draws.npz`` (mm, deg)."""
+    import csv
+    import io
+    import json
+
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.io.draws_npz import write_draws
+    from robotcal.io.uncertainty_files import write_uncertainty_csv, write_uncertainty_json
+    from robotcal.report.montecarlo import write_histograms
+    from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL  # scipy: imported when this runs, not for --help
+    from robotcal.uncertainty.measured import with_model
+    from robotcal.workflow import versions
+
+    parameters = result.parameters
+    write_uncertainty_csv(folder / "parameters.csv", parameters)
+    # the JSON writer knows the scenario models; written as "refined", then re-labelled
+    write_uncertainty_json(folder / "parameters.json", with_model(parameters, "refined"), scenario=echo, versions=versions())
+    document = json.loads((folder / "parameters.json").read_text(encoding="utf-8"))
+    document["model"] = MEASURED_MODEL
+    document["method"] = (
+        "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of a measured capture: its poses and targets simulated on "
+        f"the refined parameters, each point's noise N(0, (U95/2)^2) per coordinate (k = 2, normal), "
+        f"{parameters.criterion} refinement repeated per draw (thesis ch. 4.5.7)"
+    )
+    for row in document["parameters"]:
+        row["model"] = MEASURED_MODEL
+    if document.get("linearised") is not None:
+        document["linearised"]["method"] = (
+            "the refinement's own linearised covariance (sigma estimated from its residuals), as robotcal refine "
+            "reports it"
+        )
+        document["linearised"]["step_mm"] = None
+        document["linearised"]["validation"] = (
+            "JCGM 101 §8.2: both interval ends within the numerical tolerance of one significant digit of u "
+            "(what a few hundred draws resolve)"
+        )
+    document["capture"] = {"source": capture, "params": params, "points": n_points}
+    document["noise"] = result.noise_source
+    document["targets"] = _target_rows(result)
+    document["free"] = list(result.reference.free_names)
+    atomic_write_text(folder / "parameters.json", json.dumps(document, indent=2, allow_nan=False) + "\n")
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(TARGET_COLUMNS)
+    for row in _target_rows(result):
+        writer.writerow(["" if row[c] is None else (format(row[c], ".12g") if isinstance(row[c], float) else row[c])
+                         for c in TARGET_COLUMNS])  # fmt: skip
+    atomic_write_text(folder / "targets.csv", buffer.getvalue())
+    if save_draws:
+        write_draws(
+            folder / "draws.npz", parameters.robot, parameters.draws, parameters.identified, seed=parameters.seed,
+            model=MEASURED_MODEL,
+        )  # fmt: skip
+    write_histograms(parameters, folder)

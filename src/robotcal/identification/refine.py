@@ -105,11 +105,9 @@ import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import sparse
-from scipy.optimize import least_squares
-from scipy.spatial.distance import pdist
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -139,6 +137,24 @@ __all__ = [
     "wrap_angles",
     "point_sigmas",
 ]
+
+if TYPE_CHECKING:
+    import scipy.sparse
+
+
+def pdist(points):
+    """:func:`scipy.spatial.distance.pdist`, imported on first use (scipy's import costs ~0.7 s: a command
+    that never refines must not pay it)."""
+    from scipy.spatial.distance import pdist as condensed_distances
+
+    return condensed_distances(points)
+
+
+def least_squares(*args, **kwargs):
+    """:func:`scipy.optimize.least_squares`, imported on first use (see :func:`pdist`)."""
+    from scipy.optimize import least_squares as solve
+
+    return solve(*args, **kwargs)
 
 #: The two objectives of thesis ch. 4.5.7.
 CRITERIA = ("points", "distances")
@@ -514,7 +530,7 @@ class _Problem:
         stride = max(1, self.pair_i.size // rows)
         return _pair_jacobian(points, jac, self.pair_i[::stride], self.pair_j[::stride])
 
-    def noise_map(self, x) -> sparse.csr_matrix | None:
+    def noise_map(self, x) -> scipy.sparse.csr_matrix | None:
         """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
         if self.criterion == "points":
             return None
@@ -533,6 +549,8 @@ class _Problem:
             [3 * self.pair_i[:, None] + np.arange(3), 3 * self.pair_j[:, None] + np.arange(3)], axis=1
         ).ravel()
         data = np.concatenate([unit_i, -unit_j], axis=1).ravel()
+        from scipy import sparse
+
         return sparse.csr_matrix((data, (rows, cols)), shape=(m, 3 * points.shape[0]))
 
 

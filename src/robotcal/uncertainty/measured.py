@@ -1,0 +1,534 @@
+"""Monte Carlo of a measured capture: each point's U(95) as its noise (issue 14, item 3).
+
+The scenario Monte Carlo (:mod:`robotcal.uncertainty.montecarlo`) simulates the scenario's capture
+*plan*. A real capture (free poses, several targets, a U(95) per point) has no plan; its refinement
+gives the linearised u only. This module repeats, draw after draw, what the user ran on that capture:
+
+1. **Reference.** The capture is refined once more with :func:`refine_parameters`, starting from the
+   user's estimate (the refined parameters and estimated target offsets of the parameter JSON): the
+   same criterion, base-frame handling (``[identification].base_frame``, ``estimate_base``) and
+   weights (``1 / u^2``, u = U(95) / 2). Started at the optimum it converges at once, and it gives
+   what the draws need: the free set, the base frame (points criterion) and the linearised
+   covariance. Its values are the estimate ``y`` around which the draws scatter.
+2. **Simulated capture.** The capture's own poses (its readings, each point on its own target) are
+   put through the estimate: ``T F(q; y) r_t`` with the estimated offsets ``r_t`` and the base frame
+   ``T`` of the reference (distances criterion: the Horn registration of the predicted points onto
+   the measured ones, since it has no base frame; distances do not depend on it).
+3. **Noise.** Each point gets independent normal noise per coordinate, ``N(0, (U95 / 2)^2)``:
+   the tracker's U(95) is read as an expanded uncertainty with coverage factor k = 2 of a normal
+   distribution (the convention of :func:`robotcal.identification.refine.point_sigmas`). A capture
+   without a ``u95_mm`` column takes the scenario instrument's noise
+   (:meth:`robotcal.instruments.Instrument.sample_noise`: ``U(L) = A + B L``, normal with its coverage
+   factor, or uniform); one without either is refused.
+4. **Refinement.** :func:`refine_parameters` on the noisy copy, start = the estimate, same options.
+   A draw counts as **failed** (counted, never averaged in) when the solver reports no success, when
+   it raises, or when its rank test chooses another free set than the reference.
+
+The draws of the free parameters and of the unknown target offsets give mean, u, both coverage
+intervals, covariance and correlation (:func:`robotcal.uncertainty.statistics.summarize_draws`, as
+the other Monte Carlos). The linearised comparison is the reference refinement's own covariance
+(sigma estimated from its residuals, as ``robotcal refine`` reports it); it agrees with the Monte
+Carlo when the residuals agree with the stated U(95) (the fit-health ratio near 1). The JCGM 101
+§8.2 verdict is taken with :data:`COMPARISON_NDIG` = 1 significant digit of u, what a few hundred
+draws resolve.
+
+Cost: the draws are not vectorised; each is one ``refine_parameters`` call, rank test included
+(about 0.1-0.3 s for 40 poses x 3 targets and 31 unknowns, measured under load): fine for a few
+hundred draws, which give u to about 5 % (relative standard error ``1 / sqrt(2 (M - 1))``).
+
+Reproducibility: draws come in blocks of :data:`DRAWS_PER_BLOCK`; block ``b`` draws its noise from
+``SeedSequence(seed, spawn_key=(b,))`` (as :mod:`robotcal.uncertainty.montecarlo`), draw by draw, so
+the result does not depend on the number of workers nor on the backend
+(:func:`robotcal.execution.open_executor`).
+
+References
+----------
+JCGM 101:2008 §5.9, §7; thesis ch. 4.5.7 (eqs 4-101, 4-102).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from statistics import NormalDist
+
+import numpy as np
+
+from robotcal._arrays import frozen_array as _frozen
+from robotcal.capture import Capture
+from robotcal.errors import IdentifiabilityWarning, InputError, RobotcalError, RobotcalWarning
+from robotcal.execution import open_executor
+from robotcal.geometry.registration import register_points
+from robotcal.geometry.transforms import apply_transform
+from robotcal.identification.refine import (
+    CRITERIA,
+    RefinementResult,
+    capture_turning_joints,
+    point_sigmas,
+    refine_parameters,
+    wrap_angles,
+)
+from robotcal.identification.targets import Target, resolve_targets
+from robotcal.instruments import Instrument
+from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.model import ParameterSet, ReflectorMount
+from robotcal.uncertainty.montecarlo import (
+    LinearisedResult,
+    MonteCarloResult,
+    MonteCarloSettings,
+    ProgressCallback,
+)
+from robotcal.uncertainty.statistics import SampleSummary, numerical_tolerance, summarize_draws
+
+__all__ = [
+    "DRAWS_PER_BLOCK",
+    "MODEL",
+    "MeasuredProblem",
+    "MeasuredMonteCarloResult",
+    "prepare_measured",
+    "measured_monte_carlo",
+    "measured_block",
+]
+
+#: The ``model`` recorded in the result and its files.
+MODEL = "measured capture"
+#: Largest move of a parameter (in its standard uncertainty) when the capture is refined again from the
+#: estimate, beyond which the estimate is taken not to be this capture's refinement (a warning).
+SHIFT_TOLERANCE = 0.1
+#: Significant digits of u for the JCGM 101 §8.2 comparison with the linearised u: a few hundred draws
+#: resolve u to about one digit (relative standard error 1/sqrt(2 (M - 1)): 4 % at 300 draws, and the
+#: interval ends to ~10 %), so ndig = 2 would call almost every parameter "differs".
+COMPARISON_NDIG = 1
+#: Draws per seeded block: the reproducibility unit and the unit of work handed to a worker.
+DRAWS_PER_BLOCK = 20
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MeasuredProblem:
+    """What every draw shares.
+
+    Attributes
+    ----------
+    capture : Capture
+        The measured capture (readings, targets, u95); its points are replaced in every draw.
+    reflector : ReflectorMount or tuple of Target
+        The target(s), unknown flange offsets at their estimated values.
+    reference : RefinementResult
+        The refinement of the measured capture from the estimate (free set, base frame, covariance).
+    exact_points : ndarray, shape (n_points, 3)
+        The capture's poses put through the estimate, tracker frame [mm].
+    noise_sd : ndarray, shape (n_points,) or None
+        Standard deviation per coordinate [mm], ``U95 / 2``; None: ``instrument`` gives the noise.
+    instrument : Instrument or None
+    noise_source : str
+        Where the noise comes from, in words (recorded in the files).
+    options : dict
+        Keyword arguments of every draw's :func:`refine_parameters` call.
+    """
+
+    capture: Capture
+    reflector: object
+    reference: RefinementResult
+    exact_points: np.ndarray
+    noise_sd: np.ndarray | None
+    instrument: Instrument | None
+    noise_source: str
+    options: dict = field(default_factory=dict)
+
+    @property
+    def robot(self):
+        return self.reference.parameters.robot
+
+    @property
+    def unknown_targets(self) -> tuple[Target, ...]:
+        """The targets whose offsets are estimated (their draws are kept)."""
+        return tuple(target for target in self.reference.targets if not target.known)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MeasuredMonteCarloResult:
+    """The Monte Carlo of a measured capture.
+
+    Attributes
+    ----------
+    parameters : MonteCarloResult
+        Statistics of the kinematic parameters (core units), ``model = "measured capture"``;
+        ``identified`` is the refinement's free set (held parameters keep the estimate, u = 0);
+        ``noise_free_values`` and ``true_values`` are the estimate; ``linearised`` the reference
+        refinement's covariance.
+    target_names : tuple of str
+        The targets whose offsets were estimated (rows of the next arrays).
+    target_estimate, target_linearised_u : ndarray, shape (n_targets, 3)
+        Estimated offsets [mm] and their linearised standard uncertainty (NaN where not estimated).
+    target_summary : SampleSummary or None
+        Statistics of the offsets' draws, arrays of shape (n_targets, 3) [mm]; None without unknown targets.
+    target_draws : ndarray, shape (n_draws, n_targets, 3) or None
+    noise_source : str
+    reference : RefinementResult
+    """
+
+    parameters: MonteCarloResult
+    target_names: tuple[str, ...]
+    target_estimate: np.ndarray
+    target_linearised_u: np.ndarray
+    target_summary: SampleSummary | None
+    target_draws: np.ndarray | None
+    noise_source: str
+    reference: RefinementResult
+
+
+def _with_offsets(reflector, offsets: Mapping[str, object] | None):
+    """``reflector`` with the unknown flange targets moved to ``offsets[name]`` (estimated values)."""
+    if isinstance(reflector, ReflectorMount) or not offsets:
+        return reflector
+    single = isinstance(reflector, Target)
+    targets = (reflector,) if single else tuple(reflector)
+    moved = tuple(
+        target.with_position(offsets[target.name]) if not target.known and target.name in offsets else target
+        for target in targets
+    )
+    return moved[0] if single else moved
+
+
+def _base_points(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
+    """Every point of ``capture`` put through ``parameters``: its pose, its target, base frame [mm]."""
+    q = parameters.robot.model_joint_variables(capture.readings)
+    if isinstance(reflector, ReflectorMount):
+        return target_positions(parameters.values, q, capture_turning_joints(capture, reflector), reflector)
+    targets, index = resolve_targets(capture, (reflector,) if isinstance(reflector, Target) else tuple(reflector))
+    turning = np.maximum(capture.circle - 1, 0)
+    points = np.empty((capture.n_points, 3))
+    for t, target in enumerate(targets):
+        rows = np.flatnonzero(index == t)
+        points[rows] = target_positions(parameters.values, q[rows], turning[rows], target.mount)
+    return points
+
+
+def _noise_model(capture: Capture, scenario) -> tuple[np.ndarray | None, Instrument | None, str]:
+    sigmas = point_sigmas(capture)
+    if sigmas is not None:
+        return _frozen(sigmas), None, "each point's U(95) from the capture's u95_mm column (k = 2, normal: u = U / 2)"
+    if scenario.has_instrument:
+        instrument = scenario.instrument
+        return None, instrument, f"the scenario instrument {instrument.name!r} ({instrument.noise}; no u95_mm column)"
+    raise InputError(
+        f"{capture.source}: no noise to simulate: the capture has no `u95_mm` column and {scenario.source} has no "
+        "[instrument] table; add one of them (the Monte Carlo draws each point's noise from its U(95), k = 2, "
+        "normal, else from the instrument)"
+    )
+
+
+def prepare_measured(
+    capture: Capture,
+    scenario,
+    estimate: ParameterSet,
+    *,
+    criterion: str = "points",
+    targets: Mapping[str, object] | None = None,
+    estimate_base: bool = False,
+    weights: str = "auto",
+) -> MeasuredProblem:
+    """Refine ``capture`` from ``estimate`` once (the reference) and set up the draws.
+
+    Parameters
+    ----------
+    capture : Capture
+        The measured capture [mm]; its ``u95_mm`` column (if any) is each point's noise.
+    scenario : Scenario
+        Robot, targets, base-frame mode and (for a capture without ``u95_mm``) the instrument.
+    estimate : ParameterSet
+        The refined parameters the user obtained [mm, rad].
+    criterion : {"points", "distances"}
+    targets : mapping of str to (x, y, z), optional
+        Estimated flange offsets [mm] by target name (``read_targets`` of the parameter JSON); unknown
+        targets not named here start from the scenario's guess.
+    estimate_base : bool
+        Points criterion: the base frame was estimated although the scenario gives it (``refine
+        --estimate-base``).
+    weights : {"auto", "none"}
+        As for :func:`refine_parameters`.
+    """
+    from robotcal.workflow import capture_reflector
+
+    if criterion not in CRITERIA:
+        raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
+    if estimate.robot.name != scenario.robot.name or estimate.robot.n_joints != capture.n_joints:
+        raise InputError(
+            f"the estimate is for robot {estimate.robot.name!r} ({estimate.robot.n_joints} joints); the scenario's "
+            f"robot is {scenario.robot.name!r} and the capture has {capture.n_joints} joint readings per point"
+        )
+    noise_sd, instrument, source = _noise_model(capture, scenario)
+    reflector = _with_offsets(capture_reflector(scenario, capture), targets)
+    given = scenario.identification.base_frame == "given"
+    options: dict = {"criterion": criterion, "weights": weights}
+    if criterion == "points":
+        options["tracker_from_base"] = scenario.tracker_from_base if given else None
+        if estimate_base:
+            options["estimate_base"] = True
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifiabilityWarning)  # the user saw them when refining
+        reference = refine_parameters(capture, estimate, reflector, **options)
+    if not reference.success:
+        raise RobotcalError(f"{capture.source}: the refinement from the estimate did not converge: {reference.message}")
+    shift = np.abs(wrap_angles(reference.parameters.values - estimate.values))[reference.free]
+    scale = np.asarray(reference.standard_uncertainty)[reference.free]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = shift / scale
+    moved = float(ratio[np.isfinite(ratio)].max()) if np.isfinite(ratio).any() else 0.0
+    if moved > SHIFT_TOLERANCE:
+        warnings.warn(
+            f"{capture.source}: refined again from the estimate, the parameters move by up to {moved:.3g} of their "
+            "standard uncertainty: the estimate is not the refinement of this capture with these options (another "
+            "capture, criterion or weights?); the Monte Carlo is made around the refined-again values",
+            RobotcalWarning,
+            stacklevel=2,
+        )
+    reflector = reference.targets if reference.targets else reflector
+    predicted = _base_points(capture, reference.parameters, reflector)
+    if reference.tracker_from_base is not None:
+        tracker = reference.tracker_from_base
+        # every draw starts from the reference's base frame; estimated again where the reference estimated it
+        options["tracker_from_base"] = tracker
+        options["estimate_base"] = bool(np.any(reference.base_free))
+    else:  # distances: no base frame; any rigid placement gives the same distances
+        tracker = register_points(predicted, capture.points).transform
+    exact = apply_transform(tracker, predicted)
+    return MeasuredProblem(
+        capture=capture,
+        reflector=reflector,
+        reference=reference,
+        exact_points=_frozen(exact),
+        noise_sd=noise_sd,
+        instrument=instrument,
+        noise_source=source,
+        options=options,
+    )
+
+
+def _block_generator(seed: int, block: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence(entropy=seed, spawn_key=(block,)))
+
+
+def draw_noise(problem: MeasuredProblem, rng: np.random.Generator) -> np.ndarray:
+    """One draw's coordinate errors ``(n_points, 3)`` [mm]: ``N(0, (U95/2)^2)`` per coordinate, or the instrument's."""
+    if problem.noise_sd is not None:
+        return rng.standard_normal((problem.exact_points.shape[0], 3)) * problem.noise_sd[:, None]
+    return problem.instrument.sample_noise(problem.exact_points, rng=rng)
+
+
+def _refine_draw(problem: MeasuredProblem, points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Parameters ``(n, 5)`` and unknown offsets ``(k, 3)`` of one noisy copy; None when the draw failed."""
+    reference = problem.reference
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IdentifiabilityWarning)
+            result = refine_parameters(
+                problem.capture.with_points(points), reference.parameters, problem.reflector, **problem.options
+            )
+    except (RobotcalError, np.linalg.LinAlgError, ValueError):
+        return None
+    if not result.success or result.free_names != reference.free_names:
+        return None
+    offsets = np.array([t.positions for t in result.targets if not t.known], dtype=float).reshape(-1, 3)
+    return result.parameters.values, offsets
+
+
+def measured_block(problem: MeasuredProblem, seed: int, item: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Draws of block ``item = (block, size)``: parameters ``(size, n, 5)`` and offsets ``(size, k, 3)``;
+    NaN rows where a draw failed. Noise drawn draw by draw from the block's own generator."""
+    block, size = item
+    rng = _block_generator(seed, block)
+    n = problem.robot.n_joints
+    k = len(problem.unknown_targets)
+    values = np.full((size, n, 5), np.nan)
+    offsets = np.full((size, k, 3), np.nan)
+    for draw in range(size):
+        outcome = _refine_draw(problem, problem.exact_points + draw_noise(problem, rng))
+        if outcome is not None:
+            values[draw], offsets[draw] = outcome
+    return values, offsets
+
+
+def _block_items(total: int) -> list[tuple[int, int]]:
+    full, rest = divmod(total, DRAWS_PER_BLOCK)
+    return [(b, DRAWS_PER_BLOCK) for b in range(full)] + ([(full, rest)] if rest else [])
+
+
+def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: MonteCarloSettings) -> LinearisedResult:
+    """The reference refinement's covariance, embedded joint-major, with the JCGM 101 §8.2 comparison."""
+    reference = problem.reference
+    n = problem.robot.n_joints
+    free = np.asarray(reference.free).reshape(-1)
+    index = np.flatnonzero(free)
+    covariance = np.zeros((5 * n, 5 * n))
+    if reference.covariance is not None:
+        covariance[np.ix_(index, index)] = reference.covariance[: index.size, : index.size]
+    else:
+        covariance[np.ix_(index, index)] = np.nan
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n, 5)
+    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)
+    estimate = reference.parameters.values
+    low, high = estimate - k * std, estimate + k * std
+    tolerance = numerical_tolerance(np.nan_to_num(std), COMPARISON_NDIG)
+    mc_low, mc_high = summary.interval(settings.interval)
+    difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
+    agrees = (difference <= tolerance) | ~np.asarray(reference.free)
+    return LinearisedResult(
+        estimate=estimate,
+        covariance=covariance,
+        std_uncertainty=std,
+        coverage_low=low,
+        coverage_high=high,
+        agrees=agrees,
+        endpoint_difference=difference,
+        tolerance=tolerance,
+        step_mm=0.0,
+    )
+
+
+def _covariance(draws: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    flat = draws.reshape(draws.shape[0], -1)
+    mask = identified.reshape(-1)
+    covariance = np.zeros((flat.shape[1], flat.shape[1]))
+    correlation = np.eye(flat.shape[1])
+    if mask.any():
+        sub = np.atleast_2d(np.cov(flat[:, mask], rowvar=False))
+        covariance[np.ix_(mask, mask)] = sub
+        scale = np.sqrt(np.diag(sub))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            corr = sub / np.outer(scale, scale)
+        corr[~np.isfinite(corr)] = 0.0
+        np.fill_diagonal(corr, 1.0)
+        correlation[np.ix_(mask, mask)] = corr
+    return covariance, correlation
+
+
+def measured_monte_carlo(
+    capture: Capture,
+    scenario,
+    estimate: ParameterSet | RefinementResult,
+    settings: MonteCarloSettings | None = None,
+    *,
+    seed: int,
+    criterion: str | None = None,
+    targets: Mapping[str, object] | None = None,
+    estimate_base: bool = False,
+    weights: str = "auto",
+    progress: ProgressCallback | None = None,
+) -> MeasuredMonteCarloResult:
+    """Monte Carlo (JCGM 101) of the refinement of a measured capture (module notes).
+
+    Parameters
+    ----------
+    capture : Capture
+        The measured capture; a ``u95_mm`` column gives each point's noise (k = 2, normal).
+    scenario : Scenario
+    estimate : ParameterSet or RefinementResult
+        The user's refined parameters (a :class:`RefinementResult` also gives its criterion and
+        estimated target offsets).
+    settings : MonteCarloSettings, optional
+        ``iterations`` draws (a few hundred: each is one refinement), ``coverage``, ``interval``,
+        ``workers``, ``scheduler``, ``keep_draws``; the adaptive mode is refused (too slow per draw).
+    seed : int
+        Seed of the run; block ``b`` uses ``SeedSequence(seed, spawn_key=(b,))``.
+    criterion : {"points", "distances"}, optional
+        Default: the estimate's (a RefinementResult), else ``"points"``.
+    targets, estimate_base, weights
+        See :func:`prepare_measured`.
+    progress : callable, optional
+        ``progress(draws_done, draws_total)`` after every block.
+    """
+    settings = MonteCarloSettings(iterations=200) if settings is None else settings
+    if settings.adaptive:
+        raise InputError(
+            "the adaptive mode is not available for the Monte Carlo of a measured capture (each draw is a full "
+            "refinement); give a fixed number of draws"
+        )
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
+    seed = int(seed)
+    if isinstance(estimate, RefinementResult):
+        criterion = estimate.criterion if criterion is None else criterion
+        if targets is None and estimate.targets:
+            targets = {t.name: t.positions for t in estimate.targets if not t.known}
+        if estimate.tracker_from_base is not None and scenario.identification.base_frame == "given":
+            estimate_base = estimate_base or bool(np.any(estimate.base_free))
+        estimate = estimate.parameters
+    criterion = "points" if criterion is None else criterion
+    started = time.perf_counter()
+    problem = prepare_measured(
+        capture, scenario, estimate, criterion=criterion, targets=targets, estimate_base=estimate_base, weights=weights
+    )
+    items = _block_items(settings.iterations)
+    task = functools.partial(measured_block, problem, seed)
+    values, offsets = [], []
+    done = 0
+    with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
+        for block_values, block_offsets in executor.map(task, items):
+            values.append(block_values)
+            offsets.append(block_offsets)
+            done += block_values.shape[0]
+            if progress is not None:
+                progress(done, settings.iterations)
+    all_values = np.concatenate(values)
+    all_offsets = np.concatenate(offsets)
+    good = np.isfinite(all_values).all(axis=(1, 2)) & np.isfinite(all_offsets).all(axis=(1, 2))
+    n_failed = int((~good).sum())
+    draws, offset_draws = all_values[good], all_offsets[good]
+    if draws.shape[0] < 2:
+        raise RobotcalError(f"only {draws.shape[0]} of {good.size} draws converged: no statistics can be made")
+    draw_time = time.perf_counter() - started
+    reference = problem.reference
+    identified = np.asarray(reference.free, dtype=bool)
+    summary = summarize_draws(draws, settings.coverage)
+    covariance, correlation = _covariance(draws, identified)
+    linear = _linearised(problem, summary, settings)
+    message = f"{draws.shape[0]} draws"
+    if n_failed:
+        message += (
+            f"; {n_failed} of {good.size} draws failed (no convergence, or another free set) and are left out of "
+            f"the statistics ({n_failed / good.size:.2%})"
+        )
+    result = MonteCarloResult(
+        robot=problem.robot,
+        settings=settings,
+        seed=seed,
+        n_draws=int(draws.shape[0]),
+        summary=summary,
+        identified=identified,
+        covariance=covariance,
+        correlation=correlation,
+        draws=draws if settings.keep_draws else None,
+        noise_free_values=reference.parameters.values,
+        true_values=reference.parameters.values,
+        linearised=linear,
+        timings_s={"draws": draw_time, "per_draw": draw_time / good.size, "total": time.perf_counter() - started},
+        success=n_failed <= 0.001 * good.size,
+        message=message,
+        model=MODEL,
+        criterion=criterion,
+        n_failed=n_failed,
+    )
+    unknown = problem.unknown_targets
+    rows = [k for k, t in enumerate(reference.targets) if not t.known]
+    target_u = (
+        np.asarray(reference.target_uncertainty)[rows] if reference.target_uncertainty is not None else np.zeros((0, 3))
+    )
+    return MeasuredMonteCarloResult(
+        parameters=result,
+        target_names=tuple(t.name for t in unknown),
+        target_estimate=np.array([t.positions for t in unknown], dtype=float).reshape(-1, 3),
+        target_linearised_u=target_u.reshape(-1, 3),
+        target_summary=summarize_draws(offset_draws, settings.coverage) if unknown else None,
+        target_draws=offset_draws if (unknown and settings.keep_draws) else None,
+        noise_source=problem.noise_source,
+        reference=reference,
+    )
+
+
+def with_model(result: MonteCarloResult, model: str) -> MonteCarloResult:
+    """``result`` under another ``model`` name (for writers that know only the scenario models)."""
+    return replace(result, model=model)
