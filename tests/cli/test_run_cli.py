@@ -80,7 +80,7 @@ def test_run_writes_every_stage_and_the_report(run_folder):
     instrument = record["scenario"]["instrument"]
     assert instrument["name"] == "thesis-laser-tracker" and instrument["noise"] == "uniform"
     assert instrument["a_um"] == pytest.approx(10.0) and instrument["b_um_per_m"] == pytest.approx(2.5)
-    assert record["seeds"] == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0}
+    assert record["seeds"] == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6}
     assert set(record["versions"]) >= {"robotcal", "numpy", "scipy"}
     assert "report.html" in output and "how good" in output
     # no hidden temporary folders of atomic_directory are left behind
@@ -251,11 +251,12 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
         "joints": "failed",
         "uncertainty": "pending",
         "tcp": "pending",
+        "iso9283": "pending",
         "plan": "pending",
         "report": "pending",
     }
     # --seed N seeds every random part separately
-    assert record["seeds"] == {"capture": 5, "truth": 6, "validation": 7, "montecarlo": 8, "workspace": 9}
+    assert record["seeds"] == {"capture": 5, "truth": 6, "validation": 7, "montecarlo": 8, "workspace": 9, "iso9283": 10}
 
 
 def test_kr5_demo_scenario_keeps_the_monte_carlo_fast_path():
@@ -264,7 +265,7 @@ def test_kr5_demo_scenario_keeps_the_monte_carlo_fast_path():
     assert scenario.robot.name == thesis.robot.name
     np.testing.assert_array_equal(scenario.tracker_from_base, thesis.tracker_from_base)
     assert scenario.instrument == thesis.instrument
-    assert scenario.plan.bidirectional and scenario.montecarlo["iterations"] == 100_000
+    assert scenario.plan.bidirectional and scenario.montecarlo.iterations == 100_000
     errors = scenario.joint_errors
     assert np.all(errors.noise_sd == 0)
     assert np.all((np.rad2deg(errors.backlash) <= 0.01) & (np.rad2deg(errors.backlash) >= 0))

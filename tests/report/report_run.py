@@ -185,13 +185,13 @@ def make_run_folder(root: Path) -> Path:
     joints = root / "joints"
     _write_csv(
         joints / "summary.csv",
-        ["joint", "points", "pairs", "radius_mm", "plane_rms_mm", "circle_rms_mm", "backlash_mean_mm"],
-        [[j, 30, 14, 100.0 + j, 0.006, 0.009, BACKLASH_MM[j - 1]] for j in range(1, 7)],
+        ["joint", "points", "pairs", "radius_mm", "plane_rms_mm", "circle_rms_mm", "backlash_mean_mm", "noise_floor_um"],
+        [[j, 30, 14, 100.0 + j, 0.006, 0.009, BACKLASH_MM[j - 1], NOISE_FLOOR_UM] for j in range(1, 7)],
     )
     _write_csv(
         joints / "backlash.csv",
-        ["circle", "reading_deg", "magnitude_mm", "noise_floor_um"],
-        [[j, 10.0 * k, BACKLASH_MM[j - 1], NOISE_FLOOR_UM] for j in range(1, 7) for k in range(3)],
+        ["circle", "reading_deg", "magnitude_mm"],
+        [[j, 10.0 * k, BACKLASH_MM[j - 1]] for j in range(1, 7) for k in range(3)],
     )
     (joints / "harmonics.json").write_text(json.dumps({"order": 2, "units": {"length": "mm", "angle": "deg"}}))
     _figure(joints / "backlash_magnitude.png", "Backlash", "joint reading [deg]", "|backlash| [µm]")
@@ -255,6 +255,11 @@ def make_run_folder(root: Path) -> Path:
     (plan / "plan_check.json").write_text(json.dumps({"feasible": False, "points": 2, "failing": 1}))
     _write_csv(
         plan / "sensitivity" / "sensitivity.csv", ["case", "capture.sweep_deg.4", "name", "cpk"], [[1, 15, "J4.a", 0.1]]
+    )
+    _write_csv(
+        root / "iso9283" / "iso9283.csv",
+        ["model", "pose", "APx", "APy", "APz", "AP", "l_bar", "S_l", "RP", "AD", "RD"],
+        [["nominal", "P1", 0.3, 0.4, 0.0, 0.5, 0.01, 0.002, 0.016, "", ""], ["nominal", "P2-P4", *[""] * 7, 0.2, 0.03]],
     )
     _figure(uncertainty / "hist_J1.png", "J1", "J1.d [mm]", "density [1/mm]")
     _write_csv(root / "tcp" / "pose" / "tcp.csv", TCP_HEADER, _tcp_rows("1", U_TCP_MM))

@@ -142,6 +142,7 @@ def test_layout_at_1280_px(run_folder, tmp_path):
         "montecarlo",
         "tcp",
         "workspace",
+        "iso9283",
         "planning",
         "view3d",
         "provenance",

@@ -45,6 +45,7 @@ SECTION_IDS = [
     "montecarlo",
     "tcp",
     "workspace",
+    "iso9283",
     "planning",
     "view3d",
     "provenance",
@@ -219,18 +220,10 @@ def test_wide_csv_is_split_into_tables_of_few_columns(run_folder):
         assert len(headers) <= 8 and headers[:2] == ["pose", "name"]  # the key columns repeat
 
 
-@pytest.mark.parametrize("per_joint", [False, True])
-def test_noise_floor_in_the_joints_table(run_folder, per_joint):
-    """The floor of joints/backlash.csv (per pair) or of joints/summary.csv (per joint), beside the mean."""
+def test_noise_floor_in_the_joints_table(run_folder):
+    """The floor of joints/summary.csv (per joint), beside the mean backlash and their ratio."""
     result = load_run(run_folder)
-    documents = dict(result.documents)
-    if per_joint:
-        summary = documents["joints/summary.csv"]
-        documents["joints/summary.csv"] = Table(
-            header=(*summary.header, "noise_floor_um"), rows=tuple((*row, str(NOISE_FLOOR_UM)) for row in summary.rows)
-        )
-        del documents["joints/backlash.csv"]
-    section = _section(render_report(RunResult(record=result.record, documents=documents)).html, "joints")
+    section = _section(render_report(result).html, "joints")
     assert "<th>noise floor (µm)</th>" in section and "the instrument noise alone gives" in section
     for joint, backlash in enumerate(BACKLASH_MM, start=1):
         cells = re.search(rf"<tr><td>{joint}</td><td>14</td><td>([^<]*)</td>(.*?)</tr>", section)
@@ -242,8 +235,14 @@ def test_noise_floor_in_the_joints_table(run_folder, per_joint):
 
 
 def test_no_noise_floor_is_said(run_folder):
+    """A run written before the noise floor existed: the table says there is none."""
     result = load_run(run_folder)
-    documents = {name: doc for name, doc in result.documents.items() if name != "joints/backlash.csv"}
+    documents = dict(result.documents)
+    summary = documents["joints/summary.csv"]
+    keep = [k for k, name in enumerate(summary.header) if name != "noise_floor_um"]
+    documents["joints/summary.csv"] = Table(
+        header=tuple(summary.header[k] for k in keep), rows=tuple(tuple(row[k] for k in keep) for row in summary.rows)
+    )
     section = _section(render_report(RunResult(record=result.record, documents=documents)).html, "joints")
     assert "noise floor (µm)" not in section and "No noise floor in the tables of this run" in section
 
@@ -354,7 +353,7 @@ def test_missing_figure_file_is_a_problem_not_an_error(run_folder):
 
 
 def test_missing_stages_give_notes_not_errors(run_folder):
-    for name in ("evaluation", "joints", "uncertainty", "uncertainty-refined", "tcp", "refine", "plan"):
+    for name in ("evaluation", "joints", "uncertainty", "uncertainty-refined", "tcp", "refine", "plan", "iso9283"):
         shutil.rmtree(run_folder / name)
     for name in ("run.json", "truth.json", "validation.csv"):
         (run_folder / name).unlink()
@@ -368,6 +367,7 @@ def test_missing_stages_give_notes_not_errors(run_folder):
         "montecarlo": False,
         "tcp": False,
         "workspace": False,
+        "iso9283": False,
         "planning": False,
         "view3d": True,
         "provenance": True,

@@ -34,7 +34,7 @@ __all__ = [
 SUMMARY_COLUMNS = (
     "joint", "points", "pairs", "radius_mm", "plane_rms_mm", "circle_rms_mm", "axial_min_mm", "axial_max_mm",
     "radial_min_mm", "radial_max_mm", "backlash_max_mm", "backlash_min_mm", "backlash_mean_mm", "backlash_std_mm",
-    "backlash_angle_mean_deg",
+    "backlash_angle_mean_deg", "noise_sigma_um", "noise_floor_um", "backlash_exceeds_noise",
 )  # fmt: skip
 
 
@@ -73,6 +73,9 @@ def summary_csv(diagnostics: JointDiagnostics) -> str:
                 )
             ]  # fmt: skip
             + [_number(float(np.rad2deg(s.backlash_angle_mean)))]
+            # the instrument noise and the backlash it alone would show (docs/joints.md "Noise floor"), um
+            + [_number(s.noise_sigma * 1e3, 4), _number(s.backlash_noise_floor * 1e3, 4)]
+            + ["" if not math.isfinite(s.backlash_noise_floor) else int(s.backlash_exceeds_noise)]
         )
     return _csv(SUMMARY_COLUMNS, rows)
 

@@ -17,7 +17,7 @@ import numpy as np
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
 from robotcal.io.output import check_output_folder, existing_inputs
-from robotcal.io.scenario import Scenario
+from robotcal.io.scenario import Scenario, ValidationTable
 from robotcal.pipeline.runtime import BYTES_PER_POSE, SEED_BOUND, check_memory, monte_carlo_bytes, pairs_bytes
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 from robotcal.workflow import TCPTargets, resolve_seed, tcp_targets, validation_reflector
@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 #: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
-STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "report")
+STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "iso9283", "plan", "report")
 #: What each stage writes under the run folder (docs/results.md).
 OUTPUTS = {
     "simulate": ("truth.json", "capture.csv", "validation.csv"),
@@ -47,13 +47,14 @@ OUTPUTS = {
     "joints": ("joints",),
     "uncertainty": ("uncertainty", "uncertainty-refined"),
     "tcp": ("tcp",),
+    "iso9283": ("iso9283",),
     "plan": ("plan",),
     "report": ("report.html",),
 }
 #: The run's own record, rewritten after every stage.
 RUN_RECORD = "run.json"
 #: Steps per stage for a progress display (the Monte Carlo counts draws instead).
-STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "plan": 2, "report": 1}
+STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "iso9283": 1, "plan": 2, "report": 1}
 #: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
 PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
 PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)
@@ -62,7 +63,7 @@ PLAN_SENSITIVITY_DRAWS = 2_000
 #: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
 REFINED_DRAWS = 20_000
 #: Offsets of the seeds derived from ``seed=N``: every random part of the run gets its own.
-SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4}
+SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4, "iso9283": 5}
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -125,7 +126,7 @@ def plan_run(
         wrote is replaced stage by stage; another is refused unless ``force``); None plans without a folder.
     seed : int, optional
         Seed of the whole run: capture ``seed``, truth ``seed + 1``, validation ``+ 2``, Monte Carlo ``+ 3``,
-        workspace ``+ 4`` (:data:`SEED_OFFSETS`); default: the scenario's seeds.
+        workspace ``+ 4``, ISO 9283 study ``+ 5`` (:data:`SEED_OFFSETS`); default: the scenario's seeds.
     draws : int, optional
         Monte Carlo draws (default: the scenario's ``montecarlo.iterations``).
     workspace : int, optional
@@ -159,24 +160,27 @@ def plan_run(
         check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
     robot = loaded.robot
     validation_reflector(loaded)  # a validation capture needs a flange target
-    table = loaded.validation or {"margin_deg": 5.0}
+    validation = loaded.validation or ValidationTable()
     if not np.all(np.isfinite(robot.limits)):
         raise InputError(
             f"{loaded.source}: robot {robot.name!r} needs finite `limits_deg` on every joint for the random "
             "validation poses"
         )
-    if np.any(robot.limits[:, 1] - robot.limits[:, 0] <= 2 * np.deg2rad(table["margin_deg"])):
+    if np.any(robot.limits[:, 1] - robot.limits[:, 0] <= 2 * np.deg2rad(validation.margin_deg)):
         raise InputError(f"{loaded.source}: key `validation.margin_deg` leaves no room within the joint limits")
     if seed is not None:
         seeds = {name: seed + offset for name, offset in SEED_OFFSETS.items()}
     else:
         seeds = {
             "capture": resolve_seed(loaded.seed),
-            "truth": resolve_seed((loaded.truth or {}).get("seed")),
-            "validation": resolve_seed((loaded.validation or {}).get("seed")),
-            "montecarlo": resolve_seed(loaded.montecarlo.get("seed")),
+            "truth": None if loaded.truth is None else resolve_seed(loaded.truth.seed),
+            "validation": resolve_seed(validation.seed),
+            "montecarlo": resolve_seed(loaded.montecarlo.seed),
             "workspace": None,
+            # the ISO 9283 study (joint errors and noise of its visits): derived from the capture seed
+            "iso9283": None,
         }
+        seeds["iso9283"] = (seeds["capture"] + SEED_OFFSETS["iso9283"]) % SEED_BOUND
     if loaded.truth is None:
         seeds["truth"] = None
     for name, value in seeds.items():
@@ -189,11 +193,11 @@ def plan_run(
         if workspace < 1:
             raise InputError(f"--workspace must be a positive number of poses; got {workspace}")
         targets = dataclasses.replace(targets, workspace_poses=workspace)
-    iterations = int(loaded.montecarlo["iterations"]) if draws is None else draws
+    iterations = loaded.montecarlo.iterations if draws is None else draws
     try:
         settings = MonteCarloSettings(
             iterations=iterations,
-            coverage=float(loaded.montecarlo["coverage"]),
+            coverage=loaded.montecarlo.coverage,
             workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
         )
     except InputError as exc:
@@ -209,7 +213,7 @@ def plan_run(
     except InputError as exc:
         raise InputError(f"--refined-draws: {exc}") from None
     _check_tcp(loaded, targets, settings)
-    _check_memory(loaded, targets, settings, table)  # the refined Monte Carlo has at most as many draws
+    _check_memory(loaded, targets, settings, validation)  # the refined Monte Carlo has at most as many draws
     return RunPlan(
         scenario=loaded,
         out=out,
@@ -239,7 +243,9 @@ def _check_tcp(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettin
         )
 
 
-def _check_memory(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings, validation: dict) -> None:
+def _check_memory(
+    loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings, validation: ValidationTable
+) -> None:
     """Estimate the memory of the large stages up front (:func:`robotcal.pipeline.runtime.check_memory`)."""
     robot = loaded.robot
     n_points = int(loaded.plan.points.sum()) * (2 if loaded.plan.bidirectional else 1)
@@ -255,7 +261,7 @@ def _check_memory(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSet
         targets.workspace_poses * float(BYTES_PER_POSE),
         "use fewer --workspace poses (tcp.workspace_poses)",
     )
-    poses = int(validation.get("poses", 100))
+    poses = validation.poses
     check_memory(
         f"a validation capture of {poses:,} poses (with its distances view)",
         poses * float(BYTES_PER_POSE) + pairs_bytes(poses),

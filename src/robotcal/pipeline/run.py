@@ -62,7 +62,7 @@ def run_calibration(plan: RunPlan, progress: StageProgress | None = None) -> Run
         (CPAResult), ``"refined"`` (criterion -> RefineResult), ``"capture"``, ``"validation"`` (Capture),
         ``"evaluation"`` (rows), ``"joints"`` ((JointDiagnostics, HarmonicModel)), ``"montecarlo"``
         (``"cpa"``/``"refined"`` -> MonteCarloResult), ``"tcp"`` (mode -> TCPUncertainty, with
-        ``"workspace_map"`` and ``"consistency"``), ``"plan"`` (cell check and sensitivity study), ``"report"``.
+        ``"workspace_map"`` and ``"consistency"``), ``"iso9283"`` (the simulated ISO 9283 study), ``"plan"`` (cell check and sensitivity study), ``"report"``.
 
     Raises
     ------
@@ -306,6 +306,18 @@ class _Run:
             step=self.step("tcp"),
         )
         self.results["tcp"] = output.value
+        return output
+
+    def _iso9283(self) -> stages.StageOutput:
+        models = {
+            "nominal": self.results["nominal"],
+            "cpa": self.results["cpa"],
+            "refined": self.results["refined"][stages.DEPLOYED].parameters,
+        }
+        output = stages.iso9283_stage(
+            self.plan.scenario, truth=self.results["truth"], models=models, seed=self.plan.seeds["iso9283"], out=self.out
+        )
+        self.results["iso9283"] = output.value
         return output
 
     def _plan(self) -> stages.StageOutput:

@@ -28,6 +28,7 @@ from robotcal.io.scenario import Scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.evaluation import evaluation_document, write_evaluation_folder
 from robotcal.pipeline.folder import read_document, write_csv, write_json
+from robotcal.pipeline.iso9283 import iso9283_stage
 from robotcal.pipeline.joints import compute_joints, write_joints_folder
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES
 from robotcal.pipeline.result import Document, Table
@@ -55,6 +56,7 @@ __all__ = [
     "capture_from_table",
     "evaluate_stage",
     "identify_stage",
+    "iso9283_stage",
     "joints_stage",
     "plan_stage",
     "refine_stage",
@@ -148,7 +150,7 @@ def simulate_stage(scenario: Scenario, seeds: dict, out: Path, step: Step = _no_
         provenance = {
             "method": "nominal plus normal deviations of the CPA-identifiable parameters (simulation.perturb)",
             "scenario": {"name": scenario.name, "source": scenario.source},
-            "truth": scenario.truth,
+            "truth": scenario.truth.model_dump(),
             "seed": truth_seed,
             "versions": versions(),
         }

@@ -36,7 +36,7 @@ import numpy as np
 
 import robotcal
 from robotcal.io.atomic import atomic_write_text
-from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS
+from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, KIND_UNITS, LENGTH_KINDS, PARAMETER_KINDS
 from robotcal.pipeline.plan import OUTPUTS
 from robotcal.pipeline.result import RunResult, Table
 from robotcal.pipeline.summary import Summary, set_label, summarise
@@ -51,6 +51,8 @@ REPORT_NAME = "report.html"
 #: functions of report/joints.py, montecarlo.py, tcp.py, refine.py, planning.py); a stage's JSON may
 #: give others in a ``"figures": {file: caption}`` object.
 _CAPTIONS = {
+    "iso9283.png": "ISO 9283 pose accuracy AP (bars) and repeatability RP (tick above each bar) at the five test "
+    "poses, per model (µm).",
     "convergence.png": "Convergence of the refinement, per criterion: RMS residual per coordinate "
     "√(2·cost/m) over the m residuals (mm, log scale) after each iteration.",
     "ellipsoid.png": "95 % coverage ellipsoid of the TCP position (mm).",
@@ -233,7 +235,7 @@ def _is_param(name: str) -> bool:
 
 
 def _param_unit(name: str) -> str:
-    return "mm" if name.split(".")[1] in LENGTH_KINDS else "deg"
+    return KIND_UNITS[name.split(".")[1]]
 
 
 def _param_order(name: str):
@@ -807,7 +809,10 @@ def _parameters(page: _Page) -> dict:
             identified = {n for n, p in stats.items() if p.get("identified") is True}
     names = sorted({n for _, found, _ in values + uncertainty for n in found if _is_param(n)} - fixed, key=_param_order)
     blocks = []
-    for unit, kinds, title in (("mm", LENGTH_KINDS, "Lengths"), ("deg", ("theta", "alpha", "beta"), "Angles")):
+    for unit, kinds, title in (
+        (DISPLAY_UNITS["length"], LENGTH_KINDS, "Lengths"),
+        (DISPLAY_UNITS["angle"], ANGLE_KINDS, "Angles"),
+    ):
         group = [n for n in names if n.split(".")[1] in kinds]
         if not group:
             continue
@@ -917,8 +922,8 @@ def _evaluation(page: _Page) -> dict:
 
 def _noise_floors(page: _Page) -> tuple[dict, str]:
     """``(joint -> noise floor [µm], document)``: the ``noise_floor_um`` column of ``joints/summary.csv`` (one
-    row per joint) or, where the joints stage writes it per pair, of ``joints/backlash.csv`` (``circle``)."""
-    for name, key in (("joints/summary.csv", "joint"), ("joints/backlash.csv", "circle")):
+    row per joint; older runs have none)."""
+    for name, key in (("joints/summary.csv", "joint"),):
         table = page.table(name)
         if table is not None and {key, "noise_floor_um"} <= set(table.header):
             floors = {}
@@ -1096,6 +1101,13 @@ def _workspace(page: _Page) -> dict:
     return {"present": True, "blocks_": _tcp_stage(page, "tcp/workspace")}
 
 
+def _iso9283(page: _Page) -> dict:
+    if not page.has("iso9283"):
+        return {"present": False, "blocks_": [_block("not_run", what="iso9283/")]}
+    blocks = _stage(page, "iso9283", first_csv=("iso9283.csv",), first_png=("iso9283.png",))
+    return {"present": True, "blocks_": blocks}
+
+
 def _planning(page: _Page) -> dict:
     if not page.has("plan"):
         return {"present": False, "blocks_": [_block("not_run", what="plan/")]}
@@ -1217,6 +1229,7 @@ _SECTIONS = (
     ("montecarlo", "Monte Carlo uncertainty", _montecarlo),
     ("tcp", "TCP uncertainty", _tcp),
     ("workspace", "Workspace map", _workspace),
+    ("iso9283", "ISO 9283 accuracy and repeatability", _iso9283),
     ("planning", "Capture planning", _planning),
     ("view3d", "3-D view of the capture", _view3d),
     ("provenance", "Provenance", _provenance),

@@ -37,6 +37,7 @@ def fake_stages(monkeypatch):
         "joints_stage": joints,
         "uncertainty_stage": lambda *a, **k: StageOutput({"cpa": "A", "refined": "B"}, {}, "fake"),
         "tcp_stage": lambda *a, **k: StageOutput({}, {}, "fake"),
+        "iso9283_stage": lambda *a, **k: StageOutput({}, {}, "fake"),
         "plan_stage": lambda *a, **k: StageOutput({}, {}, "fake"),
     }
     for name, fake in fakes.items():

@@ -15,7 +15,7 @@ def test_plan_without_a_folder_writes_nothing(tmp_path, monkeypatch):
     assert isinstance(plan, RunPlan) and plan.out is None
     assert list(tmp_path.iterdir()) == []
     # the scenario's seeds, its Monte Carlo size, and the refined Monte Carlo capped at REFINED_DRAWS
-    assert plan.seeds == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0}
+    assert plan.seeds == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6}
     assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == REFINED_DRAWS
     assert plan.backlash and plan.command == "robotcal run"
     with pytest.raises(InputError, match="needs a run folder"):

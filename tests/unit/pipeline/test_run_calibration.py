@@ -45,7 +45,7 @@ def test_every_stage_is_done_and_recorded(small_run):
     assert isinstance(result, RunResult) and result.folder == out
     assert result.record["status"] == "done" and list(result.record["stages"]) == list(STAGES)
     assert all(entry["status"] == "done" for entry in result.record["stages"].values())
-    assert result.record["seeds"] == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0}
+    assert result.record["seeds"] == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6}
     # each stage announced its start (0) and end (-1) to the progress callback, in order
     starts = [stage for stage, done in events if done == 0]
     ends = [stage for stage, done in events if done == -1]
