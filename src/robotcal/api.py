@@ -198,7 +198,7 @@ def perturb(scenario, *, rng=None) -> ParameterSet:
     from robotcal.workflow import scenario_truth
 
     scenario = _scenario(scenario)
-    truth, _ = scenario_truth(scenario, seed=seed_from(rng, (scenario.truth or {}).get("seed")))
+    truth, _ = scenario_truth(scenario, seed=seed_from(rng, None if scenario.truth is None else scenario.truth.seed))
     return truth
 
 
@@ -241,7 +241,7 @@ def simulate(scenario, *, rng=None, true_parameters=None, validation: bool = Fal
     scenario = _scenario(scenario)
     truth = _parameters(true_parameters, scenario.robot, "true_parameters")
     if validation:
-        seed = seed_from(rng, (scenario.validation or {}).get("seed"))
+        seed = seed_from(rng, None if scenario.validation is None else scenario.validation.seed)
         return simulate_validation(scenario, seed=seed, true_parameters=truth).capture
     return simulate_scenario(scenario, seed=seed_from(rng, scenario.seed), true_parameters=truth).capture
 
@@ -465,11 +465,11 @@ def monte_carlo(
     from robotcal.workflow import scenario_monte_carlo
 
     scenario = _scenario(scenario)
-    table = scenario.montecarlo or {}
-    seed = seed_from(rng, table.get("seed"))
+    table = scenario.montecarlo
+    seed = seed_from(rng, table.seed)
     settings = MonteCarloSettings(
-        iterations=int(table.get("iterations", 100_000) if draws is None else draws),
-        coverage=float(table.get("coverage", 0.95) if coverage is None else coverage),
+        iterations=int(table.iterations if draws is None else draws),
+        coverage=float(table.coverage if coverage is None else coverage),
         interval=interval,
         adaptive=adaptive,
         workers=workers,

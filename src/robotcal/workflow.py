@@ -14,8 +14,8 @@ import robotcal
 from robotcal.capture import Capture
 from robotcal.identification.cpa import CPAResult, identify_cpa
 from robotcal.identification.plausibility import check_capture
-from robotcal.io.scenario import Scenario
-from robotcal.kinematics.model import ParameterSet, ReflectorMount
+from robotcal.io.scenario import Scenario, TCPTable, TruthTable, ValidationTable
+from robotcal.kinematics.model import ANGLE_KINDS, ParameterSet, ReflectorMount
 from robotcal.simulation.generator import simulate_capture
 
 __all__ = [
@@ -292,13 +292,13 @@ def scenario_truth(scenario: Scenario, *, seed: int | None = None) -> tuple[Para
     """
     from robotcal.simulation.perturb import perturb_parameters
 
-    table = scenario.truth or {"length_sd_mm": 0.2, "angle_sd_deg": 0.05, "include_base": False, "seed": None}
-    seed = resolve_seed(seed, table.get("seed"))
+    table = scenario.truth or TruthTable()
+    seed = resolve_seed(seed, table.seed)
     truth = perturb_parameters(
         scenario.robot,
-        length_sd_mm=table["length_sd_mm"],
-        angle_sd_deg=table["angle_sd_deg"],
-        include_base=table["include_base"],
+        length_sd_mm=table.length_sd_mm,
+        angle_sd_deg=table.angle_sd_deg,
+        include_base=table.include_base,
         rng=np.random.default_rng(seed),
     )
     return truth, seed
@@ -311,7 +311,7 @@ def validation_reflector(scenario: Scenario):
     from robotcal.errors import InputError
 
     if scenario.validation is not None:
-        return ReflectorMount(frame="flange", positions=scenario.validation["flange_reflector_mm"])
+        return ReflectorMount(frame="flange", positions=scenario.validation.flange_reflector_mm)
     reflector = scenario.plan.reflector if scenario.has_plan else scenario.reflector
     if reflector is not None and reflector.frame == "flange":
         return reflector
@@ -363,15 +363,15 @@ def simulate_validation(
     absent); one generator seeded by ``seed`` (else ``validation.seed``) draws the poses, then the noise."""
     from robotcal.simulation.poses import random_poses, simulate_poses
 
-    table = scenario.validation or {"poses": 100, "seed": None, "margin_deg": 5.0, "min_height_mm": None}
-    seed = resolve_seed(seed, table.get("seed"))
+    table = scenario.validation or ValidationTable()
+    seed = resolve_seed(seed, table.seed)
     rng = np.random.default_rng(seed)
     reflector = validation_reflector(scenario)
     readings = random_poses(
         scenario.robot,
-        int(table["poses"]),
-        margin_deg=table["margin_deg"],
-        min_height_mm=table["min_height_mm"],
+        table.poses,
+        margin_deg=table.margin_deg,
+        min_height_mm=table.min_height_mm,
         reflector=reflector,
         rng=rng,
     )
@@ -432,11 +432,10 @@ def _finite_or_none(value):
 def refine_provenance(result, capture: Capture, scenario: Scenario, start_source: str) -> dict:
     """What a parameter JSON records about a refinement (mm, deg), convergence history included."""
     names = scenario.robot.parameter_names
-    angles = ("theta", "alpha", "beta")
     sd = {}
     for name, value in zip(names, result.standard_uncertainty.ravel(), strict=True):
         if np.isfinite(value):
-            sd[name] = float(np.rad2deg(value)) if name.split(".")[1] in angles else float(value)
+            sd[name] = float(np.rad2deg(value)) if name.split(".")[1] in ANGLE_KINDS else float(value)
     return {
         "method": f"least-squares refinement, {result.criterion} criterion (thesis ch. 4.5.7, "
         + ("eq. 4-101)" if result.criterion == "points" else "eq. 4-102)"),
@@ -707,16 +706,16 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
     from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
     from robotcal.uncertainty.tcp import check_readings
 
-    table = scenario.tcp or {}
+    table: TCPTable = scenario.tcp
     robot = scenario.robot
     where = f"{scenario.source}: key `tcp"
     notes: list[str] = []
     kuka = load_robot(KUKA_CONTROLLER_ROBOT)
     kuka_compatible = _same_geometry(kuka, robot)
     readings_robot = robot
-    if table.get("readings_robot"):
+    if table.readings_robot:
         try:
-            readings_robot = load_robot(table["readings_robot"])
+            readings_robot = load_robot(table.readings_robot)
         except InputError as exc:
             raise InputError(f"{where}.readings_robot`: {exc}") from None
         if not _same_geometry(readings_robot, robot):
@@ -742,9 +741,9 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
 
     pose = trajectory = None
     pose_source = trajectory_source = "skipped"
-    if table.get("pose_deg") is not None:
-        pose = checked(np.deg2rad([table["pose_deg"]]), "pose_deg", readings_robot)
-        pose_source = f"tcp.pose_deg = {list(table['pose_deg'])} (readings of {readings_robot.name})"
+    if table.pose_deg is not None:
+        pose = checked(np.deg2rad([table.pose_deg]), "pose_deg", readings_robot)
+        pose_source = f"tcp.pose_deg = {list(table.pose_deg)} (readings of {readings_robot.name})"
     elif kuka_compatible:
         pose = checked(np.deg2rad([TABLE_5_8_READINGS_DEG]), "pose_deg", kuka)
         shown = ", ".join(f"{v:g}" for v in np.rad2deg(pose[0]))
@@ -754,7 +753,7 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
         )
     else:
         notes.append("no TCP pose: give `tcp.pose_deg` (the Table 5.8 default is for the KR 5 sixx R650)")
-    name = table.get("trajectory")
+    name = table.trajectory
     builtin = name is None or name in builtin_trajectories()
     if name is None and not kuka_compatible:
         notes.append(
@@ -771,15 +770,14 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
             if builtin
             else path
         )
-    tool = table.get("tool_mm")
     return TCPTargets(
         pose=pose,
         pose_source=pose_source,
         trajectory=trajectory,
         trajectory_source=trajectory_source,
-        workspace_poses=int(table.get("workspace_poses", 1000)),
-        workspace_draws=table.get("workspace_draws", 10_000),
-        workspace_seed=int(table.get("workspace_seed", 0)),
-        tool_mm=None if tool is None else np.asarray(tool, dtype=float),
+        workspace_poses=table.workspace_poses,
+        workspace_draws=table.workspace_draws,
+        workspace_seed=table.workspace_seed,
+        tool_mm=None if table.tool_mm is None else np.asarray(table.tool_mm, dtype=float),
         notes=tuple(notes),
     )

@@ -269,7 +269,7 @@ def test_monte_carlo_is_the_core_call(laser_tracker_mc):
     scenario = robotcal.load_scenario("thesis-laser-tracker")
     expected = run_monte_carlo(scenario_monte_carlo(scenario), MonteCarloSettings(iterations=120), seed=5)
     np.testing.assert_array_equal(laser_tracker_mc.draws, expected.draws)
-    assert laser_tracker_mc.seed == 5 and laser_tracker_mc.settings.coverage == scenario.montecarlo["coverage"]
+    assert laser_tracker_mc.seed == 5 and laser_tracker_mc.settings.coverage == scenario.montecarlo.coverage
     assert laser_tracker_mc.linearised is not None
 
 

@@ -160,14 +160,16 @@ def seed_option_check(seed: int | None, option: str = "--seed", *, headroom: int
 
 
 def _display(kind: str, value: float) -> float:
-    return math.degrees(float(value)) if kind in ("theta", "alpha", "beta") else float(value)
+    from robotcal.kinematics.model import ANGLE_KINDS
+
+    return math.degrees(float(value)) if kind in ANGLE_KINDS else float(value)
 
 
 def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str) -> Table:
     """Nominal / identified / difference per parameter, in mm and degrees."""
     from rich.table import Table
 
-    from robotcal.kinematics.model import PARAMETER_KINDS
+    from robotcal.kinematics.model import KIND_UNITS, PARAMETER_KINDS
 
     table = Table(title=title, title_justify="left")
     table.add_column("parameter")
@@ -181,7 +183,7 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
         for k, kind in enumerate(PARAMETER_KINDS):
             if robot.structurally_fixed[i, k]:
                 continue
-            unit = "deg" if kind in ("theta", "alpha", "beta") else "mm"
+            unit = KIND_UNITS[kind]
             if identified.identified[i, k]:
                 shown, diff = (
                     f"{_display(kind, identified.values[i, k]):.6f}",

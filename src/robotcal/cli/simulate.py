@@ -20,6 +20,7 @@ from robotcal.cli._common import (
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters, write_capture, write_parameters
 from robotcal.io.output import existing_inputs, result_file
+from robotcal.io.scenario import TruthTable, ValidationTable
 from robotcal.workflow import scenario_truth, simulate_scenario, simulate_validation, versions
 
 app = command_app()
@@ -62,7 +63,7 @@ def simulate(
         raise InputError("give either --true-params (an existing truth) or --truth-out (a new perturbed truth)")
     inputs = existing_inputs(scenario, *loaded.files, true_params)
     if validation:
-        poses = int((loaded.validation or {}).get("poses", 100))
+        poses = (loaded.validation or ValidationTable()).poses
         check_memory(
             f"a validation capture of {poses:,} poses",
             poses * float(BYTES_PER_POSE),
@@ -85,7 +86,7 @@ def _simulate(loaded, out, seed, true_params, truth_out, validation) -> None:
             {
                 "method": "nominal plus normal deviations of the CPA-identifiable parameters (simulation.perturb)",
                 "scenario": {"name": loaded.name, "source": loaded.source},
-                "truth": loaded.truth,
+                "truth": (loaded.truth or TruthTable()).model_dump(),
                 "seed": truth_seed,
                 "versions": versions(),
             },

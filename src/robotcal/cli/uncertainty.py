@@ -493,8 +493,13 @@ def _write_measured_folder(
         row["model"] = MEASURED_MODEL
     if document.get("linearised") is not None:
         document["linearised"]["method"] = (
-            "the refinement's own linearised covariance (sigma estimated from its residuals), as robotcal refine "
-            "reports it"
+            "the refinement's linearised covariance (robotcal refine's, sigma_hat estimated from its residuals) "
+            "rescaled by (u_stated / sigma_hat)^2 to the noise the draws use, u_stated the RMS of the points' "
+            "stated standard uncertainties (U(95) / 2, or the instrument's)"
+        )
+        document["linearised"]["stated_u_mm"] = float(result.stated_u_mm) if np.isfinite(result.stated_u_mm) else None
+        document["linearised"]["residual_sigma_mm"] = (
+            float(result.residual_sigma_mm) if np.isfinite(result.residual_sigma_mm) else None
         )
         document["linearised"]["step_mm"] = None
         document["linearised"]["validation"] = (

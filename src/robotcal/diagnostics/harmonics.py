@@ -29,6 +29,7 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.diagnostics.joints import JointDiagnostics, local_frame
 from robotcal.errors import InputError
+from robotcal.kinematics.model import DISPLAY_UNITS
 
 __all__ = [
     "QUANTITIES",
@@ -446,7 +447,7 @@ class HarmonicModel:
             )
         return {
             "format": HARMONICS_FORMAT,
-            "units": {"length": "mm", "angle": "deg"},
+            "units": dict(DISPLAY_UNITS),
             "model": "y(theta) = offset + sum_k amplitude_k * sin(k * theta + phase_k); theta = reading of the turning joint",
             "order": self.order,
             "quantities": list(QUANTITIES),
@@ -459,8 +460,8 @@ class HarmonicModel:
         """Read a document written by :meth:`to_dict`; errors name ``source`` and the joint."""
         if not isinstance(data, dict) or data.get("format") != HARMONICS_FORMAT:
             raise InputError(f"{source}: not a robotcal harmonic model (expected format {HARMONICS_FORMAT!r})")
-        units = data.get("units", {"length": "mm", "angle": "deg"})
-        if units != {"length": "mm", "angle": "deg"}:
+        units = data.get("units", dict(DISPLAY_UNITS))
+        if units != dict(DISPLAY_UNITS):
             raise InputError(f"{source}: `units` must be {{'length': 'mm', 'angle': 'deg'}}; got {units!r}")
         fits, circles = [], []
         try:

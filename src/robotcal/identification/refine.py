@@ -123,7 +123,7 @@ from robotcal.identification.observability import (
 from robotcal.identification.targets import Target, resolve_targets
 from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.jacobian import target_jacobian
-from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
+from robotcal.kinematics.model import ANGLE_COLUMNS, LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
 __all__ = [
     "CRITERIA",
@@ -298,9 +298,9 @@ def wrap_angles(values) -> np.ndarray:
     ``refine``.
     """
     values = np.array(values, dtype=float)
-    angles = values[..., [1, 3, 4]]
+    angles = values[..., list(ANGLE_COLUMNS)]
     wrapped = np.pi - np.mod(np.pi - angles, 2.0 * np.pi)
-    values[..., [1, 3, 4]] = np.where((angles > np.pi) | (angles <= -np.pi), wrapped, angles)
+    values[..., list(ANGLE_COLUMNS)] = np.where((angles > np.pi) | (angles <= -np.pi), wrapped, angles)
     return values
 
 

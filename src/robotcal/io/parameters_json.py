@@ -17,12 +17,9 @@ import numpy as np
 from robotcal.errors import InputError, RobotcalWarning
 from robotcal.io._validation import _short, as_finite_float, read_json_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.kinematics.model import PARAMETER_KINDS, ParameterSet, RobotModel
+from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, ParameterSet, RobotModel
 
 __all__ = ["parameters_to_dict", "write_parameters", "read_parameters", "targets_to_dict", "read_targets"]
-
-_ANGLES = ("theta", "alpha", "beta")
-
 
 def _wrap_deg(value: float) -> float:
     """An angle in degrees in (-180, 180] (a turn of 360 deg changes no transform)."""
@@ -58,13 +55,13 @@ def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None,
         entry = {}
         for k, kind in enumerate(PARAMETER_KINDS):
             value = float(parameters.values[i, k])
-            entry[kind] = _wrap_deg(math.degrees(value)) if kind in _ANGLES else value
+            entry[kind] = _wrap_deg(math.degrees(value)) if kind in ANGLE_KINDS else value
         entry["hayati"] = bool(robot.hayati[i])
         joints.append(entry)
     names = [n for n, flag in zip(robot.parameter_names, parameters.identified.ravel(), strict=True) if flag]
     document = {
         "robot": robot.name,
-        "units": {"length": "mm", "angle": "deg"},
+        "units": dict(DISPLAY_UNITS),
         "joints": joints,
         "identified": names,
     }
@@ -117,9 +114,9 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
             RobotcalWarning,
             stacklevel=2,
         )
-    units = data.get("units", {"length": "mm", "angle": "deg"})
-    if units != {"length": "mm", "angle": "deg"}:
-        raise InputError(f"{path}: key `units` must be {{'length': 'mm', 'angle': 'deg'}}; got {_short(units)}")
+    units = data.get("units", dict(DISPLAY_UNITS))  # optional: robotcal's units when absent
+    if units != dict(DISPLAY_UNITS):
+        raise InputError(f"{path}: key `units` must be {dict(DISPLAY_UNITS)}; got {_short(units)}")
     joints = data["joints"]
     if len(joints) != robot.n_joints:
         raise InputError(f"{path}: {len(joints)} joints but robot {robot.name!r} has {robot.n_joints}")
@@ -134,7 +131,7 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         for k, kind in enumerate(PARAMETER_KINDS):
             raw = entry.get(kind, 0.0 if kind in ("beta", "d") else None)
             value = as_finite_float(raw, f"{path}: key `joints[{i}].{kind}`")
-            values[i, k] = math.radians(value) if kind in _ANGLES else value
+            values[i, k] = math.radians(value) if kind in ANGLE_KINDS else value
     listed = data.get("identified", [])
     if not isinstance(listed, list) or not all(isinstance(n, str) for n in listed):
         raise InputError(f'{path}: key `identified` must be a list of parameter names such as "J1.d"')

@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from robotcal.errors import InputError
 from robotcal.io._validation import validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
-from robotcal.kinematics.model import RobotModel
+from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel
 
 __all__ = ["robot_to_dict", "RobotFile", "JointEntry", "load_robot", "robot_from_dict", "list_robots"]
 
@@ -107,7 +107,8 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
 def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
     """The robot TOML content of ``robot`` (radians -> degrees); ``robot_from_dict`` inverts it."""
     nominal_deg = robot.nominal.copy()
-    nominal_deg[:, [1, 3, 4]] = np.rad2deg(nominal_deg[:, [1, 3, 4]])  # theta, alpha, beta; d and a stay mm
+    angles = list(ANGLE_COLUMNS)  # theta, alpha, beta; d and a stay mm
+    nominal_deg[:, angles] = np.rad2deg(nominal_deg[:, angles])
     joints = []
     for index in range(robot.n_joints):
         d, theta, a, alpha, beta = (float(value) for value in nominal_deg[index])

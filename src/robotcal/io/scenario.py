@@ -2,6 +2,12 @@
 
 Every key is documented in ``docs/scenario.md``. Lengths in mm, angles in degrees, instrument terms
 in micrometres (``a_um``, ``b_um_per_m``); unknown keys are errors, so a typo never goes unnoticed.
+
+The tables are frozen pydantic models and every default is defined once, here, in the table
+definitions. :class:`Scenario` turns the robot, instrument, capture plan and identification options
+into core objects (mm, rad); the run-option tables (:class:`MonteCarloTable`, :class:`TruthTable`,
+:class:`ValidationTable`, :class:`TCPTable`) stay typed, in the file's units that their key names
+state (``_mm``, ``_deg``): ``scenario.montecarlo.iterations``, ``(scenario.truth or TruthTable()).seed``.
 """
 
 from __future__ import annotations
@@ -9,10 +15,10 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
 from robotcal.errors import InputError, RigidTransformWarning
 from robotcal.geometry.transforms import check_rigid_transform, nearest_rotation
@@ -27,7 +33,17 @@ from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["Scenario", "MissingTable", "load_scenario", "list_scenarios", "scenario_from_dict"]
+__all__ = [
+    "Scenario",
+    "MissingTable",
+    "MonteCarloTable",
+    "TruthTable",
+    "ValidationTable",
+    "TCPTable",
+    "load_scenario",
+    "list_scenarios",
+    "scenario_from_dict",
+]
 
 #: Largest deviation from orthonormal that is repaired (with a warning) instead of refused: a
 #: matrix printed to 5 significant digits, like the thesis's Table 5.4, deviates by ~1e-5.
@@ -36,7 +52,23 @@ _IDENTITY = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """A scenario table: unknown keys refused, frozen once validated (a loaded scenario is a value)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _three_values(value):
+    if isinstance(value, list | tuple) and len(value) != 3:
+        raise ValueError(f"must be [x, y, z]; got {len(value)} values")
+    return value
+
+
+#: A position [x, y, z]; a list of another length is refused with that message.
+XYZ = Annotated[tuple[float, float, float], BeforeValidator(_three_values)]
+
+
+class _RunTable(_Strict):
+    """A run-option table kept typed on :class:`Scenario` (read its attributes: no defaults restated)."""
 
 
 class InstrumentTable(_Strict):
@@ -62,7 +94,7 @@ class JointErrorTable(_Strict):
     ex: ErrorTerm = ErrorTerm()
     ey: ErrorTerm = ErrorTerm()
     backlash_deg: float = Field(default=0.0, ge=0)
-    lash_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    lash_mm: XYZ = (0.0, 0.0, 0.0)
 
 
 class CaptureTable(_Strict):
@@ -112,14 +144,30 @@ class IdentificationTable(_Strict):
     still_tolerance_deg: float = Field(default=1e-6, ge=0)
 
 
-class MonteCarloTable(_Strict):
+class MonteCarloTable(_RunTable):
+    """``[montecarlo]``: the GUM-S1 Monte Carlo of the CPA parameters (always present: defaults when absent).
+
+    Attributes
+    ----------
+    iterations : int
+        Draws (``robotcal uncertainty -n`` and ``robotcal run --draws`` override it).
+    seed : int or None
+        Seed of the draws; None: fresh entropy, recorded.
+    coverage : float
+        Coverage probability of the intervals (0.95: 95 %).
+    """
+
     iterations: int = Field(default=100_000, ge=1)
     seed: int | None = Field(default=None, ge=0)
     coverage: float = Field(default=0.95, gt=0, lt=1)
 
 
-class TruthTable(_Strict):
-    """Synthetic runs: how far the "true" robot deviates from nominal (simulation.perturb)."""
+class TruthTable(_RunTable):
+    """``[truth]``, synthetic runs: how far the "true" robot deviates from nominal (simulation.perturb).
+
+    In the file's units [mm, deg]. ``Scenario.truth`` is None when the file has no ``[truth]``
+    table (a run then simulates the nominal robot); ``TruthTable()`` holds the defaults.
+    """
 
     length_sd_mm: float = Field(default=0.2, ge=0)
     angle_sd_deg: float = Field(default=0.05, ge=0)
@@ -127,26 +175,36 @@ class TruthTable(_Strict):
     seed: int | None = Field(default=None, ge=0)
 
 
-class ValidationTable(_Strict):
-    """Validation capture: random reachable poses with a flange target (simulation.poses)."""
+class ValidationTable(_RunTable):
+    """``[validation]``: a capture at random reachable poses with a flange target (simulation.poses).
+
+    In the file's units [mm, deg]. ``Scenario.validation`` is None when the file has no
+    ``[validation]`` table (the flange target then comes from ``[capture]`` or ``[[targets]]``);
+    ``ValidationTable()`` holds the defaults.
+    """
 
     poses: int = Field(default=100, ge=4)
     seed: int | None = Field(default=None, ge=0)
-    flange_reflector_mm: list[float] = [60.0, 40.0, 30.0]
+    flange_reflector_mm: XYZ = (60.0, 40.0, 30.0)
     margin_deg: float = Field(default=5.0, ge=0)
     min_height_mm: float | None = None
 
 
-class TCPTable(_Strict):
-    """TCP stage of ``robotcal run`` (docs/scenario.md ``[tcp]``): where the TCP uncertainty is stated."""
+class TCPTable(_RunTable):
+    """``[tcp]``, the TCP stage of ``robotcal run``: where the TCP uncertainty is stated (always present:
+    defaults when absent).
 
-    pose_deg: list[float] | None = None
+    In the file's units [mm, deg]; :func:`robotcal.workflow.tcp_targets` resolves it into readings [rad].
+    ``pose_deg`` and ``trajectory`` None: the thesis's pose and trajectory (KR 5 sixx R650 only).
+    """
+
+    pose_deg: tuple[float, ...] | None = None
     trajectory: str | None = None
     readings_robot: str | None = None
     workspace_poses: int = Field(default=1000, ge=1)
     workspace_draws: int | None = Field(default=10_000, ge=2)
     workspace_seed: int = Field(default=0, ge=0)
-    tool_mm: tuple[float, float, float] | None = None
+    tool_mm: XYZ | None = None
 
 
 class ScenarioFile(_Strict):
@@ -156,11 +214,11 @@ class ScenarioFile(_Strict):
     instrument: InstrumentTable | None = None
     capture: CaptureTable | None = None
     targets: list[TargetTable] = []
-    identification: IdentificationTable = IdentificationTable()
-    montecarlo: MonteCarloTable = MonteCarloTable()
+    identification: IdentificationTable = Field(default_factory=IdentificationTable)
+    montecarlo: MonteCarloTable = Field(default_factory=MonteCarloTable)
     truth: TruthTable | None = None
     validation: ValidationTable | None = None
-    tcp: TCPTable | None = None
+    tcp: TCPTable = Field(default_factory=TCPTable)
 
 
 #: The keys of ``[capture]`` that make a capture plan (needed to simulate, not to identify).
@@ -201,6 +259,11 @@ class Scenario:
     ``plan`` and ``instrument`` are :class:`MissingTable` when the file has no capture plan / no
     ``[instrument]`` (a scenario for a real capture): using them raises an :class:`InputError` that
     names the key; :attr:`has_plan` / :attr:`has_instrument` test for them.
+
+    ``montecarlo``, ``truth``, ``validation`` and ``tcp`` are the validated tables, typed and frozen, in
+    the file's units (their key names say which: ``_mm``, ``_deg``); ``truth`` and ``validation`` are
+    None when the file has no such table. ``settings`` is the whole validated file as a plain dict: the
+    echo recorded in ``run.json``, a document, not for computing.
     """
 
     name: str
@@ -214,11 +277,11 @@ class Scenario:
     joint_limits: str
     identification: CPAOptions
     seed: int | None
-    montecarlo: dict
+    montecarlo: MonteCarloTable = field(default_factory=MonteCarloTable)
     settings: dict = field(default_factory=dict)
-    truth: dict | None = None
-    validation: dict | None = None
-    tcp: dict | None = None
+    truth: TruthTable | None = None
+    validation: ValidationTable | None = None
+    tcp: TCPTable = field(default_factory=TCPTable)
     #: Files the scenario was read from (the TOML and a robot TOML it names): inputs that an output
     #: of the same command must never replace.
     files: tuple[str, ...] = ()
@@ -323,13 +386,13 @@ def scenario_from_dict(
             instrument = make_instrument(**spec.instrument.model_dump())
         except InputError as exc:
             raise InputError(f"{source}: {exc}") from None
-    validation = _validation(spec.validation, source)
+    validation = spec.validation
     targets = list(declared)
     taken = {target.name for target in targets}
     if reflector is not None and "capture" not in taken:
         targets.append(Target.from_mount(reflector, "capture"))
     if validation is not None and "validation" not in taken:
-        targets.append(Target(name="validation", frame="flange", positions=validation["flange_reflector_mm"]))
+        targets.append(Target(name="validation", frame="flange", positions=validation.flange_reflector_mm))
     ident = spec.identification
     return Scenario(
         name=name,
@@ -343,11 +406,11 @@ def scenario_from_dict(
         joint_limits="warn" if capture is None else capture.joint_limits,
         identification=CPAOptions(**ident.model_dump()),
         seed=None if capture is None else capture.seed,
-        montecarlo=spec.montecarlo.model_dump(),
+        montecarlo=spec.montecarlo,
         settings=spec.model_dump(),
-        truth=None if spec.truth is None else spec.truth.model_dump(),
+        truth=spec.truth,
         validation=validation,
-        tcp=None if spec.tcp is None else spec.tcp.model_dump(),
+        tcp=spec.tcp,
         files=(source, *_robot_file(spec.robot, base_dir)),
         targets=tuple(targets),
         reflector=reflector,
@@ -447,16 +510,6 @@ def _robot_file(robot: str, base_dir: Path | None) -> tuple[str, ...]:
     if not path.is_absolute() and base_dir is not None and (base_dir / path).exists():
         path = base_dir / path
     return (str(path),)
-
-
-def _validation(table: ValidationTable | None, source: str) -> dict | None:
-    if table is None:
-        return None
-    if len(table.flange_reflector_mm) != 3:
-        raise InputError(
-            f"{source}: key `validation.flange_reflector_mm` must be [x, y, z]; got {table.flange_reflector_mm}"
-        )
-    return table.model_dump()
 
 
 def load_scenario(name_or_path) -> Scenario:

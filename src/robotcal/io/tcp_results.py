@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.io.atomic import atomic_write_text
+from robotcal.kinematics.model import DISPLAY_UNITS
 from robotcal.uncertainty.tcp import ORIENTATION_CONVENTION, TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
@@ -130,7 +131,7 @@ def tcp_to_dict(
         "coverage": result.coverage,
         "interval": interval,
         "tool_mm": result.tool.tolist(),
-        "units": {"length": "mm", "angle": "deg"},
+        "units": dict(DISPLAY_UNITS),
         "coordinates": list(TCP_COORDINATES),
         "orientation": ORIENTATION_CONVENTION,
         "covariance_order": "X, Y, Z [mm], A, B, C [deg]",

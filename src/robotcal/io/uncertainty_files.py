@@ -14,6 +14,7 @@ import numpy as np
 from robotcal.errors import InputError
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.draws_npz import parameter_units
+from robotcal.kinematics.model import DISPLAY_UNITS
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
 __all__ = [
@@ -184,7 +185,7 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict, ve
     document = {
         "format": FORMAT,
         "robot": result.robot.name,
-        "units": {"length": "mm", "angle": "deg"},
+        "units": dict(DISPLAY_UNITS),
         "method": _METHODS[result.model].format(criterion=result.criterion),
         "model": result.model,
         "criterion": result.criterion,

@@ -10,6 +10,7 @@ the values. Lengths in mm, angles in radians.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 import numpy as np
 
@@ -19,6 +20,11 @@ from robotcal.errors import InputError
 __all__ = [
     "PARAMETER_KINDS",
     "LENGTH_KINDS",
+    "ANGLE_KINDS",
+    "LENGTH_COLUMNS",
+    "ANGLE_COLUMNS",
+    "KIND_UNITS",
+    "DISPLAY_UNITS",
     "RobotModel",
     "ParameterSet",
     "ReflectorMount",
@@ -29,7 +35,18 @@ __all__ = [
 PARAMETER_KINDS = ("d", "theta", "a", "alpha", "beta")
 #: Kinds measured in mm (the others are angles).
 LENGTH_KINDS = ("d", "a")
-_D, _BETA = 0, 4
+#: Kinds that are angles: radians in the core, degrees in every file and table.
+ANGLE_KINDS = ("theta", "alpha", "beta")
+#: Columns of the length / angle kinds in parameter arrays, e.g. ``values[..., ANGLE_COLUMNS]``.
+LENGTH_COLUMNS = tuple(PARAMETER_KINDS.index(kind) for kind in LENGTH_KINDS)
+ANGLE_COLUMNS = tuple(PARAMETER_KINDS.index(kind) for kind in ANGLE_KINDS)
+#: The units outside the core (every file, table and report; the ``units`` key of robotcal's documents).
+DISPLAY_UNITS = MappingProxyType({"length": "mm", "angle": "deg"})
+#: The unit each kind is shown in outside the core: ``"mm"`` or ``"deg"``.
+KIND_UNITS = MappingProxyType(
+    {kind: DISPLAY_UNITS["length" if kind in LENGTH_KINDS else "angle"] for kind in PARAMETER_KINDS}
+)
+_D, _BETA = PARAMETER_KINDS.index("d"), PARAMETER_KINDS.index("beta")
 
 
 def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np.ndarray:
@@ -242,7 +259,7 @@ class ParameterSet:
     def difference(self, other: ParameterSet) -> np.ndarray:
         """``self.values - other.values`` with angles wrapped to (-pi, pi] [mm, rad]."""
         diff = self.values - other.values
-        angles = [PARAMETER_KINDS.index(k) for k in ("theta", "alpha", "beta")]
+        angles = list(ANGLE_COLUMNS)
         diff[:, angles] = np.angle(np.exp(1j * diff[:, angles]))
         return diff
 

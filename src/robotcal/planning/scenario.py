@@ -50,7 +50,7 @@ def scenario_from_document(document: dict, base_dir: Path, name: str, source: st
 
 
 def _robot_path(scenario: Scenario) -> Path:
-    text = str(scenario.settings.get("robot", scenario.robot.name))
+    text = str(scenario.settings["robot"])
     if text in builtin_names("robots"):
         return data_path("robots", f"{text}.toml")
     path = Path(text)
@@ -91,7 +91,8 @@ def cell_from_scenario(
     """The cell of a scenario: its tracker pose, its robot's capsules, its instrument preset's range and
     acceptance (explicit arguments override the preset; ``no_acceptance`` skips that check)."""
     radii, notes = robot_capsule_radii(scenario)
-    preset = scenario.settings.get("instrument", {}).get("preset")
+    instrument = scenario.settings["instrument"]  # the validated [instrument] table, None when absent
+    preset = None if instrument is None else instrument["preset"]
     entry = instrument_presets().get(preset, {}) if preset else {}
     low = entry.get("min_distance_m", 0.0) if min_distance_m is None else min_distance_m
     high = entry.get("max_distance_m", np.inf) if max_distance_m is None else max_distance_m

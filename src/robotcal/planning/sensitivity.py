@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
+from robotcal.kinematics.model import ANGLE_COLUMNS, KIND_UNITS, PARAMETER_KINDS
 
 __all__ = [
     "DEFAULT_LENGTH_LIMIT_MM",
@@ -34,7 +35,6 @@ __all__ = [
 
 DEFAULT_LENGTH_LIMIT_MM = 0.1
 DEFAULT_ANGLE_LIMIT_DEG = 0.01
-_ANGLE_KINDS = (1, 3, 4)  # theta, alpha, beta
 
 
 def process_capability(mean, std, lower, upper) -> np.ndarray:
@@ -53,7 +53,7 @@ def capability_limits(
         raise InputError(f"Cpk limits must be positive; got {length_mm} mm and {angle_deg} deg")
     nominal = np.asarray(nominal, dtype=float)
     half = np.full(nominal.shape, float(length_mm))
-    half[:, list(_ANGLE_KINDS)] = np.deg2rad(angle_deg)
+    half[:, list(ANGLE_COLUMNS)] = np.deg2rad(angle_deg)
     return nominal - half, nominal + half
 
 
@@ -117,8 +117,8 @@ def _run_case(task) -> dict:
     for key, value in values.items():
         document = set_key(document, key, value)
     scenario = scenario_from_document(document, Path(base_dir), name, source)
-    n = int(scenario.montecarlo["iterations"]) if iterations is None else int(iterations)
-    settings = MonteCarloSettings(iterations=n, coverage=float(scenario.montecarlo["coverage"]), keep_draws=False)
+    n = scenario.montecarlo.iterations if iterations is None else int(iterations)
+    settings = MonteCarloSettings(iterations=n, coverage=scenario.montecarlo.coverage, keep_draws=False)
     result = run_monte_carlo(scenario_monte_carlo(scenario), settings, seed=seed, linearised=False)
     return {
         "n_draws": result.n_draws,
@@ -173,7 +173,7 @@ def run_sensitivity(
         )
     del lower, upper
     n_joints = nominal.shape[0]
-    names = tuple(f"J{i + 1}.{k}" for i in range(n_joints) for k in ("d", "theta", "a", "alpha", "beta"))
+    names = tuple(f"J{i + 1}.{k}" for i in range(n_joints) for k in PARAMETER_KINDS)
     return SensitivityStudy(
         keys=keys,
         cases=tuple(cases),
@@ -190,17 +190,17 @@ def study_rows(study: SensitivityStudy) -> list[dict]:
     rows = []
     for number, case in enumerate(study.cases, start=1):
         for flat, name in enumerate(study.names):
-            joint, kind = divmod(flat, 5)
+            joint, kind = divmod(flat, len(PARAMETER_KINDS))  # kind: the column
             if not case.identified[joint, kind]:
                 continue
-            angle = kind in _ANGLE_KINDS
+            angle = kind in ANGLE_COLUMNS
             scale = np.rad2deg(1.0) if angle else 1.0
             row = {"case": number}
             row.update({key: case.values[key] for key in study.keys})
             row.update(
                 {
                     "name": name,
-                    "unit": "deg" if angle else "mm",
+                    "unit": KIND_UNITS[PARAMETER_KINDS[kind]],
                     "nominal": float(study.nominal[joint, kind] * scale),
                     "mean": float(case.mean[joint, kind] * scale),
                     "std_uncertainty": float(case.std_uncertainty[joint, kind] * scale),

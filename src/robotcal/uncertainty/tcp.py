@@ -41,7 +41,7 @@ from scipy.stats import chi2
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, wrap_angle_near
 from robotcal.kinematics.forward import link_transforms
-from robotcal.kinematics.model import PARAMETER_KINDS, RobotModel, check_parameter_array
+from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel, check_parameter_array
 from robotcal.uncertainty.statistics import SampleSummary, _interval_length, check_coverage
 
 __all__ = [
@@ -67,7 +67,7 @@ ORIENTATION_CONVENTION = (
     "thesis Table 5.8 lists the same angles in X, Y, Z order, i.e. (C, B, A)"
 )
 _ANGLES = slice(3, 6)
-_ANGLE_KINDS = [PARAMETER_KINDS.index(kind) for kind in ("theta", "alpha", "beta")]
+_ANGLE_KINDS = list(ANGLE_COLUMNS)
 #: Central-difference steps of :func:`tcp_jacobian`: lengths [mm], angles [rad].
 JACOBIAN_STEP_MM = 1e-4
 JACOBIAN_STEP_RAD = 1e-6
