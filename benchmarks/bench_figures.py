@@ -3,7 +3,7 @@
 Plain script: ``python benchmarks/bench_figures.py [--draws N] [--repeat R]`` runs the Monte Carlo
 of the built-in KR 5 scenario with ``N`` draws (default 100,000, as ``robotcal uncertainty -n
 100000``) once, then times (best of R) writing the per-joint histogram PNGs
-(:func:`robotcal.report.montecarlo.write_histograms`), the TCP pose figures (scatter, histograms)
+(:func:`robotcal.plots.montecarlo.write_histograms`), the TCP pose figures (scatter, histograms)
 for 100,000 synthetic draws, the trajectory figure, the workspace map, and the five joint-diagnostic
 figures of the kr5-demo capture. Each line gives the best wall time and the best CPU time (the CPU
 time suffers less from other jobs on a shared machine). The figures quoted in the issue notes come
@@ -35,9 +35,9 @@ from pathlib import Path
 from robotcal.diagnostics import analyze_joints, fit_harmonics
 from robotcal.io import load_robot, load_scenario
 from robotcal.io.trajectory_csv import load_trajectory
-from robotcal.report.joints import write_joint_figures
-from robotcal.report.montecarlo import write_histograms
-from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
+from robotcal.plots.joints import write_joint_figures
+from robotcal.plots.montecarlo import write_histograms
+from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 from robotcal.uncertainty.tcp import propagate_to_tcp
 from robotcal.uncertainty.workspace import workspace_uncertainty

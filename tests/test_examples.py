@@ -10,8 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 import robotcal
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -98,7 +96,6 @@ def test_trajectory_uncertainty(tmp_path):
     assert 1.0 < low <= high < 200.0
 
 
-@pytest.mark.skipif(not hasattr(robotcal, "run_calibration"), reason="robotcal.run_calibration is not available")
 def test_run_and_report(tmp_path):
     out = tmp_path / "run"
     stdout = run_example("run_and_report.py", "--quick", "--out", str(out), cwd=tmp_path)

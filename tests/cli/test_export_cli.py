@@ -61,3 +61,20 @@ def test_export_errors_name_the_problem(tmp_path):
     assert result.exit_code == 2 and "--tool" in result.output
     result = invoke("export", path, "--format", "ur-yaml", "--out", tmp_path / "ur.yaml")
     assert result.exit_code == 2 and "reading_sign = -1" in result.output
+
+
+def test_export_dh_of_a_coupled_robot_with_model_variables(tmp_path):
+    robot = load_robot("fanuc-style-coupled")
+    values = robot.nominal.copy()
+    values[:, 4] = 0.0  # DH holds no beta
+    parameters = ParameterSet(robot=robot, values=values)
+    path = tmp_path / "coupled.json"
+    write_parameters(path, parameters, {"note": "test"})
+    out = tmp_path / "coupled.csv"
+    result = invoke("export", path, "--format", "dh", "--out", out)
+    assert result.exit_code != 0 and "--joint-variable model" in result.output
+    result = invoke("export", path, "--format", "dh", "--joint-variable", "model", "--out", out)
+    assert result.exit_code == 0, result.output
+    assert out.read_text() == table_to_csv(dh_table(parameters, joint_variable="model"))
+    result = invoke("export", path, "--format", "ur-yaml", "--joint-variable", "model", "--out", tmp_path / "ur.yaml")
+    assert result.exit_code != 0 and "written only by --format urdf, dh and mdh" in result.output

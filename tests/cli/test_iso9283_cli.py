@@ -186,6 +186,9 @@ def test_iso9283_with_three_targets_per_pose_measures_the_orientation(tmp_path):
     result = invoke("iso9283", capture_path, "--scenario", scenario, "--out", out, "--force",
                     "--targets-mm", "t1=60,40,30;t2=-50,30,20")  # fmt: skip
     assert result.exit_code == 2 and "no flange offset for target 't3'" in result.output
+    # the message names the model and the ways out
+    said = " ".join(result.output.split())
+    assert "model 'nominal' has no flange offset" in said and "--targets-mm" in said and "--no-nominal" in said
     result = invoke("iso9283", capture_path, "--scenario", scenario, "--out", out, "--force",
                     "--orientation-axes", "tool")  # fmt: skip
     assert result.exit_code == 2 and "--orientation-axes must be one of base, flange" in result.output

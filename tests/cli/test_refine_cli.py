@@ -189,3 +189,27 @@ def test_planless_scenario_with_three_unknown_targets_refines_and_evaluates_abso
     assert "distances criterion has no base frame" in result.output
     notes = json.loads((out / "evaluation.json").read_text())["settings"]["absolute_base_frames"]
     assert notes["distances"].startswith("the distances criterion has no base frame: the scenario's tracker_from_base")
+    # sets without estimated offsets (nominal, a JSON without `targets`) borrow those of the file that has them:
+    # the same parameters without `targets` then evaluate exactly as the refined set, and both notes say so
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps({key: value for key, value in document.items() if key != "targets"}))
+    out = tmp_path / "eval3"
+    result = invoke(
+        "evaluate", "--scenario", scenario, "--params", refined, "--params", bare, "--params", distances,
+        "--capture", held_out, "--absolute", "--out", out,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "bare: unknown target offsets estimated by refined" in " ".join(result.output.split())
+    evaluation = json.loads((out / "evaluation.json").read_text())
+    notes = evaluation["settings"]["target_offsets"]
+    assert set(notes) == {"nominal", "bare"} and "the first of 2 that carry them" in notes["nominal"]
+    rows = {(r["parameter_set"], r["view"]): r for r in evaluation["rows"]}
+    for view in ("points", "distances", "absolute"):
+        assert rows[("bare", view)]["mean_error_mm"] == rows[("refined", view)]["mean_error_mm"]
+    # no file carries them: the guess, said per set
+    out = tmp_path / "eval4"
+    result = invoke("evaluate", "--scenario", scenario, "--params", bare, "--capture", held_out, "--out", out)
+    assert result.exit_code == 0, result.output
+    notes = json.loads((out / "evaluation.json").read_text())["settings"]["target_offsets"]
+    assert notes == dict.fromkeys(("nominal", "bare"), "unknown target offsets at their guess (guess_mm)")
+    assert "nominal: unknown target offsets at their guess (guess_mm)" in result.output

@@ -112,6 +112,14 @@ def test_cli_numbers_equal_the_library(cell):
     np.testing.assert_allclose([float(r["std_uncertainty"]) for r in targets], expected, rtol=1e-10)
     # the offsets scatter about the estimate by a few U(95) at most
     assert np.all(np.abs([float(r["mean"]) - float(r["estimate"]) for r in targets]) < 0.05)
+    # the linearised u is the refinement's rescaled to the stated noise, and the JSON says so
+    np.testing.assert_allclose(
+        [float(r["lpu_std_uncertainty"]) for r in targets], library.target_linearised_u.ravel(), rtol=1e-10
+    )
+    linearised = json.loads((out / "parameters.json").read_text(encoding="utf-8"))["linearised"]
+    assert "(u_stated / sigma_hat)^2" in linearised["method"]
+    np.testing.assert_allclose(linearised["stated_u_mm"], U95_MM / 2.0, rtol=1e-12)
+    np.testing.assert_allclose(linearised["residual_sigma_mm"], library.residual_sigma_mm, rtol=1e-9)
 
 
 def test_errors_name_the_problem(cell, tmp_path):

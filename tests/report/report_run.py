@@ -15,7 +15,7 @@ import numpy as np
 
 from robotcal.io import load_scenario, write_capture, write_parameters
 from robotcal.kinematics.model import ParameterSet
-from robotcal.report.figures import new_figure, save_figure
+from robotcal.plots.figures import new_figure, save_figure
 from robotcal.workflow import cpa_provenance, identify_scenario, simulate_scenario
 
 #: Synthetic standard uncertainties written to uncertainty/parameters.csv [mm or deg].

@@ -248,7 +248,7 @@ def test_no_noise_floor_is_said(run_folder):
 
 
 def test_captions_name_the_unit_of_their_figure():
-    """The joints figures plot µm (report/joints.py), the TCP and convergence figures mm."""
+    """The joints figures plot µm (plots/joints.py), the TCP and convergence figures mm."""
     for name in ("backlash_xyz.png", "backlash_magnitude.png", "eccentricity_axial.png", "eccentricity_radial.png"):
         assert "(µm)" in _CAPTIONS[name] and "(mm)" not in _CAPTIONS[name], name
     for name in ("convergence.png", "scatter.png", "workspace.png", "ellipsoid.png", "backlash_vectors.png"):
@@ -417,3 +417,13 @@ def test_out_elsewhere(run_folder, tmp_path):
     report = build_report(run_folder, tmp_path / "sub" / "r.html")
     assert report.path.read_text(encoding="utf-8") == report.html
     assert not (run_folder / REPORT_NAME).exists()
+
+
+def test_angle_differences_are_within_a_half_turn():
+    """"CPA − truth" of an angle near ±180 deg: two values a turn apart differ by their error, not 360 deg."""
+    from robotcal.report.html import _difference
+
+    assert _difference("J5.theta", 179.74, -179.92) == pytest.approx(-0.34, abs=1e-9)
+    assert _difference("J5.theta", 179.74, 180.08) == pytest.approx(-0.34, abs=1e-9)
+    assert _difference("J2.alpha", -0.5, 0.25) == pytest.approx(-0.75, abs=1e-12)
+    assert _difference("J1.a", 400.0, 10.0) == 390.0  # lengths are not angles

@@ -9,8 +9,8 @@ import pytest
 from robotcal.diagnostics import analyze_joints, fit_harmonics
 from robotcal.errors import InputError
 from robotcal.io import load_robot, load_scenario
-from robotcal.report.figures import plt
-from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter
+from robotcal.plots.figures import plt
+from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter
 from robotcal.uncertainty.tcp import propagate_to_tcp
 from robotcal.workflow import simulate_scenario
 
@@ -28,7 +28,7 @@ def test_figures_of_draws_need_keep_draws(plot, tmp_path):
 
 
 def test_joint_figures_on_one_reused_figure_equal_separate_figures(tmp_path, monkeypatch):
-    import robotcal.report.joints as joints_figures
+    import robotcal.plots.joints as joints_figures
 
     demo = load_scenario("kr5-demo")
     diagnostics = analyze_joints(simulate_scenario(demo, seed=3).capture)
@@ -59,7 +59,7 @@ def test_joint_figures_on_one_reused_figure_equal_separate_figures(tmp_path, mon
 
 
 def test_monte_carlo_histograms_on_reused_figures_equal_new_figures(tmp_path, monkeypatch):
-    import robotcal.report.montecarlo as histograms
+    import robotcal.plots.montecarlo as histograms
     from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
     from robotcal.workflow import scenario_monte_carlo
 

@@ -34,6 +34,30 @@ def _label(path: Path, used: set[str]) -> str:
     return label
 
 
+def _borrow_offsets(scenario, set_targets: dict, labels, files: dict) -> dict[str, str]:
+    """Give the sets without estimated offsets (the nominal set, a JSON without ``targets``) those of the
+    first ``--params`` file that carries them; returns a note per such set (modified in place).
+
+    Without any, their unknown targets stay at the scenario's ``guess_mm``, and the note says so.
+    """
+    unknown = {t.name for t in scenario.targets if t.frame == "flange" and not t.known}
+    if not unknown:
+        return {}
+    carriers = [label for label in labels if unknown & set(set_targets.get(label) or {})]
+    notes = {}
+    for label in labels:
+        if label in carriers:
+            continue
+        if carriers:
+            source = carriers[0]
+            set_targets[label] = {name: set_targets[source][name] for name in unknown & set(set_targets[source])}
+            which = f"the first of {len(carriers)} that carry them" if len(carriers) > 1 else "the only one that does"
+            notes[label] = f"unknown target offsets estimated by {source} ({files[source]}; {which})"
+        else:
+            notes[label] = "unknown target offsets at their guess (guess_mm)"
+    return notes
+
+
 def _convergence(path: Path) -> dict | None:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -79,8 +103,10 @@ def evaluate(
     histories = {}
     provenances: dict = {"nominal": {}} if nominal else {}
     set_targets: dict = {}
+    files: dict[str, Path] = {}
     for path in params:
         label = _label(path, used)
+        files[label] = path
         sets[label] = read_parameters(path, robot)
         provenances[label] = (json.loads(path.read_text(encoding="utf-8")) or {}).get("provenance") or {}
         set_targets[label] = read_targets(path)
@@ -99,6 +125,7 @@ def evaluate(
         pairs_bytes(largest),
         "evaluate on a capture with fewer points",
     )
+    target_notes = _borrow_offsets(loaded, set_targets, list(sets), files)
     views = ("points", "distances", "absolute") if absolute else ("points", "distances")
     bases, base_notes = absolute_bases(loaded, provenances) if absolute else (None, {})
     rows = evaluate_scenario(loaded, captures, sets, views=views, bases=bases, set_targets=set_targets)
@@ -115,6 +142,8 @@ def evaluate(
             "distance per point |T p - m| with the set's own base frame, no re-registration"
         )
         document["settings"]["absolute_base_frames"] = base_notes
+    if target_notes:
+        document["settings"]["target_offsets"] = target_notes
     with result_folder(out, inputs=inputs, force=force, command="robotcal evaluate") as folder:
         write_evaluation_folder(folder, rows, document)
     for capture_name in captures:
@@ -134,6 +163,8 @@ def evaluate(
             console.print(table)
     for label, note in base_notes.items():
         console.print(f"absolute view, {label}: {note}", highlight=False, markup=False)
+    for label, note in target_notes.items():
+        console.print(f"{label}: {note}", highlight=False, markup=False)
     console.print(
         f"wrote {out}/evaluation.csv, evaluation.json" + (", convergence.png" if histories else ""), highlight=False
     )

@@ -80,7 +80,9 @@ def export(
         str,
         typer.Option(
             "--joint-variable",
-            help="URDF joint value: reading (controller reading; sign/offset folded in) | model (model variable q).",
+            help="URDF / dh / mdh joint value: reading (controller reading; sign/offset folded in) | model (model "
+            "variable q: the tables then have reading_sign 1, reading_offset_deg 0; the only export of a coupled "
+            "robot).",
         ),
     ] = "reading",
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
@@ -97,10 +99,15 @@ def export(
     if format == "urdf":
         text = parameters_to_urdf(parameters, tool=tool_mm, joint_variable=joint_variable)
     elif format == "ur-yaml":
+        if joint_variable != "reading":
+            raise InputError("--joint-variable model is written only by --format urdf, dh and mdh")
         text = parameters_to_ur_yaml(parameters)
     elif format in ("dh", "mdh"):
-        rows = dh_table(parameters) if format == "dh" else mdh_table(parameters)
+        table = dh_table if format == "dh" else mdh_table
+        rows = table(parameters, joint_variable=joint_variable)
         title = f"{'DH' if format == 'dh' else 'Modified DH'} table of {parameters.robot.name} [mm, deg]"
+        if joint_variable == "model":
+            title += "; joint value = model variable q (reading_sign 1, reading_offset_deg 0)"
         text = table_to_markdown(rows, title=title) if markdown else table_to_csv(rows)
     else:
         text = None

@@ -72,7 +72,7 @@ def identify(
     console.print(
         parameter_table(  # angles wrapped into (-180, 180] deg, as in the JSON
             ParameterSet.nominal(loaded.robot),
-            result.parameters.replace(values=wrap_angles(result.parameters.values)),
+            result.parameters.replace(values=wrap_angles(result.parameters.values, result.parameters.robot.nominal)),
             f"CPA parameters of {loaded.robot.name}",
         )
     )

@@ -67,8 +67,11 @@ def import_(
     elif robot is not None:
         n_joints = load_robot(robot).n_joints
     check_output_file(out, inputs=inputs, force=force)
-    points = read_tracker_export(export, columns=columns, delimiter=delimiter, decimal=decimal, units=units)
-    log = read_joint_log(joints, n_joints=n_joints)
+    # names are checked after the join (a target column in either file may tell points apart)
+    points = read_tracker_export(
+        export, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False
+    )
+    log = read_joint_log(joints, n_joints=n_joints, check_names=False)
     capture = join_points_to_readings(points, log, join=join, target=target)
     with result_file(out, inputs=inputs, force=force):
         write_capture(out, capture)

@@ -92,7 +92,7 @@ def check(
         console.print(f"note: {note}", highlight=False)
 
     def write(folder: Path) -> None:
-        from robotcal.report.planning import check_document, plot_check, write_check_files
+        from robotcal.plots.planning import check_document, plot_check, write_check_files
 
         document = check_document(result, scenario=loaded.source, cell=cell, notes=notes)
         write_check_files(folder, result, document)
@@ -240,7 +240,7 @@ def optimise(
 
     def write(folder: Path) -> None:
         from robotcal.io.atomic import atomic_write_text
-        from robotcal.report.planning import plot_optimisation
+        from robotcal.plots.planning import plot_optimisation
 
         header = f"robotcal plan optimise {loaded.name} --objective {objective} --seed {seed}"
         atomic_write_text(folder / "optimised.toml", dump_toml(optimised_document, header))

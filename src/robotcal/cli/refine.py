@@ -29,7 +29,7 @@ def _wrapped(parameters: ParameterSet) -> ParameterSet:
     """The parameters with theta, alpha, beta in (-180, 180] deg, for display."""
     from robotcal.identification.refine import wrap_angles
 
-    return parameters.replace(values=wrap_angles(parameters.values))
+    return parameters.replace(values=wrap_angles(parameters.values, parameters.robot.nominal))
 
 
 @app.command()

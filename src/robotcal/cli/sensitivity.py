@@ -74,7 +74,7 @@ def sensitivity(
         "cases": [dict(case.values, draws=case.n_draws) for case in study.cases],
     }
     with result_folder(out, inputs=inputs, force=force, command="robotcal sensitivity") as folder:
-        from robotcal.report.planning import plot_sensitivity, write_sensitivity_files
+        from robotcal.plots.planning import plot_sensitivity, write_sensitivity_files
 
         write_sensitivity_files(folder, rows, summary)
         plot_sensitivity(rows, study.keys, folder)

@@ -473,7 +473,7 @@ def _write_measured_folder(
     from robotcal.io.atomic import atomic_write_text
     from robotcal.io.draws_npz import write_draws
     from robotcal.io.uncertainty_files import write_uncertainty_csv, write_uncertainty_json
-    from robotcal.report.montecarlo import write_histograms
+    from robotcal.plots.montecarlo import write_histograms
     from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL  # scipy: imported when this runs, not for --help
     from robotcal.uncertainty.measured import with_model
     from robotcal.workflow import versions

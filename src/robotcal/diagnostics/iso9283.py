@@ -556,15 +556,16 @@ def iso_from_capture(
     commands = visit_readings.reshape(n_cycles, n_test_poses, -1).mean(axis=0)
     target_names = [capture.target_names[k] for k in np.unique(capture.target)] if multi else list(names)
 
-    def offsets_of(model: IsoModel) -> np.ndarray:
+    def offsets_of(model: IsoModel, label: str) -> np.ndarray:
         own = model.target_offsets or {}
         rows = []
         for name in target_names:
             source = own if name in own else (targets or {})
             if name not in source:
                 raise InputError(
-                    f"{capture.source}: no flange offset for target {name!r}: declare it in the scenario's [[targets]] "
-                    "(known) or give --targets-mm"
+                    f"{capture.source}: model {label!r} has no flange offset for target {name!r} (its parameter "
+                    "set did not estimate it and the scenario does not give it): declare it in the scenario's "
+                    "[[targets]] (known), give --targets-mm, or leave the nominal model out with --no-nominal"
                 )
             rows.append(np.asarray(source[name], dtype=float).reshape(3))
         return np.array(rows)
@@ -575,7 +576,7 @@ def iso_from_capture(
         base_from_tracker = invert_transform(np.asarray(model.tracker_from_base, dtype=float))
         frames = forward_kinematics(parameters.values, parameters.robot.model_joint_variables(commands))
         if multi:
-            offsets = offsets_of(model)
+            offsets = offsets_of(model, label)
             flange_point = offsets.mean(axis=0) if point is None else np.asarray(point, dtype=float)
             measured = apply_transform(base_from_tracker, capture.points[row_of_visit])
             attained_frames, rms = register_flange_poses(offsets, measured)
@@ -591,7 +592,7 @@ def iso_from_capture(
             )
             continue
         if names:
-            flange_point = offsets_of(model)[0]
+            flange_point = offsets_of(model, label)[0]
         elif point is None:
             raise InputError(f"{capture.source}: which flange point was measured? give its offset")
         else:

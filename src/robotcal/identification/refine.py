@@ -288,19 +288,23 @@ class RefinementResult:
     residual_rms_coordinate: float = float("nan")
 
 
-def wrap_angles(values) -> np.ndarray:
-    """Parameters ``(..., n_joints, 5)`` with theta, alpha, beta wrapped into (-pi, pi] [rad].
+def wrap_angles(values, nominal=None) -> np.ndarray:
+    """Parameters ``(..., n_joints, 5)`` with theta, alpha, beta wrapped into ``(c - pi, c + pi]`` [rad],
+    ``c`` = the ``nominal`` values (the robot's nominal parameters), or 0 without them.
 
     A turn of 2 pi leaves every transform unchanged; only values outside the interval are touched,
-    so that values already inside keep every bit. The fits keep their values continuous with the start
-    (a result stays comparable with the start and with a truth); every output wraps them: the parameter
-    JSON (:func:`robotcal.io.parameters_json.parameters_to_dict`) and the tables of ``identify`` and
-    ``refine``.
+    so that values already inside keep every bit. Wrapping about the nominal keeps every estimate, truth
+    and Monte Carlo statistic of an angle in one branch, that of its nominal value (a J5.theta of nominal
+    180 deg stays near 180, never -179.9): their differences are then the errors. The fits keep their
+    values continuous with the start; every output wraps them: the parameter JSON
+    (:func:`robotcal.io.parameters_json.parameters_to_dict`) and the tables of ``identify`` and ``refine``.
     """
     values = np.array(values, dtype=float)
-    angles = values[..., list(ANGLE_COLUMNS)]
-    wrapped = np.pi - np.mod(np.pi - angles, 2.0 * np.pi)
-    values[..., list(ANGLE_COLUMNS)] = np.where((angles > np.pi) | (angles <= -np.pi), wrapped, angles)
+    columns = list(ANGLE_COLUMNS)
+    centre = 0.0 if nominal is None else np.broadcast_to(np.asarray(nominal, dtype=float), values.shape)[..., columns]
+    offset = values[..., columns] - centre
+    wrapped = np.pi - np.mod(np.pi - offset, 2.0 * np.pi)
+    values[..., columns] = np.where((offset > np.pi) | (offset <= -np.pi), centre + wrapped, values[..., columns])
     return values
 
 

@@ -251,7 +251,13 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
     J6's ``a``, ``alpha`` and ``beta`` zero (the format has no flange offset after ``wrist_3``).
     """
     robot = parameters.robot
-    require_uncoupled(robot, "the UR calibration YAML")
+    joints = coupled_joints(robot)
+    if joints:
+        raise InputError(
+            f"robot {robot.name!r}: the readings of {', '.join(joints)} are coupled to other joints "
+            "(`reading_coupling`); the UR calibration YAML turns each joint by its own reading and cannot hold a "
+            "coupled robot (export --format urdf --joint-variable model instead)"
+        )
     if robot.n_joints != 6:
         raise InputError(f"the UR calibration YAML needs 6 joints; robot {robot.name!r} has {robot.n_joints}")
     bad = [f"J{i + 1}" for i in np.flatnonzero(robot.reading_sign < 0)]
@@ -281,7 +287,16 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _reading_columns(parameters: ParameterSet, i: int) -> dict:
+def _check_joint_variable(joint_variable: str) -> None:
+    if joint_variable not in ("reading", "model"):
+        raise InputError(f"`joint_variable` must be 'reading' or 'model'; got {joint_variable!r}")
+
+
+def _reading_columns(parameters: ParameterSet, i: int, joint_variable: str) -> dict:
+    """``reading_sign``, ``reading_offset_deg`` of row ``i``: the robot's (``q = s r + o``), or 1 and 0 where the
+    table's joint value is the model variable q itself (``joint_variable = "model"``, any coupling)."""
+    if joint_variable == "model":
+        return {"reading_sign": 1, "reading_offset_deg": 0.0}
     robot = parameters.robot
     require_uncoupled(robot, "the table's `reading_sign`/`reading_offset_deg` columns")
     return {
@@ -290,13 +305,16 @@ def _reading_columns(parameters: ParameterSet, i: int) -> dict:
     }
 
 
-def dh_table(parameters: ParameterSet) -> list[dict]:
+def dh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> list[dict]:
     """Standard DH rows ``A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`` (eq. 3-72) [mm, deg].
 
     Exact: a Hayati joint is a DH joint with d = 0 when its beta is 0; a non-zero beta cannot be
     written and raises :class:`InputError` naming the joint. ``q`` is the model variable,
-    ``q = reading_sign * reading + reading_offset`` (columns of every row).
+    ``q = reading_sign * reading + reading_offset`` (columns of every row). ``joint_variable =
+    "model"``: the joint value is q itself (``reading_sign`` 1, ``reading_offset_deg`` 0 in every row), the
+    only exact table of a coupled robot (convert readings with the robot's reading map).
     """
+    _check_joint_variable(joint_variable)
     values = parameters.values
     bad = [
         f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
@@ -308,19 +326,20 @@ def dh_table(parameters: ParameterSet) -> list[dict]:
         d, theta, a, alpha, _ = values[i]
         row = {"joint": f"J{i + 1}", "theta_deg": math.degrees(theta), "d_mm": d, "a_mm": a}
         row["alpha_deg"] = math.degrees(alpha)
-        row.update(_reading_columns(parameters, i))
+        row.update(_reading_columns(parameters, i, joint_variable))
         rows.append(row)
     return rows
 
 
-def mdh_table(parameters: ParameterSet) -> list[dict]:
+def mdh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> list[dict]:
     """Modified (Craig) DH rows ``T_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i + q_i) Tz(d_i)`` [mm, deg].
 
     The model's chain regroups exactly (``Tx(a) Rx(alpha) = Rx(alpha) Tx(a)``): row i takes
     ``alpha_{i-1}, a_{i-1}`` from joint i-1 (0 for J1) and ``theta_i, d_i`` from joint i; a last
     fixed row ``flange`` (no joint variable) carries ``alpha_n, a_n``. A non-zero beta raises
-    :class:`InputError` naming the joint.
+    :class:`InputError` naming the joint. ``joint_variable``: as :func:`dh_table`.
     """
+    _check_joint_variable(joint_variable)
     values = parameters.values
     bad = [
         f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
@@ -333,7 +352,7 @@ def mdh_table(parameters: ParameterSet) -> list[dict]:
         d, theta, a, alpha, _ = values[i]
         row = {"joint": f"J{i + 1}", "alpha_prev_deg": math.degrees(previous_alpha), "a_prev_mm": previous_a}
         row.update({"theta_deg": math.degrees(theta), "d_mm": d})
-        row.update(_reading_columns(parameters, i))
+        row.update(_reading_columns(parameters, i, joint_variable))
         rows.append(row)
         previous_a, previous_alpha = a, alpha
     rows.append(

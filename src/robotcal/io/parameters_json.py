@@ -21,9 +21,10 @@ from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KIND
 
 __all__ = ["parameters_to_dict", "write_parameters", "read_parameters", "targets_to_dict", "read_targets"]
 
-def _wrap_deg(value: float) -> float:
-    """An angle in degrees in (-180, 180] (a turn of 360 deg changes no transform)."""
-    return value if -180.0 < value <= 180.0 else 180.0 - (180.0 - value) % 360.0
+def _wrap_deg(value: float, centre: float = 0.0) -> float:
+    """An angle in degrees in (centre - 180, centre + 180] (a turn of 360 deg changes no transform)."""
+    offset = value - centre
+    return value if -180.0 < offset <= 180.0 else centre + 180.0 - (180.0 - offset) % 360.0
 
 
 def targets_to_dict(targets, uncertainty=None) -> dict:
@@ -47,7 +48,8 @@ def targets_to_dict(targets, uncertainty=None) -> dict:
 
 
 def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None) -> dict:
-    """The parameter JSON document; angles in degrees wrapped into (-180, 180]. ``targets`` (from
+    """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
+    nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
     :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets."""
     robot = parameters.robot
     joints = []
@@ -55,7 +57,9 @@ def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None,
         entry = {}
         for k, kind in enumerate(PARAMETER_KINDS):
             value = float(parameters.values[i, k])
-            entry[kind] = _wrap_deg(math.degrees(value)) if kind in ANGLE_KINDS else value
+            if kind in ANGLE_KINDS:
+                value = _wrap_deg(math.degrees(value), math.degrees(float(robot.nominal[i, k])))
+            entry[kind] = value
         entry["hayati"] = bool(robot.hayati[i])
         joints.append(entry)
     names = [n for n, flag in zip(robot.parameter_names, parameters.identified.ravel(), strict=True) if flag]

@@ -57,7 +57,8 @@ _UNIT_ALIASES = {"mm": "mm", "m": "m", "in": "in", "inch": "in", "inches": "in",
 #: Header names of a point-name column (lower case).
 NAME_HEADERS = ("name", "point", "point name", "point id", "pointid", "id", "label", "pose")
 MAP_KEYS = ("x", "y", "z", "name", "u95", "target", "circle", "direction")
-_UNIT_IN_HEADER = re.compile(r"^(?P<base>.*?)\s*[\[(](?P<unit>[^\[\]()]*)[\])]\s*$")
+#: A unit bracket ends a header: ``X [mm]``. Only square brackets: ``U(95)`` is a name, not the unit "95".
+_UNIT_IN_HEADER = re.compile(r"^(?P<base>.*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
 
 
@@ -223,7 +224,8 @@ def _is_number(cell: str, decimal: str) -> bool:
 
 
 def _split_unit(header: str) -> tuple[str, str | None]:
-    """``"X [mm]"`` -> ``("x", "mm")``; ``"x"`` -> ``("x", None)`` (base in lower case)."""
+    """``"X [mm]"`` -> ``("x", "mm")``; ``"x"`` and ``"U(95)"`` -> ``(base, None)`` (base in lower case; only
+    ``[...]`` is a unit bracket)."""
     match = _UNIT_IN_HEADER.match(header.strip())
     if match is None:
         return header.strip().lower(), None
@@ -319,6 +321,7 @@ def read_tracker_export(
     delimiter: str | None = None,
     decimal: str | None = None,
     units: str | None = None,
+    check_names: bool = True,
 ) -> TrackerPoints:
     """Read a tracker's point export (Leica, plain ``name;x;y;z`` or a mapped generic layout), in mm.
 
@@ -333,6 +336,9 @@ def read_tracker_export(
         Detected from the data when omitted (``,`` only with another delimiter).
     units : {"mm", "m", "in"}, optional
         Unit of the coordinates; read from the header's ``[mm]`` when omitted; both given must agree.
+    check_names : bool
+        Refuse repeated names (repeated ``(name, target)`` with a target column). False: left to
+        :func:`join_points_to_readings`, where a joint log's target column may tell the points apart.
 
     Returns
     -------
@@ -432,7 +438,8 @@ def read_tracker_export(
             )
     names = tuple(values["name"]) if "name" in values else None
     target = tuple(values["target"]) if "target" in values else None
-    _check_unique_names(names, target, lines, source, column_name("name") if names else "")
+    if check_names:
+        _check_unique_names(names, target, lines, source, column_name("name") if names else "")
     return TrackerPoints(
         points=points,
         names=names,
@@ -465,16 +472,37 @@ def _check_unique_names(names, target, lines, source, column: str) -> None:
 # --------------------------------------------------------------------------------------------------
 # the joint-angle log
 
+
+def _check_pose_names(names, targets, lines, source, column: str) -> None:
+    """A log's pose names are unique (per target when it has a ``target`` column)."""
+    seen: dict[tuple, int] = {}
+    for k, name in enumerate(names):
+        key = (name, None if targets is None else targets[k])
+        if key in seen:
+            what = f"pose name {name!r}" + ("" if targets is None else f" with target {targets[k]!r}")
+            raise InputError(
+                f"{source}: line {lines[k]}, column `{column}`: {what} already on line {seen[key]}; "
+                "pose names must be unique" + ("" if targets is None else " per target")
+            )
+        seen[key] = lines[k]
+
 _JOINT_COLUMN = re.compile(r"^(?:q|j|a)(\d{1,3})$")
 
 
 def read_joint_log(
-    path, *, n_joints: int | None = None, delimiter: str | None = None, decimal: str | None = None
+    path,
+    *,
+    n_joints: int | None = None,
+    delimiter: str | None = None,
+    decimal: str | None = None,
+    check_names: bool = True,
 ) -> JointLog:
     """Read a joint-angle log: header with ``name`` (optional) and ``q1..qN`` [deg] (``j``/``a`` prefixes too).
 
     A ``[rad]`` unit in a joint column's header is converted; ``[deg]`` or none means degrees.
-    Optional columns ``circle``, ``direction``, ``target``.
+    Optional columns ``circle``, ``direction``, ``target``. Pose names must be unique, per target
+    with a ``target`` column (one row per pose and target); ``check_names = False`` leaves that to
+    :func:`join_points_to_readings` (``--join order`` does not use the names).
     """
     source = Path(path)
     records, delimiter, decimal = _table(source, kind="joint-angle log", delimiter=delimiter, decimal=decimal)
@@ -541,15 +569,8 @@ def read_joint_log(
             else:
                 extra[key].append(cell)
     names = tuple(extra["name"]) if "name" in extra else None
-    if names is not None:
-        seen: dict[str, int] = {}
-        for k, name in enumerate(names):
-            if name in seen:
-                raise InputError(
-                    f"{source}: line {lines[k]}, column `{header[optional['name']]}`: pose name {name!r} already "
-                    f"on line {seen[name]}; pose names must be unique"
-                )
-            seen[name] = lines[k]
+    if names is not None and check_names:
+        _check_pose_names(names, extra.get("target"), lines, source, header[optional["name"]])
     return JointLog(
         readings=readings,
         names=names,
@@ -592,7 +613,12 @@ def join_points_to_readings(
     log : JointLog
     join : {"name", "order"}
         ``"name"``: each point's name is a pose name of the log; every pose must be measured and
-        every point must have a pose. ``"order"``: point k takes row k (equal counts).
+        every point must have a pose. A name on several rows of the log (one per target) is paired
+        by occurrence: the k-th point of that name takes its k-th row; the log's ``(name, target)``
+        must be unique. After the join each
+        ``(name, target)`` must be unique, the target from whichever file has it: so several points,
+        one per target, may share a pose name. ``"order"``: point k takes row k (equal counts);
+        names are not checked.
     target : str, optional
         One target name for every point (when neither file has a ``target`` column).
 
@@ -616,15 +642,30 @@ def join_points_to_readings(
             raise InputError(f"{points.source}: no point-name column to join by name; use --join order")
         if log.names is None:
             raise InputError(f"{log.source}: no `name` column to join by name; use --join order")
-        lookup = {name: k for k, name in enumerate(log.names)}
-        orphans = [k for k, name in enumerate(points.names) if name not in lookup]
+        _check_pose_names(log.names, log.target, log.lines, log.source, "name")
+        occurrences: dict[str, list[int]] = {}
+        for k, name in enumerate(log.names):
+            occurrences.setdefault(name, []).append(k)
+        taken: dict[str, int] = {}
+        picked = []
+        for k, name in enumerate(points.names):
+            index = taken.get(name, 0)
+            taken[name] = index + 1
+            rows_of_name = occurrences.get(name, [])
+            if len(rows_of_name) == 1:  # one pose, measured on one or several targets
+                index = 0
+            elif points.target is not None and log.target is not None:  # both name targets: pair by them
+                same = [r for r in rows_of_name if log.target[r] == points.target[k]]
+                index = rows_of_name.index(same[0]) if same else index
+            picked.append(rows_of_name[index] if index < len(rows_of_name) else -1)
+        orphans = [k for k, row in enumerate(picked) if row < 0]
         if orphans:
             listed = ", ".join(repr(points.names[k]) for k in orphans[:5]) + (" ..." if len(orphans) > 5 else "")
             raise InputError(
                 f"{points.source}: line {points.lines[orphans[0]]}: {len(orphans)} point(s) with no joint reading in "
                 f"{log.source}: {listed}"
             )
-        rows = np.array([lookup[name] for name in points.names], dtype=int)
+        rows = np.array(picked, dtype=int)
         unused = np.setdiff1d(np.arange(log.n_rows), rows)
         if unused.size:
             listed = ", ".join(repr(log.names[k]) for k in unused[:5]) + (" ..." if unused.size > 5 else "")
@@ -633,6 +674,8 @@ def join_points_to_readings(
                 f"{points.source}: {listed}"
             )
     targets = _pick("target", points.target, log.target, rows, points, log)
+    if join == "name":
+        _check_unique_names(points.names, targets, points.lines, points.source, "name")
     if targets is not None and target is not None:
         raise InputError("--target names one target for every point, but the files have a `target` column")
     if targets is None and target is not None:
@@ -679,6 +722,10 @@ def import_tracker_capture(
     ``log_decimal`` are given. See :func:`read_tracker_export`, :func:`read_joint_log`,
     :func:`join_points_to_readings`.
     """
-    points = read_tracker_export(export_path, columns=columns, delimiter=delimiter, decimal=decimal, units=units)
-    log = read_joint_log(joints_path, n_joints=n_joints, delimiter=log_delimiter, decimal=log_decimal)
+    points = read_tracker_export(
+        export_path, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False
+    )
+    log = read_joint_log(
+        joints_path, n_joints=n_joints, delimiter=log_delimiter, decimal=log_decimal, check_names=False
+    )
     return join_points_to_readings(points, log, join=join, target=target)

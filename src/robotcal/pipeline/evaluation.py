@@ -100,7 +100,7 @@ def write_evaluation_folder(folder: Path, rows, document: dict) -> dict[str, Doc
     }
     histories = document.get("convergence") or {}
     if histories:
-        from robotcal.report.refine import plot_convergence  # matplotlib only when writing figures
+        from robotcal.plots.refine import plot_convergence  # matplotlib only when writing figures
 
         plot_convergence(
             {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()},

@@ -31,7 +31,7 @@ def iso9283_stage(scenario, *, truth: ParameterSet, models: dict, seed: int, out
     """``iso9283/``: ``iso9283.csv`` (the ``robotcal iso9283`` columns), ``study.json`` (cube, start, cycles,
     targets, seed, models) and ``iso9283.png``. Result: the :class:`IsoStudy`."""
     from robotcal.pipeline.stages import StageOutput
-    from robotcal.report.iso9283 import plot_iso_results
+    from robotcal.plots.iso9283 import plot_iso_results
 
     study = simulate_iso_study(
         scenario, models, cycles=ISO_CYCLES, seed=seed, true_parameters=truth, targets_mm=ISO_TARGETS_MM

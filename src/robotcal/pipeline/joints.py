@@ -156,7 +156,7 @@ def write_joints_folder(
 
     Returns the documents written by file name, in order (CSV -> Table, JSON -> dict, figure -> Path).
     """
-    from robotcal.report.joints import write_joint_figures  # matplotlib only when writing figures
+    from robotcal.plots.joints import write_joint_figures  # matplotlib only when writing figures
 
     documents: dict[str, Document] = {}
     for name, content in joints_files(diagnostics, model, capture=capture, scenario=scenario).items():

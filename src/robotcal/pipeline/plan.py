@@ -159,6 +159,8 @@ def plan_run(
     if out is not None:
         check_output_folder(out, inputs=inputs, force=force, keeps_other_files=True)
     robot = loaded.robot
+    if not loaded.has_plan:  # first: any use of the missing plan raises simulate's message (`capture.start_deg`)
+        _ = loaded.plan.points
     validation_reflector(loaded)  # a validation capture needs a flange target
     validation = loaded.validation or ValidationTable()
     if not np.all(np.isfinite(robot.limits)):

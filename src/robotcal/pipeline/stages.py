@@ -370,7 +370,7 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
     from robotcal.planning.cell import check_plan
     from robotcal.planning.scenario import cell_from_scenario, scenario_document
     from robotcal.planning.sensitivity import run_sensitivity, study_rows
-    from robotcal.report.planning import (
+    from robotcal.plots.planning import (
         check_document,
         plot_check,
         plot_sensitivity,
@@ -408,7 +408,7 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
         }
         write_sensitivity_files(folder / "sensitivity", rows, summary)
         plot_sensitivity(rows, study.keys, folder / "sensitivity")
-        # written by robotcal.report.planning: read back once, as robotcal.pipeline.folder.read_run would
+        # written by robotcal.plots.planning: read back once, as robotcal.pipeline.folder.read_run would
         documents = {
             str(path.relative_to(folder)): (
                 read_document(folder, str(path.relative_to(folder)))

@@ -63,7 +63,7 @@ def write_tcp_folder(
 ) -> dict[str, Document]:
     """Write ``tcp.csv``, ``tcp.json`` and the mode's figures into ``folder`` (an existing, normally
     temporary, folder); returns the documents by file name (CSV -> Table, JSON -> dict, figure -> Path)."""
-    from robotcal.report.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
+    from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
 
     documents: dict[str, Document] = {
         "tcp.csv": write_csv(folder / "tcp.csv", tcp_to_csv(result, interval=interval)),

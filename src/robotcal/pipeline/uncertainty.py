@@ -49,7 +49,7 @@ def write_uncertainty_folder(
     Returns the documents by file name; the two parameter files are written by
     :mod:`robotcal.io.uncertainty_files` and read back once (:func:`robotcal.pipeline.folder.read_document`).
     """
-    from robotcal.report.montecarlo import write_histograms  # matplotlib only when writing figures
+    from robotcal.plots.montecarlo import write_histograms  # matplotlib only when writing figures
 
     echo = {"name": scenario.name, "source": scenario.source, "settings": scenario.settings}
     write_uncertainty_csv(folder / "parameters.csv", result)

@@ -1,5 +1,6 @@
-"""Report layer: matplotlib figures and the self-contained HTML report (above the pipeline; only ``cli`` and,
-lazily, the pipeline's last stage import it)."""
+"""Report layer: the self-contained HTML report, rendered from a :class:`robotcal.pipeline.RunResult` (above
+the pipeline; only ``cli`` and, lazily, the pipeline's last stage import it). The figures it embeds are drawn
+by :mod:`robotcal.plots`, below the pipeline."""
 
 from functools import cache
 

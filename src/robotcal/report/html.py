@@ -48,7 +48,7 @@ __all__ = ["REPORT_NAME", "Report", "ReportSection", "render_report", "build_rep
 REPORT_NAME = "report.html"
 
 #: Captions of the figures the stages write, each naming the unit its figure is drawn in (the plot
-#: functions of report/joints.py, montecarlo.py, tcp.py, refine.py, planning.py); a stage's JSON may
+#: functions of plots/joints.py, montecarlo.py, tcp.py, refine.py, planning.py); a stage's JSON may
 #: give others in a ``"figures": {file: caption}`` object.
 _CAPTIONS = {
     "iso9283.png": "ISO 9283 pose accuracy AP (bars) and repeatability RP (tick above each bar) at the five test "
@@ -781,7 +781,7 @@ def _parameters(page: _Page) -> dict:
         values.append(("CPA", cpa_values, ".4f"))
         if truth_values:
             values.append(
-                ("CPA − truth", {k: v - truth_values[k] for k, v in cpa_values.items() if k in truth_values}, ".3e")
+                ("CPA − truth", {k: _difference(k, v, truth_values[k]) for k, v in cpa_values.items() if k in truth_values}, ".3e")
             )
     for label, data in refined.items():
         found, more, more_fixed = _parameter_values(data)
@@ -918,6 +918,15 @@ def _evaluation(page: _Page) -> dict:
         "present": True,
         "blocks_": _stage(page, "evaluation", first_csv=("evaluation.csv",), first_png=("convergence.png",)),
     }
+
+
+def _difference(name: str, value: float, reference: float) -> float:
+    """``value - reference``; for an angle (``Jn.theta``, ``alpha``, ``beta``, deg) the difference within
+    (-180, 180], so that two values a turn apart (180.08 and -179.92) differ by 0.16, not 360."""
+    difference = value - reference
+    if name.rsplit(".", 1)[-1] in ANGLE_KINDS:
+        difference = 180.0 - (180.0 - difference) % 360.0
+    return difference
 
 
 def _noise_floors(page: _Page) -> tuple[dict, str]:
@@ -1104,7 +1113,14 @@ def _workspace(page: _Page) -> dict:
 def _iso9283(page: _Page) -> dict:
     if not page.has("iso9283"):
         return {"present": False, "blocks_": [_block("not_run", what="iso9283/")]}
-    blocks = _stage(page, "iso9283", first_csv=("iso9283.csv",), first_png=("iso9283.png",))
+    units = "units: APx, APy, APz, AP, l_bar, S_l, RP, AD, RD in mm; APa, APb, APc, RPa, RPb, RPc in deg"
+    blocks = _stage(
+        page,
+        "iso9283",
+        first_csv=("iso9283.csv",),
+        first_png=("iso9283.png",),
+        csv_options={"iso9283.csv": {"caption": units}},
+    )
     return {"present": True, "blocks_": blocks}
 
 

@@ -26,9 +26,13 @@ gives the linearised u only. This module repeats, draw after draw, what the user
 
 The draws of the free parameters and of the unknown target offsets give mean, u, both coverage
 intervals, covariance and correlation (:func:`robotcal.uncertainty.statistics.summarize_draws`, as
-the other Monte Carlos). The linearised comparison is the reference refinement's own covariance
-(sigma estimated from its residuals, as ``robotcal refine`` reports it); it agrees with the Monte
-Carlo when the residuals agree with the stated U(95) (the fit-health ratio near 1). The JCGM 101
+the other Monte Carlos). The linearised comparison is the reference refinement's covariance
+rescaled to the noise the draws use: ``robotcal refine`` estimates sigma from the residuals
+(sigma-hat), the draws use the stated noise (U(95) / 2 per point, or the instrument's standard
+uncertainty), so the covariance and the offsets' linearised u are multiplied by
+``(u_stated / sigma_hat)^2`` (u by ``u_stated / sigma_hat``), ``u_stated`` the RMS of the points'
+stated standard uncertainties (:func:`stated_point_u`); both verdicts then compare one noise model.
+The JCGM 101
 §8.2 verdict is taken with :data:`COMPARISON_NDIG` = 1 significant digit of u, what a few hundred
 draws resolve.
 
@@ -168,6 +172,10 @@ class MeasuredMonteCarloResult:
     target_draws : ndarray, shape (n_draws, n_targets, 3) or None
     noise_source : str
     reference : RefinementResult
+    stated_u_mm, residual_sigma_mm : float
+        RMS of the points' stated standard uncertainties and the reference's sigma-hat [mm]; the linearised
+        covariance (and ``target_linearised_u``) are rescaled by ``(stated_u_mm / residual_sigma_mm)^2``
+        (module notes); NaN sigma: not rescaled (there is no covariance).
     """
 
     parameters: MonteCarloResult
@@ -178,6 +186,8 @@ class MeasuredMonteCarloResult:
     target_draws: np.ndarray | None
     noise_source: str
     reference: RefinementResult
+    stated_u_mm: float = float("nan")
+    residual_sigma_mm: float = float("nan")
 
 
 def _with_offsets(reflector, offsets: Mapping[str, object] | None):
@@ -357,15 +367,36 @@ def _block_items(total: int) -> list[tuple[int, int]]:
     return [(b, DRAWS_PER_BLOCK) for b in range(full)] + ([(full, rest)] if rest else [])
 
 
+def stated_point_u(problem: MeasuredProblem) -> float:
+    """RMS [mm] of the points' stated standard uncertainties per coordinate: ``U(95) / 2``, else the
+    instrument's (:meth:`robotcal.instruments.Instrument.standard_uncertainty`), the noise the draws use."""
+    if problem.noise_sd is not None:
+        u = np.asarray(problem.noise_sd, dtype=float)
+    else:
+        u = np.asarray(problem.instrument.standard_uncertainty(problem.exact_points), dtype=float)
+    return float(np.sqrt(np.mean(u**2)))
+
+
+def _noise_rescale(problem: MeasuredProblem) -> float:
+    """``u_stated / sigma_hat``: the factor on the reference's linearised u (module notes); 1 without sigma-hat."""
+    sigma = float(problem.reference.sigma)
+    if not np.isfinite(sigma) or sigma <= 0.0:
+        return 1.0
+    return stated_point_u(problem) / sigma
+
+
 def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: MonteCarloSettings) -> LinearisedResult:
-    """The reference refinement's covariance, embedded joint-major, with the JCGM 101 §8.2 comparison."""
+    """The reference refinement's covariance rescaled to the stated noise (``(u_stated / sigma_hat)^2``),
+    embedded joint-major, with the JCGM 101 §8.2 comparison."""
     reference = problem.reference
     n = problem.robot.n_joints
     free = np.asarray(reference.free).reshape(-1)
     index = np.flatnonzero(free)
     covariance = np.zeros((5 * n, 5 * n))
     if reference.covariance is not None:
-        covariance[np.ix_(index, index)] = reference.covariance[: index.size, : index.size]
+        covariance[np.ix_(index, index)] = (
+            reference.covariance[: index.size, : index.size] * _noise_rescale(problem) ** 2
+        )
     else:
         covariance[np.ix_(index, index)] = np.nan
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n, 5)
@@ -515,7 +546,9 @@ def measured_monte_carlo(
     unknown = problem.unknown_targets
     rows = [k for k, t in enumerate(reference.targets) if not t.known]
     target_u = (
-        np.asarray(reference.target_uncertainty)[rows] if reference.target_uncertainty is not None else np.zeros((0, 3))
+        np.asarray(reference.target_uncertainty)[rows] * _noise_rescale(problem)
+        if reference.target_uncertainty is not None
+        else np.zeros((0, 3))
     )
     return MeasuredMonteCarloResult(
         parameters=result,
@@ -526,6 +559,8 @@ def measured_monte_carlo(
         target_draws=offset_draws if (unknown and settings.keep_draws) else None,
         noise_source=problem.noise_source,
         reference=reference,
+        stated_u_mm=stated_point_u(problem),
+        residual_sigma_mm=float(reference.sigma),
     )
 
 

@@ -220,6 +220,9 @@ def test_known_small_rotation_of_a_known_pose_is_recovered_through_the_targets()
     wrong = IsoModel(parameters=nominal, tracker_from_base=tracker_from_base, target_offsets={"a": [70.0, 40.0, 30.0]})
     w = iso_from_capture(capture, {"w": wrong}, targets=targets, n_test_poses=2, distance_pair=(0, 1))["w"]
     assert np.all(w.registration_rms > 1.0)
+    # a model with neither its own offsets nor given ones: the error names the model and the ways out
+    with pytest.raises(InputError, match=r"model 'nominal' has no flange offset for target 'b'.*--targets-mm.*--no-nominal"):
+        iso_from_capture(capture, {"nominal": model}, targets={"a": offsets[0]}, n_test_poses=2, distance_pair=(0, 1))
 
 
 def test_registration_of_flange_poses_and_its_errors():

@@ -254,7 +254,10 @@ def test_angles_are_wrapped_in_every_output(tmp_path):
     path = write_parameters(tmp_path / "p.json", result.parameters)
     joints = json.loads(path.read_text())["joints"]
     assert joints[1]["theta"] == pytest.approx(-91.3, abs=1e-9)
-    assert all(-180.0 < joint[kind] <= 180.0 for joint in joints for kind in ("theta", "alpha", "beta"))
+    nominal_deg = np.rad2deg(ROBOT.nominal)
+    for i, joint in enumerate(joints):  # within 180 deg of the nominal: the nominal's branch
+        for k, kind in ((1, "theta"), (3, "alpha"), (4, "beta")):
+            assert -180.0 < joint[kind] - nominal_deg[i, k] <= 180.0, (i, kind)
     np.testing.assert_allclose(  # the wrapped file is the same robot
         forward_kinematics(read_parameters(path, ROBOT).values, ROBOT.model_joint_variables(capture.readings)),
         forward_kinematics(result.parameters.values, ROBOT.model_joint_variables(capture.readings)),
@@ -264,6 +267,26 @@ def test_angles_are_wrapped_in_every_output(tmp_path):
     expected = np.deg2rad([[0.0, 180.0, 0.0, 180.0, 179.0]])
     np.testing.assert_array_equal(wrap_angles(np.deg2rad([[0.0, 180.0, 0.0, -180.0, 179.0]])), expected)
     np.testing.assert_allclose(wrap_angles(np.deg2rad([[0.0, 540.5, 0.0, -190.0, 0.0]])), np.deg2rad([[0, 180.5 - 360, 0, 170, 0]]), atol=1e-12)
+
+
+def test_angles_are_wrapped_into_the_branch_of_their_nominal(tmp_path):
+    """A J5.theta of nominal 180 deg estimated at 180.08 deg is written 180.08, never -179.92: estimate, truth
+    and their difference stay in one branch (the report's "CPA - truth" column subtracts them)."""
+    nominal = np.zeros((1, 5))
+    nominal[0, 1] = np.pi  # theta nominal 180 deg
+    estimate = np.deg2rad([[0.0, -179.92, 0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(np.rad2deg(wrap_angles(estimate, nominal))[0, 1], 180.08, atol=1e-12)
+    np.testing.assert_allclose(np.rad2deg(wrap_angles(np.deg2rad([[0, -451.3, 0, 0, 0]]), nominal))[0, 1], 268.7, atol=1e-9)
+    inside = np.deg2rad([[0.0, 200.0, 10.0, -30.0, 0.5]])
+    np.testing.assert_array_equal(wrap_angles(inside, nominal), inside)  # already in the branch: every bit kept
+    # the parameter JSON of the KR 5 (J5.theta nominal 180 deg) keeps the nominal's branch
+    kr5 = load_robot("kuka-kr5-sixx-r650")
+    j5 = int(np.flatnonzero(np.isclose(np.abs(kr5.nominal[:, 1]), np.pi))[0])
+    values = kr5.nominal.copy()
+    values[j5, 1] = np.deg2rad(-179.92) * np.sign(kr5.nominal[j5, 1])
+    path = write_parameters(tmp_path / "kr5.json", ParameterSet(robot=kr5, values=values))
+    written = json.loads(path.read_text())["joints"][j5]["theta"]
+    assert abs(written - np.rad2deg(kr5.nominal[j5, 1])) == pytest.approx(0.08, abs=1e-9)
 
 
 # -- fit health -----------------------------------------------------------------------------------------

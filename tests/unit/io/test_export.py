@@ -218,6 +218,34 @@ def test_coupled_readings_export_the_model_variables_only(tmp_path):
     for export in (parameters_to_urdf, parameters_to_ur_yaml, dh_table, mdh_table):
         with pytest.raises(InputError, match=r"J3 are coupled.*--joint-variable model"):
             export(without_beta)
+    # the UR YAML has no model-variable form: its error says so instead of suggesting an option it ignores
+    with pytest.raises(InputError, match=r"cannot hold a coupled robot \(export --format urdf --joint-variable model"):
+        parameters_to_ur_yaml(without_beta)
+    # dh / mdh with joint_variable="model": reading_sign 1, offset 0, and the table composes FK at q = M^-1 r + o
+    readings = np.random.default_rng(21).uniform(-1.0, 1.0, (100, 6))
+    q_model = robot.model_joint_variables(readings)
+    expected = forward_kinematics(without_beta.values, q_model)
+    for table in (dh_table, mdh_table):
+        rows = _rows(table_to_csv(table(without_beta, joint_variable="model")))
+        joints = [row for row in rows if row["joint"] != "flange"]
+        assert len(joints) == 6
+        assert all(int(r["reading_sign"]) == 1 and float(r["reading_offset_deg"]) == 0.0 for r in joints)
+        composed = []
+        for pose in q_model:
+            m = np.eye(4)
+            for k, row in enumerate(rows):
+                q = pose[k] if k < 6 else 0.0
+                theta, d = np.radians(float(row["theta_deg"])) + q, float(row["d_mm"])
+                if table is dh_table:
+                    alpha, a = np.radians(float(row["alpha_deg"])), float(row["a_mm"])
+                    m = m @ _rz(theta) @ _tr(0, 0, d) @ _tr(a, 0, 0) @ _rx(alpha)
+                else:
+                    alpha, a = np.radians(float(row["alpha_prev_deg"])), float(row["a_prev_mm"])
+                    m = m @ _rx(alpha) @ _tr(a, 0, 0) @ _rz(theta) @ _tr(0, 0, d)
+            composed.append(m)
+        _assert_same_pose(np.array(composed), expected)
+    with pytest.raises(InputError, match="`joint_variable` must be 'reading' or 'model'"):
+        dh_table(without_beta, joint_variable="q")
     path = tmp_path / "robot.urdf"
     path.write_text(parameters_to_urdf(parameters, joint_variable="model"))
     urdf = yourdfpy.URDF.load(str(path), load_meshes=False, load_collision_meshes=False)

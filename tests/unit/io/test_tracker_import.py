@@ -54,6 +54,15 @@ def test_leica_export_in_metres_with_decimal_comma_and_semicolons(tmp_path):
     np.testing.assert_array_equal(points.lines, [2, 3, 4])
 
 
+def test_u95_without_a_unit_bracket_is_kept_in_the_coordinates_unit(tmp_path):
+    # `U(95)` is a name: its parentheses are no unit bracket ("95" is no unit), so the column is read, in m here
+    export = "Name;X [m];Y [m];Z [m];U(95);Time Stamp\nP1;1,5;0,5;0,25;0,00003;2024-05-01 10:00:00\n"
+    points = read_tracker_export(_write(tmp_path, "leica.txt", export))
+    assert points.layout == "leica" and points.unit == "m"
+    np.testing.assert_allclose(points.points, [[1500.0, 500.0, 250.0]], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(points.u95, [0.03], rtol=0, atol=1e-12)
+
+
 def test_leica_comma_export_in_mm_without_names_joins_by_order(tmp_path):
     export = _write(
         tmp_path,
@@ -183,6 +192,31 @@ def test_order_join_counts_and_conflicting_columns(tmp_path):
         import_tracker_capture(both, log1)
     with pytest.raises(InputError, match="--target names one target for every point"):
         import_tracker_capture(both, _write(tmp_path, "l2.csv", "name,q1\nP1,5\n"), target="T9")
+
+
+def test_a_target_column_only_in_the_joint_log_lets_points_share_a_pose_name(tmp_path):
+    # the export names its three points P1 (one per reflector, no target column); the log has one row per target
+    export = _write(tmp_path, "t.txt", "Name;X [mm];Y [mm];Z [mm]\nP1;1;2;3\nP1;4;5;6\nP1;7;8;9\nP2;1;1;1\n")
+    log = _write(
+        tmp_path, "j.csv", "name,target,q1,q2\nP1,T1,10,20\nP1,T2,10,20\nP1,T3,10,20\nP2,T1,30,40\n"
+    )
+    capture = import_tracker_capture(export, log)
+    assert capture.target_names == ("T1", "T2", "T3")
+    np.testing.assert_array_equal(capture.target, [0, 1, 2, 0])
+    np.testing.assert_allclose(capture.points, [[1, 2, 3], [4, 5, 6], [7, 8, 9], [1, 1, 1]], rtol=0, atol=0)
+    np.testing.assert_allclose(np.degrees(capture.readings), [[10, 20]] * 3 + [[30, 40]], rtol=0, atol=1e-12)
+    # by order the names are not used: repeated names without any target are fine
+    plain = _write(tmp_path, "p.txt", "Name;X [mm];Y [mm];Z [mm]\nP1;1;2;3\nP1;4;5;6\n")
+    same = _write(tmp_path, "s.csv", "name,q1\nP1,5\nP1,6\n")
+    assert import_tracker_capture(plain, same, join="order").n_points == 2
+    # by name, (name, target) must still be unique after the join: one log row for two P1 points, one target
+    one = _write(tmp_path, "o.csv", "name,target,q1\nP1,T1,5\n")
+    with pytest.raises(InputError, match=r"p.txt: line 3, column `name`: name 'P1' with target 'T1' already on line 2"):
+        import_tracker_capture(plain, one)
+    # and a log repeating (name, target) is refused naming its line
+    twice = _write(tmp_path, "w.csv", "name,target,q1\nP1,T1,5\nP1,T1,6\n")
+    with pytest.raises(InputError, match=r"w.csv: line 3, column `name`: pose name 'P1' with target 'T1' already"):
+        import_tracker_capture(plain, twice)
 
 
 def test_joint_log_in_radians_is_converted(tmp_path):

@@ -54,3 +54,13 @@ def test_a_folder_robotcal_did_not_write_is_refused(tmp_path):
     with pytest.raises(InputError, match="--force"):
         plan_run("kr5-demo", out)
     assert plan_run("kr5-demo", out, force=True).force
+
+
+def test_a_scenario_without_a_capture_plan_is_refused_naming_the_plan_first(tmp_path):
+    # only unknown flange targets: no validation target either, but the missing plan is the first thing to say
+    scenario = tmp_path / "cell.toml"
+    scenario.write_text(
+        'robot = "abb-irb120"\n[[targets]]\nname = "T1"\nflange_mm = "unknown"\n', encoding="utf-8"
+    )
+    with pytest.raises(InputError, match=r"cell.toml: key `capture.start_deg` .* is missing: the capture plan"):
+        plan_run(scenario)

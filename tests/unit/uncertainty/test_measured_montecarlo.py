@@ -96,7 +96,8 @@ def test_monte_carlo_u_agrees_with_the_linearised_u(cell):
     np.testing.assert_allclose(estimate.sigma, U95_MM / 2.0, rtol=0.15)
     stated = U95_MM / 2.0 / estimate.sigma
     ratio = mc.summary.std_uncertainty[free] / (estimate.standard_uncertainty[free] * stated)
-    target_ratio = result.target_summary.std_uncertainty / (result.target_linearised_u * stated)
+    # the result's linearised offsets' u is already rescaled to the stated noise (module notes)
+    target_ratio = result.target_summary.std_uncertainty / result.target_linearised_u
     # a sample standard deviation of M = 200 normal draws has relative standard error 1/sqrt(2 (M - 1)) = 5 %:
     # 20 % is 4 standard errors (two-sided 6e-5 per quantity, 2e-3 for the 29 of them); the residual
     # nonlinearity at 0.015 mm noise is far below that
@@ -107,8 +108,31 @@ def test_monte_carlo_u_agrees_with_the_linearised_u(cell):
     # the draws scatter about the estimate: the mean within 5 standard errors u / sqrt(M)
     bias = wrap_angles(mc.summary.mean - estimate.parameters.values)[free] / mc.summary.std_uncertainty[free]
     assert np.all(np.abs(bias) < 5.0 / np.sqrt(draws))
-    # the linearised record is the refinement's own covariance
-    np.testing.assert_allclose(mc.linearised.std_uncertainty[free], estimate.standard_uncertainty[free], rtol=1e-12)
+    # the linearised record is the refinement's own covariance rescaled by u_stated / sigma_hat
+    np.testing.assert_allclose(result.stated_u_mm, U95_MM / 2.0, rtol=1e-12)
+    np.testing.assert_allclose(result.residual_sigma_mm, estimate.sigma, rtol=1e-9)
+    np.testing.assert_allclose(
+        mc.linearised.std_uncertainty[free], estimate.standard_uncertainty[free] * stated, rtol=1e-9
+    )
+
+
+def test_linearised_u_is_rescaled_to_the_stated_noise_when_the_residuals_disagree(cell):
+    # stated U(95) twice the tracker's: sigma_hat from the residuals is ~U/4, the draws use U/2. Without the
+    # rescaling the linearised u would be half the Monte Carlo's (ratio 2); with it the two agree
+    scenario, truth, _, _ = cell
+    capture, _ = _capture(truth, 3, u95=2.0 * U95_MM)
+    estimate = _refine(capture, scenario)
+    draws = 40
+    result = measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=draws), seed=5)
+    mc = result.parameters
+    free = estimate.free
+    np.testing.assert_allclose(result.stated_u_mm, U95_MM, rtol=1e-12)
+    np.testing.assert_allclose(result.residual_sigma_mm / result.stated_u_mm, 0.5, rtol=0.15)
+    ratio = mc.summary.std_uncertainty[free] / mc.linearised.std_uncertainty[free]
+    target_ratio = result.target_summary.std_uncertainty / result.target_linearised_u
+    # M = 40 draws: relative standard error of u 1/sqrt(78) = 11 %; the mean of 29 ratios within 0.15 of 1
+    # (about 7 standard errors of the mean, allowing for their correlation), far from 2 without the fix
+    assert abs(np.mean(np.concatenate([ratio, target_ratio.ravel()])) - 1.0) < 0.15
 
 
 @pytest.mark.parametrize(("criterion", "base_frame"), [("distances", "given"), ("points", "registered")])

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-import robotcal.report.montecarlo as histograms
+import robotcal.plots.montecarlo as histograms
 from robotcal.io import load_scenario
 from robotcal.io.draws_npz import read_draws, write_draws
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, _covariance, linearised_uncertainty, run_monte_carlo

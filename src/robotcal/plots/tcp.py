@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.errors import InputError
-from robotcal.report.figures import new_figure, plt, save_figure
+from robotcal.plots.figures import new_figure, plt, save_figure
 from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robotcal.report.figures import new_figure, save_figure
+from robotcal.plots.figures import new_figure, save_figure
 
 __all__ = ["plot_iso_results"]
 

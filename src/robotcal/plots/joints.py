@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.diagnostics import CircleDiagnostics, HarmonicModel, JointDiagnostics
-from robotcal.report.figures import new_figure, save_figure
+from robotcal.plots.figures import new_figure, save_figure
 
 __all__ = [
     "plot_backlash_vectors",

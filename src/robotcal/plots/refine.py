@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from robotcal.report.figures import new_figure, save_figure
+from robotcal.plots.figures import new_figure, save_figure
 
 __all__ = ["plot_convergence"]
 

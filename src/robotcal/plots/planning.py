@@ -11,7 +11,7 @@ import numpy as np
 
 from robotcal.io.atomic import atomic_write_text
 from robotcal.planning.cell import REASONS, PlanCheck
-from robotcal.report.figures import new_figure, save_figure
+from robotcal.plots.figures import new_figure, save_figure
 
 __all__ = [
     "check_document",
