@@ -8,6 +8,7 @@ Carlo's draws, the plan stage's sensitivity study) live here.
 from __future__ import annotations
 
 import dataclasses
+import operator
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -150,6 +151,16 @@ def plan_run(
         Naming the file and key: scenario keys, validation target, TCP pose and trajectory, Monte Carlo
         settings, seeds, the memory each stage needs, the output folder.
     """
+    if not isinstance(scenario, str | os.PathLike):
+        raise InputError(
+            f"plan_run takes a scenario name or TOML path; got {type(scenario).__name__} (a run records and re-reads "
+            "its scenario files: write a changed scenario to TOML first)"
+        )
+    if seed is not None:
+        try:
+            seed = operator.index(seed)  # an int (numpy integers too); never a float or a string
+        except TypeError:
+            raise InputError(f"seed must be an integer in [0, 2^63); got {seed!r}") from None
     inputs = existing_inputs(scenario)
     if out is not None:
         out = Path(out)
@@ -203,7 +214,8 @@ def plan_run(
             workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
         )
     except InputError as exc:
-        raise InputError(f"{loaded.source}: Monte Carlo settings: {exc}") from None
+        where = "--draws" if draws is not None else f"{loaded.source}: Monte Carlo settings"
+        raise InputError(f"{where}: {exc}") from None
     if refined_draws is not None and not 1 <= refined_draws <= iterations:
         raise InputError(
             f"--refined-draws must be between 1 and the Monte Carlo draws ({iterations:,}); got {refined_draws}"

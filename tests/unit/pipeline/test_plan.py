@@ -64,3 +64,22 @@ def test_a_scenario_without_a_capture_plan_is_refused_naming_the_plan_first(tmp_
     )
     with pytest.raises(InputError, match=r"cell.toml: key `capture.start_deg` .* is missing: the capture plan"):
         plan_run(scenario)
+
+
+def test_seeds_and_scenarios_of_the_wrong_type_are_refused_up_front(tmp_path):
+    """A float or a string seed, or a Scenario object, is an InputError before anything runs (not a TypeError
+    or a JSON error in a later stage); a numpy integer is an integer."""
+    import numpy as np
+
+    from robotcal.io import load_scenario
+
+    for seed in (7.5, "7", np.random.default_rng(1)):
+        with pytest.raises(InputError, match="seed must be an integer"):
+            plan_run("kr5-demo", tmp_path / "out", seed=seed)
+    plan = plan_run("kr5-demo", tmp_path / "out", seed=np.int64(7), draws=500)
+    assert plan.seeds["capture"] == 7 and type(plan.seeds["capture"]) is int
+    with pytest.raises(InputError, match="scenario name or TOML path; got Scenario"):
+        plan_run(load_scenario("kr5-demo"))
+    with pytest.raises(InputError, match=r"^--draws: "):
+        plan_run("kr5-demo", draws=10)
+    assert not (tmp_path / "out").exists()
