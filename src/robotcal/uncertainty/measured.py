@@ -84,6 +84,7 @@ from robotcal.uncertainty.montecarlo import (
     MonteCarloResult,
     MonteCarloSettings,
     ProgressCallback,
+    draw_covariance,
 )
 from robotcal.uncertainty.statistics import SampleSummary, numerical_tolerance, summarize_draws
 
@@ -420,23 +421,6 @@ def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: Mont
     )
 
 
-def _covariance(draws: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    flat = draws.reshape(draws.shape[0], -1)
-    mask = identified.reshape(-1)
-    covariance = np.zeros((flat.shape[1], flat.shape[1]))
-    correlation = np.eye(flat.shape[1])
-    if mask.any():
-        sub = np.atleast_2d(np.cov(flat[:, mask], rowvar=False))
-        covariance[np.ix_(mask, mask)] = sub
-        scale = np.sqrt(np.diag(sub))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            corr = sub / np.outer(scale, scale)
-        corr[~np.isfinite(corr)] = 0.0
-        np.fill_diagonal(corr, 1.0)
-        correlation[np.ix_(mask, mask)] = corr
-    return covariance, correlation
-
-
 def measured_monte_carlo(
     capture: Capture,
     scenario,
@@ -515,7 +499,7 @@ def measured_monte_carlo(
     reference = problem.reference
     identified = np.asarray(reference.free, dtype=bool)
     summary = summarize_draws(draws, settings.coverage)
-    covariance, correlation = _covariance(draws, identified)
+    covariance, correlation = draw_covariance(draws, identified)
     linear = _linearised(problem, summary, settings)
     message = f"{draws.shape[0]} draws"
     if n_failed:

@@ -565,7 +565,9 @@ class _PooledMoments:
         return np.sqrt(self.m2 / (self.count - 1))
 
 
-def _covariance(values: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def draw_covariance(values: np.ndarray, identified: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance and correlation ``(n_params, n_params)`` of draws ``(n_draws, n_joints, 5)`` over the
+    ``identified`` parameters (zero rows and identity correlation for the others)."""
     flat = values.reshape(values.shape[0], -1)
     n_params = flat.shape[1]
     mask = identified.reshape(-1)
@@ -643,7 +645,7 @@ def run_monte_carlo(
     draw_time = time.perf_counter() - started
     summary_start = time.perf_counter()
     summary = summarize_draws(draws, settings.coverage)
-    covariance, correlation = _covariance(draws, identified)
+    covariance, correlation = draw_covariance(draws, identified)
     timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
     linear = None
     if linearised:

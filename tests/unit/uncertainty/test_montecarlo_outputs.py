@@ -13,7 +13,7 @@ from scipy.stats import norm
 import robotcal.plots.montecarlo as histograms
 from robotcal.io import load_scenario
 from robotcal.io.draws_npz import read_draws, write_draws
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, _covariance, linearised_uncertainty, run_monte_carlo
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, draw_covariance, linearised_uncertainty, run_monte_carlo
 from robotcal.uncertainty.statistics import coverage_interval, summarize_draws
 from robotcal.workflow import scenario_monte_carlo
 
@@ -32,7 +32,7 @@ def test_covariance_equals_numpy_cov(laser):
     rng = np.random.default_rng(3)
     identified = laser.identified
     draws = rng.normal(size=(5_000,) + identified.shape) * rng.uniform(1e-3, 1.0, identified.shape)
-    covariance, correlation = _covariance(draws, identified)
+    covariance, correlation = draw_covariance(draws, identified)
     flat_mask = identified.reshape(-1)
     expected = np.cov(draws.reshape(draws.shape[0], -1)[:, flat_mask], rowvar=False)
     # einsum and BLAS sum in other orders: a few ulps of the largest entry (variances <= 1)
