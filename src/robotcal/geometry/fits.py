@@ -53,9 +53,10 @@ class PlaneFit:
     basis : ndarray, shape (..., 2, 3)
         Orthonormal in-plane axes ``u, v`` with ``u x v = normal``.
     residuals : ndarray, shape (..., n_points)
-        Signed distance of each point to the plane [mm] (axial deviation).
+        Signed distance of each point to the plane [mm] (axial deviation); None when a circle was
+        fitted with ``residuals=False``.
     rms : ndarray, shape (...)
-        RMS of ``residuals`` [mm].
+        RMS of ``residuals`` [mm] (None with them).
     """
 
     centroid: np.ndarray
@@ -82,7 +83,8 @@ class CircleFit:
     radial_residuals : ndarray, shape (..., n_points)
         Signed in-plane distance of each projected point to the circle, outward positive [mm].
     plane_rms, circle_rms : ndarray, shape (...)
-        RMS of the two residuals [mm].
+        RMS of the two residuals [mm]. The residuals and their RMS are None when fitted with
+        ``residuals=False`` (Monte Carlo draws).
     method : str
         ``"geometric"`` or ``"algebraic"``.
     iterations : int
@@ -113,26 +115,30 @@ def _smallest_eigenpair(xx, yy, zz, xy, xz, yz):
     Closed form: eigenvalues by the trigonometric solution of the characteristic cubic (Smith 1961),
     then the eigenvector as the largest cross product of two rows of ``S - lambda_min I``. For a
     scatter matrix of circle points the error of the vector is ~eps * lambda_max / lambda_mid, and
-    it is ~10x cheaper than ``np.linalg.eigh`` on a batch.
+    it is ~10x cheaper than ``np.linalg.eigh`` on a batch. Written out by components (no stacked
+    ``(..., 3, 3)`` temporaries): a Monte Carlo batch calls it once per circle.
     """
-    off = xy * xy + xz * xz + yz * yz
     mean = (xx + yy + zz) / 3.0
     a, d, f = xx - mean, yy - mean, zz - mean
-    p = np.sqrt((a * a + d * d + f * f + 2.0 * off) / 6.0)
+    p = np.sqrt((a * a + d * d + f * f + 2.0 * (xy * xy + xz * xz + yz * yz)) / 6.0)
     safe = np.where(p > 0.0, p, 1.0)
-    det = (a * (d * f - yz * yz) - xy * (xy * f - yz * xz) + xz * (xy * yz - d * xz)) / safe**3
+    det = (a * (d * f - yz * yz) - xy * (xy * f - yz * xz) + xz * (xy * yz - d * xz)) / (safe * safe * safe)
     phi = np.arccos(np.clip(det / 2.0, -1.0, 1.0)) / 3.0
     largest = mean + 2.0 * p * np.cos(phi)
     smallest = mean + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
     middle = 3.0 * mean - largest - smallest
-    row0 = np.stack([xx - smallest, xy, xz], axis=-1)
-    row1 = np.stack([xy, yy - smallest, yz], axis=-1)
-    row2 = np.stack([xz, yz, zz - smallest], axis=-1)
-    candidates = np.stack([_cross(row0, row1), _cross(row0, row2), _cross(row1, row2)], axis=-2)
-    norms = _dot(candidates, candidates)
-    best = np.argmax(norms, axis=-1)
-    vector = np.take_along_axis(candidates, best[..., None, None], axis=-2)[..., 0, :]
-    vector = vector / np.sqrt(np.take_along_axis(norms, best[..., None], axis=-1))
+    # rows (a0, xy, xz), (xy, b1, yz), (xz, yz, c2) of S - smallest I and their cross products
+    a0, b1, c2 = xx - smallest, yy - smallest, zz - smallest
+    c01 = (xy * yz - xz * b1, xz * xy - a0 * yz, a0 * b1 - xy * xy)
+    c02 = (xy * c2 - xz * yz, xz * xz - a0 * c2, a0 * yz - xy * xz)
+    c12 = (b1 * c2 - yz * yz, yz * xz - xy * c2, xy * yz - b1 * xz)
+    n01, n02, n12 = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2] for c in (c01, c02, c12))
+    use01 = (n01 >= n02) & (n01 >= n12)  # the first of the largest, as argmax picks it
+    use02 = ~use01 & (n02 >= n12)
+    vector = np.empty(np.shape(xx) + (3,))
+    for i in range(3):
+        vector[..., i] = np.where(use01, c01[i], np.where(use02, c02[i], c12[i]))
+    vector /= np.sqrt(np.where(use01, n01, np.where(use02, n02, n12)))[..., None]
     return np.stack([smallest, middle, largest], axis=-1), vector
 
 
@@ -146,20 +152,45 @@ def _row_sum(a: np.ndarray) -> np.ndarray:
     return np.einsum("...i->...", a)
 
 
-def _plane_fit(points) -> tuple[PlaneFit, np.ndarray, np.ndarray]:
-    """:func:`fit_plane` and the in-plane coordinates ``(u, v)`` of the points, ``(..., n_points)`` each.
+def _project(centred: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """``centred (..., 3, n_points)`` projected on ``direction (..., 3)``: ``(..., n_points)`` in one pass
+    (~3.5x faster than three broadcast products and two sums on a Monte Carlo batch)."""
+    return np.einsum("...jn,...j->...n", centred, direction)
 
-    The centred coordinates are held as three contiguous ``(..., n_points)`` arrays (one transposing
-    copy), so that every later pass reads contiguous rows rather than every third number.
+
+def _check_shape(points, name: str = "points", *, min_points: int = 3) -> np.ndarray:
+    """:func:`check_points` without the pass over every coordinate for non-finite values."""
+    try:
+        points = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"`{name}` must be numeric; got {type(points).__name__}") from exc
+    if points.ndim < 2 or points.shape[-1] != 3 or points.shape[-2] < min_points:
+        raise InputError(f"`{name}` must have shape (n_points, 3) with n_points >= {min_points}; got {points.shape}")
+    return points
+
+
+def _plane_fit(points, *, residuals: bool = True) -> tuple[PlaneFit, np.ndarray, np.ndarray, tuple]:
+    """:func:`fit_plane`, the in-plane coordinates ``u, v`` of the points, ``(..., n_points)`` each, and
+    their scatter sums ``(suu, suv, svv)``.
+
+    The centred coordinates are held as three contiguous ``(..., n_points)`` rows (one transposing
+    copy), so that every later pass reads contiguous rows rather than every third number. The points
+    are checked for NaN or infinite coordinates through their sums: a non-finite coordinate makes its
+    item's centroid non-finite, so only then is every coordinate inspected (for the message). With
+    ``residuals=False`` the plane residuals and their RMS are not computed (``None``).
     """
-    points = check_points(points)
-    centroid = points.mean(axis=-2)
+    points = _check_shape(points)
+    n_points = points.shape[-2]
     centred = np.ascontiguousarray(np.moveaxis(points, -1, -2))  # (..., 3, n_points)
+    centroid = _row_sum(centred) / n_points
+    if not np.all(np.isfinite(centroid)):
+        check_points(points)  # raises for a NaN or infinite coordinate
+        raise InputError("`points` has coordinates too large to fit (their sum overflows)")
     centred -= centroid[..., :, None]
     x, y, z = centred[..., 0, :], centred[..., 1, :], centred[..., 2, :]
-    _, normal = _smallest_eigenpair(
-        _row_dot(x, x), _row_dot(y, y), _row_dot(z, z), _row_dot(x, y), _row_dot(x, z), _row_dot(y, z)
-    )
+    sxx, syy, szz = _row_dot(x, x), _row_dot(y, y), _row_dot(z, z)
+    sxy, sxz, syz = _row_dot(x, y), _row_dot(x, z), _row_dot(y, z)
+    _, normal = _smallest_eigenpair(sxx, syy, szz, sxy, sxz, syz)
     # u: the normal crossed with the coordinate axis it is least aligned with
     least = np.argmin(np.abs(normal), axis=-1)
     axis = np.zeros(normal.shape)
@@ -167,11 +198,23 @@ def _plane_fit(points) -> tuple[PlaneFit, np.ndarray, np.ndarray]:
     u = _cross(normal, axis)
     u = u / np.sqrt(_dot(u, u))[..., None]
     v = _cross(normal, u)
+
+    # In-plane scatter u^T S u, u^T S v, v^T S v: the sums of squares and products of the projected
+    # coordinates, without a pass over them; like those sums, accurate to ~eps * largest eigenvalue.
+    def scatter_times(w):
+        return (
+            sxx * w[..., 0] + sxy * w[..., 1] + sxz * w[..., 2],
+            sxy * w[..., 0] + syy * w[..., 1] + syz * w[..., 2],
+            sxz * w[..., 0] + syz * w[..., 1] + szz * w[..., 2],
+        )
+
+    su0, su1, su2 = scatter_times(u)
+    suu = u[..., 0] * su0 + u[..., 1] * su1 + u[..., 2] * su2
+    suv = v[..., 0] * su0 + v[..., 1] * su1 + v[..., 2] * su2
+    sv0, sv1, sv2 = scatter_times(v)
+    svv = v[..., 0] * sv0 + v[..., 1] * sv1 + v[..., 2] * sv2
     # Collinearity from the in-plane 2x2 scatter, whose smaller eigenvalue is accurate to ~eps * largest
     # (the cubic's double root near 0 is only accurate to ~sqrt(eps) * largest).
-    cu = x * u[..., None, 0] + y * u[..., None, 1] + z * u[..., None, 2]
-    cv = x * v[..., None, 0] + y * v[..., None, 1] + z * v[..., None, 2]
-    suu, svv, suv = _row_dot(cu, cu), _row_dot(cv, cv), _row_dot(cu, cv)
     half_trace, radius = 0.5 * (suu + svv), np.sqrt((0.5 * (suu - svv)) ** 2 + suv**2)
     spread_small = np.sqrt(np.maximum(half_trace - radius, 0.0))
     spread_large = np.sqrt(np.maximum(half_trace + radius, 0.0))
@@ -181,15 +224,18 @@ def _plane_fit(points) -> tuple[PlaneFit, np.ndarray, np.ndarray]:
         raise DegenerateGeometryError(
             f"points are collinear or coincident{where}: they do not define a plane or a circle"
         )
-    residuals = x * normal[..., None, 0] + y * normal[..., None, 1] + z * normal[..., None, 2]
+    plane_residuals = rms = None
+    if residuals:
+        plane_residuals = _project(centred, normal)
+        rms = np.sqrt(_row_dot(plane_residuals, plane_residuals) / n_points)
     plane = PlaneFit(
         centroid=centroid,
         normal=normal,
         basis=np.stack([u, v], axis=-2),
-        residuals=residuals,
-        rms=np.sqrt(_row_dot(residuals, residuals) / residuals.shape[-1]),
+        residuals=plane_residuals,
+        rms=rms,
     )
-    return plane, cu, cv
+    return plane, _project(centred, u), _project(centred, v), (suu, suv, svv)
 
 
 def fit_plane(points) -> PlaneFit:
@@ -203,6 +249,8 @@ def fit_plane(points) -> PlaneFit:
 
     Raises
     ------
+    InputError
+        If a coordinate is NaN or infinite.
     DegenerateGeometryError
         If the points of a batch item are (nearly) collinear or coincident.
     """
@@ -230,26 +278,54 @@ def _solve3(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return np.stack(solution, axis=-1)
 
 
-def _fit_circle_2d_algebraic(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fit_circle_2d_algebraic(
+    u: np.ndarray, v: np.ndarray, scatter: tuple | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Kasa fit: minimise ``sum_k (|w_k|^2 + D w_k,u + E w_k,v + F)^2`` (linear in D, E, F).
 
-    ``u, v (..., n_points)`` are in-plane coordinates [mm], scaled to unit RMS inside for conditioning.
+    ``u, v (..., n_points)`` are in-plane coordinates [mm]; ``scatter = (suu, suv, svv)``, their sums of
+    squares and products, when the caller has them. The normal equations are those of the coordinates
+    scaled to unit RMS (for conditioning), formed from the moments of the unscaled ones.
     """
     n_points = u.shape[-1]
-    scale = np.sqrt((_row_dot(u, u) + _row_dot(v, v)) / n_points)
-    inverse = 1.0 / scale[..., None]
-    su, sv = u * inverse, v * inverse
-    squared = su * su
-    squared += sv * sv  # |w|^2; the right-hand side is its negative
-    uu, uv_, vv = _row_dot(su, su), _row_dot(su, sv), _row_dot(sv, sv)
-    us, vs = _row_sum(su), _row_sum(sv)
+    suu, suv, svv = (_row_dot(u, u), _row_dot(u, v), _row_dot(v, v)) if scatter is None else scatter
+    squared = u * u
+    squared += v * v  # |w|^2; the right-hand side is its negative
+    swu, swv = _row_dot(u, squared), _row_dot(v, squared)
+    sww = suu + svv  # sum |w|^2
+    scale = np.sqrt(sww / n_points)
+    inverse = 1.0 / scale
+    inverse2 = inverse * inverse
+    inverse3 = inverse2 * inverse
     d_coefficient, e_coefficient, f_coefficient = _solve3_components(
-        uu, uv_, us, vv, vs, np.full(scale.shape, float(n_points)),
-        -_row_dot(su, squared), -_row_dot(sv, squared), -_row_sum(squared),
+        suu * inverse2, suv * inverse2, _row_sum(u) * inverse, svv * inverse2, _row_sum(v) * inverse,
+        np.full(scale.shape, float(n_points)), -swu * inverse3, -swv * inverse3, -sww * inverse2,
     )  # fmt: skip
     centre = -0.5 * np.stack([d_coefficient, e_coefficient], axis=-1)
     radius = np.sqrt(np.maximum(np.sum(centre**2, axis=-1) - f_coefficient, 0.0))
     return centre * scale[..., None], radius * scale
+
+
+class _CircleState:
+    """In-plane offsets of the points from a centre, their distances and radial residuals ``(..., n_points)``."""
+
+    __slots__ = ("du", "dv", "dist", "res", "cost")
+
+    def __init__(self, shape):
+        self.du, self.dv, self.dist, self.res = (np.empty(shape) for _ in range(4))
+        self.cost = None
+
+    def evaluate(self, u, v, cu, cv, r) -> np.ndarray:
+        """Fill the arrays for centre ``(cu, cv)`` and radius ``r`` in place; return the cost ``sum res^2``."""
+        np.subtract(u, cu[..., None], out=self.du)
+        np.subtract(v, cv[..., None], out=self.dv)
+        np.multiply(self.du, self.du, out=self.dist)
+        np.multiply(self.dv, self.dv, out=self.res)  # scratch
+        self.dist += self.res
+        np.sqrt(self.dist, out=self.dist)
+        np.subtract(self.dist, r[..., None], out=self.res)
+        self.cost = _row_dot(self.res, self.res)
+        return self.cost
 
 
 def _refine_circle_2d_geometric(
@@ -265,50 +341,63 @@ def _refine_circle_2d_geometric(
     a whole batch of independent 3-unknown problems at once, which ``scipy.optimize.least_squares``
     cannot; the tests compare it with scipy circle by circle.
 
+    Every pass over the points writes into arrays allocated once (two states, current and trial, that
+    swap roles when every active item takes its step). An item that has converged takes a zero step,
+    so its trial state is its current state bit for bit and it never needs copying back.
+
     Returns the centre ``(..., 2)``, the radius, the iterations, whether every item converged, the
     radial residuals ``|w_k - c| - R`` ``(..., n_points)``, their sum of squares and ``w_k - c`` as
     ``(du, dv)`` at the solution.
     """
     cu, cv, r = centre[..., 0].copy(), centre[..., 1].copy(), radius.copy()
     n_points = float(u.shape[-1])
-
-    def evaluate(cu, cv, r):
-        du, dv = u - cu[..., None], v - cv[..., None]
-        dist = du * du
-        dist += dv * dv
-        np.sqrt(dist, out=dist)
-        res = dist - r[..., None]
-        return du, dv, dist, res, _row_dot(res, res)
-
-    du, dv, dist, res, cost = evaluate(cu, cv, r)
+    state, trial = _CircleState(u.shape), _CircleState(u.shape)
+    gu, gv = np.empty(u.shape), np.empty(u.shape)
+    cost = state.evaluate(u, v, cu, cv, r)
     damping = np.zeros(cu.shape)
     active = np.ones(cu.shape, dtype=bool)
     iterations = 0
     for iteration in range(1, max_iterations + 1):
         iterations = iteration
-        inverse = np.maximum(dist, 1e-300)
-        np.divide(1.0, inverse, out=inverse)
-        gu, gv = du * inverse, dv * inverse  # J = [-gu, -gv, -1]
+        # J = [-gu, -gv, -1] with g = (w - c) / |w - c|, so gu^2 + gv^2 = 1 at every point
+        with np.errstate(divide="ignore", invalid="ignore"):
+            np.divide(state.du, state.dist, out=gu)
+            np.divide(state.dv, state.dist, out=gv)
+        guu, guv = _row_dot(gu, gu), _row_dot(gu, gv)
+        gu_sum, gv_sum = _row_sum(gu), _row_sum(gv)
+        if np.all(np.isfinite(guu) & np.isfinite(guv)):
+            gvv = n_points - guu
+        else:  # a point at the centre (|w - c| = 0): its direction is taken as 0, as 1 / max(dist, 1e-300) gives
+            inverse = np.maximum(state.dist, 1e-300)
+            np.divide(1.0, inverse, out=inverse)
+            np.multiply(state.du, inverse, out=gu)
+            np.multiply(state.dv, inverse, out=gv)
+            guu, guv, gvv = _row_dot(gu, gu), _row_dot(gu, gv), _row_dot(gv, gv)
+            gu_sum, gv_sum = _row_sum(gu), _row_sum(gv)
         lift = 1.0 + damping
         steps = _solve3_components(
-            _row_dot(gu, gu) * lift, _row_dot(gu, gv), _row_sum(gu), _row_dot(gv, gv) * lift, _row_sum(gv),
-            n_points * lift, -_row_dot(gu, res), -_row_dot(gv, res), -_row_sum(res),
+            guu * lift, guv, gu_sum, gvv * lift, gv_sum, n_points * lift,
+            -_row_dot(gu, state.res), -_row_dot(gv, state.res), -_row_sum(state.res),
         )  # fmt: skip
         step_u, step_v, step_r = (np.where(active & np.isfinite(step), -step, 0.0) for step in steps)
-        trial = evaluate(cu + step_u, cv + step_v, r + step_r)
+        trial_u, trial_v, trial_r = cu + step_u, cv + step_v, r + step_r
+        trial_cost = trial.evaluate(u, v, trial_u, trial_v, trial_r)
         # Accept steps that do not raise the cost beyond its rounding floor: near the minimum the cost
         # cannot resolve parameter changes below ~sqrt(eps) * noise, the Gauss-Newton step can.
-        better = (trial[4] <= cost * (1.0 + COST_TOLERANCE)) & active
-        cu = np.where(better, cu + step_u, cu)
-        cv = np.where(better, cv + step_v, cv)
-        r = np.where(better, r + step_r, r)
-        if np.all(better):
-            du, dv, dist, res = trial[:4]
-        else:  # in place: np.where would allocate four (..., n_points) arrays
+        better = (trial_cost <= cost * (1.0 + COST_TOLERANCE)) & active
+        cu = np.where(better, trial_u, cu)
+        cv = np.where(better, trial_v, cv)
+        r = np.where(better, trial_r, r)
+        # Converged items stepped by zero: their trial state equals their state. Only a rejected step of an
+        # active item needs its old state kept.
+        rejected = active & ~better
+        if not np.any(rejected):
+            state, trial = trial, state
+        else:
             keep = better[..., None]
-            for old, new in zip((du, dv, dist, res), trial[:4], strict=True):
-                np.copyto(old, new, where=keep)
-        cost = np.where(better, trial[4], cost)
+            for name in ("du", "dv", "dist", "res"):
+                np.copyto(getattr(state, name), getattr(trial, name), where=keep)
+        cost = np.where(better, trial_cost, cost)
         damping = np.where(better, damping * 0.1, np.maximum(damping * 10.0, 1e-6))
         largest = np.maximum(np.maximum(np.abs(step_u), np.abs(step_v)), np.abs(step_r))
         small_step = largest <= tolerance * np.maximum(r, 1.0)
@@ -316,7 +405,7 @@ def _refine_circle_2d_geometric(
         if not np.any(active):
             break
     converged = bool(not np.any(active))
-    return np.stack([cu, cv], axis=-1), r, iterations, converged, res, cost, (du, dv)
+    return np.stack([cu, cv], axis=-1), r, iterations, converged, state.res, cost, (state.du, state.dv)
 
 
 def fit_circle_3d(
@@ -325,6 +414,7 @@ def fit_circle_3d(
     method: Literal["geometric", "algebraic"] = "geometric",
     max_iterations: int = 50,
     tolerance: float = 1e-12,
+    residuals: bool = True,
 ) -> CircleFit:
     """Fit circles to ``points (..., n_points, 3)`` [mm] as CPA does: plane first, then circle in it.
 
@@ -343,6 +433,10 @@ def fit_circle_3d(
     method : {"geometric", "algebraic"}
     max_iterations, tolerance
         Limits of the geometric refinement; the step tolerance is relative to the radius.
+    residuals : bool
+        False: leave out the residuals and their RMS (``plane_residuals``, ``radial_residuals``,
+        ``plane_rms`` and ``circle_rms`` are None), which a Monte Carlo draw does not need; the circle
+        itself is the same.
 
     Returns
     -------
@@ -354,9 +448,10 @@ def fit_circle_3d(
     """
     if method not in ("geometric", "algebraic"):
         raise InputError(f"`method` must be 'geometric' or 'algebraic'; got {method!r}")
-    plane, u, v = _plane_fit(points)  # u, v: the projected points' in-plane coordinates
+    # u, v: the projected points' in-plane coordinates; scatter: their sums of squares and products
+    plane, u, v, scatter = _plane_fit(points, residuals=residuals)
     axis_u, axis_v = plane.basis[..., 0, :], plane.basis[..., 1, :]
-    centre_uv, radius = _fit_circle_2d_algebraic(u, v)
+    centre_uv, radius = _fit_circle_2d_algebraic(u, v, scatter)
     iterations, converged = 0, True
     if method == "geometric":
         centre_uv, radius, iterations, converged, radial, cost, (du, dv) = _refine_circle_2d_geometric(
@@ -364,19 +459,23 @@ def fit_circle_3d(
         )
     else:
         du, dv = u - centre_uv[..., 0, None], v - centre_uv[..., 1, None]
-        radial = np.sqrt(du * du + dv * dv) - radius[..., None]
-        cost = _row_dot(radial, radial)
+        radial = cost = None
+        if residuals:
+            radial = np.sqrt(du * du + dv * dv) - radius[..., None]
+            cost = _row_dot(radial, radial)
     centre = plane.centroid + centre_uv[..., 0, None] * axis_u + centre_uv[..., 1, None] * axis_v
     return CircleFit(
         centre=centre,
         normal=plane.normal,
         radius=radius,
         plane_residuals=plane.residuals,
-        radial_residuals=radial,
+        radial_residuals=radial if residuals else None,
         plane_rms=plane.rms,
-        circle_rms=np.sqrt(cost / radial.shape[-1]),
+        circle_rms=np.sqrt(cost / u.shape[-1]) if residuals else None,
         method=method,
         iterations=iterations,
         converged=converged,
-        in_plane=np.stack([du, dv], axis=-1),
+        # (..., n_points, 2) as a view of contiguous du, dv rows: one contiguous write, and in_plane[..., 0]
+        # reads a contiguous row
+        in_plane=np.swapaxes(np.stack([du, dv], axis=-2), -1, -2),
     )

@@ -310,7 +310,9 @@ def _coupling_hint(robot: RobotModel, turning: int, moving: int) -> str:
     if not robot.is_coupled:
         return ""
     follow = robot.reading_matrix[:, turning] / robot.reading_matrix[turning, turning]
-    followers = [f"J{k + 1}'s by {follow[k]:g} times J{turning + 1}'s change" for k in np.flatnonzero(follow) if k != turning]
+    followers = [
+        f"J{k + 1}'s by {follow[k]:g} times J{turning + 1}'s change" for k in np.flatnonzero(follow) if k != turning
+    ]
     rule = f"the readings follow it ({', '.join(followers)})" if followers else "no other reading changes"
     return (
         f" (robot {robot.name!r} couples its readings and J{moving + 1} here is its model joint variable: while "
@@ -334,16 +336,38 @@ def _oriented_axis(fit: CircleFit, points: np.ndarray, q_turn: np.ndarray) -> np
 
     The turn between consecutive points is ``(r_k x r_k+1) . n`` with ``r`` from the centre; with the
     fit's in-plane coordinates ``(du, dv)`` along ``u, v`` (``u x v = n``) it is the 2-D cross product
-    ``du_k dv_k+1 - dv_k du_k+1`` (the axial parts drop out), a few passes over the points instead of ~15.
+    ``du_k dv_k+1 - dv_k du_k+1`` (the axial parts drop out). The sense is the sum of the turns weighted
+    by the steps of q, two one-pass sums of triple products.
     """
+    steps = np.diff(q_turn)
     if fit.in_plane is not None:
         du, dv = fit.in_plane[..., 0], fit.in_plane[..., 1]
-        turn = du[..., :-1] * dv[..., 1:] - dv[..., :-1] * du[..., 1:]
+        sense = np.einsum("...k,...k,k->...", du[..., :-1], dv[..., 1:], steps)
+        sense -= np.einsum("...k,...k,k->...", dv[..., :-1], du[..., 1:], steps)
     else:
         radial = points - fit.centre[..., None, :]
         turn = _dot(_cross(radial[..., :-1, :], radial[..., 1:, :]), fit.normal[..., None, :])
-    sense = np.sum(turn * np.diff(q_turn), axis=-1)
+        sense = np.sum(turn * steps, axis=-1)
     return np.where((sense < 0.0)[..., None], -fit.normal, fit.normal)
+
+
+def _turned_about(line: PluckerLine, axis: PluckerLine, angle: float) -> PluckerLine:
+    """``line`` turned right-handed by ``angle`` [rad] (one angle for the whole batch) about ``axis``.
+
+    Rodrigues' formula on the direction and on a point relative to the axis,
+    ``x cos + (S x x) sin + S (S . x)(1 - cos)``: what ``line.transformed(rotation_about_line(...))``
+    computes, without building and applying a batch of 4x4 matrices.
+    """
+    cosine, sine = np.cos(angle), np.sin(angle)
+    s = axis.direction
+
+    def turn(x):
+        return x * cosine + _cross(s, x) * sine + s * (_dot(s, x) * (1.0 - cosine))[..., None]
+
+    anchor = axis.point
+    direction = turn(line.direction)
+    point = anchor + turn(line.point - anchor)
+    return PluckerLine(direction=direction, moment=_cross(point, direction))
 
 
 def _row_selector(rows: np.ndarray) -> slice | np.ndarray:
@@ -354,10 +378,12 @@ def _row_selector(rows: np.ndarray) -> slice | np.ndarray:
     return rows
 
 
-def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) -> CPABatch:
+def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *, residuals: bool = True) -> CPABatch:
     """CPA on measured points ``(..., n_points, 3)`` [mm] sharing one capture structure.
 
     ``tracker_from_base`` (4, 4) is required when ``structure.options.base_frame == "given"``.
+    ``residuals=False`` leaves the fit residuals out of ``circle_fits`` (``fit_circle_3d(residuals=False)``):
+    the parameters are the same, and a Monte Carlo draw needs nothing else.
     """
     robot, options = structure.robot, structure.options
     n = robot.n_joints
@@ -368,7 +394,7 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
     for joint, rows in enumerate(structure.circle_indices):
         circle_points = points[..., _row_selector(rows), :]
         try:
-            fit = fit_circle_3d(circle_points, method=options.circle_fit)
+            fit = fit_circle_3d(circle_points, method=options.circle_fit, residuals=residuals)
         except DegenerateGeometryError as exc:
             raise DegenerateGeometryError(f"{structure.source}: circle {joint + 1} (J{joint + 1}): {exc}") from None
         normal = _oriented_axis(fit, circle_points, structure.model_q[rows, joint])
@@ -386,7 +412,7 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
         for j in range(k):  # D^-1 L = Rot(L_{k-1}, -dq) ... Rot(L_1, -dq) L: joint 1 acts first
             angle = structure.transport[k, j]
             if angle != 0.0:
-                line = line.transformed(rotation_about_line(referenced[j].direction, referenced[j].point, -angle))
+                line = _turned_about(line, referenced[j], -angle)
         referenced.append(line)
     axes = PluckerLine(
         direction=np.stack([line.direction for line in referenced], axis=-2),
@@ -401,11 +427,14 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
     elif tracker_from_base is None:
         raise InputError("base_frame='given' needs `tracker_from_base`")
     else:
-        tracker_from_base = np.broadcast_to(
-            check_rigid_transform(tracker_from_base, "tracker_from_base"), batch_shape + (4, 4)
-        )
+        tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    # x axes of the nominal frames {1}..{n} at the reference configuration: the hints of the common normals
+    nominal_x = joint_frames(robot.nominal, structure.reference_q[None, :])[0][:, :3, 0]
+    hints = np.einsum("...ij,kj->...ki", tracker_from_base[..., :3, :3], nominal_x)
+    if tracker_from_base.ndim == 2:  # one given frame for the whole batch: computed once, broadcast
+        tracker_from_base = np.broadcast_to(tracker_from_base, batch_shape + (4, 4))
+        hints = np.broadcast_to(hints, batch_shape + hints.shape)
     origin = tracker_from_base[..., :3, 3]
-    nominal_frames = tracker_from_base[..., None, :, :] @ joint_frames(robot.nominal, structure.reference_q[None, :])[0]
     s1 = axes.direction[..., 0, :]
     if options.base_axis == "circle1":
         first = structure.circle_indices[0][0]
@@ -423,8 +452,9 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
     for j in range(n - 1):
         line_j, line_k = axes[..., j], axes[..., j + 1]
         s_j = line_j.direction
-        hint = nominal_frames[..., j + 1, :3, 0]
-        foot_prev = line_j.point + _dot(previous_point - line_j.point, s_j)[..., None] * s_j
+        hint = hints[..., j + 1, :]
+        point_j = line_j.point  # a property: computed once
+        foot_prev = point_j + _dot(previous_point - point_j, s_j)[..., None] * s_j
         start = foot_prev + robot.nominal[j, _D] * s_j
         angle = np.rad2deg(np.arccos(np.clip(np.abs(_dot(s_j, line_k.direction)), 0.0, 1.0)))
         if robot.hayati[j]:
@@ -451,7 +481,9 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None) ->
     # 5. angles within +-180 deg of nominal (docs/conventions.md)
     angles = [_THETA, _ALPHA, _BETA]
     nominal_angles = robot.nominal[:, angles]
-    values[..., angles] = nominal_angles + np.angle(np.exp(1j * (values[..., angles] - nominal_angles)))
+    offsets = values[..., angles] - nominal_angles
+    offsets -= 2.0 * np.pi * np.round(offsets / (2.0 * np.pi))  # exact for offsets already within +-pi
+    values[..., angles] = nominal_angles + offsets
     return CPABatch(
         values=values,
         identified=identified,

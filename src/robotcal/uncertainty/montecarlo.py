@@ -421,18 +421,33 @@ def _noisy_exact_points(problem: MonteCarloProblem, n_draws: int, rng: np.random
     return apply_transform(problem.tracker_from_base, base)
 
 
-def _noise(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -> np.ndarray:
-    """Instrument errors ``(n_draws, n_points, 3)`` [mm], draw-major from ``rng``."""
+def _noise(
+    problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Instrument errors ``(n_draws, n_points, 3)`` [mm], draw-major from ``rng``; written into ``out`` if given.
+
+    Uniform noise is ``rng.random`` mapped to ``2 u - 1`` in place: the very numbers (and the same
+    generator state) as ``rng.uniform(-1, 1)``, which computes ``-1 + 2 u`` element by element (``2 u`` is
+    exact), ~1.5x faster and into a buffer that the caller reuses batch after batch (a fresh array of
+    millions of numbers costs its page faults every time).
+    """
     shape = (n_draws, problem.n_points, 3)
-    bound = problem.error_bound[:, None]
+    noise = np.empty(shape) if out is None else out
     if problem.instrument.is_noise_free:
-        return np.zeros(shape)
-    if problem.instrument.noise == "uniform":
-        noise = rng.uniform(-1.0, 1.0, size=shape)
-        noise *= bound  # in place: the batch is millions of numbers
+        noise[...] = 0.0
         return noise
-    noise = rng.standard_normal(size=shape)
-    noise *= bound / problem.instrument.coverage_factor
+    # The bound of every coordinate as one row of 3 n_points numbers: the in-place product then runs
+    # along whole draws rather than 3 numbers at a time (~3.5x faster, the same products).
+    bound = np.repeat(problem.error_bound, 3)
+    if problem.instrument.noise == "uniform":
+        rng.random(out=noise)
+        noise *= 2.0
+        noise -= 1.0
+    else:
+        rng.standard_normal(out=noise)
+        bound = bound / problem.instrument.coverage_factor
+    flat = noise.reshape(n_draws, -1)  # a view: the product is made in place (millions of numbers)
+    flat *= bound
     return noise
 
 
@@ -447,17 +462,19 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
     """
     instrument_rng, joint_rng = _block_generators(seed, block)
     values = np.empty((n_draws, problem.robot.n_joints, 5))
-    for start, count in _chunks(n_draws, batch_size):
+    chunks = _chunks(n_draws, batch_size)
+    buffer = np.empty((max((count for _, count in chunks), default=0), problem.n_points, 3))  # every batch's points
+    for start, count in chunks:
         if problem.joint_errors is not None:
             exact = _noisy_exact_points(problem, count, joint_rng)
         else:
             exact = problem.exact_points
-        points = _noise(problem, count, instrument_rng)
+        points = _noise(problem, count, instrument_rng, out=buffer[:count])
         points += exact  # noise + exact, in place (the same numbers as exact + noise)
         if count == 1:
             points = np.concatenate([points, points])
         try:
-            batch = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
+            batch = identify_cpa_batch(points, problem.structure, problem.tracker_from_base, residuals=False)
             result = batch.values
             if problem.refined is not None:
                 result = _refine_draws(problem.refined, points, batch)
@@ -827,7 +844,7 @@ def _cpa_covariance(problem: MonteCarloProblem, step: float) -> np.ndarray:
     perturbation[index, index // 3, index % 3] = step
     perturbation[n_inputs + index, index // 3, index % 3] = -step
     values = identify_cpa_batch(
-        problem.exact_points + perturbation, problem.structure, problem.tracker_from_base
+        problem.exact_points + perturbation, problem.structure, problem.tracker_from_base, residuals=False
     ).values
     flat = values.reshape(2 * n_inputs, -1)
     jacobian = ((flat[:n_inputs] - flat[n_inputs:]) / (2.0 * step)).T  # (n_params, n_inputs)

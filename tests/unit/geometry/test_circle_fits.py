@@ -286,3 +286,31 @@ def test_in_plane_coordinates_are_the_projected_points_about_the_centre(method):
     turn_3d = np.einsum("bnc,bc->bn", np.cross(radial[:, :-1], radial[:, 1:]), fit.normal)
     turn_2d = du[:, :-1] * dv[:, 1:] - dv[:, :-1] * du[:, 1:]
     np.testing.assert_allclose(turn_2d, turn_3d, rtol=1e-9, atol=1e-6)  # turns ~1e3..1e5 mm^2
+
+
+@pytest.mark.parametrize("method", ["geometric", "algebraic"])
+def test_fit_without_residuals_is_the_same_circle(method):
+    points = np.stack([_noisy_circle(seed, arc_deg=100.0, n_points=12)[0] for seed in range(5)])
+    full = fit_circle_3d(points, method=method)
+    lean = fit_circle_3d(points, method=method, residuals=False)
+    # the residuals are computed from the fitted circle, never the other way round: bit for bit
+    for name in ("centre", "normal", "radius", "in_plane"):
+        np.testing.assert_array_equal(getattr(lean, name), getattr(full, name))
+    assert lean.iterations == full.iterations and lean.converged == full.converged
+    for name in ("plane_residuals", "radial_residuals", "plane_rms", "circle_rms"):
+        assert getattr(lean, name) is None
+
+
+@pytest.mark.parametrize("function", [fit_plane, fit_circle_3d])
+def test_infinite_points(function):
+    points = np.stack([_random_circle(np.random.default_rng(1))[0]] * 3)
+    points[2, 5, 0] = -np.inf  # one coordinate of one batch item
+    with pytest.raises(InputError, match="NaN or infinite"):
+        function(points)
+
+
+def test_coordinates_whose_sum_overflows():
+    # finite, but their sum is not: refused rather than fitted with an infinite centroid
+    points = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 0.0]]) * 1.5e308
+    with pytest.raises(InputError, match="too large"):
+        fit_circle_3d(points)

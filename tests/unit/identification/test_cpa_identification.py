@@ -471,3 +471,38 @@ def test_batch_equals_separate_calls(base_frame, circle_fit, base_axis):
         # intersecting axes) to ~1e-11 mm; 1e-9 is the agreement the Monte Carlo engine promises.
         np.testing.assert_allclose(batch.values[k], single.parameters.values, rtol=0, atol=1e-9)
         np.testing.assert_allclose(batch.tracker_from_base[k], single.tracker_from_base, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("base_frame", ["given", "registered"])
+@pytest.mark.parametrize("circle_fit", ["geometric", "algebraic"])
+def test_batch_without_residuals_gives_the_same_parameters(base_frame, circle_fit):
+    robot, _, reflector, tracker_from_base, capture = _scenario(1000)
+    stack = capture.points + Instrument(a_mm=0.01, b_mm_per_m=0.005).sample_noise(
+        np.broadcast_to(capture.points, (4,) + capture.points.shape), rng=5
+    )
+    structure = prepare_cpa(capture, robot, reflector, CPAOptions(circle_fit=circle_fit, base_frame=base_frame))
+    full = identify_cpa_batch(stack, structure, tracker_from_base)
+    lean = identify_cpa_batch(stack, structure, tracker_from_base, residuals=False)
+    # the residuals are computed after the circles, from the same numbers: identical, bit for bit
+    np.testing.assert_array_equal(lean.values, full.values)
+    np.testing.assert_array_equal(lean.tracker_from_base, full.tracker_from_base)
+    for fit in lean.circle_fits:
+        assert fit.plane_residuals is None and fit.radial_residuals is None
+        assert fit.plane_rms is None and fit.circle_rms is None
+
+
+def test_axis_transport_equals_the_rigid_transform_about_the_axis():
+    from robotcal.geometry.lines import PluckerLine
+    from robotcal.geometry.transforms import rotation_about_line
+    from robotcal.identification.cpa import _turned_about
+
+    rng = np.random.default_rng(4)
+    axis = PluckerLine.from_point_direction(rng.uniform(-900.0, 900.0, (7, 3)), rng.normal(size=(7, 3)))
+    line = PluckerLine.from_point_direction(rng.uniform(-900.0, 900.0, (7, 3)), rng.normal(size=(7, 3)))
+    for angle in (0.3, -2.9, 1e-7):
+        turned = _turned_about(line, axis, angle)
+        # independent route: the 4x4 rigid transform about the axis, applied to the line
+        expected = line.transformed(rotation_about_line(axis.direction, axis.point, angle))
+        # unit directions and moments of lines within ~1 m of the origin: rounding only (~1e-13 mm)
+        np.testing.assert_allclose(turned.direction, expected.direction, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(turned.moment, expected.moment, rtol=0, atol=1e-11)
