@@ -28,14 +28,28 @@ final cost is never above the start's: should the solver end higher, the start i
 Which quantities are free: decided by the data
 ----------------------------------------------
 Nothing is held by a list. At the start, every candidate -- each parameter the model does not fix
-(beta of a DH joint, d of a Hayati joint) plus, when the base frame is estimated, the six ``base.*``
-corrections -- enters one rank-revealing, ordered selection on the column-scaled Jacobian of the
-actual residuals (:func:`robotcal.identification.observability.select_identifiable`). The order is
-a documented choice: **base corrections first**, then the parameters joint by joint in the order
-d, theta, a, alpha, beta. Of a group of columns that are dependent, the earlier ones stay free and
-the later ones are held at their start value: a parameter that is equivalent to a base motion is
-held and the base correction kept (the base frame is the instrument's pose, the parameters are the
-robot's; CPA fixes d1 and theta1 from the base frame). What is held is reported:
+(beta of a DH joint, d of a Hayati joint), the unknown flange offsets, plus, when the base frame is
+estimated, the six ``base.*`` corrections -- enters one rank-revealing, ordered selection on the
+column-scaled Jacobian of the actual residuals
+(:func:`robotcal.identification.observability.select_identifiable`). The order is a documented
+choice: **base corrections first**, then the unknown offsets (their guess is rough, the nominal
+parameters are not), then the parameters joint by joint in the order d, theta, a, alpha, beta. Of a
+group of columns that are dependent, the earlier ones stay free and the later ones are held at their
+start value: a parameter that is equivalent to a base motion is held and the base correction kept
+(the base frame is the instrument's pose, the parameters are the robot's; CPA fixes d1 and theta1
+from the base frame).
+
+**Decided again at the solution.** Dependencies can exist only at special values (alpha = 0, a = 0, a
+target on an axis of the nominal robot) or be hidden by them: a parameter held at the start that the
+truth determines leaves a residual on noise-free data, one freed at the start that the solution does
+not determine wanders along the null space. So the rank test runs again at the solution (parameters,
+offsets and base frame as fitted; its Jacobian also serves the statistics), with the free set in use
+tested first (each part in the order above) and the held candidates after it: a free quantity is
+dropped only when it is not determined there, a held one freed only when it adds to the rank. When
+the free set changes, the capture is refitted from the solution with the new set, what it now holds
+going back to its start value; at most ``_MAX_REFITS`` (3) refits, and a free set seen before stops
+the rounds (the last fit is returned, ``message`` and the warning say the free set did not settle).
+``refits`` counts the refits; the warnings report the final decision. What is held is reported:
 
 * ``gauge``: held parameters whose whole effect on the data is a rigid motion of the point cloud
   (tested on the data: the parameter's column of ``d points / d x`` lies in the span of the six
@@ -43,9 +57,9 @@ robot's; CPA fixes d1 and theta1 from the base frame). What is held is reported:
   a base-frame one (base estimated, or distances).
 * ``held``: the other held quantities (the data determine no combination that includes them).
 * ``confounded``: free quantities that take up the effect of held ones, so that only their
-  combination is determined: the support of the null space of the full candidate Jacobian, taken
-  at a generic point near the start (every candidate moved by up to one ``x_scale`` unit, fixed
-  seed) because special start values hide second-order couplings (a flange target at height h
+  combination is determined: the support of the null space of the full candidate Jacobian at the
+  solution and at a generic point near it (every candidate moved by up to one ``x_scale`` unit,
+  fixed seed) because special values hide second-order couplings (a flange target at height h
   above a nominal alpha_n = 0 moves d_n by ``h (1 - cos alpha_n)`` when alpha_n is held).
 
 The cases (thesis layout = per-joint reflectors, reflector i fixed in frame {i-1} and turned by
@@ -156,6 +170,7 @@ def least_squares(*args, **kwargs):
 
     return solve(*args, **kwargs)
 
+
 #: The two objectives of thesis ch. 4.5.7.
 CRITERIA = ("points", "distances")
 #: Names of the six ``tracker_from_base`` corrections (points criterion): translation [mm], then
@@ -170,6 +185,8 @@ _SUPPORT = 1e-8  # a null vector's entry (unit columns) above this ties a free q
 #: [mm]: a guess on axis n (the default, the flange origin) would hide joint n's rotation from the test,
 #: while the data, taken off the axis, do show it.
 _GENERIC_OFFSET_MM = 50.0
+#: Refits when the rank test at a solution changes the free set (module notes); a free set seen before also stops.
+_MAX_REFITS = 3
 
 
 def _generic_directions(count: int) -> np.ndarray:
@@ -199,7 +216,7 @@ class RefinementResult:
         SciPy's message; prefixed with an explanation when sigma could not be estimated or when
         the start was returned.
     nfev, njev : int
-        Residual and Jacobian evaluations.
+        Residual and Jacobian evaluations, summed over the fits (``refits`` + 1).
     free : ndarray of bool, shape (n_joints, 5)
         Parameters estimated.
     base_free : ndarray of bool, shape (6,)
@@ -208,7 +225,7 @@ class RefinementResult:
         Parameters held because their effect on the data is a rigid motion of the whole point cloud,
         which the criterion cannot tell from a base-frame motion: a free base frame absorbs it (points
         criterion, ``tracker_from_base`` estimated) or pairwise distances do not see it. Found by the
-        rank test at the start, not from a list: d1 and theta1 behind a flange target with a free
+        rank test at the solution, not from a list: d1 and theta1 behind a flange target with a free
         base or with distances; empty with per-joint targets or a held base (module notes).
     held : tuple of str
         Other parameters (and ``base.*`` corrections) held because the data cannot determine them:
@@ -228,7 +245,8 @@ class RefinementResult:
         SciPy cost ``0.5 * sum(r^2)`` [mm^2] at the start; the final cost is never above it.
     cost_history : ndarray, shape (n_iterations + 1,)
         SciPy cost ``0.5 * sum(r^2)`` [mm^2] at the start and after every iteration (each Jacobian
-        evaluation happens at an accepted iterate), ending with the final cost.
+        evaluation happens at an accepted iterate), ending with the final cost; after a refit it goes
+        on with the refit's start (the quantities newly held back at their start values) and iterations.
     rms_history : ndarray, shape (n_iterations + 1,)
         ``sqrt(2 cost / m)`` [mm], the RMS residual along the way.
     n_residuals : int
@@ -249,6 +267,9 @@ class RefinementResult:
         ``sqrt(diag(covariance))`` placed per parameter [mm, rad]; NaN where held, and everywhere
         when sigma is NaN.
     wall_time_s : float
+    refits : int
+        How many times the rank test at a solution changed the free set and the capture was refitted
+        (module notes); 0 when the start's decision holds at the solution.
     """
 
     parameters: ParameterSet
@@ -286,6 +307,7 @@ class RefinementResult:
     target_uncertainty: np.ndarray | None = None
     weighted: bool = False
     residual_rms_coordinate: float = float("nan")
+    refits: int = 0
 
 
 def wrap_angles(values, nominal=None) -> np.ndarray:
@@ -400,6 +422,7 @@ class _Problem:
     offset_free: np.ndarray = field(default_factory=_no_flags)
     point_weight: np.ndarray | None = None
     pair_weight: np.ndarray | None = None
+    base_offset: np.ndarray = field(default_factory=lambda: np.zeros(6))  # base corrections at x0 (held: kept)
 
     @property
     def n_kinematic(self) -> int:
@@ -411,7 +434,7 @@ class _Problem:
 
     def x0(self) -> np.ndarray:
         return np.concatenate(
-            [self.start[self.free], self.offset_start.ravel()[self.offset_free], np.zeros(int(self.base_free.sum()))]
+            [self.start[self.free], self.offset_start.ravel()[self.offset_free], self.base_offset[self.base_free]]
         )
 
     def unpack_all(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -420,9 +443,15 @@ class _Problem:
         values[self.free] = x[: self.n_kinematic]
         offsets = self.offset_start.copy().ravel()
         offsets[self.offset_free] = x[self.n_kinematic : self.n_kinematic + self.n_offsets]
-        x_base = np.zeros(6)
+        x_base = self.base_offset.copy()
         x_base[self.base_free] = x[self.n_kinematic + self.n_offsets :]
         return values, offsets.reshape(-1, 3), x_base
+
+    def pack(self, values, offsets, x_base) -> np.ndarray:
+        """The unknowns x of parameters ``(n, 5)``, unknown offsets ``(k, 3)`` and base corrections ``(6,)``."""
+        return np.concatenate(
+            [values[self.free], np.asarray(offsets).ravel()[self.offset_free], np.asarray(x_base)[self.base_free]]
+        )
 
     def unpack(self, x) -> tuple[np.ndarray, np.ndarray]:
         values, _, x_base = self.unpack_all(x)
@@ -655,39 +684,61 @@ class _Selection:
     confounded: np.ndarray  # (5 n + 3 k + 6,) bool: free quantities tied to a held one
 
 
-def _select_free(
-    probe: _Problem, candidates: np.ndarray, all_scale: np.ndarray, kind_scale: np.ndarray, tolerance: float
-) -> _Selection:
-    """Rank test at the start on every candidate column (parameters, unknown offsets, base corrections).
+def _null_support(matrix: np.ndarray, dimension: int) -> np.ndarray:
+    """Columns of ``matrix`` (scaled to unit norm) that enter its ``dimension`` smallest right singular vectors."""
+    if dimension <= 0:
+        return np.zeros(matrix.shape[1], dtype=bool)
+    _, _, vt = np.linalg.svd(matrix / np.linalg.norm(matrix, axis=0), full_matrices=True)
+    return np.abs(vt[-dimension:]).max(axis=0) > _SUPPORT
 
-    Columns are taken base corrections first, then the parameters of joints 1..n-1 in the order d,
-    theta, a, alpha, beta, then the unknown flange offsets, then joint n's parameters
-    (:func:`select_identifiable`): of a dependent group the earlier ones stay free, so a parameter
-    equivalent to a base motion is held and the base correction kept, and joint n's d, theta, a,
-    alpha, which only move the flange frame that unknown offsets are expressed in, are held in
-    favour of the offsets (the flange frame stays nominal; the offsets are estimated in it).
+
+def _selection_key(selection: _Selection) -> bytes:
+    """What a selection estimates, comparable across rank tests."""
+    return np.r_[selection.free.ravel(), selection.offset_free, selection.base_free].tobytes()
+
+
+def _select_free(
+    probe: _Problem,
+    candidates: np.ndarray,
+    all_scale: np.ndarray,
+    kind_scale: np.ndarray,
+    tolerance: float,
+    jacobian: np.ndarray | None = None,
+    preferred: _Selection | None = None,
+) -> _Selection:
+    """Rank test at ``probe.x0()`` (the start, or a solution) on every candidate column (parameters, unknown
+    offsets, base corrections); ``jacobian``: ``probe``'s Jacobian there when already evaluated.
+
+    Columns are taken base corrections first, then the unknown flange offsets, then the parameters of
+    joints 1..n in the order d, theta, a, alpha, beta (:func:`select_identifiable`): of a dependent group
+    the earlier ones stay free, so a parameter equivalent to a base motion is held and the base
+    correction kept, and joint n's d, theta, a, alpha, which only move the flange frame that unknown
+    offsets are expressed in, are held in favour of the offsets (the flange frame stays nominal; the
+    offsets are estimated in it); so is a parameter of joints 1..n-1 that only an offset's rough guess
+    would otherwise absorb (a target on axis n). ``preferred`` (at a solution: the free set in use) puts
+    its columns first, each part in that order, so that a free quantity is dropped only when it is not
+    determined and a held one freed only when it adds to the rank.
     """
     n = probe.free.shape[0]
     n_off = probe.offset_free.size
     n_base = int(probe.base_free.sum())
-    _, jac_all = probe.evaluate(probe.x0())  # columns: 5 n parameters, 3 k offsets, then the candidate base ones
+    if preferred is not None:
+        preferred = np.r_[preferred.free.ravel(), preferred.offset_free, preferred.base_free[probe.base_free]]
+    # columns: 5 n parameters, 3 k offsets, then the candidate base ones
+    jac_all = probe.evaluate(probe.x0())[1] if jacobian is None else jacobian
     scale = np.concatenate([np.tile(kind_scale, n), np.ones(n_off), all_scale[5 * n :][probe.base_free]])
     scaled = triangular_factor(jac_all * scale)
     chosen = np.r_[candidates.ravel(), np.ones(n_off + n_base, dtype=bool)]
-    last = 5 * (n - 1)
-    order = np.r_[
-        np.arange(5 * n + n_off, 5 * n + n_off + n_base),
-        np.arange(last),
-        np.arange(5 * n, 5 * n + n_off),
-        np.arange(last, 5 * n),
-    ]
+    order = np.r_[np.arange(5 * n + n_off, 5 * n + n_off + n_base), np.arange(5 * n, 5 * n + n_off), np.arange(5 * n)]
+    if preferred is not None:  # the free set being checked first, each part in the documented order
+        order = np.r_[order[preferred[order]], order[~preferred[order]]]
     keep = np.zeros(chosen.size, dtype=bool)
     keep[order] = select_identifiable(scaled[:, order], chosen[order], tolerance=tolerance)
     held_all = chosen & ~keep
 
     # free quantities whose estimate depends on a held one: the support of the null space, taken at
-    # a generic point near the start (every candidate moved by up to one scale unit, a fixed seed):
-    # at the start itself special values (alpha = 0, a target on an axis) can hide a coupling that
+    # a generic point near the probe's point (every candidate moved by up to one scale unit, a fixed seed):
+    # at that point itself special values (alpha = 0, a target on an axis) can hide a coupling that
     # is of second order there but still moves the free parameter once the held one is off its truth
     norms = np.linalg.norm(scaled, axis=0)
     live = chosen & (norms > tolerance * max(float(norms[chosen].max(initial=0.0)), 1e-300))  # as the selection
@@ -697,8 +748,11 @@ def _select_free(
         generic = probe.x0() + np.where(chosen, np.random.default_rng(0).uniform(-1.0, 1.0, chosen.size), 0.0) * scale
         # (a strided sample of the pairs: the null space of a few thousand generic rows is that of all)
         moved = triangular_factor(probe.jacobian_sample(generic, _SAMPLE_ROWS) * scale)[:, live]
-        _, _, vt = np.linalg.svd(moved / np.linalg.norm(moved, axis=0), full_matrices=True)
-        support = np.abs(vt[-n_null:]).max(axis=0) > _SUPPORT
+        # the generic point keeps the structural dependencies but can lose those of the probe's own geometry
+        # (a fitted target on axis n): its null space is at most n_null wide, as wide as its rank says, and the
+        # null space at the probe point itself is taken too
+        n_generic = min(n_null, int(live.sum()) - int(select_identifiable(moved, np.ones(moved.shape[1], bool)).sum()))
+        support = _null_support(moved, n_generic) | _null_support(scaled[:, live], n_null)
         confounded[np.flatnonzero(live)[support]] = True
         confounded &= keep
 
@@ -919,20 +973,130 @@ def refine_parameters(
     )
     selection = _select_free(probe, candidates, all_scale, kind_scale, rank_tolerance)
     probe = replace(probe, offset_start=offset_start)
-    free_mask, base_free, offset_free = selection.free, selection.base_free, selection.offset_free
-    gauge = tuple(name for name, flag in zip(names, selection.gauge.ravel(), strict=True) if flag)
-    held_mask = selection.held & ~selection.gauge
-    held = (
-        tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
-        + tuple(name for name, flag in zip(offset_names, selection.offset_held, strict=True) if flag)
-        + tuple(BASE_NAMES[k] for k in np.flatnonzero(selection.base_held))
-    )
-    confounded = tuple(
-        name for name, flag in zip(names + offset_names + BASE_NAMES, selection.confounded, strict=True) if flag
-    )
-    if gauge or held:
+    strict = explicit or on_unidentifiable == "raise"
+
+    def describe(chosen: _Selection):
+        """Names of the gauge, held and confounded quantities of a selection, and joint n's held for the flange."""
+        gauge = tuple(name for name, flag in zip(names, chosen.gauge.ravel(), strict=True) if flag)
+        held_mask = chosen.held & ~chosen.gauge
+        held = (
+            tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
+            + tuple(name for name, flag in zip(offset_names, chosen.offset_held, strict=True) if flag)
+            + tuple(BASE_NAMES[k] for k in np.flatnonzero(chosen.base_held))
+        )
+        confounded = tuple(
+            name for name, flag in zip(names + offset_names + BASE_NAMES, chosen.confounded, strict=True) if flag
+        )
         flange_frame = _flange_frame_note(targets, unknown, held_mask, n)
         flange_held = () if explicit or not flange_frame else tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
+        return gauge, held, confounded, flange_frame, flange_held
+
+    gauge, held, confounded, flange_frame, flange_held = describe(selection)
+    if strict and set(gauge + held) - set(flange_held):  # refused before any fit
+        _report_held(capture, criterion, use_base, gauge, held, still, True, flange_frame, flange_held, "the start")
+    # (a flange frame held for unknown offsets only warns, after the fit)
+
+    # fit, then decide the free set again at the solution; refit while it changes (module notes)
+    fit_values, fit_offsets, fit_base = start.values.copy(), offset_start, np.zeros(6)
+    seen = [_selection_key(selection)]
+    nfev = njev = 0
+    history: list[float] = []
+    start_cost = None
+    unsettled = ""
+    for fit_round in range(_MAX_REFITS + 1):
+        free_mask, base_free, offset_free = selection.free, selection.base_free, selection.offset_free
+        problem = replace(
+            probe,
+            start=fit_values,
+            offset_start=fit_offsets,
+            base_offset=fit_base,
+            free=free_mask,
+            base_free=base_free,
+            offset_free=offset_free,
+        )
+        x0 = problem.x0()
+        if x0.size == 0:
+            raise IdentifiabilityError(
+                f"{capture.source}: no parameter can be refined from this capture", parameters=gauge + held
+            )
+        x_scale = np.concatenate(
+            [np.tile(kind_scale, (n, 1))[free_mask], np.ones(int(offset_free.sum())), all_scale[5 * n :][base_free]]
+        )
+
+        def jacobian(x, problem=problem):
+            residuals, jac = problem.evaluate(x)
+            history.append(0.5 * float(residuals @ residuals))
+            return jac
+
+        m = capture.n_points * 3 if criterion == "points" else pair_i.size
+        chosen_method = ("lm" if m >= x0.size else "trf") if method == "auto" else method
+        if start_cost is None:
+            start_residuals = problem.residuals(x0)
+            start_cost = 0.5 * float(start_residuals @ start_residuals)
+        evaluations = len(history)
+        solution = least_squares(
+            problem.residuals,
+            x0,
+            jac=jacobian,
+            method=chosen_method,
+            x_scale=x_scale,
+            ftol=tolerance,
+            xtol=tolerance,
+            gtol=tolerance,
+            max_nfev=max_nfev,
+        )
+        nfev += int(solution.nfev)
+        njev += int(solution.njev) if solution.njev is not None else len(history) - evaluations
+        final_cost = float(solution.cost)
+        x_final = np.asarray(solution.x, dtype=float)
+        success = bool(solution.status > 0)
+        message = str(solution.message)
+        if not np.isfinite(final_cost) or final_cost > start_cost:
+            # never hand back something worse than what came in (module notes); the start in this round's
+            # unknowns: held quantities are at their start values in every round
+            message = (
+                f"the solver ended at a higher cost ({final_cost:.6g} mm^2) than the start ({start_cost:.6g} mm^2); "
+                f"the start is returned. Solver: {message}"
+            )
+            x_final, success = problem.pack(start.values, offset_start, np.zeros(6)), False
+            start_residuals = problem.residuals(x_final)
+            final_cost = 0.5 * float(start_residuals @ start_residuals)
+        if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
+            history.append(final_cost)
+        values, offsets, x_base = problem.unpack_all(x_final)
+        # the rank test again, at the solution (the offsets as estimated): its Jacobian serves the statistics too
+        at_solution = replace(probe, start=values, offset_start=offsets, base_offset=x_base)
+        evaluated = at_solution.evaluate(at_solution.x0())
+        if not success:
+            break  # the start returned: the start's decision stands
+        decided = _select_free(
+            at_solution, candidates, all_scale, kind_scale, rank_tolerance, evaluated[1], preferred=selection
+        )
+        key = _selection_key(decided)
+        if key == seen[-1]:  # confirmed: report what the solution's test says (gauge, held, confounded)
+            gauge, held, confounded, flange_frame, flange_held = describe(decided)
+            break
+        if strict:  # an explicit free set (or "raise") is not re-chosen: held at the solution is an error
+            now_gauge, now_held, _, now_flange, now_flange_held = describe(decided)
+            if set(now_gauge + now_held) - set(now_flange_held):
+                _report_held(
+                    capture, criterion, use_base, now_gauge, now_held, still, True, now_flange, now_flange_held
+                )
+        if key in seen or fit_round == _MAX_REFITS:
+            unsettled = (
+                f"the free set did not settle: the rank test at the solution of fit {fit_round + 1} "
+                f"{'returns to an earlier free set' if key in seen else 'changes it again'}; the last fit is returned"
+            )
+            break
+        seen.append(key)
+        selection = decided
+        gauge, held, confounded, flange_frame, flange_held = describe(selection)
+        # refit from the solution: what stays free keeps its value, what is now held goes back to its start value
+        fit_values = np.where(selection.free, values, start.values)
+        fit_offsets = np.where(selection.offset_free, offsets.ravel(), offset_start.ravel()).reshape(-1, 3)
+        fit_base = np.where(selection.base_free, x_base, 0.0)
+    refits = len(seen) - 1
+    if gauge or held or unsettled:
         _report_held(
             capture,
             criterion,
@@ -940,65 +1104,26 @@ def refine_parameters(
             gauge,
             held,
             still,
-            explicit or on_unidentifiable == "raise",
+            strict,
             flange_frame,
             flange_held,
+            "the solution" if success else "the start",
+            refits,
+            unsettled,
         )
-
-    problem = replace(probe, free=free_mask, base_free=base_free, offset_free=offset_free)  # identifiable columns
-    x0 = problem.x0()
-    if x0.size == 0:
-        raise IdentifiabilityError(
-            f"{capture.source}: no parameter can be refined from this capture", parameters=gauge + held
-        )
-    x_scale = np.concatenate(
-        [np.tile(kind_scale, (n, 1))[free_mask], np.ones(int(offset_free.sum())), all_scale[5 * n :][base_free]]
-    )
+    if unsettled:
+        message = f"{unsettled}. Solver: {message}"
     free_names = (
         tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag)
         + tuple(name for name, flag in zip(offset_names, offset_free, strict=True) if flag)
         + tuple(BASE_NAMES[k] for k in np.flatnonzero(base_free))
     )
-    history: list[float] = []
-
-    def jacobian(x):
-        residuals, jac = problem.evaluate(x)
-        history.append(0.5 * float(residuals @ residuals))
-        return jac
-
-    m = capture.n_points * 3 if criterion == "points" else pair_i.size
-    chosen_method = ("lm" if m >= x0.size else "trf") if method == "auto" else method
-    start_residuals = problem.residuals(x0)
-    start_cost = 0.5 * float(start_residuals @ start_residuals)
-    solution = least_squares(
-        problem.residuals,
-        x0,
-        jac=jacobian,
-        method=chosen_method,
-        x_scale=x_scale,
-        ftol=tolerance,
-        xtol=tolerance,
-        gtol=tolerance,
-        max_nfev=max_nfev,
-    )
-    final_cost = float(solution.cost)
-    x_final = np.asarray(solution.x, dtype=float)
-    success = bool(solution.status > 0)
-    message = str(solution.message)
-    if not np.isfinite(final_cost) or final_cost > start_cost:
-        # never hand back something worse than what came in (module notes)
-        message = (
-            f"the solver ended at a higher cost ({final_cost:.6g} mm^2) than the start ({start_cost:.6g} mm^2); "
-            f"the start is returned. Solver: {message}"
-        )
-        x_final, final_cost, success = x0, start_cost, False
-    if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
-        history.append(final_cost)
     cost_history = np.asarray(history)
-    values, offsets, x_base = problem.unpack_all(x_final)
 
-    # statistics at the solution (the per-point figures unweighted, in mm)
-    residuals, jac = problem.evaluate(x_final)
+    # statistics at the solution (the per-point figures unweighted, in mm), from the rank test's Jacobian
+    residuals, jac_all = evaluated
+    columns = np.r_[free_mask.ravel(), offset_free, base_free[: 6 if use_base else 0]]
+    jac = jac_all[:, columns]
     raw = problem.raw_residuals(x_final)
     if criterion == "points":
         per = np.linalg.norm(raw.reshape(-1, 3), axis=1)
@@ -1035,8 +1160,8 @@ def refine_parameters(
         success=success,
         status=int(solution.status),
         message=message,
-        nfev=int(solution.nfev),
-        njev=int(solution.njev if solution.njev is not None else len(history)),
+        nfev=nfev,
+        njev=njev,
         free=_frozen(free_mask, bool),
         base_free=_frozen(base_free, bool),
         gauge=gauge,
@@ -1063,6 +1188,7 @@ def refine_parameters(
         target_uncertainty=_frozen(target_sd) if targets else None,
         weighted=sigmas is not None,
         residual_rms_coordinate=float(np.sqrt(np.mean(raw**2))),
+        refits=refits,
     )
 
 
@@ -1083,12 +1209,25 @@ def _flange_frame_note(targets, unknown, held_mask, n) -> str:
 
 
 def _report_held(
-    capture, criterion, use_base, gauge, held, still, strict, flange_frame: str = "", flange_held=()
+    capture,
+    criterion,
+    use_base,
+    gauge,
+    held,
+    still,
+    strict,
+    flange_frame: str = "",
+    flange_held=(),
+    where: str = "the solution",
+    refits: int = 0,
+    unsettled: str = "",
 ) -> None:
     """Warn about (or, ``strict``, raise for) the quantities the rank test holds.
 
     ``flange_held``: joint n's parameters held because every flange offset is unknown (the flange frame
-    is then a choice, not a failure of the data): with ``strict`` they alone only warn.
+    is then a choice, not a failure of the data): with ``strict`` they alone only warn. ``where``: the point
+    of the deciding rank test ("the start", "the solution"); ``refits``: how many times the free set changed
+    at a solution and the capture was refitted; ``unsettled``: why the free set did not settle, if so.
     """
     parts = []
     if gauge:
@@ -1102,14 +1241,22 @@ def _report_held(
         detail = f"; joints that never move in the capture: {', '.join(still)}" if still else ""
         parts.append(
             f"the {criterion} criterion cannot determine {', '.join(held)} from this capture "
-            f"(rank-deficient column-scaled Jacobian at the start){detail}"
+            f"(rank-deficient column-scaled Jacobian at {where}){detail}"
+        )
+    if refits:
+        parts.append(
+            f"the rank test at the solution changed the free set, so the capture was refitted ({refits} refit"
+            f"{'s' if refits > 1 else ''}) with the quantities it holds back at their start values"
         )
     if flange_frame:
         parts.append(flange_frame)
+    if unsettled:
+        parts.append(unsettled)
     text = f"{capture.source}: " + "; ".join(parts)
     if strict and set(gauge + held) - set(flange_held):
         raise IdentifiabilityError(text, parameters=gauge + held)
-    warnings.warn(text + "; they are held at their start values", IdentifiabilityWarning, stacklevel=3)
+    suffix = "; they are held at their start values" if gauge or held else ""
+    warnings.warn(text + suffix, IdentifiabilityWarning, stacklevel=3)
 
 
 def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray | None, float, float]:
