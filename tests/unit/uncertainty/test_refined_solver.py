@@ -1,0 +1,158 @@
+"""The batched refinement's internals against independent code: the group twists against
+``target_jacobian``, and every refined draw against the Gauss-Newton stationarity condition evaluated with
+``target_jacobian`` (dense per-point Jacobian, forward kinematics), on the demo capture and on a flange target.
+Also: a draw's bits do not depend on the batch it is refined in, across the draw blocks of the products."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robotcal.identification.cpa import identify_cpa_batch
+from robotcal.io import load_scenario
+from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.jacobian import target_jacobian
+from robotcal.kinematics.model import ParameterSet, ReflectorMount
+from robotcal.uncertainty.montecarlo import _block_generators, _noise
+from robotcal.uncertainty.refined import (
+    _Batch,
+    _kinematics,
+    _point_jacobian,
+    _points,
+    prepare_refined_model,
+    refine_batch,
+)
+from robotcal.workflow import scenario_monte_carlo
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return scenario_monte_carlo(load_scenario("kr5-demo"), model="refined")
+
+
+@pytest.fixture(scope="module")
+def flange(demo):
+    return _flange_model(demo)
+
+
+def _flange_model(demo):
+    """The demo's poses measured on one flange target: one group per pose (130 groups of 1 or 2 points)."""
+    mount = ReflectorMount(frame="flange", positions=np.array([60.0, 40.0, 30.0]))
+    truth = demo.true_parameters.values
+    q = demo.robot.model_joint_variables(demo.capture.readings)
+    tracker = demo.tracker_from_base
+    exact = target_positions(truth, q, np.zeros(q.shape[0], int), mount) @ tracker[:3, :3].T + tracker[:3, 3]
+    capture = demo.capture.with_points(exact)
+    model = prepare_refined_model(
+        capture, ParameterSet(robot=demo.robot, values=truth), mount, tracker_from_base=tracker, estimate_base=False
+    )
+    return model, exact, truth, tracker
+
+
+def _demo_draws(problem, n_draws, seed=2):
+    rng, _ = _block_generators(seed, 0)
+    points = problem.exact_points + _noise(problem, n_draws, rng)
+    cpa = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
+    return points, cpa.values, cpa.tracker_from_base
+
+
+def _flange_draws(flange, n_draws, seed=3):
+    model, exact, truth, tracker = flange
+    rng = np.random.default_rng(seed)
+    points = exact[None] + 0.02 * rng.standard_normal((n_draws,) + exact.shape)  # 20 um per coordinate
+    start = truth + 1e-3 * rng.standard_normal((n_draws,) + truth.shape) * model.free
+    return points, start, np.broadcast_to(tracker, (n_draws, 4, 4))
+
+
+def _models(demo, flange):
+    return {"joint targets": demo.refined, "flange target": flange[0]}
+
+
+@pytest.mark.parametrize("which", ["joint targets", "flange target"])
+def test_group_twists_give_the_jacobian_of_target_jacobian(demo, flange, which):
+    model = _models(demo, flange)[which]
+    rng = np.random.default_rng(11)
+    values = model.reference_values + 1e-3 * rng.standard_normal((2,) + model.reference_values.shape)
+    rotation, origin, twists = _kinematics(model, values)
+    points = _points(model, rotation, origin)
+    jacobian = _point_jacobian(model, points, twists)  # (B, N, 3, n_kin) in the grouped order
+    order = model.groups["order"]
+    for k in range(2):
+        expected_points, expected = target_jacobian(values[k], model.q, model.turning, model.reflector)
+        # rounding of coordinates ~2000 mm (4e-13) and of derivatives ~2000 mm/rad through a 6-link chain
+        np.testing.assert_allclose(points[k], expected_points[order], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(jacobian[k], expected[order][..., model.free], rtol=0, atol=1e-9)
+    # the scaled twists are the twists times x_scale, column by column
+    _, _, scaled = _kinematics(model, values, model.x_scale)
+    np.testing.assert_array_equal(scaled, twists * model.x_scale[: model.n_kinematic])
+
+
+def _stationarity(model, values, measured, tracker) -> np.ndarray:
+    """|Gauss-Newton step| / (xtol (1 + |z|)) at ``values``, from target_jacobian's residuals and Jacobian."""
+    points, jacobian = target_jacobian(values, model.q, model.turning, model.reflector)
+    residual = (points @ tracker[:3, :3].T + tracker[:3, 3] - measured).ravel()  # tracker frame [mm]
+    columns = np.einsum("ij,njk->nik", tracker[:3, :3], jacobian[..., model.free]).reshape(-1, model.n_kinematic)
+    scaled = columns * model.x_scale
+    step = -np.linalg.solve(scaled.T @ scaled, scaled.T @ residual)
+    z = values[model.free] / model.x_scale
+    return np.linalg.norm(step) / (model.xtol * (1.0 + np.linalg.norm(z)))
+
+
+@pytest.mark.parametrize(
+    "which, n_draws, quantile, largest", [("joint targets", 200, 0.8, 10.0), ("flange target", 40, 0.5, 100.0)]
+)
+def test_every_refined_draw_is_the_stationary_point_of_the_independent_model(
+    demo, flange, which, n_draws, quantile, largest
+):
+    # A draw converges when its next step is below xtol (1 + |z|), and that step is taken: near the optimum
+    # Gauss-Newton contracts each step ~1000-fold (the demo's steps: 7e6, 6e3, 1.3, 6e-4 thresholds), so the
+    # step that remains at the result, evaluated independently, is ~1e-3 of the threshold for most draws. A few
+    # percent stop on a damped step (a step rejected at the cost's rounding floor sets lambda = 1e-3, which
+    # shortens the flattest direction most): their remaining Gauss-Newton step reaches ~2.5 thresholds (the
+    # code before the 2026-11 speed-up: max 2.4 over 500 demo draws, 37 above 0.1; now 2.5, 34). A wrong
+    # gradient J^T r moves the fixed point itself: every draw's step is then thousands of thresholds.
+    # The flange target is much worse conditioned (cond(J^T J) 4e6, 23 unknowns): ~20 % of its draws stop on a
+    # damped step, up to ~30 thresholds from the fixed point (before the speed-up: 41 of 200 draws; now 48).
+    model = _models(demo, flange)[which]
+    measured, start, tracker = (
+        _demo_draws(demo, n_draws) if which == "joint targets" else _flange_draws(flange, n_draws)
+    )
+    batch = refine_batch(model, measured, start, tracker)
+    assert batch.converged.all()
+    ratios = np.array([_stationarity(model, batch.values[k], measured[k], tracker[k]) for k in range(n_draws)])
+    assert np.median(ratios) < 1e-3 and np.quantile(ratios, quantile) < 0.01, np.quantile(ratios, [0.5, quantile])
+    assert ratios.max() < largest, np.sort(ratios)[-5:]
+    # and the start was not already the solution: CPA is millions of thresholds away
+    assert _stationarity(model, start[0], measured[0], tracker[0]) > 1e3
+
+
+def test_a_draw_has_the_same_bits_in_any_batch_across_product_blocks(demo):
+    # 500 draws: the point products run in blocks of draws (_PRODUCT_SIZE); draws on either side of a block
+    # boundary and in the last, short block must come out as in a batch of their own
+    measured, start, tracker = _demo_draws(demo, 500, seed=4)
+    full = refine_batch(demo.refined, measured, start, tracker)
+    for chosen in (np.array([0, 484, 485, 499]), np.arange(480, 490), np.array([3, 250])):
+        part = refine_batch(demo.refined, measured[chosen], start[chosen], tracker[chosen])
+        np.testing.assert_array_equal(part.values, full.values[chosen])
+        np.testing.assert_array_equal(part.cost, full.cost[chosen])
+    one = refine_batch(demo.refined, measured[7:8], start[7:8], tracker[7:8])
+    np.testing.assert_array_equal(one.values, full.values[7:8])
+
+
+@pytest.mark.parametrize("which", ["joint targets", "flange target"])
+def test_normal_equations_equal_the_dense_jacobian_products(demo, flange, which):
+    # cost, J_s^T J_s (from the centred group moments) and J_s^T r (from the per-group error moments) against
+    # the dense per-point Jacobian of target_jacobian and the residuals T p - m, away from the optimum
+    model = _models(demo, flange)[which]
+    measured, start, tracker = _demo_draws(demo, 3) if which == "joint targets" else _flange_draws(flange, 3)
+    problem = _Batch(model, measured, start, tracker)
+    cost, normal, gradient = problem.normal_equations(start[:, model.free], np.arange(3))
+    for k in range(3):
+        points, jacobian = target_jacobian(start[k], model.q, model.turning, model.reflector)
+        residual = (points @ tracker[k, :3, :3].T + tracker[k, :3, 3] - measured[k]).ravel()
+        rotated = np.einsum("ij,njk->nik", tracker[k, :3, :3], jacobian[..., model.free])
+        scaled = rotated.reshape(-1, model.n_kinematic) * model.x_scale
+        # rounding: coordinates ~2000 mm, columns ~2000 mm/rad x scale; sums over 270-810 rows
+        np.testing.assert_allclose(cost[k], 0.5 * residual @ residual, rtol=1e-9)
+        np.testing.assert_allclose(normal[k], scaled.T @ scaled, rtol=0, atol=1e-11 * np.abs(normal[k]).max())
+        np.testing.assert_allclose(gradient[k], scaled.T @ residual, rtol=0, atol=1e-9 * np.abs(gradient[k]).max())
