@@ -596,7 +596,7 @@ def validation_consistency(
     """
     from robotcal.geometry.registration import register_points
     from robotcal.kinematics.forward import target_positions
-    from robotcal.uncertainty.tcp import propagate_to_tcp
+    from robotcal.uncertainty.tcp import position_covariance
 
     robot = scenario.robot
     reflector = validation_reflector(scenario)
@@ -610,10 +610,10 @@ def validation_consistency(
         tracker_from_base, base = register_points(predicted, measured).transform, "registered"
     in_tracker = predicted @ tracker_from_base[:3, :3].T + tracker_from_base[:3, 3]
     observed = np.linalg.norm(in_tracker - measured, axis=1)
-    # the Monte Carlo covariance of the target position at every validation pose (the same propagation
-    # as the TCP stage, with the validation target as the tool)
-    spread = propagate_to_tcp(robot, draws, validation.readings, tool=reflector.positions[0])
-    traces = np.trace(spread.covariance[:, :3, :3], axis1=1, axis2=2)
+    # the Monte Carlo covariance of the target position at every validation pose (the forward kinematics
+    # of the TCP stage, with the validation target as the tool; positions only)
+    spread = position_covariance(robot, draws, validation.readings, tool=reflector.positions[0])
+    traces = np.trace(spread, axis1=1, axis2=2)
     n = draws.shape[0]
     instrument = 3.0 * scenario.instrument.standard_uncertainty(measured) ** 2
     predicted_rms = float(np.sqrt(np.mean(traces)))

@@ -75,7 +75,7 @@ _LAZY = {
         "robotcal.io.output",
     ),
     **dict.fromkeys(
-        ("TCP_CSV_COLUMNS", "tcp_to_csv", "write_tcp_csv", "tcp_to_dict", "write_tcp_json"), "robotcal.io.tcp_results"
+        ("TCP_CSV_COLUMNS", "tcp_to_csv", "write_tcp_csv", "tcp_to_dict", "tcp_json_text", "write_tcp_json"), "robotcal.io.tcp_results"
     ),
     **dict.fromkeys(
         ("read_trajectory", "write_trajectory", "trajectory_to_csv", "load_trajectory", "builtin_trajectories"),

@@ -5,14 +5,16 @@
 
 from __future__ import annotations
 
+import json
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from robotcal.errors import InputError, JointLimitWarning
-from robotcal.io.tcp_results import tcp_to_csv, tcp_to_dict
-from robotcal.pipeline.folder import write_csv, write_json
+from robotcal.io.atomic import atomic_write_text
+from robotcal.io.tcp_results import tcp_json_text, tcp_to_csv, tcp_to_dict
+from robotcal.pipeline.folder import write_csv
 from robotcal.pipeline.result import Document
 from robotcal.uncertainty.tcp import TCPUncertainty, propagate_to_tcp
 from robotcal.uncertainty.workspace import workspace_uncertainty
@@ -52,6 +54,17 @@ def compute_tcp(
     return result, None
 
 
+def _write_tcp_json(path: Path, data: dict) -> dict:
+    """Write ``tcp.json`` atomically (:func:`~robotcal.io.tcp_results.tcp_json_text`: indented, one pose per
+    line); returns the document as :func:`~robotcal.pipeline.folder.read_run` reads it back."""
+    text = tcp_json_text(data)
+    atomic_write_text(path, text)
+    # the poses of tcp_to_dict are plain JSON values already (lists of floats from tolist, str keys, None):
+    # they read back equal, so only the small rest goes through the round trip (json.loads of a 1000-pose
+    # workspace map costs about as much as writing it)
+    return {key: value if key == "poses" else json.loads(json.dumps(value)) for key, value in data.items()}
+
+
 def write_tcp_folder(
     folder: Path,
     result: TCPUncertainty,
@@ -63,15 +76,23 @@ def write_tcp_folder(
 ) -> dict[str, Document]:
     """Write ``tcp.csv``, ``tcp.json`` and the mode's figures into ``folder`` (an existing, normally
     temporary, folder); returns the documents by file name (CSV -> Table, JSON -> dict, figure -> Path)."""
-    from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
-
     documents: dict[str, Document] = {
         "tcp.csv": write_csv(folder / "tcp.csv", tcp_to_csv(result, interval=interval)),
-        "tcp.json": write_json(
+        "tcp.json": _write_tcp_json(
             folder / "tcp.json",
             tcp_to_dict(result, interval=interval, workspace=workspace, provenance=provenance or {}),
         ),
     }
+    for figure in write_tcp_figures(folder, result, mode, workspace=workspace):
+        documents[figure.name] = figure
+    return documents
+
+
+def write_tcp_figures(folder: Path, result: TCPUncertainty, mode: str, *, workspace=None) -> list[Path]:
+    """The figures of a TCP folder (every figure call of :func:`write_tcp_folder` is here): pose ->
+    ``scatter.png``, ``histograms.png``; trajectory -> ``trajectory.png``; workspace -> ``workspace.png``."""
+    from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
+
     if mode == "pose":
         figures = [
             plot_tcp_scatter(result, folder / "scatter.png"),
@@ -81,6 +102,4 @@ def write_tcp_folder(
         figures = [plot_trajectory(result, folder / "trajectory.png")]
     else:
         figures = [plot_workspace(workspace, folder / "workspace.png")]
-    for figure in figures:
-        documents[Path(figure).name] = Path(figure)
-    return documents
+    return [Path(figure) for figure in figures]

@@ -66,6 +66,7 @@ _LAZY = {
             "check_tool",
             "tcp_coordinates",
             "tcp_jacobian",
+            "position_covariance",
             "coverage_ellipsoid",
             "propagate_to_tcp",
         ),

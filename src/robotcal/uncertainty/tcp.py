@@ -13,30 +13,39 @@ Orientation: KUKA ``A, B, C`` with ``R = Rz(A) Ry(B) Rx(C)`` (A about Z, B about
 Lengths in mm, angles in radians in every array here; the I/O layer writes degrees.
 
 Memory stays bounded for any number of draws and poses: poses are handled in chunks whose six
-coordinates for every draw fit in ``max_bytes``, and within a chunk the draws go through the
-kinematics ``batch_size`` at a time. Only the 6 coordinates per draw and pose of one chunk are held
-(and the link transforms ``B_i`` of one batch), never the 4x4 frames of all draws and poses.
+coordinates for every draw fit in ``max_bytes`` together (one chunk in flight per thread), and within a
+chunk the draws go through the kinematics ``batch_size`` at a time. Only the 6 coordinates per draw
+and pose of the chunks in flight are held (with as much again for their centred copies), and the link
+transforms ``B_i`` of every draw when they fit in ``max_bytes`` (else those of one batch), never the
+4x4 frames of all draws and poses.
 
 Speed (``benchmarks/bench_tcp.py``): the chunk holds the draws *last*, ``(poses, 6, draws)``, so one
 vectorised partition and two sorts of the 5 % tails per chunk give every order statistic of both
-coverage intervals and the min/max (a full sort took twice as long); the chain is carried as contiguous column
-slabs with one ``(4, 4) @ (4, 3 P)`` product per draw and joint; the first joint is applied
+coverage intervals and the min/max (a full sort took twice as long); the chain is carried as
+``(3 P, 4)`` blocks ``[R | t]`` per draw whose first two columns are adjacent, so that ``Rz(q)`` is one
+in-place complex product ``(column_0 + i column_1) exp(-i q)`` and ``B_i`` one ``(3 P, 4) @ (4, 4)``
+product (2 to 2.5x cheaper than turning separate column slabs); the first joint is applied
 analytically (``Rz(q_1)`` turns X, Y and adds ``q_1`` to A); the angles use ``arctan`` (about 2.5x
-cheaper than ``arctan2`` here) with the quadrant restored by the wrap near the nominal. The results
+cheaper than ``arctan2`` here) with the quadrant restored by the wrap near the nominal. Pose chunks
+run in two threads at once (kinematics and statistics; numpy releases the GIL), each with a reused
+pair of buffers; a single chunk spreads its batches of draws over the threads instead. The results
 equal the plain composition (4x4 frames, :func:`~robotcal.uncertainty.statistics.summarize_draws`)
-to 1e-10 mm/rad (``tests/unit/uncertainty/test_tcp_reference.py``).
+to 1e-10 mm/rad (``tests/unit/uncertainty/test_tcp_reference.py``). :func:`position_covariance` is
+the position part alone (a point carried from the tool end), for checks that need only the spread of
+a point.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import queue
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri  # the chi-squared quantile without scipy.stats (~1 s of import)
 
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, wrap_angle_near
@@ -54,6 +63,7 @@ __all__ = [
     "check_tool",
     "tcp_coordinates",
     "tcp_jacobian",
+    "position_covariance",
     "coverage_ellipsoid",
     "propagate_to_tcp",
 ]
@@ -75,9 +85,17 @@ JACOBIAN_STEP_RAD = 1e-6
 _BLOCK_FRAMES = 20_000
 #: Threads filling the draw batches of a pose chunk (numpy releases the GIL in the kinematics).
 _THREADS = min(2, os.cpu_count() or 1)
+#: Fewest poses per chunk for pose chunks to run in the threads at once (else the batches of one chunk do).
+_PARALLEL_CHUNK_POSES = 16
 
 
 # ----------------------------------------------------------------------------------------------- checks
+def chi2_quantile(probability: float, degrees: int) -> float:
+    """``chi2.ppf(probability, degrees)``: the chi-squared quantile, from ``scipy.special.chdtri`` (its upper
+    tail inverse), since importing ``scipy.stats`` costs about a second of the command's start-up."""
+    return float(chdtri(degrees, 1.0 - probability))
+
+
 def check_readings(robot: RobotModel, readings, *, name: str = "readings", source: str = "") -> np.ndarray:
     """Coerce controller readings to ``(n_poses, n_joints)`` [rad]; warn for readings outside the limits.
 
@@ -211,31 +229,56 @@ def _coordinates(parameters: np.ndarray, q_model: np.ndarray, tool: np.ndarray) 
     return out
 
 
-def _chain_columns(transposed: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray) -> np.ndarray:
-    """``B_1 A_2(q_2) ... A_n(q_n)`` of ``m`` parameter sets at ``P`` poses as ``(m, 4, 3, P)`` blocks.
+def _chain_columns(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray) -> np.ndarray:
+    """``B_1 A_2(q_2) ... A_n(q_n)`` of ``m`` parameter sets at ``P`` poses as ``(m, 3, P, 4)`` blocks.
 
     The flange frame is ``Rz(q_1)`` times this (eq. 3-84 with ``A_i(q) = Rz(q_i) B_i``); the caller
     applies ``Rz(q_1)`` analytically (it turns X, Y about the base Z axis and adds ``q_1`` to A).
-    Entry ``[s, k, r, p]`` is row ``r``, column ``k`` of the 3x4 block ``[R | t]`` of set ``s`` at
-    pose ``p``: right-multiplying by ``Rz(q)`` mixes the contiguous column slabs ``k = 0, 1``, and
-    by ``B_i`` is one ``(4, 4) @ (4, 3 P)`` product per set (``B_i^T`` applied to the slabs).
-    ``transposed (m, n, 4, 4)`` holds ``B_i^T`` of every set.
+    Entry ``[s, r, p, k]`` is row ``r``, column ``k`` of the 3x4 block ``[R | t]`` of set ``s`` at pose
+    ``p``. Right-multiplying by ``Rz(q)`` turns the first two columns: with the columns adjacent in
+    memory, ``column_0 + i column_1`` is a complex number that is multiplied by ``exp(-i q)`` in place
+    (one pass, the other columns untouched); right-multiplying by ``B_i`` is one ``(3 P, 4) @ (4, 4)``
+    product per set. ``links (m, n, 4, 4)`` holds ``B_i`` of every set.
     """
-    m, n = transposed.shape[0], transposed.shape[1]
+    m, n = links.shape[0], links.shape[1]
     n_poses = cos_q.shape[0]
-    block = np.empty((m, 4, 3, n_poses))
-    block[...] = transposed[:, 0, :, :3, None]  # B_1: [k, r] = B_1[r, k] at every pose
-    turned = np.empty_like(block)
+    block = np.empty((m, 3 * n_poses, 4))
+    block.reshape(m, 3, n_poses, 4)[...] = links[:, 0, :3, None, :]  # B_1 at every pose
+    other = np.empty_like(block)
     for joint in range(1, n):
+        phase = cos_q[:, joint] - 1j * sin_q[:, joint]  # exp(-i q): (c0 + i c1) exp(-i q) = c0' + i c1'
+        pair = block.view(complex).reshape(m, 3, n_poses, 2)[..., 0]
+        np.multiply(pair, phase, out=pair)
+        np.matmul(block, links[:, joint], out=other)
+        block, other = other, block
+    return block.reshape(m, 3, n_poses, 4)
+
+
+def _chain_points(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """``B_1 A_2(q_2) ... A_n(q_n) [point; 1]`` of ``m`` parameter sets at ``P`` poses, ``(m, 3, P)`` [mm].
+
+    The position-only chain of :func:`_chain_columns` (the caller applies ``Rz(q_1)``), evaluated from the
+    tool end: ``B_n [point; 1]`` is the same at every pose, then each joint turns the point about its z axis
+    (``Rz(q_i)``) and moves it by ``B_{i-1}`` (``R_{i-1} v + t_{i-1}``, one ``(3, 3) @ (3, P)`` product per
+    set). One point instead of a 3x4 block: about a third of the work of :func:`_chain_columns`.
+    ``links (m, n, 4, 4)`` holds ``B_i`` of every set.
+    """
+    m, n = links.shape[0], links.shape[1]
+    n_poses = cos_q.shape[0]
+    end = links[:, n - 1, :3, :3] @ point + links[:, n - 1, :3, 3]  # (m, 3), pose-independent
+    x, y, z = end[:, 0, None], end[:, 1, None], end[:, 2, None]
+    turned = np.empty((m, 3, n_poses))
+    for joint in range(n - 1, 0, -1):
         c, s = cos_q[:, joint], sin_q[:, joint]
-        first, second = block[:, 0], block[:, 1]
-        np.multiply(first, c, out=turned[:, 0])
-        turned[:, 0] += second * s
-        np.multiply(second, c, out=turned[:, 1])
-        turned[:, 1] -= first * s
-        turned[:, 2:] = block[:, 2:]
-        np.matmul(transposed[:, joint], turned.reshape(m, 4, 3 * n_poses), out=block.reshape(m, 4, 3 * n_poses))
-    return block
+        np.multiply(x, c, out=turned[:, 0])
+        turned[:, 0] -= y * s
+        np.multiply(x, s, out=turned[:, 1])
+        turned[:, 1] += y * c
+        turned[:, 2] = z
+        moved = np.matmul(links[:, joint - 1, :3, :3], turned)
+        moved += links[:, joint - 1, :3, 3, None]
+        x, y, z = moved[:, 0], moved[:, 1], moved[:, 2]
+    return moved if n > 1 else np.broadcast_to(end[:, :, None], (m, 3, n_poses)).copy()
 
 
 def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -265,9 +308,12 @@ def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray)
         exact = np.moveaxis(kuka_abc_from_matrix(rotation), -1, 0)
         out[:, locked] = exact[:, locked]
     out[0] += first_joint
-    ref = reference.T[:, None, :]
-    turns = np.rint((out - ref) / (2.0 * np.pi))
-    out -= turns * (2.0 * np.pi)
+    # A and C into (-pi, pi] of the reference; B and its reference both lie in [-pi/2, pi/2], so its
+    # number of turns rint((B - ref) / 2 pi) is always 0 (|x| <= 1/2 rounds to 0, half to even)
+    wrapped = out[::2]
+    ref = reference.T[::2, None, :]
+    turns = np.rint((wrapped - ref) / (2.0 * np.pi))
+    wrapped -= turns * (2.0 * np.pi)
     return out
 
 
@@ -523,7 +569,7 @@ def _sample_covariance(centred: np.ndarray) -> np.ndarray:
 
 def _ellipsoid_from(centred: np.ndarray, covariance: np.ndarray, coverage: float) -> CoverageEllipsoid:
     values, vectors = _eigen(covariance)
-    scale = math.sqrt(chi2.ppf(coverage, 3))
+    scale = math.sqrt(chi2_quantile(coverage, 3))
     d2 = _squared_mahalanobis(centred, values, vectors)
     rank = _rank(centred.shape[0], coverage)
     with np.errstate(invalid="ignore"):
@@ -540,25 +586,29 @@ def _ellipsoid_from(centred: np.ndarray, covariance: np.ndarray, coverage: float
     )
 
 
-def _summarize_rows(values: np.ndarray, coverage: float) -> dict[str, np.ndarray]:
+def _summarize_rows(
+    values: np.ndarray, coverage: float, *, mean: np.ndarray | None = None, std: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """:func:`~robotcal.uncertainty.statistics.summarize_draws` of draws laid out along the *last* axis.
 
-    ``values (k, M)`` holds ``k`` quantities with ``M`` draws each, contiguous per quantity; it is
-    sorted in place (one vectorised sort for all rows). The intervals are read from the sorted rows
-    with exactly the order statistics of :func:`~robotcal.uncertainty.statistics.coverage_interval`
-    (JCGM 101 §7.7.1 symmetric, §7.7.2 shortest, first minimum on ties), so the numbers are those of
-    ``summarize_draws`` on the same draws (mean and standard deviation up to summation order).
+    ``values (k, M)`` holds ``k`` quantities with ``M`` finite draws each, contiguous per quantity; it is
+    partitioned in place. The intervals are read with exactly the order statistics of
+    :func:`~robotcal.uncertainty.statistics.coverage_interval` (JCGM 101 §7.7.1 symmetric, §7.7.2
+    shortest, first minimum on ties), so the numbers are those of ``summarize_draws`` on the same draws
+    (mean and standard deviation up to summation order). ``mean`` and ``std`` ``(k,)``, when the caller
+    has them (the mean and the square root of the covariance diagonal), are used as they are.
     """
     n_draws = values.shape[-1]
-    if not np.all(np.isfinite(values)):
-        raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
     q = _interval_length(n_draws, coverage)
     if q >= n_draws:
         raise InputError(
             f"a {coverage:g} coverage interval needs more draws than {n_draws}: at least "
             f"{math.ceil(1.0 / (1.0 - coverage))} (JCGM 101 §7.2 recommends 10^4 or more)"
         )
-    out = {"mean": values.mean(axis=-1), "std_uncertainty": values.std(axis=-1, ddof=1)}
+    out = {
+        "mean": values.mean(axis=-1) if mean is None else mean,
+        "std_uncertainty": values.std(axis=-1, ddof=1) if std is None else std,
+    }
     # only the M - q smallest and the M - q largest draws need their order (every order statistic used
     # below lies there when q > M / 2): two single-index partitions and two sorts of the ~5 % tails take
     # half the time of a full sort (a partition at two indices at once is slower than numpy's SIMD sort)
@@ -584,7 +634,7 @@ def _summarize_rows(values: np.ndarray, coverage: float) -> dict[str, np.ndarray
 def _ellipsoid_rows(centred: np.ndarray, covariance: np.ndarray, coverage: float) -> CoverageEllipsoid:
     """:func:`_ellipsoid_from` for centred positions laid out ``(P, 3, M)`` (draws last)."""
     values, vectors = _eigen(covariance)
-    scale = math.sqrt(chi2.ppf(coverage, 3))
+    scale = math.sqrt(chi2_quantile(coverage, 3))
     singular = ~(values[:, -1] > 1e-14 * np.maximum(values[:, 0], np.finfo(float).tiny))
     safe = np.where(singular[:, None], 1.0, values)
     weight = np.einsum("pij,pj,pkj->pik", vectors, 1.0 / safe, vectors)  # V^-1 per pose
@@ -630,6 +680,25 @@ def _concatenate_summaries(parts: list[SampleSummary]) -> SampleSummary:
 
 
 # -------------------------------------------------------------------------------------------- propagation
+def _chunk_statistics(coords: np.ndarray, centred: np.ndarray, coverage: float):
+    """Summary, ellipsoid and covariance of the coordinates ``(P, 6, M)`` of a pose chunk (draws last).
+
+    ``centred`` is a buffer of the same shape for the centred coordinates; ``coords`` is partitioned in
+    place. The standard uncertainties are the square roots of the covariance diagonal (the ``ddof=1``
+    standard deviation, up to summation order).
+    """
+    size, _, n_draws = coords.shape
+    mean = coords.mean(axis=-1)
+    centred = np.subtract(coords, mean[..., None], out=centred)
+    covariance = np.einsum("pim,pjm->pij", centred, centred) / (n_draws - 1)  # no BLAS threads
+    std = np.sqrt(np.diagonal(covariance, axis1=-2, axis2=-1))
+    covariance = 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
+    ellipsoid = _ellipsoid_rows(centred[:, :3], covariance[:, :3, :3], coverage)
+    stats = _summarize_rows(coords.reshape(size * 6, n_draws), coverage, mean=mean.reshape(-1), std=std.reshape(-1))
+    stats = {name: value.reshape(size, 6) for name, value in stats.items()}
+    return SampleSummary(n_draws=n_draws, coverage=coverage, **stats), ellipsoid, covariance
+
+
 def _linearised(draws: np.ndarray, nominal: np.ndarray, q: np.ndarray, tool: np.ndarray):
     """Mean parameters and ``J U_p J^T`` with ``U_p`` the draws' sample covariance."""
     n_draws, n = draws.shape[0], draws.shape[1]
@@ -650,6 +719,65 @@ def _linearised(draws: np.ndarray, nominal: np.ndarray, q: np.ndarray, tool: np.
     index = np.flatnonzero(free.reshape(-1))
     covariance = jacobian @ parameter_covariance[np.ix_(index, index)] @ np.swapaxes(jacobian, -1, -2)
     return mean, 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
+
+
+def position_covariance(
+    robot: RobotModel,
+    parameter_draws,
+    readings,
+    *,
+    tool=None,
+    batch_size: int | None = None,
+    max_bytes: int = 64 * 2**20,
+) -> np.ndarray:
+    """Monte Carlo covariance ``(n_poses, 3, 3)`` [mm^2] of the TCP position at poses.
+
+    The position part of :attr:`TCPUncertainty.covariance` of :func:`propagate_to_tcp` (the same draws,
+    forward kinematics and ``sum c c^T / (M - 1)``, equal up to summation order) without the
+    orientation, the order statistics, the ellipsoids and the linearised propagation: for callers
+    that need only the spread of a point, such as :func:`robotcal.workflow.validation_consistency`.
+    Arguments and checks as :func:`propagate_to_tcp` (readings outside the limits warn).
+    """
+    draws = _check_draws(robot, parameter_draws)
+    readings = _check_readings(robot, readings, name="readings", source="", stacklevel=3)
+    tool = check_tool(tool)
+    if batch_size is not None and (int(batch_size) != batch_size or batch_size < 1):
+        raise InputError(f"`batch_size` must be a positive integer; got {batch_size!r}")
+    n_draws = draws.shape[0]
+    if n_draws < 2:
+        raise InputError(f"`parameter_draws` must hold at least 2 draws; got {n_draws}")
+    q = robot.model_joint_variables(readings)
+    n_poses = q.shape[0]
+    pose_chunk = max(1, min(n_poses, int(max_bytes) // (24 * n_draws)))
+    cos_q, sin_q = np.cos(q), np.sin(q)
+    batch_size = int(batch_size) if batch_size is not None else max(1, 3 * _BLOCK_FRAMES // pose_chunk)
+    covariances = []
+    for start in range(0, n_poses, pose_chunk):
+        poses = slice(start, min(start + pose_chunk, n_poses))
+        points = np.empty((poses.stop - poses.start, 3, n_draws))  # draws last, as in propagate_to_tcp
+
+        def fill(first: int, poses=poses, points=points) -> None:
+            rows = slice(first, min(first + batch_size, n_draws))
+            local = _chain_points(_pose_independent_links(draws[rows]), cos_q[poses], sin_q[poses], tool)
+            c1, s1 = cos_q[poses, 0], sin_q[poses, 0]
+            target = points[:, :, rows]
+            target[:, 0] = (local[:, 0] * c1 - local[:, 1] * s1).T
+            target[:, 1] = (local[:, 0] * s1 + local[:, 1] * c1).T
+            target[:, 2] = local[:, 2].T
+
+        batches = range(0, n_draws, batch_size)
+        if _THREADS > 1 and len(batches) > 1:
+            with ThreadPoolExecutor(_THREADS) as pool:
+                list(pool.map(fill, batches))
+        else:
+            for first in batches:
+                fill(first)
+        if not np.all(np.isfinite(points)):
+            raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
+        centred = points - points.mean(axis=-1)[..., None]
+        covariance = np.einsum("pim,pjm->pij", centred, centred) / (n_draws - 1)
+        covariances.append(0.5 * (covariance + np.swapaxes(covariance, -1, -2)))
+    return np.concatenate(covariances)
 
 
 def propagate_to_tcp(
@@ -717,52 +845,86 @@ def propagate_to_tcp(
     q = robot.model_joint_variables(readings)
     n_poses = q.shape[0]
     nominal = _coordinates(robot.nominal[None], q, tool)[0]
-    pose_chunk = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
     cos_q, sin_q = np.cos(q), np.sin(q)
+    # pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in max_bytes, sizes
+    # evened out. Two ways to use the threads: one chunk in flight per thread (kinematics and statistics in
+    # parallel; the chunks share max_bytes, each holding a coordinate and a centred buffer), or, when that
+    # would leave fewer than _PARALLEL_CHUNK_POSES poses per chunk (many draws: the per-draw products
+    # get too short to be efficient), one chunk at a time with its batches of draws spread over them
+    largest = max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
+    per_thread = largest // _THREADS
+    chunk_parallel = _THREADS > 1 and not keep_draws and per_thread >= _PARALLEL_CHUNK_POSES and n_poses > per_thread
+    if keep_draws:
+        n_chunks = 1
+    elif chunk_parallel:
+        n_chunks = -(-n_poses // per_thread)
+        n_chunks = min(n_poses, -(-n_chunks // _THREADS) * _THREADS)
+    else:
+        n_chunks = -(-n_poses // largest)
+    pose_chunk = -(-n_poses // n_chunks)
+    starts = range(0, n_poses, pose_chunk)
     if batch_size is None:
         batch_size = max(1, _BLOCK_FRAMES // pose_chunk)
     batch_size = int(batch_size)
-
-    summaries, ellipsoids, covariances = [], [], []
+    # the link factors B_i of every draw once, when they take no more room than the coordinates of a chunk
+    # (else per batch, so that memory stays bounded by the batch and the pose chunk)
+    all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
     kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
-    for start in range(0, n_poses, pose_chunk):
+    # buffers for the coordinates (draws last: contiguous rows for the statistics) and the centred
+    # coordinates, one pair per chunk in flight, reused (fresh arrays of this size cost as much in page
+    # faults as the statistics themselves)
+    in_flight = _THREADS if chunk_parallel else 1
+    buffers: queue.SimpleQueue = queue.SimpleQueue()
+    for _ in range(in_flight):
+        buffers.put((np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))))
+
+    def fill(first: int, poses: slice, coords: np.ndarray) -> None:
+        rows = slice(first, min(first + batch_size, n_draws))
+        links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
+        frames = _chain_columns(links, cos_q[poses], sin_q[poses])
+        # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
+        local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
+        block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
+        c1, s1 = cos_q[poses, 0], sin_q[poses, 0]
+        target = coords[:, :, rows]  # a view: the draws of this batch
+        target[:, 0] = (local[:, 0] * c1 - local[:, 1] * s1).T
+        target[:, 1] = (local[:, 0] * s1 + local[:, 1] * c1).T
+        target[:, 2] = local[:, 2].T
+        target[:, 3:] = np.transpose(_abc_near(block, q[poses, 0], nominal[poses, 3:]), (2, 0, 1))
+
+    def chunk(start: int, pool: ThreadPoolExecutor | None = None):
         poses = slice(start, min(start + pose_chunk, n_poses))
         size = poses.stop - poses.start
-        coords = np.empty((size, 6, n_draws))  # draws last: contiguous rows for the statistics
+        coords_buffer, centred_buffer = buffers.get()
+        try:
+            coords = coords_buffer[:size]
+            batches = range(0, n_draws, batch_size)
+            if pool is not None:  # one chunk: its batches fill disjoint draws in the threads
+                list(pool.map(lambda first: fill(first, poses, coords), batches))
+            else:
+                for first in batches:
+                    fill(first, poses, coords)
+            if not np.all(np.isfinite(coords)):
+                raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
+            if keep_draws:
+                kept[:, poses] = np.moveaxis(coords, -1, 0)
+            return _chunk_statistics(coords, centred_buffer[:size], coverage)
+        finally:
+            buffers.put((coords_buffer, centred_buffer))
 
-        def fill(first: int, poses=poses, coords=coords) -> None:
-            rows = slice(first, min(first + batch_size, n_draws))
-            # B_i^T of this batch only, so that memory stays bounded by the batch and the pose chunk
-            links_t = np.swapaxes(_pose_independent_links(draws[rows]), -1, -2)
-            block = _chain_columns(links_t, cos_q[poses], sin_q[poses])
-            local = block[:, 3] + np.einsum("mkrp,k->mrp", block[:, :3], tool)  # (m, 3, P), before Rz(q_1)
-            c1, s1 = cos_q[poses, 0], sin_q[poses, 0]
-            target = coords[:, :, rows]  # a view: the draws of this batch
-            target[:, 0] = (local[:, 0] * c1 - local[:, 1] * s1).T
-            target[:, 1] = (local[:, 0] * s1 + local[:, 1] * c1).T
-            target[:, 2] = local[:, 2].T
-            target[:, 3:] = np.transpose(_abc_near(block, q[poses, 0], nominal[poses, 3:]), (2, 0, 1))
-
-        batches = range(0, n_draws, batch_size)
-        if _THREADS > 1 and len(batches) > 1:  # numpy releases the GIL: batches fill disjoint draws
-            with ThreadPoolExecutor(_THREADS) as pool:
-                list(pool.map(fill, batches))
-        else:
-            for first in batches:
-                fill(first)
-        if keep_draws:
-            kept[:, poses] = np.moveaxis(coords, -1, 0)
-        mean = coords.mean(axis=-1)
-        centred = coords - mean[..., None]
-        covariance = np.einsum("pim,pjm->pij", centred, centred) / (n_draws - 1)  # no BLAS threads
-        covariance = 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
-        covariances.append(covariance)
-        ellipsoids.append(_ellipsoid_rows(centred[:, :3], covariance[:, :3, :3], coverage))
-        del centred
-        stats = _summarize_rows(coords.reshape(size * 6, n_draws), coverage)
-        stats = {name: value.reshape(size, 6) for name, value in stats.items()}
-        summaries.append(SampleSummary(n_draws=n_draws, coverage=coverage, **stats))
-        del coords
+    # numpy releases the GIL in the kinematics and the statistics: several chunks run in the threads at
+    # once, or a single chunk spreads its batches of draws over them
+    if chunk_parallel:
+        with ThreadPoolExecutor(_THREADS) as pool:
+            parts = list(pool.map(chunk, starts))
+    elif _THREADS > 1 and n_draws > batch_size:
+        with ThreadPoolExecutor(_THREADS) as pool:
+            parts = [chunk(start, pool) for start in starts]
+    else:
+        parts = [chunk(start) for start in starts]
+    summaries = [part[0] for part in parts]
+    ellipsoids = [part[1] for part in parts]
+    covariances = [part[2] for part in parts]
 
     parameter_mean, lpu_covariance = _linearised(draws, robot.nominal, q, tool)
     return TCPUncertainty(

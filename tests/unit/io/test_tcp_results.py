@@ -39,3 +39,85 @@ def test_nan_elsewhere_is_refused_not_written(tmp_path):
     with pytest.raises(ValueError, match="JSON compliant"):
         write_tcp_json(tmp_path / "bad.json", result, provenance={"sigma_mm": float("nan")})
     assert not (tmp_path / "bad.json").exists()
+
+
+def _reference_dict_poses(result, interval="symmetric"):
+    """The per-pose part of tcp.json converted one number at a time (the definition tcp_to_dict vectorises)."""
+    deg = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
+    low, high = result.summary.interval(interval)
+    s = result.summary
+    poses = []
+    for p in range(result.n_poses):
+        coordinates = {}
+        for k, name in enumerate(("X", "Y", "Z", "A", "B", "C")):
+            f = deg[k]
+            coordinates[name] = {
+                "unit": ("mm", "mm", "mm", "deg", "deg", "deg")[k],
+                "nominal": float(result.nominal[p, k] * f),
+                "mean": float(s.mean[p, k] * f),
+                "std_uncertainty": float(s.std_uncertainty[p, k] * f),
+                "coverage_low": float(low[p, k] * f),
+                "coverage_high": float(high[p, k] * f),
+                "symmetric_low": float(s.symmetric_low[p, k] * f),
+                "symmetric_high": float(s.symmetric_high[p, k] * f),
+                "shortest_low": float(s.shortest_low[p, k] * f),
+                "shortest_high": float(s.shortest_high[p, k] * f),
+                "min": float(s.minimum[p, k] * f),
+                "max": float(s.maximum[p, k] * f),
+                "range": float(result.value_range[p, k] * f),
+                "lpu_std_uncertainty": float(result.lpu_std_uncertainty[p, k] * f),
+            }
+        e = result.ellipsoid
+        poses.append(
+            {
+                "pose": p + 1,
+                "readings_deg": [float(np.rad2deg(v)) for v in result.readings[p]],
+                "coordinates": coordinates,
+                "position_uncertainty_mm": float(result.position_uncertainty[p]),
+                "position_covariance_mm2": [[float(v) for v in row] for row in result.covariance[p, :3, :3]],
+                "covariance": [
+                    [float(result.covariance[p, i, j] * deg[i] * deg[j]) for j in range(6)] for i in range(6)
+                ],
+                "lpu_covariance": [
+                    [float(result.lpu_covariance[p, i, j] * deg[i] * deg[j]) for j in range(6)] for i in range(6)
+                ],
+                "ellipsoid": {
+                    "semi_axes_mm": [float(v) for v in e.semi_axes[p]],
+                    "directions": [[float(e.directions[p, r, c]) for r in range(3)] for c in range(3)],
+                    "fraction_inside": float(e.fraction_inside[p]),
+                    "monte_carlo_semi_axes_mm": [float(v) for v in e.monte_carlo_semi_axes[p]],
+                },
+            }
+        )
+    return poses
+
+
+def test_vectorised_dict_equals_the_number_by_number_conversion():
+    from robotcal.io.tcp_results import tcp_to_dict
+
+    rng = np.random.default_rng(1)
+    draws = ROBOT.nominal[None] + rng.normal(0.0, 1e-3, (50, ROBOT.n_joints, 5)) * ~ROBOT.structurally_fixed
+    readings = np.deg2rad([[10.0, -80.0, 100.0, 20.0, 50.0, -30.0], [-40.0, -60.0, 90.0, 170.0, -30.0, 100.0]])
+    result = propagate_to_tcp(ROBOT, draws, readings)
+    for interval in ("symmetric", "shortest"):
+        # exact equality: the same float64 products, converted in bulk instead of one by one
+        assert tcp_to_dict(result, interval=interval)["poses"] == _reference_dict_poses(result, interval)
+
+
+def test_json_text_is_the_document_with_one_pose_per_line(tmp_path):
+    from robotcal.io.tcp_results import tcp_json_text, tcp_to_dict
+
+    rng = np.random.default_rng(2)
+    draws = ROBOT.nominal[None] + rng.normal(0.0, 1e-3, (30, ROBOT.n_joints, 5)) * ~ROBOT.structurally_fixed
+    readings = np.deg2rad([[10.0, -80.0, 100.0, 20.0, 50.0, -30.0]] * 3)
+    result = propagate_to_tcp(ROBOT, draws, readings)
+    data = tcp_to_dict(result, provenance={"mode": "trajectory", "versions": {"numpy": np.__version__}})
+    text = tcp_json_text(data)
+    assert _strict(text) == data
+    assert list(_strict(text)) == list(data)  # key order kept
+    pose_lines = [line for line in text.splitlines() if line.lstrip().startswith('{"pose": ')]
+    assert len(pose_lines) == result.n_poses
+    assert text.endswith("}\n") and '\n  "robot": ' in text
+    data["poses"][1]["position_uncertainty_mm"] = float("nan")
+    with pytest.raises(ValueError, match="JSON compliant"):
+        tcp_json_text(data)

@@ -22,7 +22,7 @@ from robotcal.geometry.euler import kuka_abc_from_matrix, wrap_angle_near
 from robotcal.io import load_robot
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.uncertainty.statistics import summarize_draws
-from robotcal.uncertainty.tcp import coverage_ellipsoid, propagate_to_tcp
+from robotcal.uncertainty.tcp import coverage_ellipsoid, position_covariance, propagate_to_tcp
 from robotcal.uncertainty.workspace import workspace_uncertainty
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
@@ -132,3 +132,61 @@ def test_abc_fast_path_keeps_the_quadrant_of_a_negative_zero():
     block[0, :3, :, 0] = rotation.T  # column k of R in block[:, k]
     fast = _abc_near(block, np.zeros(1), np.zeros((1, 3)))[:, 0, 0]
     np.testing.assert_allclose(fast, kuka_abc_from_matrix(rotation), atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("tool", "max_bytes", "batch_size"), [(None, 64 * 2**20, None), ([10.0, -5.0, 80.0], 24 * 300 * 3, 70)]
+)
+def test_position_covariance_equals_the_plain_composition(tool, max_bytes, batch_size):
+    """The position-only chain (evaluated from the tool end) against 4x4 frames and ``np.cov``."""
+    draws, readings = _draws(300, seed=7), _readings(8, seed=8)
+    tool_mm = np.zeros(3) if tool is None else np.asarray(tool)
+    covariance = position_covariance(ROBOT, draws, readings, tool=tool, max_bytes=max_bytes, batch_size=batch_size)
+    coords = _reference_coordinates(draws, readings, tool_mm)
+    expected = np.stack([np.cov(coords[:, p, :3], rowvar=False) for p in range(coords.shape[1])])
+    np.testing.assert_allclose(covariance, expected, rtol=1e-9, atol=1e-18)
+    full = propagate_to_tcp(ROBOT, draws, readings, tool=tool).covariance[:, :3, :3]
+    np.testing.assert_allclose(covariance, full, rtol=1e-9, atol=1e-18)
+
+
+def test_position_covariance_refuses_a_single_draw():
+    from robotcal.errors import InputError
+
+    with pytest.raises(InputError, match="at least 2 draws"):
+        position_covariance(ROBOT, _draws(1), _readings(2))
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
+@pytest.mark.parametrize("function", ["propagate_to_tcp", "position_covariance"])
+def test_overflowing_draw_is_refused(function):
+    """A finite but absurd draw (link offsets of 1e308 mm) overflows the kinematics: InputError, from
+    whichever thread and chunk met it, not NaN statistics."""
+    from robotcal.errors import InputError
+    from robotcal.uncertainty import tcp
+
+    draws = _draws(300, seed=9)
+    draws[123, :, 0] = 1e308  # every d: their sum along the base z axis overflows
+    with pytest.raises(InputError, match="not finite numbers"):
+        getattr(tcp, function)(ROBOT, draws, _readings(8), max_bytes=48 * 300 * 4)
+
+
+@pytest.mark.parametrize("batch_size", [None, 37])
+def test_pose_chunks_in_parallel_equal_the_plain_composition(batch_size):
+    """40 poses, 150 draws: 20 poses per thread, so two pose chunks run in the threads at once (each with
+    its own buffers; ragged batches of draws inside with ``batch_size=37``)."""
+    from robotcal.uncertainty import tcp
+
+    draws, readings = _draws(150, seed=10), _readings(40, seed=11)
+    largest = 64 * 2**20 // (48 * 150)
+    assert min(40, largest) // tcp._THREADS >= tcp._PARALLEL_CHUNK_POSES or tcp._THREADS == 1
+    result = propagate_to_tcp(ROBOT, draws, readings, tool=[1.0, 2.0, 30.0], batch_size=batch_size)
+    coords = _reference_coordinates(draws, readings, np.array([1.0, 2.0, 30.0]))
+    expected = summarize_draws(coords, 0.95)
+    for name in (*FIELDS, "minimum", "maximum"):
+        np.testing.assert_allclose(getattr(result.summary, name), getattr(expected, name), rtol=0, atol=ATOL)
+    covariance = np.stack([np.cov(coords[:, p], rowvar=False) for p in range(coords.shape[1])])
+    np.testing.assert_allclose(result.covariance, covariance, rtol=1e-9, atol=1e-18)
+    ellipsoid = coverage_ellipsoid(coords[..., :3], 0.95)
+    np.testing.assert_array_equal(result.ellipsoid.fraction_inside, ellipsoid.fraction_inside)
+    np.testing.assert_allclose(result.ellipsoid.monte_carlo_scale, ellipsoid.monte_carlo_scale, rtol=1e-9)
