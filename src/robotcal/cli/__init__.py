@@ -135,8 +135,10 @@ def _robotcal(
 
 
 def main() -> None:
-    """The ``robotcal`` entry point: SIGTERM and SIGINT become clean interrupts (exit 143 / 130)."""
-    from robotcal.cli._common import install_signal_handlers
+    """The ``robotcal`` entry point: one BLAS thread and a steadier allocator (:func:`~robotcal.cli._common.tune_numeric_runtime`);
+    SIGTERM and SIGINT become clean interrupts (exit 143 / 130)."""
+    from robotcal.cli._common import install_signal_handlers, tune_numeric_runtime
 
+    tune_numeric_runtime()  # before any command module imports numpy
     install_signal_handlers()
     app()
