@@ -5,34 +5,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.colors import Normalize
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.errors import InputError
-from robotcal.plots.figures import new_figure, plt, save_figure
+from robotcal.plots.figures import blank_figure, new_figure, save_figure, set_margins
 from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
 __all__ = ["plot_tcp_scatter", "plot_tcp_histograms", "plot_trajectory", "plot_workspace"]
 
 _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
-_DPI = 110
-
-
-def _margins(figure, *, left: float, right: float, bottom: float, top: float, wspace=0.0, hspace=0.0, cell=(1.0, 1.0)):
-    """Fixed margins and gaps in inches (``cell``: a panel's width and height, for the gaps).
-
-    The figures here used constrained layout, which measures every artist's extent on each draw and
-    took about half of their drawing time; the margins below leave room for the same labels.
-    """
-    width, height = figure.get_size_inches()
-    figure.subplots_adjust(
-        left=left / width,
-        right=1.0 - right / width,
-        bottom=bottom / height,
-        top=1.0 - top / height,
-        wspace=wspace / max(cell[0] - wspace, 1e-6),
-        hspace=hspace / max(cell[1] - hspace, 1e-6),
-    )
 
 
 def _need_draws(result: TCPUncertainty, pose: int) -> np.ndarray:
@@ -62,7 +45,7 @@ def plot_tcp_scatter(result: TCPUncertainty, path, *, pose: int = 0, max_points:
     draws = _need_draws(result, pose)[:, :3] - mean
     if draws.shape[0] > max_points:
         draws = draws[rng.choice(draws.shape[0], max_points, replace=False)]
-    figure = plt.figure(figsize=(6.4, 5.6), dpi=_DPI)
+    figure = blank_figure(6.4, 5.6)
     axes = figure.add_axes((0.0, 0.04, 0.94, 0.82), projection="3d")
     axes.scatter(draws[:, 0], draws[:, 1], draws[:, 2], s=2, alpha=0.25, color="tab:blue", label="draws")
     x, y, z = _ellipsoid_mesh(result.ellipsoid.semi_axes[pose], result.ellipsoid.directions[pose])
@@ -88,7 +71,7 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
     """Histograms of X, Y, Z [mm] and A, B, C [deg] over the draws at one pose (Figs 5.17/5.18)."""
     draws = _need_draws(result, pose)
     figure, axes = new_figure(2, 3, width_in=10.0, height_in=5.6, layout=None)
-    _margins(figure, left=0.65, right=0.15, bottom=0.6, top=0.55, wspace=0.75, hspace=0.95, cell=(3.07, 2.23))
+    set_margins(figure, left=0.65, right=0.15, bottom=0.6, top=0.55, wspace=0.75, hspace=0.95, cell=(3.07, 2.23))
     low, high = result.summary.interval("symmetric")
     for k, ax in enumerate(axes.ravel()):
         f = _DEG[k]
@@ -114,7 +97,7 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
 
 def plot_trajectory(result: TCPUncertainty, path) -> Path:
     """The trajectory coloured by its uncertainty (Fig. 5.20) with per-pose u and ranges."""
-    figure = plt.figure(figsize=(11.0, 8.0), dpi=_DPI)
+    figure = blank_figure(11.0, 8.0)
     # fixed positions [figure fraction]; the 3-D panel and its colour bar keep clear of each other's labels
     grid = figure.add_gridspec(2, 2, left=0.085, right=0.985, bottom=0.065, top=0.93, wspace=0.25, hspace=0.3)
     axes3d = figure.add_subplot(grid[0, 0], projection="3d")
@@ -166,8 +149,8 @@ def plot_workspace(workspace: WorkspaceUncertainty, path) -> Path:
     position = result.nominal[:, :3]
     value = workspace.position_uncertainty
     figure, axes = new_figure(1, 3, width_in=13.0, height_in=4.4, layout=None)
-    _margins(figure, left=0.75, right=0.2, bottom=0.6, top=0.4, wspace=0.9, cell=(3.77, 3.4))
-    norm = plt.Normalize(vmin=float(value.min()), vmax=float(value.max()))
+    set_margins(figure, left=0.75, right=0.2, bottom=0.6, top=0.4, wspace=0.9, cell=(3.77, 3.4))
+    norm = Normalize(vmin=float(value.min()), vmax=float(value.max()))
     order = np.argsort(value)  # most uncertain drawn last, on top
     axes[0].scatter(position[order, 0], position[order, 1], c=value[order], cmap="viridis", norm=norm, s=10)
     axes[0].set_xlabel("X [mm]")
