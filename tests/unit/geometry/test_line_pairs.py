@@ -102,6 +102,39 @@ def test_plucker_line_rejects_zero_direction():
         PluckerLine.from_point_direction([0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
 
 
+@pytest.mark.parametrize(
+    "bad",
+    [[np.nan, 0.0, 1.0], [np.inf, 0.0, 1.0], [1e200, 1e200, 0.0]],
+    ids=["nan", "infinite", "norm-overflows"],
+)
+def test_plucker_line_rejects_non_finite_directions(bad):
+    # one bad item spoils the batch; a finite vector whose norm overflows cannot be normalised either
+    directions = np.array([[0.0, 0.0, 1.0], bad])
+    with pytest.raises(InputError, match="finite non-zero vector"):
+        PluckerLine.from_point_direction(np.zeros((2, 3)), directions)
+
+
+def test_plucker_line_arrays_are_frozen_and_batch_indexing_does_not_copy():
+    rng = np.random.default_rng(6)
+    direction, moment = np.array([0.0, 0.6, 0.8]), np.array([10.0, -4.0, 3.0])
+    line = PluckerLine(direction=direction, moment=moment)
+    direction[0] = 5.0  # the constructor copied the caller's arrays
+    np.testing.assert_array_equal(line.direction, [0.0, 0.6, 0.8])
+    lines = PluckerLine.from_point_direction(rng.normal(size=(5, 4, 3)), rng.normal(size=(5, 4, 3)))
+    column = lines[..., 1]
+    # basic indexing: views of the frozen arrays; advanced indexing: frozen copies
+    assert np.shares_memory(column.direction, lines.direction) and np.shares_memory(column.moment, lines.moment)
+    picked = lines[[0, 3]]
+    assert not np.shares_memory(picked.direction, lines.direction)
+    np.testing.assert_array_equal(picked.moment, lines.moment[[0, 3]])
+    derived = (line, lines, column, picked, lines.flipped(np.ones((5, 4), bool)), lines.transformed(_motion(7)))
+    for each in derived:
+        for values in (each.direction, each.moment):
+            assert not values.flags.writeable
+            with pytest.raises(ValueError, match="read-only"):
+                values[..., 0] = 0.0
+
+
 def test_signed_angle_about_closed_forms():
     x, y, z = np.eye(3)
     # quarter turns: right-handed about +z, left-handed about -z (exact up to atan2 rounding)
@@ -262,6 +295,76 @@ def test_dh_pair_is_batched():
     # the batch gives the per-item closed-form answers (rounding only)
     np.testing.assert_allclose(batch.length, [30.0, 75.0], atol=1e-9)
     np.testing.assert_allclose(batch.twist, [1.0, 1.5], atol=1e-12)
+
+
+def _plain_dot(a, b):
+    return np.sum(a * b, axis=-1)
+
+
+def test_skew_pairs_are_the_plain_vector_formulas_to_the_bit():
+    # the pair analysis works on component arrays; written with np.cross, np.linalg.norm and sums over the last
+    # axis, eqs 4-12, 4-13, 4-22, 4-35 and 4-36 are the same IEEE operations in the same order, so the results
+    # are equal to the bit (what keeps the CPA Monte Carlo draws those of the reference implementation)
+    rng = np.random.default_rng(8)
+    stack = PluckerLine.from_point_direction(rng.uniform(-900.0, 900.0, (400, 6, 3)), rng.normal(size=(400, 6, 3)))
+    line_j, line_k = stack[..., 2], stack[..., 3]  # strided views, as the CPA passes them
+    hint = rng.normal(size=(400, 3))
+    pair = analyse_dh_pair(line_j, line_k, normal_hint=hint, point_j_if_parallel=np.zeros(3))
+    assert pair.case.shape == (400,) and np.all(pair.case == "skew")
+    s_j, s0_j, s_k, s0_k = line_j.direction, line_j.moment, line_k.direction, line_k.moment
+    cross = np.cross(s_j, s_k)
+    normal = cross / np.linalg.norm(cross, axis=-1, keepdims=True)
+    normal = np.where((_plain_dot(normal, hint) < 0.0)[:, None], -normal, normal)
+    n_k, n_j = np.cross(normal, s_k), np.cross(normal, s_j)
+    foot_j = (np.cross(n_k, s0_j) - _plain_dot(s0_k, normal)[:, None] * s_j) / _plain_dot(n_k, s_j)[:, None]
+    foot_k = (np.cross(n_j, s0_k) - _plain_dot(s0_j, normal)[:, None] * s_k) / _plain_dot(n_j, s_k)[:, None]
+    np.testing.assert_array_equal(pair.normal, normal)
+    np.testing.assert_array_equal(pair.point_j, foot_j)
+    np.testing.assert_array_equal(pair.point_k, foot_k)
+    np.testing.assert_array_equal(pair.length, _plain_dot(foot_k - foot_j, normal))
+    np.testing.assert_array_equal(pair.twist, np.arctan2(_plain_dot(cross, normal), _plain_dot(s_j, s_k)))
+    np.testing.assert_array_equal(pair.mutual_moment, _plain_dot(s_j, s0_k) + _plain_dot(s_k, s0_j))
+    np.testing.assert_array_equal(line_j.point, np.cross(s_j, s0_j))
+    angles = signed_angle_about(hint, pair.normal, s_j)
+    expected = np.arctan2(
+        _plain_dot(np.cross(hint, pair.normal), s_j),
+        _plain_dot(hint, pair.normal) - _plain_dot(hint, s_j) * _plain_dot(pair.normal, s_j),
+    )
+    np.testing.assert_array_equal(angles, expected)
+
+
+def test_dh_pair_of_a_mixed_batch_gives_each_item_its_own_answer():
+    # the intersecting and parallel formulas run only when some item needs them: every item of a batch mixing
+    # the cases must get exactly what it gets alone, and its own case label
+    rng = np.random.default_rng(9)
+    s_j = np.array([0.0, 0.0, 1.0])
+    items = [  # (point and direction of line j, of line k), expected case
+        (([10.0, 20.0, 30.0], s_j, [200.0, -40.0, 75.0], [0.6, 0.0, 0.8]), "skew"),
+        (([120.0, -35.0, 410.0], s_j, [120.0, -35.0, 410.0], [0.6, 0.0, 0.8]), "intersecting"),
+        (([300.0, 200.0, 0.0], s_j, [300.0, 200.0, 0.0], [1.0, 0.0, 0.0]), "intersecting"),  # eq. 4-44 is 0/0
+        (([0.0, 0.0, 0.0], s_j, [270.0, 0.0, 50.0], s_j), "parallel"),
+        (([5.0, 5.0, 0.0], s_j, [5.0, -95.0, 0.0], -s_j), "parallel"),
+        (([10.0, 20.0, 30.0], s_j, [10.0, 20.0, 99.0], s_j), "parallel"),  # coincident: normal from the hint
+        (([-50.0, 80.0, 10.0], [0.0, 1.0, 0.0], [400.0, 0.0, -30.0], [1.0, 0.0, 0.0]), "skew"),
+    ]
+    hints = rng.normal(size=(len(items), 3))
+    starts = rng.uniform(-100.0, 100.0, (len(items), 3))
+    lines = [
+        (PluckerLine.from_point_direction(p_j, d_j), PluckerLine.from_point_direction(p_k, d_k))
+        for (p_j, d_j, p_k, d_k), _ in items
+    ]
+    batch = analyse_dh_pair(
+        PluckerLine(direction=np.stack([j.direction for j, _ in lines]), moment=np.stack([j.moment for j, _ in lines])),
+        PluckerLine(direction=np.stack([k.direction for _, k in lines]), moment=np.stack([k.moment for _, k in lines])),
+        normal_hint=hints,
+        point_j_if_parallel=starts,
+    )
+    assert list(batch.case) == [case for _, case in items]
+    for index, (line_j, line_k) in enumerate(lines):
+        alone = analyse_dh_pair(line_j, line_k, normal_hint=hints[index], point_j_if_parallel=starts[index])
+        assert alone.case.shape == () and alone.case == items[index][1]
+        for field in ("normal", "point_j", "point_k", "length", "twist", "beta", "mutual_moment"):
+            np.testing.assert_array_equal(getattr(batch, field)[index], getattr(alone, field), err_msg=field)
 
 
 # ---------------------------------------------------------------------------------------------- Hayati pairs
