@@ -1,17 +1,21 @@
 """``robotcal uncertainty SCENARIO --out DIR``: GUM Supplement 1 Monte Carlo of the calibration;
 ``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``: of the
-refinement of a measured capture (:mod:`robotcal.uncertainty.measured`)."""
+refinement of a measured capture (:mod:`robotcal.uncertainty.measured`).
+
+The histograms are drawn by a forked worker (:class:`robotcal.plots.background.FigureRenderer`) started
+as soon as the options are checked and numpy is imported: it imports matplotlib while this process
+imports the scenario files and the Monte Carlo engine (on the core that would otherwise be idle), and it
+draws the figures while this process writes the other files and prints its summary. The module itself
+imports only the command line's own modules, so that the fork comes early.
+"""
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-from rich.table import Table
 
 from robotcal.cli._common import (
     FORCE_HELP,
@@ -19,31 +23,58 @@ from robotcal.cli._common import (
     _line,
     check_memory,
     command_app,
-    console,
     handle_errors,
     monte_carlo_bytes,
     seed_option_check,
     styled,
 )
 from robotcal.errors import InputError
-from robotcal.io import load_scenario, read_parameters
-from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.io.scenario import Scenario
-from robotcal.io.uncertainty_files import uncertainty_rows
-from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.uncertainty import compute_uncertainty as run_uncertainty
 from robotcal.pipeline.uncertainty import write_uncertainty_folder
-from robotcal.uncertainty.montecarlo import (
-    MODELS,
-    MonteCarloResult,
-    MonteCarloSettings,
-    ProgressCallback,
-)
-from robotcal.workflow import resolve_seed
+
+if TYPE_CHECKING:
+    from rich.table import Table
+
+    from robotcal.io.scenario import Scenario
+    from robotcal.kinematics.model import ParameterSet
+    from robotcal.plots.background import FigureRenderer
+    from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings, ProgressCallback
 
 app = command_app()
 
 __all__ = ["uncertainty", "compute_uncertainty", "write_uncertainty_folder", "uncertainty_table"]
+
+#: Modules the figure worker imports while the draws run (the histograms' own and, through them, matplotlib).
+FIGURE_MODULES = ("robotcal.plots.montecarlo",)
+
+
+def _console():
+    from robotcal.cli._common import console
+
+    return console
+
+
+def _progress(title: str):
+    """A transient Rich progress bar ``title [bar] done/total draws elapsed remaining``."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    return Progress(
+        TextColumn(title),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("draws"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=_console(),
+        transient=True,
+    )
 
 
 def compute_uncertainty(
@@ -65,16 +96,7 @@ def compute_uncertainty(
             criterion=criterion,
         )  # fmt: skip
     total = None if settings.adaptive else settings.iterations
-    with Progress(
-        TextColumn("Monte Carlo"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("draws"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-        transient=True,
-    ) as display:
+    with _progress("Monte Carlo") as display:
         task = display.add_task("draws", total=total)
 
         def report(done: int, expected: int | None) -> None:
@@ -87,16 +109,23 @@ def compute_uncertainty(
 
 
 def _model_name(result: MonteCarloResult) -> str:
-    from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL  # scipy: imported when this runs, not for --help
-    if result.model == MEASURED_MODEL:
-        return f"measured capture ({result.criterion} refinement, noise from each point's U(95))"
     if result.model == "refined":
         return f"refined model (CPA + {result.criterion} refinement)"
+    if result.model == "cpa":
+        return "CPA model"
+    from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL  # scipy: only for a measured capture's result
+
+    if result.model == MEASURED_MODEL:
+        return f"measured capture ({result.criterion} refinement, noise from each point's U(95))"
     return "CPA model"
 
 
 def uncertainty_table(result: MonteCarloResult) -> Table:
     """Identified parameters: mean, u, interval, linearised u and the JCGM 101 §8 verdict."""
+    from rich.table import Table
+
+    from robotcal.io.uncertainty_files import uncertainty_rows
+
     coverage = f"{result.settings.coverage:.0%}"
     table = Table(
         title=f"Monte Carlo uncertainty, {_model_name(result)} ({result.n_draws:,} draws, seed {result.seed}, {result.settings.interval} {coverage} interval)",
@@ -215,7 +244,6 @@ def uncertainty(
 ) -> None:
     """Monte Carlo (GUM Supplement 1) uncertainty of the CPA or refined parameters, with the linearised comparison;
     with --capture and --params, of the refinement of a measured capture."""
-    from robotcal.identification.refine import CRITERIA  # scipy: imported when this runs, not for --help
     if scenario is not None and scenario_option is not None and scenario != scenario_option:
         raise InputError(f"two scenarios given: {scenario!r} and --scenario {scenario_option!r}; give one")
     scenario = scenario if scenario is not None else scenario_option
@@ -228,16 +256,65 @@ def uncertainty(
             raise InputError("--capture and --params go together: the measured capture and its refined parameter JSON")
         if model != "cpa" or adaptive or true_params is not None:
             raise InputError("--capture does not combine with --model, --adaptive or --true-params")
-        _measured_capture_command(
-            scenario, capture, params, out, iterations=iterations, seed=seed, coverage=coverage, interval=interval,
-            workers=workers, scheduler=scheduler, save_draws=save_draws, criterion=criterion, force=force,
+    import numpy  # noqa: F401  (before the fork: the figure worker inherits it instead of importing it again)
+
+    from robotcal.plots.background import FigureRenderer
+
+    # forked now: the worker imports matplotlib while this process imports the rest, then draws
+    with FigureRenderer(preload=FIGURE_MODULES) as renderer:
+        if capture is not None:
+            _measured_capture_command(
+                scenario, capture, params, out, iterations=iterations, seed=seed, coverage=coverage,
+                interval=interval, workers=workers, scheduler=scheduler, save_draws=save_draws, criterion=criterion,
+                force=force, renderer=renderer,
+            )  # fmt: skip
+            return
+        _scenario_command(
+            scenario, out, iterations=iterations, adaptive=adaptive, ndig=ndig, max_draws=max_draws, seed=seed,
+            coverage=coverage, interval=interval, batch_size=batch_size, workers=workers, save_draws=save_draws,
+            true_params=true_params, force=force, model=model, criterion=criterion, scheduler=scheduler,
+            renderer=renderer,
         )  # fmt: skip
-        return
-    criterion = "points" if criterion is None else criterion
+
+
+def _scenario_command(
+    scenario: str,
+    out: Path,
+    *,
+    iterations: int | None,
+    adaptive: bool,
+    ndig: int,
+    max_draws: int,
+    seed: int | None,
+    coverage: float | None,
+    interval: str,
+    batch_size: int,
+    workers: int | None,
+    save_draws: bool,
+    true_params: Path | None,
+    force: bool,
+    model: str,
+    criterion: str | None,
+    scheduler: str | None,
+    renderer: FigureRenderer,
+) -> None:
+    """``robotcal uncertainty SCENARIO --out DIR``: the scenario's Monte Carlo, its folder and its summary."""
+    import numpy as np
+
+    from robotcal.io import load_scenario, read_parameters
+    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.uncertainty.montecarlo import MODELS, MonteCarloSettings
+    from robotcal.workflow import resolve_seed
+
     if model not in MODELS:
         raise InputError(f"--model must be one of {', '.join(MODELS)}; got {model!r}")
-    if criterion not in CRITERIA:
-        raise InputError(f"--criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
+    if criterion is None:
+        criterion = "points"  # the default: no need to import the refinement (scipy) to check it
+    else:
+        from robotcal.identification.refine import CRITERIA
+
+        if criterion not in CRITERIA:
+            raise InputError(f"--criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
     inputs = existing_inputs(scenario, true_params)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
@@ -255,6 +332,7 @@ def uncertainty(
         scheduler=scheduler,
     )
     n_draws = settings.max_draws if settings.adaptive else settings.iterations
+    # the figure worker's copy of the draws comes after the statistics' sorted copy, which the estimate counts
     check_memory(
         f"a Monte Carlo of {n_draws:,} draws",
         monte_carlo_bytes(
@@ -272,28 +350,33 @@ def uncertainty(
     result = compute_uncertainty(
         loaded, settings, seed=run_seed, true_parameters=truth, model=model, criterion=criterion
     )
-    with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty") as folder:
-        write_uncertainty_folder(folder, result, loaded, save_draws=save_draws)
-    console.print(uncertainty_table(result))
-    timings = result.timings_s
-    rate = result.n_draws / max(timings["draws"], 1e-9)
-    console.print(
-        f"{result.message}; {timings['draws']:.2f} s for the draws ({rate:,.0f} draws/s, {settings.workers} worker(s))",
-        highlight=False,
-    )
-    if result.linearised is not None:
-        differs = int(np.sum(~result.linearised.agrees & result.identified))
+    console = _console()
+
+    def summary() -> None:  # printed while the figure worker draws the histograms
+        console.print(uncertainty_table(result))
+        timings = result.timings_s
+        rate = result.n_draws / max(timings["draws"], 1e-9)
         console.print(
-            f"linearised (GUM) vs Monte Carlo, JCGM 101 §8 with ndig = {settings.ndig}: "
-            + (
-                "all intervals agree"
-                if differs == 0
-                else f"{differs} parameter(s) differ: the Monte Carlo result stands"
-            ),
+            f"{result.message}; {timings['draws']:.2f} s for the draws ({rate:,.0f} draws/s, "
+            f"{settings.workers} worker(s))",
             highlight=False,
         )
-    if result.adaptive is not None and not result.adaptive.stable:
-        console.print(_line("warning:", "yellow", result.adaptive.reason), highlight=False)
+        if result.linearised is not None:
+            differs = int(np.sum(~result.linearised.agrees & result.identified))
+            console.print(
+                f"linearised (GUM) vs Monte Carlo, JCGM 101 §8 with ndig = {settings.ndig}: "
+                + (
+                    "all intervals agree"
+                    if differs == 0
+                    else f"{differs} parameter(s) differ: the Monte Carlo result stands"
+                ),
+                highlight=False,
+            )
+        if result.adaptive is not None and not result.adaptive.stable:
+            console.print(_line("warning:", "yellow", result.adaptive.reason), highlight=False)
+
+    with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty") as folder:
+        write_uncertainty_folder(folder, result, loaded, save_draws=save_draws, renderer=renderer, meanwhile=summary)
     console.print(f"wrote {out}", highlight=False)
 
 
@@ -335,12 +418,18 @@ def _measured_capture_command(
     save_draws: bool,
     criterion: str | None,
     force: bool,
+    renderer: FigureRenderer | None = None,
 ) -> None:
     """``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``."""
+    from rich.table import Table
+
     from robotcal.identification.refine import CRITERIA  # scipy: imported when this runs, not for --help
-    from robotcal.io import read_capture
+    from robotcal.io import load_scenario, read_capture, read_parameters
+    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
     from robotcal.io.parameters_json import read_targets
     from robotcal.uncertainty.measured import measured_monte_carlo
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings
+    from robotcal.workflow import resolve_seed
 
     if criterion is not None and criterion not in CRITERIA:
         raise InputError(f"--criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
@@ -384,16 +473,7 @@ def _measured_capture_command(
     )
     run_seed = resolve_seed(seed, table.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")
-    with Progress(
-        TextColumn("Monte Carlo of the capture"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("draws"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-        transient=True,
-    ) as display:
+    with _progress("Monte Carlo of the capture") as display:
         task = display.add_task("draws", total=settings.iterations)
         result = measured_monte_carlo(
             measured,
@@ -411,8 +491,9 @@ def _measured_capture_command(
     with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty --capture") as folder:
         _write_measured_folder(
             folder, result, echo, capture=str(capture), params=str(params), n_points=measured.n_points,
-            save_draws=save_draws,
+            save_draws=save_draws, renderer=renderer,
         )  # fmt: skip
+    console = _console()
     console.print(uncertainty_table(result.parameters))
     if result.target_summary is not None:
         offsets = Table(title="Estimated target offsets [mm]", title_justify="left")
@@ -435,6 +516,8 @@ def _measured_capture_command(
 
 def _target_rows(result) -> list[dict]:
     """One dict per estimated offset component (mm)."""
+    import numpy as np
+
     rows = []
     summary = result.target_summary
     if summary is None:
@@ -462,18 +545,49 @@ def _target_rows(result) -> list[dict]:
 
 
 def _write_measured_folder(
-    folder: Path, result, echo: dict, *, capture: str, params: str, n_points: int, save_draws: bool
+    folder: Path,
+    result,
+    echo: dict,
+    *,
+    capture: str,
+    params: str,
+    n_points: int,
+    save_draws: bool,
+    renderer: FigureRenderer | None = None,
 ) -> None:
     """``parameters.csv``, ``parameters.json`` (``model: "measured capture"``), ``targets.csv``, the
-    histograms and (``save_draws``) ``draws.npz`` (mm, deg)."""
+    histograms (drawn by ``renderer`` meanwhile, when given) and (``save_draws``) ``draws.npz`` (mm, deg)."""
+    from robotcal.pipeline.uncertainty import HISTOGRAMS
+
+    figures = None if renderer is None else renderer.submit(HISTOGRAMS, result.parameters, folder)
+    try:
+        _write_measured_files(folder, result, echo, capture=capture, params=params, n_points=n_points,
+                              save_draws=save_draws)  # fmt: skip
+        if figures is None:
+            from robotcal.plots.montecarlo import write_histograms
+
+            write_histograms(result.parameters, folder)
+        else:
+            figures.result()
+    except BaseException:
+        if figures is not None:
+            renderer.cancel()  # no histogram is written into the folder after this
+        raise
+
+
+def _write_measured_files(
+    folder: Path, result, echo: dict, *, capture: str, params: str, n_points: int, save_draws: bool
+) -> None:
+    """The files of :func:`_write_measured_folder` but the histograms."""
     import csv
     import io
     import json
 
+    import numpy as np
+
     from robotcal.io.atomic import atomic_write_text
     from robotcal.io.draws_npz import write_draws
     from robotcal.io.uncertainty_files import write_uncertainty_csv, write_uncertainty_json
-    from robotcal.plots.montecarlo import write_histograms
     from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL  # scipy: imported when this runs, not for --help
     from robotcal.uncertainty.measured import with_model
     from robotcal.workflow import versions
@@ -523,4 +637,3 @@ def _write_measured_folder(
             folder / "draws.npz", parameters.robot, parameters.draws, parameters.identified, seed=parameters.seed,
             model=MEASURED_MODEL,
         )  # fmt: skip
-    write_histograms(parameters, folder)

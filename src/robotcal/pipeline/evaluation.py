@@ -11,11 +11,19 @@ import csv
 import io
 from pathlib import Path
 
+from robotcal.pipeline.figures import Render, draw_now, figure_paths
 from robotcal.pipeline.folder import write_csv, write_json
 from robotcal.pipeline.result import Document
 from robotcal.workflow import versions
 
-__all__ = ["COLUMNS", "evaluation_csv", "evaluation_document", "evaluation_headline", "write_evaluation_folder"]
+__all__ = [
+    "COLUMNS",
+    "evaluation_csv",
+    "evaluation_document",
+    "evaluation_headline",
+    "write_evaluation_figures",
+    "write_evaluation_folder",
+]
 
 #: Columns of ``evaluation.csv`` (and of each row of ``evaluation.json``).
 COLUMNS = (
@@ -91,20 +99,25 @@ def evaluation_document(
     }
 
 
-def write_evaluation_folder(folder: Path, rows, document: dict) -> dict[str, Document]:
-    """Write ``evaluation.csv``, ``evaluation.json`` and (with convergence histories) ``convergence.png``
-    into ``folder`` (an existing, normally temporary, folder); returns the documents by file name."""
+def write_evaluation_folder(folder: Path, rows, document: dict, *, figures: bool = True) -> dict[str, Document]:
+    """Write ``evaluation.csv``, ``evaluation.json`` and (with convergence histories and ``figures``)
+    ``convergence.png`` into ``folder`` (an existing, normally temporary, folder); returns the documents by
+    file name. A run draws the figure later, in the background (:func:`write_evaluation_figures`)."""
     documents: dict[str, Document] = {
         "evaluation.csv": write_csv(folder / "evaluation.csv", evaluation_csv(rows)),
         "evaluation.json": write_json(folder / "evaluation.json", document),
     }
-    histories = document.get("convergence") or {}
-    if histories:
-        from robotcal.plots.refine import plot_convergence  # matplotlib only when writing figures
-
-        plot_convergence(
-            {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()},
-            folder / "convergence.png",
-        )
-        documents["convergence.png"] = folder / "convergence.png"
+    if figures:
+        for drawn in write_evaluation_figures(folder, document):
+            documents.update({path.name: path for path in figure_paths(drawn)})
     return documents
+
+
+def write_evaluation_figures(folder: Path, document: dict, *, render: Render = draw_now) -> list:
+    """``convergence.png`` of the refinement histories in ``document`` (none without them), through
+    ``render`` (:mod:`robotcal.pipeline.figures`); returns what ``render`` returned."""
+    histories = document.get("convergence") or {}
+    if not histories:
+        return []
+    convergence = {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()}
+    return [render("robotcal.plots.refine:plot_convergence", convergence, Path(folder) / "convergence.png")]

@@ -18,6 +18,7 @@ from robotcal.diagnostics.iso9283 import ISO_CYCLES, simulate_iso_study
 from robotcal.io.atomic import atomic_directory
 from robotcal.io.iso9283_files import iso_to_csv
 from robotcal.kinematics.model import ParameterSet
+from robotcal.pipeline.figures import Render, draw_now
 from robotcal.pipeline.folder import write_csv, write_json
 
 __all__ = ["ISO_TARGETS_MM", "iso9283_stage"]
@@ -27,11 +28,11 @@ __all__ = ["ISO_TARGETS_MM", "iso9283_stage"]
 ISO_TARGETS_MM = {"A": (60.0, 40.0, 30.0), "B": (-50.0, 30.0, 20.0), "C": (0.0, -60.0, 40.0)}
 
 
-def iso9283_stage(scenario, *, truth: ParameterSet, models: dict, seed: int, out: Path):
+def iso9283_stage(scenario, *, truth: ParameterSet, models: dict, seed: int, out: Path, render: Render = draw_now):
     """``iso9283/``: ``iso9283.csv`` (the ``robotcal iso9283`` columns), ``study.json`` (cube, start, cycles,
-    targets, seed, models) and ``iso9283.png``. Result: the :class:`IsoStudy`."""
+    targets, seed, models) and ``iso9283.png`` (drawn through ``render``, :mod:`robotcal.pipeline.figures`).
+    Result: the :class:`IsoStudy`."""
     from robotcal.pipeline.stages import StageOutput
-    from robotcal.plots.iso9283 import plot_iso_results
 
     study = simulate_iso_study(
         scenario, models, cycles=ISO_CYCLES, seed=seed, true_parameters=truth, targets_mm=ISO_TARGETS_MM
@@ -56,8 +57,7 @@ def iso9283_stage(scenario, *, truth: ParameterSet, models: dict, seed: int, out
             "iso9283/iso9283.csv": write_csv(folder / "iso9283.csv", iso_to_csv(study.results)),
             "iso9283/study.json": write_json(folder / "study.json", summary),
         }
-        plot_iso_results(study.results, folder / "iso9283.png")
-    documents["iso9283/iso9283.png"] = out / "iso9283" / "iso9283.png"
+    drawn = render("robotcal.plots.iso9283:plot_iso_results", study.results, out / "iso9283" / "iso9283.png")
     worst = {model: float(np.max(r.ap)) * 1e3 for model, r in study.results.items()}
     detail = "max AP " + ", ".join(f"{model} {value:.0f} um" for model, value in worst.items())
-    return StageOutput(study, documents, detail)
+    return StageOutput(study, documents, detail, figures=(drawn,))

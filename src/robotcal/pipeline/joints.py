@@ -1,7 +1,7 @@
 """Joint diagnostics of a capture (thesis ch. 4.6): the computation and the files of ``joints/``.
 
 :func:`compute_joints` runs the diagnostics and their harmonic model; :func:`joints_files` builds the
-CSV texts and ``harmonics.json`` (mm, deg); :func:`write_joints_folder` writes them with the figures.
+CSV texts and ``harmonics.json`` (mm, deg); :func:`write_joints_folder` writes them with the figures (:func:`write_joint_figure_files`).
 ``robotcal joints`` and the joints stage of a run call the same functions.
 """
 
@@ -16,6 +16,7 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
+from robotcal.pipeline.figures import Render, draw_now, figure_paths
 from robotcal.pipeline.folder import write_csv, write_json
 from robotcal.pipeline.result import Document
 from robotcal.workflow import versions
@@ -28,6 +29,7 @@ __all__ = [
     "joints_files",
     "points_csv",
     "summary_csv",
+    "write_joint_figure_files",
     "write_joints_folder",
 ]
 
@@ -149,21 +151,36 @@ def joints_files(diagnostics: JointDiagnostics, model: HarmonicModel, *, capture
 
 
 def write_joints_folder(
-    folder: Path, diagnostics: JointDiagnostics, model: HarmonicModel, *, capture, scenario, scale: float = 500.0
+    folder: Path,
+    diagnostics: JointDiagnostics,
+    model: HarmonicModel,
+    *,
+    capture,
+    scenario,
+    scale: float = 500.0,
+    figures: bool = True,
 ) -> dict[str, Document]:
-    """Write the CSV files, ``harmonics.json`` and the figures into ``folder`` (an existing, normally
-    temporary, folder); ``capture`` names the capture in the provenance.
+    """Write the CSV files, ``harmonics.json`` and (with ``figures``) the figures into ``folder`` (an
+    existing, normally temporary, folder); ``capture`` names the capture in the provenance. A run draws the
+    figures later, in the background (:func:`write_joint_figure_files`).
 
     Returns the documents written by file name, in order (CSV -> Table, JSON -> dict, figure -> Path).
     """
-    from robotcal.plots.joints import write_joint_figures  # matplotlib only when writing figures
-
     documents: dict[str, Document] = {}
     for name, content in joints_files(diagnostics, model, capture=capture, scenario=scenario).items():
         if isinstance(content, dict):
             documents[name] = write_json(folder / name, content)
         else:
             documents[name] = write_csv(folder / name, content)
-    for path in write_joint_figures(diagnostics, folder, model=model, scale=scale):
-        documents[Path(path).name] = Path(path)
+    if figures:
+        for path in figure_paths(write_joint_figure_files(folder, diagnostics, model, scale=scale)):
+            documents[path.name] = path
     return documents
+
+
+def write_joint_figure_files(
+    folder: Path, diagnostics: JointDiagnostics, model: HarmonicModel, *, scale: float = 500.0, render: Render = draw_now
+):
+    """The backlash and eccentricity figures of ``joints/`` through ``render`` (:mod:`robotcal.pipeline.figures`);
+    returns what ``render`` returned (the paths, or a job of them)."""
+    return render("robotcal.plots.joints:write_joint_figures", diagnostics, Path(folder), model=model, scale=scale)

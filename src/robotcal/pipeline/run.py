@@ -28,10 +28,12 @@ from robotcal.io.atomic import atomic_write_text
 from robotcal.io.output import check_output_folder, output_lock, write_marker
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline import stages
+from robotcal.pipeline.figures import draw_now, figure_paths
 from robotcal.pipeline.folder import json_text
 from robotcal.pipeline.plan import OUTPUTS, RUN_RECORD, STAGES, RunPlan
 from robotcal.pipeline.result import Document, RunResult
 from robotcal.pipeline.runtime import Terminated
+from robotcal.plots.background import FigureRenderer
 from robotcal.workflow import versions
 
 __all__ = ["REPORT_NAME", "StageProgress", "run_calibration", "run_record"]
@@ -41,6 +43,15 @@ __all__ = ["REPORT_NAME", "StageProgress", "run_calibration", "run_record"]
 StageProgress = Callable[[str, int, int | None, str], None]
 #: The report's file in the run folder.
 REPORT_NAME = "report.html"
+#: Plot modules the figure worker imports as soon as it starts (matplotlib with them), while the run computes.
+FIGURE_MODULES = (
+    "robotcal.plots.refine",
+    "robotcal.plots.joints",
+    "robotcal.plots.montecarlo",
+    "robotcal.plots.tcp",
+    "robotcal.plots.iso9283",
+    "robotcal.plots.planning",
+)
 
 
 def run_calibration(plan: RunPlan, progress: StageProgress | None = None) -> RunResult:
@@ -147,7 +158,9 @@ def _message(exc: BaseException) -> str:
         return "terminated (SIGTERM)"
     if isinstance(exc, KeyboardInterrupt):
         return "interrupted (SIGINT, Ctrl-C)"
-    return str(exc) if isinstance(exc, RobotcalError) else f"{type(exc).__name__}: {exc}"
+    message = str(exc) if isinstance(exc, RobotcalError) else f"{type(exc).__name__}: {exc}"
+    notes = getattr(exc, "__notes__", None) or ()  # e.g. the figure job that failed
+    return " ".join([message, *map(str, notes)])
 
 
 def _clear_previous(out: Path) -> None:
@@ -172,6 +185,8 @@ class _Run:
         self.record: dict = {}
         self.documents: dict[str, Document] = {}
         self.results: dict = {}
+        self.figures: list = []  # what the stages' render calls returned: paths, or jobs of the figure worker
+        self.render = draw_now
         self.started = time.perf_counter()
 
     def write_record(self) -> None:
@@ -191,9 +206,13 @@ class _Run:
         self.record = json_copy(run_record(self.plan))  # plain JSON types: the record is run.json as read back
         self.write_record()
         try:
-            for name in STAGES[:-1]:
-                self._stage(name, getattr(self, f"_{name}"))
-            return self._report()
+            # figures are drawn by a worker process while the stages compute (docs/pipeline.md, "Figures");
+            # leaving this block by an exception stops it at once, and no figure is written after that
+            with FigureRenderer(preload=FIGURE_MODULES) as renderer:
+                self.render = renderer.submit
+                for name in STAGES[:-1]:
+                    self._stage(name, getattr(self, f"_{name}"))
+                return self._report()
         except BaseException as exc:
             if self.record["status"] == "running":  # interrupted between stages
                 self.record.update(status=_status(exc), error=_message(exc))
@@ -228,6 +247,7 @@ class _Run:
                 self._fail(name, exc, started)
                 raise
         self.documents.update(output.documents)
+        self.figures.extend(output.figures)
         messages = list(dict.fromkeys(str(w.message) for w in caught))
         self.record["stages"][name].update(
             status="done",
@@ -271,12 +291,15 @@ class _Run:
             capture=self.results["capture"],
             validation=self.results["validation"],
             out=self.out,
+            render=self.render,
         )
         self.results["evaluation"] = output.value
         return output
 
     def _joints(self) -> stages.StageOutput:
-        output = stages.joints_stage(self.plan.scenario, self.results["capture"], backlash=self.plan.backlash, out=self.out)
+        output = stages.joints_stage(
+            self.plan.scenario, self.results["capture"], backlash=self.plan.backlash, out=self.out, render=self.render
+        )
         self.results["joints"] = output.value
         return output
 
@@ -290,6 +313,7 @@ class _Run:
             deployed=self.results["refined"][stages.DEPLOYED].parameters,
             out=self.out,
             step=self.step("uncertainty"),
+            render=self.render,
         )
         self.results["montecarlo"] = output.value
         return output
@@ -304,6 +328,7 @@ class _Run:
             workspace_seed=self.plan.seeds["workspace"],
             out=self.out,
             step=self.step("tcp"),
+            render=self.render,
         )
         self.results["tcp"] = output.value
         return output
@@ -315,7 +340,12 @@ class _Run:
             "refined": self.results["refined"][stages.DEPLOYED].parameters,
         }
         output = stages.iso9283_stage(
-            self.plan.scenario, truth=self.results["truth"], models=models, seed=self.plan.seeds["iso9283"], out=self.out
+            self.plan.scenario,
+            truth=self.results["truth"],
+            models=models,
+            seed=self.plan.seeds["iso9283"],
+            out=self.out,
+            render=self.render,
         )
         self.results["iso9283"] = output.value
         return output
@@ -327,9 +357,18 @@ class _Run:
             draws=self.plan.montecarlo.iterations,
             out=self.out,
             step=self.step("plan"),
+            render=self.render,
         )
         self.results["plan"] = output.value
         return output
+
+    def _collect_figures(self) -> None:
+        """Wait for every figure (the report embeds them) and add them to the documents, by path in the run
+        folder. A figure that failed fails the report stage, its message naming the figure's job."""
+        for drawn in self.figures:
+            for path in figure_paths(drawn):  # a job's error carries a note naming it (robotcal.plots.background)
+                self.documents[path.relative_to(self.out).as_posix()] = path
+        self.progress("report", 1, None, f"{len(self.figures)} figure jobs drawn")
 
     def _report(self) -> RunResult:
         """The last stage: the final record, the summary and the report, rendered once from memory."""
@@ -341,6 +380,7 @@ class _Run:
         self.progress(name, 0, None, "running")
         started = time.perf_counter()
         try:
+            self._collect_figures()
             from robotcal.report.html import render_report  # the layer above: see the module docstring
 
             now = time.perf_counter()

@@ -26,14 +26,15 @@ from robotcal.io.capture_csv import capture_to_csv
 from robotcal.io.parameters_json import parameters_to_dict
 from robotcal.io.scenario import Scenario
 from robotcal.kinematics.model import ParameterSet
-from robotcal.pipeline.evaluation import evaluation_document, write_evaluation_folder
+from robotcal.pipeline.evaluation import evaluation_document, write_evaluation_figures, write_evaluation_folder
+from robotcal.pipeline.figures import Render, draw_now
 from robotcal.pipeline.folder import read_document, write_csv, write_json
 from robotcal.pipeline.iso9283 import iso9283_stage
-from robotcal.pipeline.joints import compute_joints, write_joints_folder
+from robotcal.pipeline.joints import compute_joints, write_joint_figure_files, write_joints_folder
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES
 from robotcal.pipeline.result import Document, Table
-from robotcal.pipeline.tcp import compute_tcp, write_tcp_folder
-from robotcal.pipeline.uncertainty import compute_uncertainty, write_uncertainty_folder
+from robotcal.pipeline.tcp import compute_tcp, write_tcp_figures, write_tcp_folder
+from robotcal.pipeline.uncertainty import HISTOGRAMS, compute_uncertainty, write_uncertainty_folder
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
 from robotcal.workflow import (
     TCPTargets,
@@ -79,11 +80,13 @@ def _no_step(done: int, total: int | None, detail: str = "") -> None:
 
 @dataclass(frozen=True, slots=True)
 class StageOutput:
-    """What a stage produced: its typed result, its documents (path relative to the run folder), a detail."""
+    """What a stage produced: its typed result, its documents (path relative to the run folder), a detail,
+    and its figures as ``render`` returned them (paths, or jobs of paths: :func:`~robotcal.pipeline.figures.figure_paths`)."""
 
     value: Any
     documents: dict[str, Document] = field(default_factory=dict)
     detail: str = ""
+    figures: tuple = ()
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -219,6 +222,7 @@ def evaluate_stage(
     capture: Capture,
     validation: Capture,
     out: Path,
+    render: Render = draw_now,
 ) -> StageOutput:
     """``evaluation/``: nominal, CPA and refined parameters on the validation and calibration captures."""
     sets = {"nominal": ParameterSet.nominal(scenario.robot), "cpa": cpa, **{c: r.parameters for c, r in refined.items()}}
@@ -233,19 +237,25 @@ def evaluate_stage(
         headline_after=DEPLOYED,
     )
     with atomic_directory(out / "evaluation") as folder:
-        documents = write_evaluation_folder(folder, rows, document)
+        documents = write_evaluation_folder(folder, rows, document, figures=False)
+    drawn = write_evaluation_figures(out / "evaluation", document, render=render)
     headline = document["headline"]
     detail = f"{headline['before_mean_mm']:.3f} -> {headline['after_mean_mm']:.4f} mm" if headline else ""
-    return StageOutput(rows, _folder_documents("evaluation", documents, out / "evaluation"), detail)
+    return StageOutput(rows, _folder_documents("evaluation", documents, out / "evaluation"), detail, tuple(drawn))
 
 
-def joints_stage(scenario: Scenario, capture: Capture, *, backlash: bool, out: Path) -> StageOutput:
+def joints_stage(
+    scenario: Scenario, capture: Capture, *, backlash: bool, out: Path, render: Render = draw_now
+) -> StageOutput:
     """``joints/``: backlash and eccentricity per joint with their harmonic model (thesis ch. 4.6)."""
     diagnostics, model = compute_joints(capture, scenario, backlash=backlash)
     with atomic_directory(out / "joints") as folder:
-        documents = write_joints_folder(folder, diagnostics, model, capture="capture.csv", scenario=scenario)
+        documents = write_joints_folder(
+            folder, diagnostics, model, capture="capture.csv", scenario=scenario, figures=False
+        )
+    drawn = write_joint_figure_files(out / "joints", diagnostics, model, render=render)
     detail = "backlash and eccentricity" if backlash else "eccentricity (one sweep direction)"
-    return StageOutput((diagnostics, model), _folder_documents("joints", documents, out / "joints"), detail)
+    return StageOutput((diagnostics, model), _folder_documents("joints", documents, out / "joints"), detail, (drawn,))
 
 
 def uncertainty_stage(
@@ -258,6 +268,7 @@ def uncertainty_stage(
     deployed: ParameterSet,
     out: Path,
     step: Step = _no_step,
+    render: Render = draw_now,
 ) -> StageOutput:
     """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model).
 
@@ -284,13 +295,15 @@ def uncertainty_stage(
         criterion=DEPLOYED,
     )
     documents: dict[str, Document] = {}
+    drawn = []
     for name, value in (("uncertainty", result), ("uncertainty-refined", refined)):
         with atomic_directory(out / name) as folder:
-            written = write_uncertainty_folder(folder, value, scenario, save_draws=True)
+            written = write_uncertainty_folder(folder, value, scenario, save_draws=True, figures=False)
         documents.update(_folder_documents(name, written, out / name))
+        drawn.append(render(HISTOGRAMS, value, out / name))
     rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in (result, refined)]
     detail = f"CPA {result.n_draws:,} draws ({rates[0]:,.0f}/s), refined {refined.n_draws:,} draws ({rates[1]:,.0f}/s)"
-    return StageOutput({"cpa": result, "refined": refined}, documents, detail)
+    return StageOutput({"cpa": result, "refined": refined}, documents, detail, tuple(drawn))
 
 
 def tcp_stage(
@@ -303,6 +316,7 @@ def tcp_stage(
     workspace_seed: int,
     out: Path,
     step: Step = _no_step,
+    render: Render = draw_now,
 ) -> StageOutput:
     """``tcp/``: TCP uncertainty of the deployed (refined) model at the pose, along the trajectory, over the
     workspace (thesis ch. 5.3), and ``tcp/consistency.json``, the check against the validation capture.
@@ -348,8 +362,15 @@ def tcp_stage(
         written["consistency.json"] = write_json(folder / "consistency.json", consistency)
         for mode, result, workspace_map, provenance in parts:
             (folder / mode).mkdir()
-            files = write_tcp_folder(folder / mode, result, mode, workspace=workspace_map, provenance=provenance)
+            files = write_tcp_folder(
+                folder / mode, result, mode, workspace=workspace_map, provenance=provenance, figures=False
+            )
             written.update(_folder_documents(mode, files, Path(mode)))
+    drawn = [
+        figure
+        for mode, result, workspace_map, _ in parts
+        for figure in write_tcp_figures(out / "tcp" / mode, result, mode, workspace=workspace_map, render=render)
+    ]
     step(3, None, "workspace")
     documents = {
         f"tcp/{name}": (out / "tcp" / document if isinstance(document, Path) else document)
@@ -358,10 +379,12 @@ def tcp_stage(
     value = {mode: result for mode, result, _, _ in parts}
     value["workspace_map"] = ws
     value["consistency"] = consistency
-    return StageOutput(value, documents, ", ".join(mode for mode, *_ in parts))
+    return StageOutput(value, documents, ", ".join(mode for mode, *_ in parts), tuple(drawn))
 
 
-def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: Step = _no_step) -> StageOutput:
+def plan_stage(
+    scenario: Scenario, *, seed: int, draws: int, out: Path, step: Step = _no_step, render: Render = draw_now
+) -> StageOutput:
     """``plan/``: the capture plan checked in the cell (thesis 4.5.2) and how its J4 sweep drives the
     uncertainty (ch. 5.2.4, Fig. 5.15), a sensitivity study of at most :data:`PLAN_SENSITIVITY_DRAWS` draws per case.
 
@@ -370,13 +393,7 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
     from robotcal.planning.cell import check_plan
     from robotcal.planning.scenario import cell_from_scenario, scenario_document
     from robotcal.planning.sensitivity import run_sensitivity, study_rows
-    from robotcal.plots.planning import (
-        check_document,
-        plot_check,
-        plot_sensitivity,
-        write_check_files,
-        write_sensitivity_files,
-    )
+    from robotcal.plots.planning import check_document, write_check_files, write_sensitivity_files
 
     cell, notes = cell_from_scenario(scenario)
     check = check_plan(scenario.robot, scenario.plan, cell)
@@ -395,7 +412,6 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
     with atomic_directory(out / "plan") as folder:
         check_json = check_document(check, scenario=scenario.source, cell=cell, notes=notes)
         write_check_files(folder, check, check_json)
-        plot_check(check, folder / "plan_check.png", acceptance_deg=check_json["cell"]["acceptance_deg"])
         (folder / "sensitivity").mkdir()
         summary = {
             "scenario": scenario.source,
@@ -407,7 +423,6 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
             "model": "CPA (thesis ch. 5.2.4)",
         }
         write_sensitivity_files(folder / "sensitivity", rows, summary)
-        plot_sensitivity(rows, study.keys, folder / "sensitivity")
         # written by robotcal.plots.planning: read back once, as robotcal.pipeline.folder.read_run would
         documents = {
             str(path.relative_to(folder)): (
@@ -418,6 +433,15 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
             for path in sorted(folder.rglob("*"))
             if path.is_file()
         }
+    drawn = (
+        render(
+            "robotcal.plots.planning:plot_check",
+            check,
+            out / "plan" / "plan_check.png",
+            acceptance_deg=check_json["cell"]["acceptance_deg"],
+        ),
+        render("robotcal.plots.planning:plot_sensitivity", rows, study.keys, out / "plan" / "sensitivity"),
+    )
     bad = int((~check.ok).sum())
     verdict = "feasible in the cell" if bad == 0 else f"{bad} of {check.ok.size} points fail a cell check"
     detail = f"{verdict}; sensitivity to the J4 sweep, {len(study.cases)} cases"
@@ -425,4 +449,5 @@ def plan_stage(scenario: Scenario, *, seed: int, draws: int, out: Path, step: St
         {"check": check, "study": study, "notes": notes},
         {f"plan/{name}": document for name, document in documents.items()},
         detail,
+        drawn,
     )

@@ -14,12 +14,13 @@ import numpy as np
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.tcp_results import tcp_json_text, tcp_to_csv, tcp_to_dict
+from robotcal.pipeline.figures import Render, draw_now, figure_paths
 from robotcal.pipeline.folder import write_csv
 from robotcal.pipeline.result import Document
 from robotcal.uncertainty.tcp import TCPUncertainty, propagate_to_tcp
 from robotcal.uncertainty.workspace import workspace_uncertainty
 
-__all__ = ["TCP_MODES", "compute_tcp", "write_tcp_folder"]
+__all__ = ["TCP_MODES", "compute_tcp", "write_tcp_figures", "write_tcp_folder"]
 
 #: Where the TCP uncertainty is stated: one pose, along a trajectory, over random workspace poses.
 TCP_MODES = ("pose", "trajectory", "workspace")
@@ -73,9 +74,11 @@ def write_tcp_folder(
     interval: str = "symmetric",
     workspace=None,
     provenance: dict | None = None,
+    figures: bool = True,
 ) -> dict[str, Document]:
-    """Write ``tcp.csv``, ``tcp.json`` and the mode's figures into ``folder`` (an existing, normally
-    temporary, folder); returns the documents by file name (CSV -> Table, JSON -> dict, figure -> Path)."""
+    """Write ``tcp.csv``, ``tcp.json`` and (with ``figures``) the mode's figures into ``folder`` (an existing,
+    normally temporary, folder); returns the documents by file name (CSV -> Table, JSON -> dict, figure -> Path).
+    A run draws the figures later, in the background (:func:`write_tcp_figures`)."""
     documents: dict[str, Document] = {
         "tcp.csv": write_csv(folder / "tcp.csv", tcp_to_csv(result, interval=interval)),
         "tcp.json": _write_tcp_json(
@@ -83,23 +86,22 @@ def write_tcp_folder(
             tcp_to_dict(result, interval=interval, workspace=workspace, provenance=provenance or {}),
         ),
     }
-    for figure in write_tcp_figures(folder, result, mode, workspace=workspace):
-        documents[figure.name] = figure
+    if figures:
+        for drawn in write_tcp_figures(folder, result, mode, workspace=workspace):
+            documents.update({path.name: path for path in figure_paths(drawn)})
     return documents
 
 
-def write_tcp_figures(folder: Path, result: TCPUncertainty, mode: str, *, workspace=None) -> list[Path]:
-    """The figures of a TCP folder (every figure call of :func:`write_tcp_folder` is here): pose ->
-    ``scatter.png``, ``histograms.png``; trajectory -> ``trajectory.png``; workspace -> ``workspace.png``."""
-    from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_trajectory, plot_workspace
-
+def write_tcp_figures(folder: Path, result: TCPUncertainty, mode: str, *, workspace=None, render: Render = draw_now) -> list:
+    """The figures of a TCP folder through ``render`` (:mod:`robotcal.pipeline.figures`): pose ->
+    ``scatter.png``, ``histograms.png``; trajectory -> ``trajectory.png``; workspace -> ``workspace.png``.
+    Returns what ``render`` returned, one item per figure."""
+    folder = Path(folder)
     if mode == "pose":
-        figures = [
-            plot_tcp_scatter(result, folder / "scatter.png"),
-            plot_tcp_histograms(result, folder / "histograms.png"),
+        return [
+            render("robotcal.plots.tcp:plot_tcp_scatter", result, folder / "scatter.png"),
+            render("robotcal.plots.tcp:plot_tcp_histograms", result, folder / "histograms.png"),
         ]
-    elif mode == "trajectory":
-        figures = [plot_trajectory(result, folder / "trajectory.png")]
-    else:
-        figures = [plot_workspace(workspace, folder / "workspace.png")]
-    return [Path(figure) for figure in figures]
+    if mode == "trajectory":
+        return [render("robotcal.plots.tcp:plot_trajectory", result, folder / "trajectory.png")]
+    return [render("robotcal.plots.tcp:plot_workspace", workspace, folder / "workspace.png")]

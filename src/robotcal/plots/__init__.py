@@ -7,4 +7,4 @@ numeric core and :mod:`robotcal.io` (never the pipeline, the report or the CLI).
 (:mod:`robotcal.report`) embeds the PNG files they wrote.
 """
 
-__all__ = ["figures", "iso9283", "joints", "montecarlo", "planning", "refine", "tcp"]
+__all__ = ["background", "figures", "iso9283", "joints", "montecarlo", "planning", "refine", "tcp"]
