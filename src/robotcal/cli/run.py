@@ -17,12 +17,12 @@ from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, console, e
 from robotcal.errors import RobotcalError
 from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS, STAGES, STEPS, RunPlan, plan_run
 
-__all__ = ["run", "run_and_print", "run_with_display"]
+__all__ = ["figure_worker", "run", "run_and_print", "run_with_display"]
 
 app = command_app()
 
 
-def run_with_display(plan: RunPlan):
+def run_with_display(plan: RunPlan, figures=None):
     """:func:`robotcal.pipeline.run_calibration` under one Rich progress display (a task per stage; draws
     for the Monte Carlo); returns its :class:`~robotcal.pipeline.RunResult`."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -58,7 +58,7 @@ def run_with_display(plan: RunPlan):
             display.update(task, completed=done, detail=detail if stage != "uncertainty" else "")
 
         try:
-            return run_calibration(plan, progress=update)
+            return run_calibration(plan, progress=update, figures=figures)
         except BaseException:
             for task in display.tasks:
                 if task.started and not task.finished:
@@ -91,12 +91,22 @@ def _command_line(command: str, *arguments, **options) -> str:
     return " ".join(parts)
 
 
-def run_and_print(plan: RunPlan):
-    """The ``run``/``demo`` command body: display, summary, and the report's path and total time."""
+def figure_worker():
+    """The run's figure renderer, started before the run is planned so that its worker imports matplotlib
+    while this process loads the scenario and checks the plan (:func:`robotcal.pipeline.run_calibration`)."""
+    from robotcal.pipeline.figures import FIGURE_MODULES
+    from robotcal.plots.background import FigureRenderer
+
+    return FigureRenderer(preload=FIGURE_MODULES)
+
+
+def run_and_print(plan: RunPlan, figures=None):
+    """The ``run``/``demo`` command body: display, summary, and the report's path and total time; ``figures``:
+    the run's :class:`~robotcal.plots.background.FigureRenderer` (:func:`figure_worker`), or None."""
     started = time.perf_counter()
     console.rule(f"robotcal run {plan.scenario.name}: {plan.scenario.description}")
     try:
-        result = run_with_display(plan)
+        result = run_with_display(plan, figures)
     except RobotcalError as exc:
         record = getattr(exc, "robotcal_record", None)
         if record is None:
@@ -155,11 +165,12 @@ def run(
 ) -> None:
     """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP) and write DIR/report.html."""
     options = dict(seed=seed, draws=draws, workspace=workspace, workers=workers, refined_draws=refined_draws)
-    plan = plan_run(
-        scenario,
-        out,
-        **options,
-        command=_command_line("run", scenario, out=out, **options),
-        force=force,
-    )
-    run_and_print(plan)
+    with figure_worker() as figures:
+        plan = plan_run(
+            scenario,
+            out,
+            **options,
+            command=_command_line("run", scenario, out=out, **options),
+            force=force,
+        )
+        run_and_print(plan, figures)

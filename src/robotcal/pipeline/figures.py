@@ -20,7 +20,17 @@ from importlib import import_module
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Render", "draw_now", "figure_paths"]
+__all__ = ["FIGURE_MODULES", "Render", "draw_now", "figure_paths"]
+
+#: Plot modules a run's figure worker imports as soon as it starts (matplotlib with them).
+FIGURE_MODULES = (
+    "robotcal.plots.refine",
+    "robotcal.plots.joints",
+    "robotcal.plots.montecarlo",
+    "robotcal.plots.tcp",
+    "robotcal.plots.iso9283",
+    "robotcal.plots.planning",
+)
 
 #: ``render(function, *args, **kwargs)``: draw now and return the value, or submit and return a Future of it.
 Render = Callable[..., Any]

@@ -15,6 +15,7 @@ RunResult), through a lazy import inside the function: importing :mod:`robotcal.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import shutil
@@ -28,7 +29,7 @@ from robotcal.io.atomic import atomic_write_text
 from robotcal.io.output import check_output_folder, output_lock, write_marker
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline import stages
-from robotcal.pipeline.figures import draw_now, figure_paths
+from robotcal.pipeline.figures import FIGURE_MODULES, draw_now, figure_paths
 from robotcal.pipeline.folder import json_text
 from robotcal.pipeline.plan import OUTPUTS, RUN_RECORD, STAGES, RunPlan
 from robotcal.pipeline.result import Document, RunResult
@@ -43,18 +44,11 @@ __all__ = ["REPORT_NAME", "StageProgress", "run_calibration", "run_record"]
 StageProgress = Callable[[str, int, int | None, str], None]
 #: The report's file in the run folder.
 REPORT_NAME = "report.html"
-#: Plot modules the figure worker imports as soon as it starts (matplotlib with them), while the run computes.
-FIGURE_MODULES = (
-    "robotcal.plots.refine",
-    "robotcal.plots.joints",
-    "robotcal.plots.montecarlo",
-    "robotcal.plots.tcp",
-    "robotcal.plots.iso9283",
-    "robotcal.plots.planning",
-)
 
 
-def run_calibration(plan: RunPlan, progress: StageProgress | None = None) -> RunResult:
+def run_calibration(
+    plan: RunPlan, progress: StageProgress | None = None, *, figures: FigureRenderer | None = None
+) -> RunResult:
     """Run every stage of ``plan`` into ``plan.out``; returns the run in memory.
 
     Parameters
@@ -64,6 +58,11 @@ def run_calibration(plan: RunPlan, progress: StageProgress | None = None) -> Run
         is refused: the figures and the Monte Carlo draws are files, and the report embeds them).
     progress : callable, optional
         :data:`StageProgress`, called as stages advance (``robotcal run`` drives its display with it).
+    figures : FigureRenderer, optional
+        Draws the figures (:mod:`robotcal.pipeline.figures`); default: one started for the run, preloading
+        :data:`~robotcal.pipeline.figures.FIGURE_MODULES`. ``robotcal run`` starts its own before it plans
+        the run, so that matplotlib is imported meanwhile. The run stops its jobs if it fails; the caller
+        closes it.
 
     Returns
     -------
@@ -91,7 +90,7 @@ def run_calibration(plan: RunPlan, progress: StageProgress | None = None) -> Run
     with output_lock(plan.out):
         # checked again under the lock: another process may have written the folder since plan_run
         check_output_folder(plan.out, inputs=plan.inputs, force=plan.force, keeps_other_files=True)
-        return _Run(plan, progress).execute()
+        return _Run(plan, progress, figures).execute()
 
 
 def _scenario_echo(plan: RunPlan) -> dict:
@@ -178,7 +177,7 @@ def _clear_previous(out: Path) -> None:
 class _Run:
     """One execution of a plan: the record, the documents and typed results gathered stage by stage."""
 
-    def __init__(self, plan: RunPlan, progress: StageProgress | None):
+    def __init__(self, plan: RunPlan, progress: StageProgress | None, figures: FigureRenderer | None = None):
         self.plan = plan
         self.out: Path = plan.out
         self.progress = progress or (lambda stage, done, total, detail="": None)
@@ -187,6 +186,7 @@ class _Run:
         self.results: dict = {}
         self.figures: list = []  # what the stages' render calls returned: paths, or jobs of the figure worker
         self.render = draw_now
+        self.renderer = figures
         self.started = time.perf_counter()
 
     def write_record(self) -> None:
@@ -208,7 +208,7 @@ class _Run:
         try:
             # figures are drawn by a worker process while the stages compute (docs/pipeline.md, "Figures");
             # leaving this block by an exception stops it at once, and no figure is written after that
-            with FigureRenderer(preload=FIGURE_MODULES) as renderer:
+            with self.renderer_context() as renderer:
                 self.render = renderer.submit
                 for name in STAGES[:-1]:
                     self._stage(name, getattr(self, f"_{name}"))
@@ -217,6 +217,19 @@ class _Run:
             if self.record["status"] == "running":  # interrupted between stages
                 self.record.update(status=_status(exc), error=_message(exc))
                 self.write_record()
+            raise
+
+    @contextlib.contextmanager
+    def renderer_context(self):
+        """The run's figure renderer: the caller's (its jobs stopped if the run fails), or one of its own."""
+        if self.renderer is None:
+            with FigureRenderer(preload=FIGURE_MODULES) as renderer:
+                yield renderer
+            return
+        try:
+            yield self.renderer
+        except BaseException:
+            self.renderer.cancel()
             raise
 
     def _fail(self, name: str, exc: BaseException, started: float) -> None:

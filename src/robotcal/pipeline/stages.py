@@ -3,7 +3,9 @@
 Every stage takes typed inputs (the scenario, the results of earlier stages, the run folder ``out``) and
 returns a :class:`StageOutput`: its typed result, the documents it wrote (keyed by their path relative to
 the run folder, :mod:`robotcal.pipeline.result`) and a one-line detail for the progress display. A stage's
-folder is built with :func:`robotcal.io.atomic.atomic_directory`: it appears whole or not at all. The
+folder is built with :func:`robotcal.io.atomic.atomic_directory`: it appears whole or not at all (``tcp/``: one
+folder per mode, committed as it is computed; ``plan/`` then ``plan/sensitivity/``), and its figures are drawn
+afterwards, into the final folder, through ``render`` (:mod:`robotcal.pipeline.figures`). The
 stand-alone commands (``robotcal identify``, ``refine``, ``evaluate``, ``joints``, ``uncertainty``,
 ``tcp``, ``plan``) call the same library functions and write the same files.
 
@@ -103,6 +105,17 @@ def _folder_documents(prefix: str, documents: dict[str, Document], final: Path) 
     return {
         f"{prefix}/{name}": (final / name if isinstance(document, Path) else document)
         for name, document in documents.items()
+    }
+
+
+def _written_back(folder: Path, final: Path) -> dict[str, Document]:
+    """The files another module wrote into ``folder`` (a stage's temporary folder; :mod:`robotcal.plots.planning`
+    writes its own), read back once as :func:`robotcal.pipeline.folder.read_run` would: JSON and CSV as
+    documents, others by their path in ``final``."""
+    return {
+        path.name: read_document(folder, path.name) if path.suffix in (".json", ".csv") else final / path.name
+        for path in sorted(folder.iterdir())
+        if path.is_file()
     }
 
 
@@ -331,7 +344,21 @@ def tcp_stage(
         "draws_in_file": draws.n_draws,
         "versions": versions(),
     }
-    parts = []
+    # one folder per mode, each whole or not at all and committed as soon as it is computed, so that its
+    # figures are drawn while the next mode computes; consistency.json last
+    folder = out / "tcp"
+    folder.mkdir(exist_ok=True)
+    written: dict[str, Document] = {}
+    drawn: list = []
+    value: dict = {}
+
+    def commit(mode: str, result, workspace_map, provenance: dict) -> None:
+        with atomic_directory(folder / mode) as partial:
+            files = write_tcp_folder(partial, result, mode, workspace=workspace_map, provenance=provenance, figures=False)
+        written.update(_folder_documents(mode, files, Path(mode)))
+        drawn.extend(write_tcp_figures(folder / mode, result, mode, workspace=workspace_map, render=render))
+        value[mode] = result
+
     for mode, readings, source in (
         ("pose", targets.pose, targets.pose_source),
         ("trajectory", targets.trajectory, targets.trajectory_source),
@@ -340,9 +367,8 @@ def tcp_stage(
             continue
         started = time.perf_counter()
         tcp, _ = compute_tcp(robot, draws.draws, mode, readings=readings, tool_mm=targets.tool_mm)
-        provenance = {**base, mode: source, "mode": mode, "seconds": round(time.perf_counter() - started, 3)}
-        parts.append((mode, tcp, None, provenance))
-        step(len(parts), None, mode)
+        commit(mode, tcp, None, {**base, mode: source, "mode": mode, "seconds": round(time.perf_counter() - started, 3)})
+        step(len(value), None, mode)
     started = time.perf_counter()
     values = draws.draws if targets.workspace_draws is None else draws.draws[: targets.workspace_draws]
     tcp, ws = compute_tcp(
@@ -351,35 +377,22 @@ def tcp_stage(
     provenance = {**base, "mode": "workspace", "seconds": round(time.perf_counter() - started, 3)}
     if values.shape[0] < draws.n_draws:
         provenance["draws_used"] = int(values.shape[0])
-    parts.append(("workspace", tcp, ws, provenance))
+    commit("workspace", tcp, ws, provenance)
+    step(len(value), None, "workspace")
     consistency = validation_consistency(
         scenario, validation, deployed, draws.draws, model="refined (CPA + points refinement)"
     )
     consistency["draws_file"] = "uncertainty-refined/draws.npz"
     consistency["validation_file"] = "validation.csv"
-    written: dict[str, Document] = {}
-    with atomic_directory(out / "tcp") as folder:
-        written["consistency.json"] = write_json(folder / "consistency.json", consistency)
-        for mode, result, workspace_map, provenance in parts:
-            (folder / mode).mkdir()
-            files = write_tcp_folder(
-                folder / mode, result, mode, workspace=workspace_map, provenance=provenance, figures=False
-            )
-            written.update(_folder_documents(mode, files, Path(mode)))
-    drawn = [
-        figure
-        for mode, result, workspace_map, _ in parts
-        for figure in write_tcp_figures(out / "tcp" / mode, result, mode, workspace=workspace_map, render=render)
-    ]
-    step(3, None, "workspace")
+    written["consistency.json"] = write_json(folder / "consistency.json", consistency)
     documents = {
-        f"tcp/{name}": (out / "tcp" / document if isinstance(document, Path) else document)
+        f"tcp/{name}": (folder / document if isinstance(document, Path) else document)
         for name, document in written.items()
     }
-    value = {mode: result for mode, result, _, _ in parts}
+    detail = ", ".join(value)
     value["workspace_map"] = ws
     value["consistency"] = consistency
-    return StageOutput(value, documents, ", ".join(mode for mode, *_ in parts), tuple(drawn))
+    return StageOutput(value, documents, detail, tuple(drawn))
 
 
 def plan_stage(
@@ -398,6 +411,20 @@ def plan_stage(
     cell, notes = cell_from_scenario(scenario)
     check = check_plan(scenario.robot, scenario.plan, cell)
     step(1, None, "cell check")
+    # plan/ with the cell check first, so its figure is drawn while the sensitivity study computes;
+    # plan/sensitivity/ then appears whole, in its turn
+    with atomic_directory(out / "plan") as folder:
+        check_json = check_document(check, scenario=scenario.source, cell=cell, notes=notes)
+        write_check_files(folder, check, check_json)
+        documents = _written_back(folder, out / "plan")
+    drawn = [
+        render(
+            "robotcal.plots.planning:plot_check",
+            check,
+            out / "plan" / "plan_check.png",
+            acceptance_deg=check_json["cell"]["acceptance_deg"],
+        )
+    ]
     document, base_dir, name, source = scenario_document(scenario.source)
     study = run_sensitivity(
         document,
@@ -409,10 +436,7 @@ def plan_stage(
         iterations=min(PLAN_SENSITIVITY_DRAWS, draws),
     )
     rows = study_rows(study)
-    with atomic_directory(out / "plan") as folder:
-        check_json = check_document(check, scenario=scenario.source, cell=cell, notes=notes)
-        write_check_files(folder, check, check_json)
-        (folder / "sensitivity").mkdir()
+    with atomic_directory(out / "plan" / "sensitivity") as folder:
         summary = {
             "scenario": scenario.source,
             "keys": list(study.keys),
@@ -422,26 +446,11 @@ def plan_stage(
             "cases": [dict(case.values, draws=case.n_draws) for case in study.cases],
             "model": "CPA (thesis ch. 5.2.4)",
         }
-        write_sensitivity_files(folder / "sensitivity", rows, summary)
-        # written by robotcal.plots.planning: read back once, as robotcal.pipeline.folder.read_run would
-        documents = {
-            str(path.relative_to(folder)): (
-                read_document(folder, str(path.relative_to(folder)))
-                if path.suffix in (".json", ".csv")
-                else out / "plan" / path.relative_to(folder)
-            )
-            for path in sorted(folder.rglob("*"))
-            if path.is_file()
-        }
-    drawn = (
-        render(
-            "robotcal.plots.planning:plot_check",
-            check,
-            out / "plan" / "plan_check.png",
-            acceptance_deg=check_json["cell"]["acceptance_deg"],
-        ),
-        render("robotcal.plots.planning:plot_sensitivity", rows, study.keys, out / "plan" / "sensitivity"),
-    )
+        write_sensitivity_files(folder, rows, summary)
+        documents.update(
+            {f"sensitivity/{key}": value for key, value in _written_back(folder, out / "plan" / "sensitivity").items()}
+        )
+    drawn.append(render("robotcal.plots.planning:plot_sensitivity", rows, study.keys, out / "plan" / "sensitivity"))
     bad = int((~check.ok).sum())
     verdict = "feasible in the cell" if bad == 0 else f"{bad} of {check.ok.size} points fail a cell check"
     detail = f"{verdict}; sensitivity to the J4 sweep, {len(study.cases)} cases"
@@ -449,5 +458,5 @@ def plan_stage(
         {"check": check, "study": study, "notes": notes},
         {f"plan/{name}": document for name, document in documents.items()},
         detail,
-        drawn,
+        tuple(drawn),
     )
