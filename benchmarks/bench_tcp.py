@@ -26,6 +26,12 @@ Before/after, the demo's TCP stage (Table 5.8 pose and 75-pose trajectory with t
   1.4-1.5 -> 0.9-1.1, validation check 1.3-1.8 -> 0.3, tcp.json 1.3 -> 0.35 with its dict), wall
   under that load 39 s -> 18-21 s; the chain alone 400 -> 150-175 ns of CPU per draw-pose. Without
   ``--stage`` (100,000 draws x 75 poses, whole script): 17.1 -> 13.1 s of CPU.
+- issue 13, second pass (angles as the nominal plus a series arctan of the turned vector, checked per
+  block; pose chunks as large as max_bytes allows with the threads sharing each chunk; X, Y turned by
+  the first joint per chunk; covariances by upper-triangle rows; tcp.csv a row per %-format): the
+  demo's ``tcp_stage`` alone on a saved run (load average 4-5.6, old and new alternating, 3 pairs of
+  2 runs) 4.7-6.4 s of CPU before (median 5.5), 4.8-5.4 after (median 4.9); the 1000-pose workspace
+  map on one thread 3.8-4.0 -> 3.3-3.4 s of CPU; the angles 93 -> 61 ns per draw-pose.
 """
 
 from __future__ import annotations

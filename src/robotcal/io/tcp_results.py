@@ -8,8 +8,6 @@ order of the input poses.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from pathlib import Path
 
@@ -63,13 +61,15 @@ def tcp_to_csv(result: TCPUncertainty, *, interval: str = "symmetric") -> str:
             result.lpu_std_uncertainty,
         )
     ]
-    stream = io.StringIO()
-    writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow(TCP_CSV_COLUMNS)
-    for pose in range(result.n_poses):
-        for k, (name, unit) in enumerate(zip(TCP_COORDINATES, TCP_UNITS, strict=True)):
-            writer.writerow([pose + 1, name, unit, *[f"{column[pose, k]:.12g}" for column in columns]])
-    return stream.getvalue()
+    # one %-format per row over Python floats (tolist): the text csv.writer gave for f"{value:.12g}" cells (no
+    # cell needs quoting: numbers, coordinate names and units), about 5x quicker for the 6000-row workspace map
+    row = "%d,%s,%s," + ",".join(["%.12g"] * len(columns)) + "\n"
+    values = np.stack(columns, axis=-1).tolist()  # [pose][coordinate][column]
+    lines = [",".join(TCP_CSV_COLUMNS) + "\n"]
+    for pose, per_pose in enumerate(values, start=1):
+        for (name, unit), cells in zip(zip(TCP_COORDINATES, TCP_UNITS, strict=True), per_pose, strict=True):
+            lines.append(row % (pose, name, unit, *cells))
+    return "".join(lines)
 
 
 def write_tcp_csv(path, result: TCPUncertainty, *, interval: str = "symmetric") -> Path:

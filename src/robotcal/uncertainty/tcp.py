@@ -13,9 +13,9 @@ Orientation: KUKA ``A, B, C`` with ``R = Rz(A) Ry(B) Rx(C)`` (A about Z, B about
 Lengths in mm, angles in radians in every array here; the I/O layer writes degrees.
 
 Memory stays bounded for any number of draws and poses: poses are handled in chunks whose six
-coordinates for every draw fit in ``max_bytes`` together (one chunk in flight per thread), and within a
-chunk the draws go through the kinematics ``batch_size`` at a time. Only the 6 coordinates per draw
-and pose of the chunks in flight are held (with as much again for their centred copies), and the link
+coordinates for every draw fit in ``max_bytes`` (one chunk in flight, shared by the threads), and
+within a chunk the draws go through the kinematics ``batch_size`` at a time. Only the 6 coordinates per
+draw and pose of the chunk in flight are held (with as much again for their centred copies), and the link
 transforms ``B_i`` of every draw when they fit in ``max_bytes`` (else those of one batch), never the
 4x4 frames of all draws and poses.
 
@@ -25,11 +25,13 @@ coverage intervals and the min/max (a full sort took twice as long); the chain i
 ``(3 P, 4)`` blocks ``[R | t]`` per draw whose first two columns are adjacent, so that ``Rz(q)`` is one
 in-place complex product ``(column_0 + i column_1) exp(-i q)`` and ``B_i`` one ``(3 P, 4) @ (4, 4)``
 product (2 to 2.5x cheaper than turning separate column slabs); the first joint is applied
-analytically (``Rz(q_1)`` turns X, Y and adds ``q_1`` to A); the angles use ``arctan`` (about 2.5x
-cheaper than ``arctan2`` here) with the quadrant restored by the wrap near the nominal. Pose chunks
-run in two threads at once (kinematics and statistics; numpy releases the GIL), each with a reused
-pair of buffers; a single chunk spreads its batches of draws over the threads instead. The results
-equal the plain composition (4x4 frames, :func:`~robotcal.uncertainty.statistics.summarize_draws`)
+analytically (``Rz(q_1)`` turns X, Y per chunk and adds ``q_1`` to A); each angle is the nominal's plus
+the angle of its vector turned by the nominal, ``arctan(y'/x')`` of a small ratio, from a five-term
+series (exact to 1e-18 relative, checked per block, else ``arctan``/``arctan2``: libm's ``arctan``
+costs ~19 ns a value here). Chunks hold as many poses as ``max_bytes`` allows (the per-draw products
+cost less per pose the more poses they carry); the threads share each chunk, its batches of draws
+first, then its poses for the statistics (numpy releases the GIL), with one reused pair of buffers.
+The results equal the plain composition (4x4 frames, :func:`~robotcal.uncertainty.statistics.summarize_draws`)
 to 1e-10 mm/rad (``tests/unit/uncertainty/test_tcp_reference.py``). :func:`position_covariance` is
 the position part alone (a point carried from the tool end), for checks that need only the spread of
 a point.
@@ -39,7 +41,6 @@ from __future__ import annotations
 
 import math
 import os
-import queue
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -85,8 +86,6 @@ JACOBIAN_STEP_RAD = 1e-6
 _BLOCK_FRAMES = 20_000
 #: Threads filling the draw batches of a pose chunk (numpy releases the GIL in the kinematics).
 _THREADS = min(2, os.cpu_count() or 1)
-#: Fewest poses per chunk for pose chunks to run in the threads at once (else the batches of one chunk do).
-_PARALLEL_CHUNK_POSES = 16
 
 
 # ----------------------------------------------------------------------------------------------- checks
@@ -243,14 +242,20 @@ def _chain_columns(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray) -> n
     m, n = links.shape[0], links.shape[1]
     n_poses = cos_q.shape[0]
     block = np.empty((m, 3 * n_poses, 4))
-    block.reshape(m, 3, n_poses, 4)[...] = links[:, 0, :3, None, :]  # B_1 at every pose
     other = np.empty_like(block)
     for joint in range(1, n):
         phase = cos_q[:, joint] - 1j * sin_q[:, joint]  # exp(-i q): (c0 + i c1) exp(-i q) = c0' + i c1'
-        pair = block.view(complex).reshape(m, 3, n_poses, 2)[..., 0]
-        np.multiply(pair, phase, out=pair)
+        pairs = block.view(complex).reshape(m, 3, n_poses, 2)  # [..., 0]: c0 + i c1, [..., 1]: c2 + i c3
+        if joint == 1:  # B_1 Rz(q_2) written at once: the turned first two columns and B_1's last two
+            first = np.ascontiguousarray(links[:, 0, :3]).view(complex)  # (m, 3, 2)
+            np.multiply(first[:, :, 0, None], phase, out=pairs[..., 0])
+            pairs[..., 1] = first[:, :, 1, None]
+        else:
+            np.multiply(pairs[..., 0], phase, out=pairs[..., 0])
         np.matmul(block, links[:, joint], out=other)
         block, other = other, block
+    if n == 1:
+        block.reshape(m, 3, n_poses, 4)[...] = links[:, 0, :3, None, :]
     return block.reshape(m, 3, n_poses, 4)
 
 
@@ -281,39 +286,83 @@ def _chain_points(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray, point
     return moved if n > 1 else np.broadcast_to(end[:, :, None], (m, 3, n_poses)).copy()
 
 
+#: Largest ``|tan(angle - reference)|`` for which :func:`_atan_small` is used (else arctan, arctan2): its series
+#: through ``u^9`` is then within ``u^10 / 11 <= 1e-18`` of ``arctan(u)`` relative, below the double rounding.
+_SERIES_MAX_TAN = 0.02
+
+
+def _atan_small(u: np.ndarray) -> np.ndarray:
+    """``arctan(u)`` in place for ``|u| <= _SERIES_MAX_TAN``: ``u - u^3/3 + u^5/5 - u^7/7 + u^9/9``.
+
+    The alternating series' remainder is below its next term, ``|u|^11 / 11``, a relative error of at most
+    ``0.02^10 / 11 = 9.3e-19`` (the double epsilon is 2.2e-16); about 4x cheaper than ``np.arctan``
+    (libm, ~19 ns per value here). ``tests/unit/uncertainty/test_tcp_reference.py`` checks the bound.
+    """
+    u2 = u * u
+    poly = u2 * (1.0 / 9.0)
+    poly -= 1.0 / 7.0
+    poly *= u2
+    poly += 1.0 / 5.0
+    poly *= u2
+    poly -= 1.0 / 3.0
+    poly *= u2
+    poly *= u
+    u += poly
+    return u
+
+
+def _angle_from(x: np.ndarray, y: np.ndarray, cos_ref: np.ndarray, sin_ref: np.ndarray, out: np.ndarray) -> None:
+    """``atan2(y, x) - reference`` into ``(-pi, pi]``, written to ``out``, given ``cos``/``sin`` of the reference.
+
+    The vector ``(x, y)`` turned by ``-reference`` is ``(x', y') = (x c + y s, y c - x s)`` and its angle is the
+    difference itself, ``atan2(y', x')``: no quadrant fix and no wrap. Draws lie close to the reference (the
+    nominal), so ``x' > 0`` and ``|y' / x'|`` is small: then ``arctan(y' / x')`` comes from the series of
+    :func:`_atan_small`; else the block goes through ``np.arctan`` (every ``x' > 0``) or ``np.arctan2``.
+    """
+    along = x * cos_ref
+    along += y * sin_ref
+    np.multiply(y, cos_ref, out=out)
+    out -= x * sin_ref
+    if not along.min() > 0.0:  # some vector 90 deg or more from the reference (or NaN): the general formula
+        np.arctan2(out, along, out=out)
+        return
+    np.divide(out, along, out=out)  # tan of the difference, in (-pi/2, pi/2) since x' > 0
+    if max(out.max(), -out.min()) <= _SERIES_MAX_TAN:
+        _atan_small(out)
+    else:
+        np.arctan(out, out=out)
+
+
 def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """KUKA ``A, B, C`` ``(3, m, P)`` [rad] of ``Rz(q_1)`` times ``(m, 4, 3, P)`` blocks, within pi of ``reference (P, 3)``.
 
     ``Rz(q_1) Rz(A') Ry(B) Rx(C) = Rz(A' + q_1) Ry(B) Rx(C)``: the first joint ``first_joint (P,)``
     [rad] only adds to A.
 
-    The formulas of :func:`~robotcal.geometry.euler.kuka_abc_from_matrix` with ``atan2(y, x)``
-    evaluated as ``arctan(y / x)`` plus pi where ``x < 0`` (equal modulo 2 pi, and the result is
-    wrapped near the reference anyway); ``B = arctan(-r20 / cos B)`` since ``cos B >= 0``. Blocks
-    at the gimbal lock go through :func:`kuka_abc_from_matrix` itself.
+    The formulas of :func:`~robotcal.geometry.euler.kuka_abc_from_matrix`, ``A' = atan2(r10, r00)``,
+    ``B = atan2(-r20, cos B)`` with ``cos B = sqrt(r00^2 + r10^2)``, ``C = atan2(r21, r22)``, each taken as
+    the reference plus the angle of its vector turned by the reference (:func:`_angle_from`): the
+    result lies within pi of the reference (A and C wrapped as before; B and its reference both lie in
+    [-pi/2, pi/2], so it is B itself). Blocks at the gimbal lock go through :func:`kuka_abc_from_matrix`.
     """
     r00, r10, r20 = block[:, 0, 0], block[:, 0, 1], block[:, 0, 2]
     r21, r22 = block[:, 1, 2], block[:, 2, 2]
     out = np.empty((3,) + r00.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cos_b = np.sqrt(r00 * r00 + r10 * r10)
-        np.arctan(r10 / r00, out=out[0])
-        out[0] += np.where(np.signbit(r00), np.pi, 0.0)  # signbit: -0.0 too
-        np.arctan(-r20 / cos_b, out=out[1])
-        np.arctan(r21 / r22, out=out[2])
-        out[2] += np.where(np.signbit(r22), np.pi, 0.0)
+    local = np.array(reference.T, dtype=float)  # (3, P): A's reference before Rz(q_1)
+    local[0] -= first_joint
+    cos_ref, sin_ref = np.cos(local), np.sin(local)
+    cos_b = np.sqrt(r00 * r00 + r10 * r10)
+    _angle_from(r00, r10, cos_ref[0], sin_ref[0], out[0])
+    _angle_from(cos_b, -r20, cos_ref[1], sin_ref[1], out[1])
+    _angle_from(r22, r21, cos_ref[2], sin_ref[2], out[2])
+    out += reference.T[:, None, :]
     locked = cos_b < GIMBAL_TOLERANCE
     if np.any(locked):
         rotation = np.moveaxis(block[:, :3], (1, 2), (-1, -2))  # (m, P, 3, 3) with [.., r, c]
         exact = np.moveaxis(kuka_abc_from_matrix(rotation), -1, 0)
+        exact[0] += first_joint
+        exact[::2] = wrap_angle_near(exact[::2], reference.T[::2, None, :])
         out[:, locked] = exact[:, locked]
-    out[0] += first_joint
-    # A and C into (-pi, pi] of the reference; B and its reference both lie in [-pi/2, pi/2], so its
-    # number of turns rint((B - ref) / 2 pi) is always 0 (|x| <= 1/2 rounds to 0, half to even)
-    wrapped = out[::2]
-    ref = reference.T[::2, None, :]
-    turns = np.rint((wrapped - ref) / (2.0 * np.pi))
-    wrapped -= turns * (2.0 * np.pi)
     return out
 
 
@@ -680,6 +729,17 @@ def _concatenate_summaries(parts: list[SampleSummary]) -> SampleSummary:
 
 
 # -------------------------------------------------------------------------------------------- propagation
+def _turn_first_joint(coords: np.ndarray, cos_q1: np.ndarray, sin_q1: np.ndarray) -> None:
+    """``X, Y`` of coordinates ``(P, 6, M)`` turned in place by ``Rz(q_1)`` (``cos_q1``, ``sin_q1`` ``(P, 1)``):
+    ``X = x c - y s``, ``Y = x s + y c``, on contiguous rows of draws."""
+    x, y = coords[:, 0], coords[:, 1]
+    x_sin = x * sin_q1
+    x *= cos_q1
+    x -= y * sin_q1
+    y *= cos_q1
+    y += x_sin
+
+
 def _chunk_statistics(coords: np.ndarray, centred: np.ndarray, coverage: float):
     """Summary, ellipsoid and covariance of the coordinates ``(P, 6, M)`` of a pose chunk (draws last).
 
@@ -689,8 +749,14 @@ def _chunk_statistics(coords: np.ndarray, centred: np.ndarray, coverage: float):
     """
     size, _, n_draws = coords.shape
     mean = coords.mean(axis=-1)
+    if not np.all(np.isfinite(mean)):  # a NaN or infinite draw (or an overflowing sum of absurd ones)
+        raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
     centred = np.subtract(coords, mean[..., None], out=centred)
-    covariance = np.einsum("pim,pjm->pij", centred, centred) / (n_draws - 1)  # no BLAS threads
+    covariance = np.empty((size, 6, 6))
+    for i in range(6):  # the upper triangle, row by row (no BLAS threads; 30 % less than one 6x6 einsum)
+        covariance[:, i, i:] = np.einsum("pm,pjm->pj", centred[:, i], centred[:, i:])
+        covariance[:, i:, i] = covariance[:, i, i:]
+    covariance /= n_draws - 1
     std = np.sqrt(np.diagonal(covariance, axis1=-2, axis2=-1))
     covariance = 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
     ellipsoid = _ellipsoid_rows(centred[:, :3], covariance[:, :3, :3], coverage)
@@ -759,11 +825,7 @@ def position_covariance(
         def fill(first: int, poses=poses, points=points) -> None:
             rows = slice(first, min(first + batch_size, n_draws))
             local = _chain_points(_pose_independent_links(draws[rows]), cos_q[poses], sin_q[poses], tool)
-            c1, s1 = cos_q[poses, 0], sin_q[poses, 0]
-            target = points[:, :, rows]
-            target[:, 0] = (local[:, 0] * c1 - local[:, 1] * s1).T
-            target[:, 1] = (local[:, 0] * s1 + local[:, 1] * c1).T
-            target[:, 2] = local[:, 2].T
+            points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
 
         batches = range(0, n_draws, batch_size)
         if _THREADS > 1 and len(batches) > 1:
@@ -774,9 +836,13 @@ def position_covariance(
                 fill(first)
         if not np.all(np.isfinite(points)):
             raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
+        _turn_first_joint(points, cos_q[poses, 0, None], sin_q[poses, 0, None])
         centred = points - points.mean(axis=-1)[..., None]
-        covariance = np.einsum("pim,pjm->pij", centred, centred) / (n_draws - 1)
-        covariances.append(0.5 * (covariance + np.swapaxes(covariance, -1, -2)))
+        covariance = np.empty((poses.stop - poses.start, 3, 3))
+        for i in range(3):  # the upper triangle row by row, as in _chunk_statistics
+            covariance[:, i, i:] = np.einsum("pm,pjm->pj", centred[:, i], centred[:, i:])
+            covariance[:, i:, i] = covariance[:, i, i:]
+        covariances.append(covariance / (n_draws - 1))
     return np.concatenate(covariances)
 
 
@@ -847,20 +913,11 @@ def propagate_to_tcp(
     nominal = _coordinates(robot.nominal[None], q, tool)[0]
     cos_q, sin_q = np.cos(q), np.sin(q)
     # pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in max_bytes, sizes
-    # evened out. Two ways to use the threads: one chunk in flight per thread (kinematics and statistics in
-    # parallel; the chunks share max_bytes, each holding a coordinate and a centred buffer), or, when that
-    # would leave fewer than _PARALLEL_CHUNK_POSES poses per chunk (many draws: the per-draw products
-    # get too short to be efficient), one chunk at a time with its batches of draws spread over them
-    largest = max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
-    per_thread = largest // _THREADS
-    chunk_parallel = _THREADS > 1 and not keep_draws and per_thread >= _PARALLEL_CHUNK_POSES and n_poses > per_thread
-    if keep_draws:
-        n_chunks = 1
-    elif chunk_parallel:
-        n_chunks = -(-n_poses // per_thread)
-        n_chunks = min(n_poses, -(-n_chunks // _THREADS) * _THREADS)
-    else:
-        n_chunks = -(-n_poses // largest)
+    # evened out, one at a time: its batches of draws fill the coordinates in the threads, then its poses are
+    # split between the threads for the statistics (as many poses as possible per chunk: the per-draw
+    # products of the chain cost less per pose the more poses they hold, ~15 % from 63 to 139 poses)
+    largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
+    n_chunks = -(-n_poses // largest)
     pose_chunk = -(-n_poses // n_chunks)
     starts = range(0, n_poses, pose_chunk)
     if batch_size is None:
@@ -870,13 +927,9 @@ def propagate_to_tcp(
     # (else per batch, so that memory stays bounded by the batch and the pose chunk)
     all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
     kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
-    # buffers for the coordinates (draws last: contiguous rows for the statistics) and the centred
-    # coordinates, one pair per chunk in flight, reused (fresh arrays of this size cost as much in page
-    # faults as the statistics themselves)
-    in_flight = _THREADS if chunk_parallel else 1
-    buffers: queue.SimpleQueue = queue.SimpleQueue()
-    for _ in range(in_flight):
-        buffers.put((np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))))
+    # the coordinates (draws last: contiguous rows for the statistics) and the centred coordinates, reused
+    # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
+    coords_buffer, centred_buffer = np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))
 
     def fill(first: int, poses: slice, coords: np.ndarray) -> None:
         rows = slice(first, min(first + batch_size, n_draws))
@@ -885,43 +938,42 @@ def propagate_to_tcp(
         # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
         local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
         block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
-        c1, s1 = cos_q[poses, 0], sin_q[poses, 0]
         target = coords[:, :, rows]  # a view: the draws of this batch
-        target[:, 0] = (local[:, 0] * c1 - local[:, 1] * s1).T
-        target[:, 1] = (local[:, 0] * s1 + local[:, 1] * c1).T
-        target[:, 2] = local[:, 2].T
+        target[:, :3] = np.transpose(local, (2, 1, 0))  # before Rz(q_1): turned per chunk, in _turn_first_joint
         target[:, 3:] = np.transpose(_abc_near(block, q[poses, 0], nominal[poses, 3:]), (2, 0, 1))
 
-    def chunk(start: int, pool: ThreadPoolExecutor | None = None):
+    def chunk(start: int, pool: ThreadPoolExecutor | None) -> list:
         poses = slice(start, min(start + pose_chunk, n_poses))
         size = poses.stop - poses.start
-        coords_buffer, centred_buffer = buffers.get()
-        try:
-            coords = coords_buffer[:size]
-            batches = range(0, n_draws, batch_size)
-            if pool is not None:  # one chunk: its batches fill disjoint draws in the threads
-                list(pool.map(lambda first: fill(first, poses, coords), batches))
-            else:
-                for first in batches:
-                    fill(first, poses, coords)
-            if not np.all(np.isfinite(coords)):
-                raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
-            if keep_draws:
-                kept[:, poses] = np.moveaxis(coords, -1, 0)
-            return _chunk_statistics(coords, centred_buffer[:size], coverage)
-        finally:
-            buffers.put((coords_buffer, centred_buffer))
+        coords, centred = coords_buffer[:size], centred_buffer[:size]
+        batches = range(0, n_draws, batch_size)
+        if pool is not None and len(batches) > 1:  # the batches fill disjoint draws in the threads
+            list(pool.map(lambda first: fill(first, poses, coords), batches))
+        else:
+            for first in batches:
+                fill(first, poses, coords)
+        c1, s1 = cos_q[poses, 0, None], sin_q[poses, 0, None]
+        if keep_draws:
+            _turn_first_joint(coords, c1, s1)
+            kept[:, poses] = np.moveaxis(coords, -1, 0)
 
-    # numpy releases the GIL in the kinematics and the statistics: several chunks run in the threads at
-    # once, or a single chunk spreads its batches of draws over them
-    if chunk_parallel:
+        def statistics(part: slice):  # X, Y turned by the first joint (unless done), then the statistics
+            if not keep_draws:
+                _turn_first_joint(coords[part], c1[part], s1[part])
+            return _chunk_statistics(coords[part], centred[part], coverage)
+
+        parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
+        slices = [slice(part[0], part[-1] + 1) for part in parts]
+        if len(slices) == 1:
+            return [statistics(slices[0])]
+        return list(pool.map(statistics, slices))
+
+    # numpy releases the GIL in the kinematics and the statistics: the threads share each chunk's work
+    if _THREADS > 1:
         with ThreadPoolExecutor(_THREADS) as pool:
-            parts = list(pool.map(chunk, starts))
-    elif _THREADS > 1 and n_draws > batch_size:
-        with ThreadPoolExecutor(_THREADS) as pool:
-            parts = [chunk(start, pool) for start in starts]
+            parts = [part for start in starts for part in chunk(start, pool)]
     else:
-        parts = [chunk(start) for start in starts]
+        parts = [part for start in starts for part in chunk(start, None)]
     summaries = [part[0] for part in parts]
     ellipsoids = [part[1] for part in parts]
     covariances = [part[2] for part in parts]

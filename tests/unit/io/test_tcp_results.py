@@ -121,3 +121,44 @@ def test_json_text_is_the_document_with_one_pose_per_line(tmp_path):
     data["poses"][1]["position_uncertainty_mm"] = float("nan")
     with pytest.raises(ValueError, match="JSON compliant"):
         tcp_json_text(data)
+
+
+def test_csv_text_is_that_of_the_csv_module():
+    """``tcp_to_csv`` formats whole rows with ``%``; the truth is the csv module writing ``f"{v:.12g}"`` cells,
+    checked on a result whose numbers include -0.0, NaN, infinities and values needing exponents."""
+    import csv
+    import dataclasses
+    import io
+
+    from robotcal.io.tcp_results import TCP_CSV_COLUMNS, _file_units, tcp_to_csv
+    from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS
+
+    rng = np.random.default_rng(1)
+    draws = ROBOT.nominal[None] + rng.normal(0.0, 1e-3, (30, ROBOT.n_joints, 5)) * ~ROBOT.structurally_fixed
+    result = propagate_to_tcp(ROBOT, draws, np.deg2rad([[10.0, -80.0, 100.0, 20.0, 50.0, -30.0]] * 3))
+    mean = result.summary.mean.copy()
+    mean[0, :4] = [-0.0, np.nan, np.inf, -np.inf]
+    mean[1, :3] = [1.234567890123456e-300, -9.87654321e22, 123456789012345.0]
+    result = dataclasses.replace(result, summary=dataclasses.replace(result.summary, mean=mean))
+    for interval in ("symmetric", "shortest"):
+        low, high = result.summary.interval(interval)
+        columns = [
+            _file_units(a)
+            for a in (
+                result.nominal,
+                mean,
+                result.summary.std_uncertainty,
+                low,
+                high,
+                result.summary.minimum,
+                result.summary.maximum,
+                result.lpu_std_uncertainty,
+            )
+        ]
+        stream = io.StringIO()
+        writer = csv.writer(stream, lineterminator="\n")
+        writer.writerow(TCP_CSV_COLUMNS)
+        for pose in range(result.n_poses):
+            for k, (name, unit) in enumerate(zip(TCP_COORDINATES, TCP_UNITS, strict=True)):
+                writer.writerow([pose + 1, name, unit, *[f"{column[pose, k]:.12g}" for column in columns]])
+        assert tcp_to_csv(result, interval=interval) == stream.getvalue()

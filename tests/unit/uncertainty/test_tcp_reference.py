@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robotcal.geometry.euler import kuka_abc_from_matrix, wrap_angle_near
+from robotcal.geometry.euler import kuka_abc_from_matrix, matrix_from_kuka_abc, wrap_angle_near
 from robotcal.io import load_robot
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.uncertainty.statistics import summarize_draws
@@ -134,6 +134,54 @@ def test_abc_fast_path_keeps_the_quadrant_of_a_negative_zero():
     np.testing.assert_allclose(fast, kuka_abc_from_matrix(rotation), atol=1e-15)
 
 
+def test_atan_series_is_within_rounding_of_arctan():
+    """The series of ``_atan_small`` against libm's ``arctan`` up to the largest argument it is used for:
+    its truncation bound (9.3e-19 relative) is far below the double rounding, so the two differ by at most
+    rounding (a relative 4e-16 allows a couple of ulps of each)."""
+    from robotcal.uncertainty.tcp import _SERIES_MAX_TAN, _atan_small
+
+    u = np.concatenate([np.linspace(-_SERIES_MAX_TAN, _SERIES_MAX_TAN, 200_001), [0.0, -0.0, 1e-300, 5e-324]])
+    series = _atan_small(u.copy())
+    np.testing.assert_allclose(series, np.arctan(u), rtol=4e-16, atol=0)
+    # the bound is the first omitted term of the alternating series, relative: u^10 / 11 at the limit
+    assert _SERIES_MAX_TAN**10 / 11 < 1e-17
+    # beyond the limit the truncation shows: the run-time check is what keeps the series exact
+    wide = np.array([0.3])
+    assert abs(_atan_small(wide.copy())[0] - np.arctan(0.3)) > 1e-7
+
+
+@pytest.mark.parametrize(
+    ("spread", "offset_deg"),
+    [(1e-3, 0.0), (0.05, 0.0), (1e-3, 120.0), (1e-3, 179.0)],
+    ids=["series", "arctan", "arctan2-120deg", "arctan2-179deg"],
+)
+def test_abc_near_takes_every_path_exactly(spread, offset_deg):
+    """``_abc_near`` against ``kuka_abc_from_matrix`` + ``wrap_angle_near`` for rotations near the reference
+    (the series), farther than its limit (``arctan``), and more than 90 deg away, where the turned vector
+    points backwards (``arctan2``); the first joint added to A."""
+    from robotcal.uncertainty.tcp import _abc_near
+
+    rng = np.random.default_rng(12)
+    m, n_poses = 50, 7
+    reference = rng.uniform([-np.pi, -1.2, -np.pi], [np.pi, 1.2, np.pi], size=(n_poses, 3))
+    first_joint = rng.uniform(-np.pi, np.pi, n_poses)
+    angles = reference[None] + rng.normal(0.0, spread, size=(m, n_poses, 3))
+    angles[..., 0] += np.deg2rad(offset_deg)
+    angles[..., 2] -= np.deg2rad(offset_deg)
+    angles[..., 1] = np.clip(angles[..., 1], -1.5, 1.5)
+    a_local = angles[..., 0] - first_joint  # the block holds the rotation before Rz(q_1)
+    rotation = matrix_from_kuka_abc(np.stack([a_local, angles[..., 1], angles[..., 2]], axis=-1))  # (m, P, 3, 3)
+    block = np.zeros((m, 4, 3, n_poses))
+    block[:, :3] = np.moveaxis(rotation, (2, 3), (2, 1))  # block[s, k, r, p] = R[s, p, r, k]
+    fast = np.moveaxis(_abc_near(block, first_joint, reference), 0, -1)
+    exact = kuka_abc_from_matrix(rotation)
+    exact[..., 0] += first_joint
+    expected = exact.copy()
+    expected[..., ::2] = wrap_angle_near(exact[..., ::2], reference[None, :, ::2])
+    np.testing.assert_allclose(fast, expected, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(fast, angles, rtol=0, atol=1e-12)  # and the angles the rotations were made of
+
+
 @pytest.mark.parametrize(
     ("tool", "max_bytes", "batch_size"), [(None, 64 * 2**20, None), ([10.0, -5.0, 80.0], 24 * 300 * 3, 70)]
 )
@@ -172,15 +220,14 @@ def test_overflowing_draw_is_refused(function):
 
 
 @pytest.mark.parametrize("batch_size", [None, 37])
-def test_pose_chunks_in_parallel_equal_the_plain_composition(batch_size):
-    """40 poses, 150 draws: 20 poses per thread, so two pose chunks run in the threads at once (each with
-    its own buffers; ragged batches of draws inside with ``batch_size=37``)."""
-    from robotcal.uncertainty import tcp
-
+def test_pose_chunks_shared_by_the_threads_equal_the_plain_composition(batch_size):
+    """40 poses, 150 draws, room for 13 poses: four chunks of 10 poses through the same reused buffers, each
+    chunk's statistics split between the threads (5 poses each), and with ``batch_size=37`` its ragged
+    batches of draws filled in the threads."""
     draws, readings = _draws(150, seed=10), _readings(40, seed=11)
-    largest = 64 * 2**20 // (48 * 150)
-    assert min(40, largest) // tcp._THREADS >= tcp._PARALLEL_CHUNK_POSES or tcp._THREADS == 1
-    result = propagate_to_tcp(ROBOT, draws, readings, tool=[1.0, 2.0, 30.0], batch_size=batch_size)
+    result = propagate_to_tcp(
+        ROBOT, draws, readings, tool=[1.0, 2.0, 30.0], batch_size=batch_size, max_bytes=48 * 150 * 13
+    )
     coords = _reference_coordinates(draws, readings, np.array([1.0, 2.0, 30.0]))
     expected = summarize_draws(coords, 0.95)
     for name in (*FIELDS, "minimum", "maximum"):
