@@ -44,6 +44,27 @@ CPU of the command's own process [s]        2.49 (2.34-2.65)    1.14 (1.09-1.18)
     the summary (~0.1 s). After the draws the command now waits ~0.8 s for the worker's histograms (5
     figures, ~0.95 s of CPU, in two processes): with the ~0.65 s before the draws and ~0.25 s of statistics,
     the 1 s target needs cheaper figures and statistics, not more parallelism (2 cores are busy).
+
+Measured (S2, issue 13, 2026-11-23, same machine, much busier: load average 3.8-5.6, so every wall time
+stretched ~3x: draws 7-10 s instead of ~2.3 s), 3 alternating runs per tree, the committed tree against the
+working tree with cheaper histogram pages (``plots/montecarlo.py``: artists made once per page and given each
+joint's data, font line metrics and glyph bitmaps kept, pages made and drawn once ahead by the figure worker
+while the draws run; same PNG bytes); mean (min-max):
+
+==========================================  ==================  ==================  ==================
+                                            before              after               change
+==========================================  ==================  ==================  ==================
+overhead = wall - draws [s]                 4.53 (4.28-4.76)    3.76 (3.51-4.20)    -0.8 (4)
+CPU, all processes [s]                      8.14 (7.83-8.33)    8.35 (7.67-9.21)    same within noise
+CPU of the command's own process [s]        1.18 (1.17-1.19)    1.28 (1.21-1.32)    same (5)
+==========================================  ==================  ==================  ==================
+
+(4) the histogram job after the draws (5 pages, ``write_histograms`` in the figure worker and its forked
+    helper, fresh processes, same load): CPU 0.80-0.95 s + 0.55-0.64 s before, 0.38-0.51 s + 0.29-0.40 s
+    after, plus 0.23-0.29 s of page preparation during the draws (without it the job costs 0.54-0.80 s +
+    0.43-0.63 s: the helper inherits the prepared page, so the preparation saves more than it costs).
+(5) the command's own process is unchanged: start-up and imports (~0.5 s before the draws), statistics and
+    linearised comparison (~0.2 s, inside ``run_monte_carlo``) remain on the critical path.
 """
 
 from __future__ import annotations

@@ -4,8 +4,9 @@ refinement of a measured capture (:mod:`robotcal.uncertainty.measured`).
 
 The histograms are drawn by a forked worker (:class:`robotcal.plots.background.FigureRenderer`) started
 as soon as the options are checked and numpy is imported: it imports matplotlib while this process
-imports the scenario files and the Monte Carlo engine (on the core that would otherwise be idle), and it
-draws the figures while this process writes the other files and prints its summary. The module itself
+imports the scenario files and the Monte Carlo engine (on the core that would otherwise be idle), makes the
+histogram pages (figures, axes, ticks, fonts) while the draws run, and draws the figures while this process
+writes the other files and prints its summary. The module itself
 imports only the command line's own modules, so that the fork comes early.
 """
 
@@ -87,13 +88,14 @@ def compute_uncertainty(
     progress: ProgressCallback | None = None,
     model: str = "cpa",
     criterion: str = "points",
+    renderer: FigureRenderer | None = None,
 ) -> MonteCarloResult:
     """:func:`robotcal.pipeline.uncertainty.compute_uncertainty` with a progress bar of its own when
     ``show_progress`` and no ``progress`` callback is given."""
     if progress is not None or not show_progress:
         return run_uncertainty(
             scenario, settings, seed=seed, true_parameters=true_parameters, progress=progress, model=model,
-            criterion=criterion,
+            criterion=criterion, renderer=renderer,
         )  # fmt: skip
     total = None if settings.adaptive else settings.iterations
     with _progress("Monte Carlo") as display:
@@ -104,7 +106,7 @@ def compute_uncertainty(
 
         return run_uncertainty(
             scenario, settings, seed=seed, true_parameters=true_parameters, progress=report, model=model,
-            criterion=criterion,
+            criterion=criterion, renderer=renderer,
         )  # fmt: skip
 
 
@@ -348,7 +350,7 @@ def _scenario_command(
     run_seed = resolve_seed(seed, table.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")  # checked before any draw
     result = compute_uncertainty(
-        loaded, settings, seed=run_seed, true_parameters=truth, model=model, criterion=criterion
+        loaded, settings, seed=run_seed, true_parameters=truth, model=model, criterion=criterion, renderer=renderer
     )
     console = _console()
 

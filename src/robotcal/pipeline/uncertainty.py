@@ -26,6 +26,8 @@ __all__ = ["compute_uncertainty", "write_uncertainty_folder"]
 
 #: The histogram figures, named for :meth:`FigureRenderer.submit` (matplotlib is imported where they are drawn).
 HISTOGRAMS = "robotcal.plots.montecarlo:write_histograms"
+#: Their pages made and drawn once ahead, while the draws run (:func:`robotcal.plots.montecarlo.prepare_histograms`).
+PREPARE_HISTOGRAMS = "robotcal.plots.montecarlo:prepare_histograms"
 
 
 def compute_uncertainty(
@@ -37,17 +39,23 @@ def compute_uncertainty(
     progress: ProgressCallback | None = None,
     model: str = "cpa",
     criterion: str = "points",
+    renderer: FigureRenderer | None = None,
 ) -> MonteCarloResult:
     """Prepare (all input checks happen here, before any draw) and run the Monte Carlo.
 
     ``model="cpa"`` draws capture -> CPA around ``true_parameters`` (default: nominal), the thesis's
     study; ``model="refined"`` draws capture -> CPA -> refinement (``criterion``), the deployed model.
-    ``progress(done, total)`` is called after every block when given.
+    ``progress(done, total)`` is called after every block when given. With a ``renderer`` (whose worker
+    will draw the histograms, :func:`write_uncertainty_folder`), its worker makes the histogram pages
+    meanwhile (:data:`PREPARE_HISTOGRAMS`: the figures, their axes and ticks, the fonts), so that after
+    the draws it draws only their data; the figures are the same.
     """
     from robotcal.uncertainty.montecarlo import run_monte_carlo
     from robotcal.workflow import scenario_monte_carlo
 
     problem = scenario_monte_carlo(scenario, true_parameters=true_parameters, model=model, criterion=criterion)
+    if renderer is not None:
+        renderer.submit(PREPARE_HISTOGRAMS, problem.identified, settings.coverage)  # its outcome: on wait()
     return run_monte_carlo(problem, settings, seed=seed, progress=progress)
 
 
