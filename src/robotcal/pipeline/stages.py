@@ -297,7 +297,14 @@ def uncertainty_stage(
     def refined_done(done: int, expected: int | None) -> None:
         step(montecarlo.iterations + done, total, "draws")
 
-    result = compute_uncertainty(scenario, montecarlo, seed=seed, true_parameters=cpa, progress=cpa_done)
+    drawn: list = []  # the histogram pages are prepared by the figure worker while the draws run
+
+    def prepare(function, *args, **kwargs):
+        drawn.append(render(function, *args, **kwargs))
+
+    result = compute_uncertainty(
+        scenario, montecarlo, seed=seed, true_parameters=cpa, progress=cpa_done, render=prepare
+    )
     refined = compute_uncertainty(
         scenario,
         refined_montecarlo,
@@ -308,7 +315,6 @@ def uncertainty_stage(
         criterion=DEPLOYED,
     )
     documents: dict[str, Document] = {}
-    drawn = []
     for name, value in (("uncertainty", result), ("uncertainty-refined", refined)):
         with atomic_directory(out / name) as folder:
             written = write_uncertainty_folder(folder, value, scenario, save_draws=True, figures=False)

@@ -40,6 +40,7 @@ def compute_uncertainty(
     model: str = "cpa",
     criterion: str = "points",
     renderer: FigureRenderer | None = None,
+    render: Callable | None = None,
 ) -> MonteCarloResult:
     """Prepare (all input checks happen here, before any draw) and run the Monte Carlo.
 
@@ -48,7 +49,8 @@ def compute_uncertainty(
     ``progress(done, total)`` is called after every block when given. With a ``renderer`` (whose worker
     will draw the histograms, :func:`write_uncertainty_folder`), its worker makes the histogram pages
     meanwhile (:data:`PREPARE_HISTOGRAMS`: the figures, their axes and ticks, the fonts), so that after
-    the draws it draws only their data; the figures are the same.
+    the draws it draws only their data; the figures are the same. ``render`` does the same through a
+    stage's render callable (:mod:`robotcal.pipeline.figures`; the run's figure worker).
     """
     from robotcal.uncertainty.montecarlo import run_monte_carlo
     from robotcal.workflow import scenario_monte_carlo
@@ -56,6 +58,8 @@ def compute_uncertainty(
     problem = scenario_monte_carlo(scenario, true_parameters=true_parameters, model=model, criterion=criterion)
     if renderer is not None:
         renderer.submit(PREPARE_HISTOGRAMS, problem.identified, settings.coverage)  # its outcome: on wait()
+    elif render is not None:
+        render(PREPARE_HISTOGRAMS, problem.identified, settings.coverage)  # a run collects it with its figures
     return run_monte_carlo(problem, settings, seed=seed, progress=progress)
 
 
