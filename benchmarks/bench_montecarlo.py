@@ -43,6 +43,28 @@ into preallocated arrays, the closed-form eigenvector by components, residuals l
 draws, the axis transport by Rodrigues' formula, the orientation by two one-pass sums, uniform noise as
 ``2 u - 1`` into a reused buffer. The draws are those of before up to rounding (<= 3e-11 mm, 1.1e-13 rad;
 ``tests/unit/uncertainty/test_montecarlo.py::test_demo_draws_are_those_of_the_reference_implementation``).
+
+CPU times on the shared 2-core VM now vary by +-25 % between runs, more than a 10 % change. Instruction counts
+do not: ``valgrind --tool=callgrind`` on a script that runs ``draw_block(problem, 7, b, 2000, 2000)`` for 1 and
+for 3 blocks, the difference of the two totals over 4,000 draws (imports and set-up cancel; memory stalls and
+page faults are not counted). Instructions per draw:
+
+============================  ===========  ===========  =======
+scenario                      before [2]   after [3]    change
+============================  ===========  ===========  =======
+kr5-demo (the demo, 270 pts)  166,400      157,600      -5.3 %
+thesis-laser-tracker (135)    127,700      114,700      -10.1 %
+============================  ===========  ===========  =======
+
+[3] issue 13, S3: the Levenberg-Marquardt circle fit goes on with a copy of the circles still iterating once
+at most half of a batch is left (kr5-demo: circles 5 and 6 then iterate 202 and 2 of 2,000 rows in their last
+iteration; -9.5 % of the fit's instructions; bit-identical); resting joints' variables taken exactly rather than
+as the mean of equal readings, so no axis transport of -1.7e-16 rad is made (5 rotations of the axes per batch on
+kr5-demo; draws move by <= 3.6e-12 mm and 4.4e-15 rad). What is left, per kr5-demo draw: the PCG64 stream
+(~26,000 instructions, fixed by the seed contract), the row sums of the fits (~19,000), and ~17,000 in numpy's
+buffered copies of the per-circle values broadcast along the points (``u - cu[:, None]``, three per evaluation of
+the circle fit, ``centred -= centroid``): such a broadcast subtraction costs ~2.4x a contiguous one on a
+(2,000, 40) batch, and neither a materialised copy, a transposed layout nor another buffer size was faster.
 """
 
 from __future__ import annotations

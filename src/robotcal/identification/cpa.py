@@ -272,7 +272,9 @@ def prepare_cpa(
             )
         _check_circle_points(capture.points, rows, joint, src)
         indices.append(rows)
-        configs[joint] = circle_q.mean(axis=0)
+        # a resting joint's variable exactly (the mean of n equal numbers can miss it by an ulp, and a transport
+        # angle of 1e-16 rad instead of 0 costs every batch a rotation of the axes)
+        configs[joint] = np.where(spread == 0.0, circle_q[0], circle_q.mean(axis=0))
         reference_q[joint] = circle_q[-1, joint]
     last_rows = np.array([rows[-1] for rows in indices])
     if robot.is_coupled:  # the readings of the reference configuration (all model variables at once)

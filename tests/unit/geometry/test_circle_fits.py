@@ -314,3 +314,35 @@ def test_coordinates_whose_sum_overflows():
     points = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 0.0]]) * 1.5e308
     with pytest.raises(InputError, match="too large"):
         fit_circle_3d(points)
+
+
+@pytest.mark.parametrize("residuals", [True, False])
+def test_geometric_fit_iterating_only_unconverged_circles_is_bit_identical(monkeypatch, residuals):
+    import robotcal.geometry.fits as fits
+
+    # exact circles converge in a step or two, noisy ones (a short arc among them) take more: the batch
+    # is iterated on fewer and fewer rows, down to one row beside a converged one
+    rng = np.random.default_rng(3)
+    exact = [_random_circle(rng, n_points=15)[0] for _ in range(5)]
+    noisy = [
+        _noisy_circle(seed, arc_deg=arc, sigma=0.2, n_points=15)[0]
+        for seed, arc in [(40, 25.0), (41, 120.0), (42, 300.0)]
+    ]
+    batch = np.stack(exact + noisy)
+    copied = []
+    rows = fits._CircleIteration.rows
+    monkeypatch.setattr(fits._CircleIteration, "rows", lambda self, left: copied.append(left.size) or rows(self, left))
+    monkeypatch.setattr(fits, "COMPACT_FRACTION", 1.0)  # copy the rows left whenever one has converged
+    compacted = fit_circle_3d(batch, residuals=residuals)
+    assert copied == [3, 2]  # the three noisy circles, then the last one iterating (with a converged one)
+    monkeypatch.setattr(fits, "COMPACT_FRACTION", 0.0)  # every iteration over the whole batch, as before
+    whole = fit_circle_3d(batch, residuals=residuals)
+    assert copied == [3, 2]
+    # every row's arithmetic is its own, whatever rows are iterated beside it: the same numbers bit for bit
+    for name in ("centre", "normal", "radius", "in_plane", "radial_residuals", "circle_rms"):
+        np.testing.assert_array_equal(getattr(compacted, name), getattr(whole, name), err_msg=name)
+    assert compacted.iterations == whole.iterations > 2 and compacted.converged and whole.converged
+    for k in range(batch.shape[0]):  # and each is the circle fitted alone (rounding of a batch of one aside)
+        single = fit_circle_3d(batch[k])
+        np.testing.assert_allclose(compacted.centre[k], single.centre, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(compacted.radius[k], single.radius, rtol=0, atol=1e-9)

@@ -506,3 +506,20 @@ def test_axis_transport_equals_the_rigid_transform_about_the_axis():
         # unit directions and moments of lines within ~1 m of the origin: rounding only (~1e-13 mm)
         np.testing.assert_allclose(turned.direction, expected.direction, rtol=0, atol=1e-14)
         np.testing.assert_allclose(turned.moment, expected.moment, rtol=0, atol=1e-11)
+
+
+def test_resting_joints_need_no_axis_transport():
+    from robotcal.io import load_scenario
+    from robotcal.workflow import scenario_monte_carlo
+
+    # the demo's circles: every joint before the turning one rests where its own circle ended, so the
+    # transport of every axis to the reference configuration is no rotation at all, exactly (a mean of
+    # equal readings misses them by an ulp: transport angles of -1.7e-16 rad, each a rotation per batch)
+    structure = scenario_monte_carlo(load_scenario("kr5-demo")).structure
+    n = structure.transport.shape[0]
+    earlier = np.tril(np.ones((n, n), dtype=bool), k=-1)
+    assert np.all(structure.transport[earlier] == 0.0)
+    for rows in structure.circle_indices[1:]:  # J1 rests at its reference reading while J2..J6 turn
+        assert np.all(structure.model_q[rows, 0] == structure.reference_q[0])
+    plain_means = np.array([structure.model_q[rows].mean(axis=0)[0] for rows in structure.circle_indices[1:]])
+    assert np.any(plain_means != structure.reference_q[0])  # what the transport was before
