@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from robotcal.cli._common import BLAS_THREAD_VARIABLES, tune_numeric_runtime
+from robotcal.cli._common import BLAS_THREAD_VARIABLES, limit_blas_threads
 
 
 @pytest.fixture
@@ -19,7 +19,7 @@ def clean_environment(monkeypatch):
 
 
 def test_unset_thread_variables_become_one(clean_environment):
-    tune_numeric_runtime()
+    limit_blas_threads()  # (not tune_numeric_runtime: its allocator settings would stay for the whole session)
     assert {variable: os.environ[variable] for variable in BLAS_THREAD_VARIABLES} == dict.fromkeys(
         BLAS_THREAD_VARIABLES, "1"
     )
@@ -27,7 +27,7 @@ def test_unset_thread_variables_become_one(clean_environment):
 
 def test_a_users_choice_is_kept(clean_environment):
     clean_environment.setenv("OPENBLAS_NUM_THREADS", "4")
-    tune_numeric_runtime()
+    limit_blas_threads()
     assert os.environ["OPENBLAS_NUM_THREADS"] == "4"
     assert os.environ["OMP_NUM_THREADS"] == "1"
 

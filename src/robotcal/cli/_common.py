@@ -118,6 +118,12 @@ _MAIN_PID = [os.getpid()]
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
 
 
+def limit_blas_threads() -> None:
+    """One BLAS / OpenMP thread (:data:`BLAS_THREAD_VARIABLES` set to 1) unless the user set them."""
+    for variable in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(variable, "1")
+
+
 def tune_numeric_runtime() -> None:
     """Process settings for the ``robotcal`` command, applied before numpy is imported.
 
@@ -126,15 +132,14 @@ def tune_numeric_runtime() -> None:
       (3x3 fits, 40-column QRs, 500-draw blocks). On the 2-core reference machine a multi-threaded
       OpenBLAS made such calls up to 50x slower when the cores were busy (its threads spin waiting for
       each other): in one pair of demo runs under the same load, 58 s with the default threads, 32 s with one.
-    - glibc's malloc keeps blocks up to 64 MiB in its heap and returns freed memory above 256 MiB only:
+    - glibc's malloc keeps blocks up to 32 MiB in its heap and returns freed memory above 256 MiB only:
       the Monte Carlo batches allocate and free the same tens of megabytes thousands of times, which with
       the default (mmap above 128 KiB or a moving threshold) cost about 1 s of system time in page faults.
       Set only on Linux with glibc; other platforms are left as they are.
 
     Library callers are not affected: this runs in :func:`robotcal.cli.main` only.
     """
-    for variable in BLAS_THREAD_VARIABLES:
-        os.environ.setdefault(variable, "1")
+    limit_blas_threads()
     if not sys.platform.startswith("linux"):
         return
     try:
@@ -145,8 +150,10 @@ def tune_numeric_runtime() -> None:
     except (OSError, AttributeError):  # not glibc (musl has no mallopt): keep the allocator as it is
         return
     m_trim_threshold, m_mmap_threshold = -1, -3
-    mallopt(m_mmap_threshold, 64 * 2**20)
-    mallopt(m_trim_threshold, 256 * 2**20)
+    # 32 MiB: the largest threshold mallopt(3) documents on 64-bit (an older glibc refuses more, returning 0);
+    # the trim threshold only when it was taken (setting it alone would freeze the mmap threshold at 128 KiB)
+    if mallopt(m_mmap_threshold, 32 * 2**20) == 1:
+        mallopt(m_trim_threshold, 256 * 2**20)
 
 
 def install_signal_handlers() -> None:

@@ -751,7 +751,7 @@ def _select_free(
         # the generic point keeps the structural dependencies but can lose those of the probe's own geometry
         # (a fitted target on axis n): its null space is at most n_null wide, as wide as its rank says, and the
         # null space at the probe point itself is taken too
-        n_generic = min(n_null, int(live.sum()) - int(select_identifiable(moved, np.ones(moved.shape[1], bool)).sum()))
+        n_generic = min(n_null, int(live.sum()) - int(select_identifiable(moved, np.ones(moved.shape[1], bool), tolerance=tolerance).sum()))
         support = _null_support(moved, n_generic) | _null_support(scaled[:, live], n_null)
         confounded[np.flatnonzero(live)[support]] = True
         confounded &= keep
@@ -834,7 +834,8 @@ def refine_parameters(
     method : {"auto", "lm", "trf"}
         ``auto``: ``"lm"`` when there are at least as many residuals as unknowns, else ``"trf"``.
     max_nfev : int, optional
-        Residual-evaluation limit (default ``100 * (n_unknowns + 1)``, SciPy's for ``"lm"``).
+        Residual-evaluation limit of each fit (default ``100 * (n_unknowns + 1)``, SciPy's for ``"lm"``); a
+        refit after the rank test at the solution (at most 3) has its own, and ``nfev`` counts them all.
     tolerance : float
         ``ftol = xtol = gtol`` of ``least_squares``.
     rank_tolerance : float
@@ -1003,6 +1004,7 @@ def refine_parameters(
     history: list[float] = []
     start_cost = None
     unsettled = ""
+    kept = None  # the last fit accepted: what a failed refit falls back to
     for fit_round in range(_MAX_REFITS + 1):
         free_mask, base_free, offset_free = selection.free, selection.base_free, selection.offset_free
         problem = replace(
@@ -1048,6 +1050,25 @@ def refine_parameters(
         nfev += int(solution.nfev)
         njev += int(solution.njev) if solution.njev is not None else len(history) - evaluations
         final_cost = float(solution.cost)
+        if kept is not None and (
+            solution.status <= 0 or not np.isfinite(final_cost) or final_cost > kept["cost"] * (1 + 1e-6) + 1e-12
+        ):
+            # a refit that fails or ends worse than the fit it started from: that fit stands (its free set is
+            # the one it was fitted with; the rank test at its solution disagreed, which the warning says)
+            outcome = "did not converge" if solution.status <= 0 else "ended at a higher cost"
+            unsettled = (
+                f"the refit with the free set decided at the solution of fit {fit_round} {outcome} "
+                f"({final_cost:.6g} mm^2 against {kept['cost']:.6g} mm^2); fit {fit_round} is returned"
+            )
+            problem, x_final, success, message, evaluated, x_scale = (
+                kept[key] for key in ("problem", "x", "success", "message", "evaluated", "x_scale")
+            )
+            x0 = problem.x0()
+            values, offsets, x_base = problem.unpack_all(x_final)
+            free_mask, base_free, offset_free = kept["selection"].free, kept["selection"].base_free, kept["selection"].offset_free
+            gauge, held, confounded, flange_frame, flange_held = describe(kept["selection"])
+            history.append(kept["cost"])
+            break
         x_final = np.asarray(solution.x, dtype=float)
         success = bool(solution.status > 0)
         message = str(solution.message)
@@ -1068,7 +1089,17 @@ def refine_parameters(
         at_solution = replace(probe, start=values, offset_start=offsets, base_offset=x_base)
         evaluated = at_solution.evaluate(at_solution.x0())
         if not success:
-            break  # the start returned: the start's decision stands
+            break  # the first fit did not converge (or the start came back): the decision at the start stands
+        kept = {
+            "problem": problem,
+            "x": x_final,
+            "success": success,
+            "message": message,
+            "evaluated": evaluated,
+            "selection": selection,
+            "cost": final_cost,
+            "x_scale": x_scale,
+        }
         decided = _select_free(
             at_solution, candidates, all_scale, kind_scale, rank_tolerance, evaluated[1], preferred=selection
         )

@@ -178,3 +178,45 @@ def test_a_free_set_that_does_not_settle_returns_the_last_fit_and_says_so(monkey
     assert "the free set did not settle" in result.message
     assert any("did not settle" in text and "returns to an earlier free set" in text for text in messages)
     assert result.residual_max < 1e-9  # J6 is nominal in this truth: holding J6.a there is exact too
+
+
+@pytest.mark.parametrize("failure", ["stops", "stalls"])
+def test_a_refit_that_fails_returns_the_fit_it_started_from(failure, monkeypatch):
+    """A refit (forced here, by swapping J6.a and J6.alpha at the first solution) that stops before converging,
+    or stalls at its start, must not throw away the exact first fit: the first fit is returned, its free set
+    reported, and the message says the refit failed."""
+    from scipy.optimize import OptimizeResult
+
+    real_select, real_solve = refine_module._select_free, refine_module.least_squares
+    selections, solves = [], []
+
+    def swapping(*args, **kwargs):
+        chosen = real_select(*args, **kwargs)
+        selections.append(chosen)
+        if len(selections) == 2:
+            free, held = chosen.free.copy(), chosen.held.copy()
+            free[5, 2], held[5, 2], free[5, 3], held[5, 3] = False, True, True, False
+            return dataclasses.replace(chosen, free=free, held=held)
+        return chosen
+
+    def failing_refit(fun, x0, *args, **kwargs):
+        solves.append(x0)
+        if len(solves) == 1:
+            return real_solve(fun, x0, *args, **kwargs)
+        if failure == "stops":
+            return real_solve(fun, x0, *args, **{**kwargs, "max_nfev": 1})
+        start = fun(x0)
+        return OptimizeResult(x=x0.copy(), cost=0.5 * float(start @ start), status=2, nfev=1, njev=1, message="stalled")
+
+    monkeypatch.setattr(refine_module, "_select_free", swapping)
+    monkeypatch.setattr(refine_module, "least_squares", failing_refit)
+    truth = _truth(7, joint6=(0.2, np.deg2rad(0.05), 0.4))  # J6 off nominal: the refit starts far from the fit
+    reflector = ReflectorMount(frame="flange", positions=[60.0, 40.0, 30.0])
+    result, messages = _refine(_circles(reflector, truth), ParameterSet.nominal(ROBOT), reflector)
+    assert len(solves) == 2 and result.refits == 1
+    assert result.success and result.held == ("J6.alpha",)  # the first fit, with its free set
+    outcome = "did not converge" if failure == "stops" else "ended at a higher cost"
+    assert f"fit 1 {outcome}" in result.message and "fit 1 is returned" in result.message
+    assert any("fit 1 is returned" in text for text in messages)
+    # the first fit's noise-free residual (exact), not the refit's (0.01 mm^2 after one evaluation, or its start)
+    assert result.residual_max < 1e-9
