@@ -161,6 +161,7 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
     ``BrokenProcessPool`` from ``map``, never as a hang.
     """
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    result_queue = getattr(pool, "_result_queue", None)  # taken now: shutdown() drops the pool's reference
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         if process.is_alive():
@@ -170,3 +171,15 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
         if process.is_alive():  # pragma: no cover - a worker stuck in uninterruptible C code
             process.kill()
             process.join(timeout=2.0)
+    # A worker stopped in the middle of sending its result leaves half a message in the result pipe, and the
+    # pool's manager thread then waits in recv() for the rest, for ever: the interpreter's exit joins that
+    # thread, so the command hung at exit (about 1 Ctrl-C in 20 during the Monte Carlo). This process holds
+    # the pipe's last write end once the workers are gone: closing it ends that recv() with EOFError, which
+    # the manager thread treats as a broken pool and shuts down. (``_result_queue`` is private, as is
+    # ``_processes``; without it the old behaviour remains.)
+    writer = getattr(result_queue, "_writer", None)
+    if writer is not None and not any(process.is_alive() for process in processes):
+        try:
+            writer.close()
+        except OSError:  # pragma: no cover - already closed
+            pass

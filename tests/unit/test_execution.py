@@ -74,6 +74,25 @@ def test_an_exception_terminates_the_workers_promptly(monkeypatch, error):
     assert time.monotonic() - began < 10.0  # no wait for the 30 s tasks
 
 
+def test_a_worker_stopped_while_sending_its_result_does_not_hang_the_exit(monkeypatch):
+    """A worker killed in the middle of sending a result leaves half a message in the pool's result pipe; the
+    pool's manager thread waited for the rest for ever and the interpreter's exit, which joins it, hung (a
+    slow signal test caught it about once in 20 Ctrl-Cs). Half a message is written here by hand."""
+    import struct
+
+    monkeypatch.delenv(SCHEDULER_ENV, raising=False)
+    with pytest.raises(KeyboardInterrupt):  # noqa: PT012 - the pool must be torn down by the exception
+        with open_executor(workers=2) as pool:
+            assert list(pool.map(_square, range(2))) == [0, 1]  # workers and the manager thread are up
+            manager = pool._pool._executor_manager_thread
+            writer = pool._pool._result_queue._writer
+            writer._send(struct.pack("!i", 1000) + b"x" * 10)  # a header announcing 1000 bytes, then 10
+            time.sleep(0.2)  # the manager thread is now in recv(), waiting for 990 more bytes
+            raise KeyboardInterrupt
+    manager.join(timeout=10.0)
+    assert not manager.is_alive(), "the pool's manager thread still waits on the result pipe"
+
+
 def test_workers_ignore_sigint(monkeypatch):
     monkeypatch.delenv(SCHEDULER_ENV, raising=False)
     with open_executor(workers=2) as pool:
