@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 import sys
@@ -16,6 +17,7 @@ matplotlib.use("Agg")  # never open a window; figures are files (pyplot too, whe
 from matplotlib import ft2font  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg, get_hinting_flag  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.font_manager import fontManager, get_font  # noqa: E402
 
 from robotcal.io.atomic import atomic_write_bytes  # noqa: E402
 
@@ -68,6 +70,20 @@ _CACHE_SIZE = 4096
 #: The private Agg pieces :class:`TextCacheRenderer` builds on (matplotlib 3.11); without them it is plain Agg.
 _CAN_CACHE_TEXT = hasattr(RendererAgg, "_draw_text_glyphs_and_boxes") and hasattr(ft2font.FT2Font, "_layout")
 
+#: Glyph bitmaps kept for the process: (font, size, dpi, glyph, transform, pen position within its pixel in
+#: 1/64, hinting, antialiasing) -> (font, bitmap, its corner relative to the pen's pixel). The font is kept with
+#: its bitmaps, so its id stays its own; a forked process keeps them (plain arrays: the histogram helpers draw
+#: from what the figure worker rendered while preparing their pages).
+_GLYPHS: dict[tuple, tuple] = {}
+_GLYPHS_KEPT = 20_000
+RenderMode = getattr(ft2font, "RenderMode", None)
+_CAN_KEEP_GLYPHS = (
+    RenderMode is not None
+    and hasattr(ft2font.FT2Font, "_render_glyph")
+    and hasattr(ft2font.FT2Font, "_set_transform")
+    and hasattr(RendererAgg, "_draw_text_glyphs_and_boxes")
+)
+
 
 if hasattr(os, "register_at_fork"):
     # a forked process (the figure worker, the histogram helpers) lays out its text with its own fonts:
@@ -93,10 +109,45 @@ class TextCacheRenderer(RendererAgg):
     is a new key. Glyphs are still rendered at their own sub-pixel positions, so the pixels are
     Agg's (the tests compare them). Mathtext and TeX go to Agg unchanged.
 
-    Built on two private pieces of matplotlib 3.11's Agg (``FT2Font._layout`` and
-    ``RendererAgg._draw_text_glyphs_and_boxes``, the body of ``RendererAgg.draw_text``); where they
-    are missing it is plain Agg.
+    Two more things are kept, with the same pixels (tests compare with plain Agg):
+
+    - each glyph's bitmap, for the process (:data:`_GLYPHS`): FreeType hints and renders a glyph alike
+      wherever its pen falls in the same 1/64 of a pixel, and rendering was about a third of a figure's
+      text drawing (the demo's joint figures: 2383 glyphs rendered for 5 figures);
+    - a font's line metrics (ascent, descent, line gap), for one draw: ``Text._get_layout`` (matplotlib
+      3.11) asks the renderer for them (``_get_font_height_metrics``, which Agg does not have) and otherwise
+      finds the font file and reads two of its tables on every layout, three layouts per text and draw.
+      They are computed as that fallback does, from the same tables in the same order of operations; the
+      canvas forgets them when a draw asks for its renderer, so a change of font rcParams is seen.
+
+    Built on private pieces of matplotlib 3.11's Agg (``FT2Font._layout``, ``FT2Font._render_glyph``,
+    ``FT2Font._set_transform`` and ``RendererAgg._draw_text_glyphs_and_boxes``, the body of
+    ``RendererAgg.draw_text``); where they are missing it is plain Agg.
     """
+
+    def __init__(self, width, height, dpi, figure: Figure | None = None):
+        super().__init__(width, height, dpi)
+        self.figure = figure
+        self.heights: dict = {}
+
+    def _get_font_height_metrics(self, prop):
+        dpi = self.dpi if self.figure is None else self.figure.dpi  # as Text._get_layout: the figure's
+        key = (prop.copy(), dpi)
+        if key not in self.heights:
+            font = get_font(fontManager._find_fonts_by_props(prop))
+            metrics = (None, None, None)  # Text._get_layout then measures "lp"
+            for table_name, gap_key, ascent_key, descent_key in (
+                ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
+                ("hhea", "lineGap", "ascent", "descent"),
+            ):
+                table = font.get_sfnt_table(table_name)
+                if table is None:
+                    continue
+                scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points() * dpi / 72
+                metrics = (table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale)
+                break
+            self.heights[key] = metrics
+        return self.heights[key]
 
     def get_text_width_height_descent(self, s, prop, ismath):
         if ismath or not _CAN_CACHE_TEXT:
@@ -129,6 +180,47 @@ class TextCacheRenderer(RendererAgg):
         )
 
 
+    def _draw_text_glyphs_and_boxes(self, gc, x, y, angle, glyphs, boxes):
+        """Agg's glyph drawing (matplotlib 3.11 ``RendererAgg._draw_text_glyphs_and_boxes``, which this repeats
+        step by step) with each glyph's bitmap kept for the process, see :data:`_GLYPHS`."""
+        if boxes or not _CAN_KEEP_GLYPHS:  # mathtext's rules: Agg's own
+            return super()._draw_text_glyphs_and_boxes(gc, x, y, angle, glyphs, boxes)
+        cos = math.cos(math.radians(angle))
+        sin = math.sin(math.radians(angle))
+        load_flags = get_hinting_flag()
+        antialiased = bool(gc.get_antialiased())
+        rotation = 0x10000 * np.array([[cos, -sin], [sin, cos]])
+        for font, size, glyph_index, slant, extend, dx, dy in glyphs:  # dy is upwards
+            matrix = (rotation @ [[extend, extend * slant], [0, 1]]).round().astype(int)
+            # the pen position in 1/64 pixel, FreeType's y upwards
+            pen_x = round(0x40 * (x + dx * cos - dy * sin))
+            pen_y = round(0x40 * (self.height - y + dx * sin + dy * cos))
+            key = (id(font), size, self.dpi, glyph_index, matrix.tobytes(), pen_x & 0x3F, pen_y & 0x3F, load_flags,
+                   antialiased)  # fmt: skip
+            entry = _GLYPHS.get(key)
+            if entry is None:
+                font.set_size(size, self.dpi)
+                font._set_transform(matrix, [pen_x, pen_y])
+                bitmap = font._render_glyph(
+                    glyph_index, load_flags, RenderMode.NORMAL if antialiased else RenderMode.MONO
+                )
+                buffer = np.array(bitmap.buffer)  # its own copy
+                if not antialiased:
+                    buffer *= 0xFF
+                # the bitmap's corner relative to the whole pixel of the pen: an offset of whole pixels moves
+                # the outline by whole pixels, so the same coverage lands in the same place relative to the pen
+                entry = (font, buffer, bitmap.left - (pen_x >> 6), bitmap.top - (pen_y >> 6))
+                if len(_GLYPHS) >= _GLYPHS_KEPT:
+                    _GLYPHS.clear()
+                _GLYPHS[key] = entry
+            _, buffer, left, top = entry
+            # draw_text_image's y is downwards & the bitmap bottom side
+            self._renderer.draw_text_image(
+                buffer, left + (pen_x >> 6), int(self.height) - (top + (pen_y >> 6)) + buffer.shape[0], 0, gc
+            )
+        return None
+
+
 def _frozen(value):
     """A hashable form of a text's font features or language (None, a string or a list)."""
     if isinstance(value, list | tuple):
@@ -143,8 +235,9 @@ class TextCacheCanvas(FigureCanvasAgg):
         width, height = self.get_width_height(physical=True)
         key = width, height, self.figure.dpi
         if self._lastKey != key:
-            self.renderer = TextCacheRenderer(width, height, self.figure.dpi)
+            self.renderer = TextCacheRenderer(width, height, self.figure.dpi, self.figure)
             self._lastKey = key
+        self.renderer.heights.clear()  # line metrics are kept for one draw
         return self.renderer
 
 

@@ -10,15 +10,12 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
-from matplotlib import ft2font
-from matplotlib.backends.backend_agg import get_hinting_flag
-from matplotlib.font_manager import fontManager, get_font
 from matplotlib.patches import StepPatch
 from matplotlib.ticker import MaxNLocator
 from matplotlib.transforms import Bbox
 
 from robotcal.kinematics.model import ANGLE_KINDS, KIND_UNITS, PARAMETER_KINDS
-from robotcal.plots.figures import TextCacheCanvas, TextCacheRenderer, new_figure, render_rgba, save_figure
+from robotcal.plots.figures import new_figure, render_rgba, save_figure
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
 __all__ = ["write_histograms", "prepare_histograms"]
@@ -106,113 +103,6 @@ class _Panel:
         axis.autoscale_view()
 
 
-class _HeightsRenderer(TextCacheRenderer):
-    """:class:`~robotcal.plots.figures.TextCacheRenderer` that also gives matplotlib's text layout the font's
-    line metrics, kept for one draw.
-
-    ``Text._get_layout`` (matplotlib 3.11) asks the renderer for the ascent, descent and line gap of a text's
-    font (``_get_font_height_metrics``, which Agg does not have) and otherwise finds the font file and reads
-    two of its tables, on every layout: three layouts per text and draw, about a tenth of a histogram page.
-    This computes them as that fallback does, from the same tables and in the same order of operations (so
-    the pixels are the same: the tests compare with plain figures), once per font properties and draw (the
-    canvas clears them when a draw asks for its renderer, so a change of font rcParams between draws is seen).
-    """
-
-    def __init__(self, width, height, dpi, figure):
-        super().__init__(width, height, dpi)
-        self.figure = figure
-        self.heights: dict = {}
-
-    def _get_font_height_metrics(self, prop):
-        dpi = self.figure.dpi  # as Text._get_layout: the figure's
-        key = (prop.copy(), dpi)
-        if key not in self.heights:
-            font = get_font(fontManager._find_fonts_by_props(prop))
-            metrics = (None, None, None)  # Text._get_layout then measures "lp"
-            for table_name, gap_key, ascent_key, descent_key in (
-                ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
-                ("hhea", "lineGap", "ascent", "descent"),
-            ):
-                table = font.get_sfnt_table(table_name)
-                if table is None:
-                    continue
-                scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points() * dpi / 72
-                metrics = (table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale)
-                break
-            self.heights[key] = metrics
-        return self.heights[key]
-
-    def _draw_text_glyphs_and_boxes(self, gc, x, y, angle, glyphs, boxes):
-        """Agg's glyph drawing (matplotlib 3.11 ``RendererAgg._draw_text_glyphs_and_boxes``, which this repeats
-        step by step) with each glyph's bitmap kept for the process, see :data:`_GLYPHS`."""
-        if boxes or not _CAN_KEEP_GLYPHS:  # mathtext's rules: Agg's own
-            return super()._draw_text_glyphs_and_boxes(gc, x, y, angle, glyphs, boxes)
-        cos = math.cos(math.radians(angle))
-        sin = math.sin(math.radians(angle))
-        load_flags = get_hinting_flag()
-        antialiased = bool(gc.get_antialiased())
-        rotation = 0x10000 * np.array([[cos, -sin], [sin, cos]])
-        for font, size, glyph_index, slant, extend, dx, dy in glyphs:  # dy is upwards
-            matrix = (rotation @ [[extend, extend * slant], [0, 1]]).round().astype(int)
-            # the pen position in 1/64 pixel, FreeType's y upwards
-            pen_x = round(0x40 * (x + dx * cos - dy * sin))
-            pen_y = round(0x40 * (self.height - y + dx * sin + dy * cos))
-            key = (id(font), size, self.dpi, glyph_index, matrix.tobytes(), pen_x & 0x3F, pen_y & 0x3F, load_flags,
-                   antialiased)  # fmt: skip
-            entry = _GLYPHS.get(key)
-            if entry is None:
-                font.set_size(size, self.dpi)
-                font._set_transform(matrix, [pen_x, pen_y])
-                bitmap = font._render_glyph(
-                    glyph_index, load_flags, RenderMode.NORMAL if antialiased else RenderMode.MONO
-                )
-                buffer = np.array(bitmap.buffer)  # its own copy
-                if not antialiased:
-                    buffer *= 0xFF
-                # the bitmap's corner relative to the whole pixel of the pen: an offset of whole pixels moves
-                # the outline by whole pixels, so the same coverage lands in the same place relative to the pen
-                entry = (font, buffer, bitmap.left - (pen_x >> 6), bitmap.top - (pen_y >> 6))
-                if len(_GLYPHS) >= _GLYPHS_KEPT:
-                    _GLYPHS.clear()
-                _GLYPHS[key] = entry
-            _, buffer, left, top = entry
-            # draw_text_image's y is downwards & the bitmap bottom side
-            self._renderer.draw_text_image(
-                buffer, left + (pen_x >> 6), int(self.height) - (top + (pen_y >> 6)) + buffer.shape[0], 0, gc
-            )
-        return None
-
-
-#: Glyph bitmaps kept for the process: (font, size, dpi, glyph, transform, pen position within its pixel in
-#: 1/64, hinting, antialiasing) -> (font, bitmap, its corner relative to the pen's pixel). FreeType hints and
-#: renders a glyph alike wherever its pen falls in the same 1/64 of a pixel; rendering (auto-hinting each
-#: glyph again) is about a third of a page's drawing, and about half the glyphs of the five pages of a
-#: demo repeat. The font is kept with its bitmaps, so its id stays its own; a forked process keeps them (plain
-#: arrays). Where Agg's private pieces differ (another matplotlib), Agg draws as usual.
-_GLYPHS: dict[tuple, tuple] = {}
-_GLYPHS_KEPT = 20_000
-RenderMode = getattr(ft2font, "RenderMode", None)
-_CAN_KEEP_GLYPHS = (
-    RenderMode is not None
-    and hasattr(ft2font.FT2Font, "_render_glyph")
-    and hasattr(ft2font.FT2Font, "_set_transform")
-    and hasattr(TextCacheRenderer, "_draw_text_glyphs_and_boxes")
-)
-
-
-class _HeightsCanvas(TextCacheCanvas):
-    """Agg canvas drawing with :class:`_HeightsRenderer`; its line metrics are forgotten at each draw."""
-
-    def get_renderer(self):
-        width, height = self.get_width_height(physical=True)
-        key = width, height, self.figure.dpi
-        if self._lastKey != key:
-            self.renderer = _HeightsRenderer(width, height, self.figure.dpi, self.figure)
-            self._lastKey = key
-        self.renderer.heights.clear()
-        return self.renderer
-
-
 class _Page:
     """A histogram figure for one panel grid (``n_panels`` in ``n_cols`` columns): its axes, panels,
     title and legend, made once and redrawn for every joint with that grid."""
@@ -222,7 +112,6 @@ class _Page:
         width, height = 3.3 * n_cols, 2.6 * n_rows + 0.4
         # fixed margins [in] instead of constrained layout, which costs about half the drawing time
         self.figure, axes = new_figure(n_rows, n_cols, width_in=width, height_in=height, squeeze=False, layout=None)
-        _HeightsCanvas(self.figure)
         self.figure.subplots_adjust(
             left=0.62 / width,
             right=1.0 - 0.3 / width,

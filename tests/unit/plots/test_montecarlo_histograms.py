@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
+import robotcal.plots.figures as figures
 import robotcal.plots.montecarlo as histograms
 from robotcal.io import load_scenario
 from robotcal.kinematics.model import ANGLE_KINDS, PARAMETER_KINDS
@@ -98,15 +99,15 @@ def test_prepared_and_reused_pages_draw_the_bytes_of_plain_matplotlib(result, tm
     assert len(expected) >= 2 and len(set(expected.values())) == len(expected)  # different pages: the check can fail
     histograms.prepare_histograms(result.identified, result.settings.coverage)
     assert len(histograms._PAGES) == len({int(n) for n in np.count_nonzero(result.identified, axis=1) if n})
-    histograms._GLYPHS.clear()
+    figures._GLYPHS.clear()
     for attempt in ("prepared", "reused"):
         (tmp_path / attempt).mkdir()
         assert _bytes(histograms.write_histograms(result, tmp_path / attempt, processes=1)) == expected, attempt
-        if histograms._CAN_KEEP_GLYPHS and attempt == "prepared":
-            kept = len(histograms._GLYPHS)
+        if figures._CAN_KEEP_GLYPHS and attempt == "prepared":
+            kept = len(figures._GLYPHS)
             assert kept > 100  # the glyphs were drawn from kept bitmaps: the second time from those alone
-    if histograms._CAN_KEEP_GLYPHS:
-        assert len(histograms._GLYPHS) == kept
+    if figures._CAN_KEEP_GLYPHS:
+        assert len(figures._GLYPHS) == kept
     (tmp_path / "new").mkdir()
     monkeypatch.setattr(histograms, "_REUSE_FIGURES", False)
     assert _bytes(histograms.write_histograms(result, tmp_path / "new", processes=1)) == expected

@@ -38,14 +38,31 @@ def _pixels(figure: Figure) -> np.ndarray:
 def test_cached_text_draws_agg_pixels(monkeypatch):
     monkeypatch.setattr(figures, "_LAYOUTS", {})
     monkeypatch.setattr(figures, "_EXTENTS", {})
+    monkeypatch.setattr(figures, "_GLYPHS", {})
     expected = _pixels(_texts_figure(FigureCanvasAgg))
     first = _pixels(_texts_figure(figures.TextCacheCanvas))  # fills the caches
     assert figures._LAYOUTS and figures._EXTENTS
-    layouts, extents = dict(figures._LAYOUTS), dict(figures._EXTENTS)
+    assert figures._GLYPHS or not figures._CAN_KEEP_GLYPHS  # rotated labels and ticks included
+    layouts, extents, glyphs = dict(figures._LAYOUTS), dict(figures._EXTENTS), dict(figures._GLYPHS)
     second = _pixels(_texts_figure(figures.TextCacheCanvas))  # a new renderer: every string from the caches
     assert figures._LAYOUTS.keys() == layouts.keys() and figures._EXTENTS.keys() == extents.keys()
+    assert figures._GLYPHS.keys() == glyphs.keys()  # every glyph drawn from a kept bitmap
     np.testing.assert_array_equal(first, expected)
     np.testing.assert_array_equal(second, expected)
+
+
+@pytest.mark.skipif(not figures._CAN_CACHE_TEXT, reason="this matplotlib lacks the Agg internals the cache uses")
+def test_line_metrics_are_those_of_the_font_tables_and_kept_for_one_draw():
+    """The renderer's line metrics are those Text._get_layout reads from the font's tables when a renderer has
+    none (checked here through the pixels above); they are kept for one draw only."""
+    figure = _texts_figure(figures.TextCacheCanvas)
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    assert renderer.heights == {}  # a new draw starts without them
+    figure.canvas.draw()
+    assert renderer.heights  # filled by that draw's layouts
+    ascent, descent, gap = next(iter(renderer.heights.values()))
+    assert ascent > 0 and descent > 0 and gap >= 0
 
 
 def test_cache_is_bounded(monkeypatch):
