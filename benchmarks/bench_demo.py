@@ -33,6 +33,21 @@ identification/cpa.py and geometry/fits.py, the refinement's normal equations), 
 (~0.15-0.5 s of CPU each with matplotlib), ``tcp.json`` of the 1000-pose workspace (~0.9 s: building
 the dict 0.45 s, ``json.dumps(indent=1)``, the pure-Python encoder, 0.46 s), the validation
 consistency check (~1.2 s) and the workspace kinematics (10^7 forward kinematics, ~2 s of CPU).
+
+Issue 13, second part (2026-11-26; the code the first part landed with, "old", and this code, "new", run
+alternately, 3 pairs, wall seconds and CPU seconds of the command and its children; the machine's speed
+varied by about 20 % between the two sittings):
+
+- first sitting: old 21.9-25.5 s (CPU 31.5-35.5 s), new 11.2-12.8 s (CPU 19.6-21.8 s);
+- second sitting: old 25.7-28.6 s (CPU 36.6-40.1 s), new 13.7-14.5 s (CPU 23.1-24.0 s);
+- new, stages in the second sitting: refine 1.1-1.4 (scipy.optimize is now imported there, not at start-up),
+  uncertainty 5.3-5.7, tcp 4.4-4.5, plan 0.4-0.5, report 0.5-0.7 (its wait for the last figures included).
+
+What changed: the Monte Carlo draws (CPA 64 -> 37 us of CPU per draw, refined model 320 -> 200 us), the TCP
+chain and angles, one BLAS thread per process, and the figures drawn by a process forked when the command
+starts, while the stages compute (the run's own process imports no matplotlib). CPU is now about 20-24 s for
+the two cores: figures ~6 s, Monte Carlo draws ~7.5 s, TCP stage ~5 s, the rest (start-up, refinement,
+files, report) ~3 s; the 12 s target is met on the faster days of this machine only.
 """
 
 from __future__ import annotations
