@@ -29,12 +29,7 @@ COST_TOLERANCE = 1e-10
 
 def check_points(points, name: str = "points", *, min_points: int = 3) -> np.ndarray:
     """Coerce ``points`` to float ``(..., n_points, 3)`` with ``n_points >= min_points``, all finite."""
-    try:
-        points = np.asarray(points, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"`{name}` must be numeric; got {type(points).__name__}") from exc
-    if points.ndim < 2 or points.shape[-1] != 3 or points.shape[-2] < min_points:
-        raise InputError(f"`{name}` must have shape (n_points, 3) with n_points >= {min_points}; got {points.shape}")
+    points = _check_shape(points, name, min_points=min_points)
     if not np.all(np.isfinite(points)):
         raise InputError(f"`{name}` contains NaN or infinite coordinates")
     return points

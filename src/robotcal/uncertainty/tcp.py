@@ -789,6 +789,19 @@ def _linearised(draws: np.ndarray, nominal: np.ndarray, q: np.ndarray, tool: np.
     return mean, 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
 
 
+def _propagation_inputs(robot: RobotModel, parameter_draws, readings, tool, batch_size):
+    """The checked draws and readings (2-D), the model joint variables of the readings and the tool, for
+    :func:`propagate_to_tcp` and :func:`position_covariance` (readings outside the limits warn at their caller)."""
+    draws = _check_draws(robot, parameter_draws)
+    readings = _check_readings(robot, readings, name="readings", source="", stacklevel=4)
+    tool = check_tool(tool)
+    if batch_size is not None and (int(batch_size) != batch_size or batch_size < 1):
+        raise InputError(f"`batch_size` must be a positive integer; got {batch_size!r}")
+    if draws.shape[0] < 2:
+        raise InputError(f"`parameter_draws` must hold at least 2 draws; got {draws.shape[0]}")
+    return draws, readings, robot.model_joint_variables(readings), tool
+
+
 def position_covariance(
     robot: RobotModel,
     parameter_draws,
@@ -806,16 +819,8 @@ def position_covariance(
     that need only the spread of a point, such as :func:`robotcal.workflow.validation_consistency`.
     Arguments and checks as :func:`propagate_to_tcp` (readings outside the limits warn).
     """
-    draws = _check_draws(robot, parameter_draws)
-    readings = _check_readings(robot, readings, name="readings", source="", stacklevel=3)
-    tool = check_tool(tool)
-    if batch_size is not None and (int(batch_size) != batch_size or batch_size < 1):
-        raise InputError(f"`batch_size` must be a positive integer; got {batch_size!r}")
-    n_draws = draws.shape[0]
-    if n_draws < 2:
-        raise InputError(f"`parameter_draws` must hold at least 2 draws; got {n_draws}")
-    q = robot.model_joint_variables(readings)
-    n_poses = q.shape[0]
+    draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
+    n_draws, n_poses = draws.shape[0], q.shape[0]
     pose_chunk = max(1, min(n_poses, int(max_bytes) // (24 * n_draws)))
     cos_q, sin_q = np.cos(q), np.sin(q)
     batch_size = int(batch_size) if batch_size is not None else max(1, 3 * _BLOCK_FRAMES // pose_chunk)
@@ -901,17 +906,9 @@ def propagate_to_tcp(
     ----------
     Thesis ch. 5.3, Table 5.8, Figs 5.17-5.20; JCGM 101:2008 §7.6-7.7; JCGM 102:2011 §6.2, §6.5.3, §7.7.
     """
-    draws = _check_draws(robot, parameter_draws)
-    readings = _check_readings(robot, readings, name="readings", source="", stacklevel=3)
-    tool = check_tool(tool)
     coverage = check_coverage(coverage)
-    if batch_size is not None and (int(batch_size) != batch_size or batch_size < 1):
-        raise InputError(f"`batch_size` must be a positive integer; got {batch_size!r}")
-    n_draws = draws.shape[0]
-    if n_draws < 2:
-        raise InputError(f"`parameter_draws` must hold at least 2 draws; got {n_draws}")
-    q = robot.model_joint_variables(readings)
-    n_poses = q.shape[0]
+    draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
+    n_draws, n_poses = draws.shape[0], q.shape[0]
     nominal = _coordinates(robot.nominal[None], q, tool)[0]
     cos_q, sin_q = np.cos(q), np.sin(q)
     # pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in max_bytes, sizes

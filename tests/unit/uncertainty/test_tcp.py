@@ -16,6 +16,7 @@ from robotcal.uncertainty.statistics import summarize_draws
 from robotcal.uncertainty.tcp import (
     check_readings,
     coverage_ellipsoid,
+    position_covariance,
     propagate_to_tcp,
     tcp_coordinates,
     tcp_jacobian,
@@ -195,6 +196,9 @@ def test_readings_outside_the_limits_warn_naming_the_pose():
     assert [w.filename for w in record] == [__file__]
     with pytest.warns(JointLimitWarning, match=r"pose 2: J5") as record:
         check_readings(ROBOT, readings, name="trajectory")
+    assert [w.filename for w in record] == [__file__]
+    with pytest.warns(JointLimitWarning, match=r"pose 2: J5") as record:
+        position_covariance(ROBOT, draws, readings)
     assert [w.filename for w in record] == [__file__]
 
 
