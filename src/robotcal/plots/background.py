@@ -35,8 +35,12 @@ whatever it does. The worker ignores SIGINT (Ctrl-C reaches the whole process gr
 the parent decides) and turns SIGTERM into ``SystemExit``, so that an atomic write in progress removes its
 temporary file and a forked helper of the job (the histograms draw in two processes) is stopped too; it
 gets SIGTERM when the parent dies (Linux), exits when it sees that its parent changed, and is stopped at
-the interpreter's exit. The worker never outlives the parent and, once :meth:`~FigureRenderer.cancel` or
-:meth:`~FigureRenderer.wait` has returned or raised, no job writes any more.
+the interpreter's exit; a process a job forks gets SIGTERM when the worker dies, even by SIGKILL (Linux). The
+worker never outlives the parent and, once :meth:`~FigureRenderer.cancel` or :meth:`~FigureRenderer.wait` has
+returned or raised, no job writes any more. A single :class:`RenderJob` cannot be cancelled (its ``cancel``
+returns False): :meth:`FigureRenderer.cancel` stops every unfinished job. Only a worker killed outright
+(SIGKILL, the out-of-memory killer) can leave an atomic write's hidden temporary file (``.NAME.*.tmp``) beside
+its figure; the figure itself is never half written.
 
 Where ``fork`` is not available, with ``workers=0``, or when no process can be started (inside a daemonic
 process), the jobs run synchronously in :meth:`~FigureRenderer.submit`, with the same results and errors.
@@ -78,8 +82,8 @@ STOP_TIMEOUT_S = 5.0
 #: Seconds between two checks of the idle worker that its parent is still the one that started it.
 _PARENT_CHECK_S = 1.0
 
-#: First message of a job (followed by the 8-byte sizes of its buffers, then come the pickle and the buffers'
-#: raw bytes), and the message that stops the worker.
+#: First message of a job (followed by its 8-byte index and the 8-byte sizes of its buffers, then come the pickle
+#: and the buffers' raw bytes), and the message that stops the worker.
 _JOB, _STOP = b"J", b"S"
 
 
@@ -121,6 +125,15 @@ class RenderJob(Future):
         self.name = name
         self.traceback_text: str | None = None
 
+    def cancel(self) -> bool:
+        """False: one job cannot be cancelled (the worker may be drawing it); :meth:`FigureRenderer.cancel`
+        stops every unfinished job."""
+        return False
+
+    def _cancel_here(self) -> None:
+        """Mark the job cancelled (the renderer stopped it)."""
+        super().cancel()
+
     def result(self, timeout: float | None = None):
         self._collect(timeout)
         return super().result(timeout=0)
@@ -157,19 +170,23 @@ def _job_name(function: Callable | str, index: int) -> str:
 # --------------------------------------------------------------------------------------------------- worker
 
 
+#: Set in the worker (and its helpers) by SIGTERM: the ``SystemExit`` that follows is a stop, not a job's failure.
+_STOPPING = False
+
+
 def _on_sigterm_in_worker(signum, frame):
     """SIGTERM in the worker (or a process it forked): stop its own forked helpers, then unwind with
     ``SystemExit`` so that ``finally`` blocks run (an atomic write removes its temporary file)."""
+    global _STOPPING
+    _STOPPING = True
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one is enough: the unwinding must not be interrupted
     for child in multiprocessing.active_children():
         child.terminate()
     raise SystemExit(128 + signum)
 
 
-def _set_up_worker(parent_pid: int) -> None:
-    """Signals (SIGINT ignored, SIGTERM unwinds, SIGTERM when the parent dies on Linux) and one BLAS thread."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _on_sigterm_in_worker)
+def _die_with_parent() -> None:
+    """SIGTERM to this process when its parent dies (Linux ``PR_SET_PDEATHSIG``; elsewhere nothing)."""
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -177,8 +194,27 @@ def _set_up_worker(parent_pid: int) -> None:
             ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
         except OSError:  # pragma: no cover - no libc: the parent check of the idle loop remains
             pass
+
+
+def _helper_dies_with_worker(worker_pid: int) -> None:
+    """In a process a job forks (the histograms draw in helpers): SIGTERM when the worker dies, even by SIGKILL,
+    so that no helper outlives it, holds its pipes or writes a figure after it was stopped."""
+    _die_with_parent()
+    if os.getppid() != worker_pid:  # the worker died before PR_SET_PDEATHSIG took effect
+        os._exit(128 + signal.SIGTERM)
+
+
+def _set_up_worker(parent_pid: int) -> None:
+    """Signals (SIGINT ignored, SIGTERM unwinds, SIGTERM when the parent dies on Linux, and so for the processes
+    its jobs fork) and one BLAS thread."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _on_sigterm_in_worker)
+    _die_with_parent()
     if os.getppid() != parent_pid:  # the parent died before PR_SET_PDEATHSIG took effect
         raise SystemExit(0)
+    worker_pid = os.getpid()
+    if hasattr(os, "register_at_fork"):
+        os.register_at_fork(after_in_child=lambda: _helper_dies_with_worker(worker_pid))
     # the figures need no BLAS threads; a process started from here (none is) would read these
     for variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[variable] = "1"
@@ -209,14 +245,15 @@ def _worker_main(jobs, results, unused, preload: tuple[str, ...], parent_pid: in
             start = jobs.recv_bytes()
             if start[:1] != _JOB:  # _STOP
                 return
-            sizes = [int.from_bytes(start[i : i + 8], "little") for i in range(1, len(start), 8)]
+            index = int.from_bytes(start[1:9], "little")  # the outcome names it even if the pickle fails to load
+            sizes = [int.from_bytes(start[i : i + 8], "little") for i in range(9, len(start), 8)]
             header = jobs.recv_bytes()
             buffers = [bytearray(size) for size in sizes]  # writable: the arrays arrive as they were
             for buffer in buffers:
                 _read_exactly(jobs.fileno(), buffer)
         except (EOFError, OSError):
             return
-        outcome = _run_job(header, buffers)
+        outcome = _run_job(index, header, buffers)
         del header, buffers  # the job's arguments are not kept while the worker waits for the next one
         results.send_bytes(outcome)
 
@@ -257,14 +294,22 @@ def _resolve(function: Callable | str) -> Callable:
     return getattr(importlib.import_module(module), name)
 
 
-def _run_job(header: bytes, buffers: list[bytearray]) -> bytes:
-    """Run one pickled job; the pickled ``(index, ok, traceback_text, pickled value or exception)``."""
-    index = -1
+def _run_job(index: int, header: bytes, buffers: list[bytearray]) -> bytes:
+    """Run job ``index`` from its pickle; the pickled ``(index, ok, traceback_text, pickled value or exception)``.
+
+    A job that cannot be loaded here (its function defined in ``__main__`` after the fork, say) fails like
+    one that raises. One that raises ``SystemExit`` or ``KeyboardInterrupt`` itself fails with a
+    :class:`FigureWorkerError` (raising those in the parent would end it), with its traceback; the
+    ``SystemExit`` of a SIGTERM is not caught (the worker is being stopped: it unwinds)."""
     try:
-        index, function, args, kwargs = pickle.loads(header, buffers=buffers)
+        function, args, kwargs = pickle.loads(header, buffers=buffers)
         value = _resolve(function)(*args, **kwargs)
-    except Exception as exc:  # noqa: BLE001 - reported to the parent, which raises it
+    except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it
+        if _STOPPING:
+            raise
         text = "".join(traceback.format_exception(exc))
+        if not isinstance(exc, Exception):
+            exc = FigureWorkerError(f"the job raised {type(exc).__qualname__}({exc})")
         try:
             payload = pickle.dumps(exc, protocol=pickle.HIGHEST_PROTOCOL)
             pickle.loads(payload)  # an exception that pickles but does not unpickle is caught here
@@ -310,8 +355,8 @@ class _Worker:
         self.sender: threading.Thread | None = None
         atexit.register(self.terminate)  # after multiprocessing's exit hook, so before it joins its children
 
-    def send(self, item: tuple[bytes, list] | None) -> None:
-        """Queue a job (pickle and buffers) or the stop message (None), in order; returns at once."""
+    def send(self, item: tuple[int, bytes, list] | None) -> None:
+        """Queue a job (index, pickle and buffers) or the stop message (None), in order; returns at once."""
         with self.lock:
             self.outbox.append(item)
             if self.sender is None:
@@ -330,8 +375,9 @@ class _Worker:
                 if item is None:
                     self.jobs.send_bytes(_STOP)
                     continue
-                header, buffers = item
-                self.jobs.send_bytes(_JOB + b"".join(buffer.nbytes.to_bytes(8, "little") for buffer in buffers))
+                index, header, buffers = item
+                sizes = b"".join(buffer.nbytes.to_bytes(8, "little") for buffer in buffers)
+                self.jobs.send_bytes(_JOB + index.to_bytes(8, "little") + sizes)
                 self.jobs.send_bytes(header)
                 for buffer in buffers:  # raw, after the two framed messages: the worker reads exactly nbytes
                     _write_all(self.jobs.fileno(), buffer)
@@ -470,7 +516,7 @@ class FigureRenderer:
             return job
         buffers: list[pickle.PickleBuffer] = []
         try:
-            header = pickle.dumps((job.index, function, args, kwargs), protocol=5, buffer_callback=buffers.append)
+            header = pickle.dumps((function, args, kwargs), protocol=5, buffer_callback=buffers.append)
             raw = [buffer.raw() for buffer in buffers]
         except Exception as exc:  # noqa: BLE001 - pickling raises many types
             raise TypeError(
@@ -479,7 +525,7 @@ class FigureRenderer:
             ) from exc
         self._unwaited.append(job)
         self._jobs[job.index] = job
-        self._worker.send((header, raw))
+        self._worker.send((job.index, header, raw))
         return job
 
     def wait(self) -> list:
@@ -503,13 +549,15 @@ class FigureRenderer:
 
     def cancel(self) -> None:
         """Stop the jobs not finished: the worker is terminated (SIGTERM: an atomic write in progress removes
-        its temporary file), the jobs are cancelled, and the next :meth:`submit` starts a new worker.
-        Finished jobs keep their outcome; with no unfinished job the worker is left running."""
+        its temporary file), the jobs are cancelled (and no longer waited for by :meth:`wait` or the end of a
+        ``with`` block), and the next :meth:`submit` starts a new worker. Finished jobs keep their outcome;
+        with no unfinished job the worker is left running."""
         if self._worker is None:
             return
         self._drain()
         if self._jobs:
             self._stop_now()
+        self._unwaited = [job for job in self._unwaited if not job.cancelled()]
 
     def _stop_now(self) -> None:
         """Terminate the worker, whatever it does (a job, its preload, waiting), and cancel what it had."""
@@ -520,7 +568,7 @@ class FigureRenderer:
         self._drain_from(worker)  # outcomes sent before the end still count
         worker.release()
         for job in self._jobs.values():
-            job.cancel()
+            job._cancel_here()
         self._jobs.clear()
 
     def close(self) -> None:
@@ -572,7 +620,7 @@ class FigureRenderer:
         except Exception as exc:  # noqa: BLE001 - kept in the job, raised by result() / wait()
             job._fail(exc, "".join(traceback.format_exception(exc)), "run synchronously")
         except BaseException:  # an interrupt: the job has no outcome
-            job.cancel()
+            job._cancel_here()
             raise
         else:
             job.set_result(value)
@@ -614,7 +662,7 @@ class FigureRenderer:
             return False
         index, ok, text, payload = pickle.loads(data)
         job = self._jobs.pop(index, None)
-        if job is None:  # pragma: no cover - a job cancelled in between
+        if job is None or job.done():  # pragma: no cover - a job cancelled in between
             return True
         try:
             value = pickle.loads(payload)

@@ -72,8 +72,8 @@ _CAN_CACHE_TEXT = hasattr(RendererAgg, "_draw_text_glyphs_and_boxes") and hasatt
 
 #: Glyph bitmaps kept for the process: (font, size, dpi, glyph, transform, pen position within its pixel in
 #: 1/64, hinting, antialiasing) -> (font, bitmap, its corner relative to the pen's pixel). The font is kept with
-#: its bitmaps, so its id stays its own; a forked process keeps them (plain arrays: the histogram helpers draw
-#: from what the figure worker rendered while preparing their pages).
+#: its bitmaps, so its id stays its own. A forked process starts without them, as without the layouts:
+#: matplotlib gives it new font objects (it clears its font cache at fork), so the kept keys would never match.
 _GLYPHS: dict[tuple, tuple] = {}
 _GLYPHS_KEPT = 20_000
 RenderMode = getattr(ft2font, "RenderMode", None)
@@ -88,7 +88,7 @@ _CAN_KEEP_GLYPHS = (
 if hasattr(os, "register_at_fork"):
     # a forked process (the figure worker, the histogram helpers) lays out its text with its own fonts:
     # matplotlib clears its font cache in the child too (an FT2Font shares its file offset with the parent)
-    os.register_at_fork(after_in_child=lambda: (_LAYOUTS.clear(), _EXTENTS.clear()))
+    os.register_at_fork(after_in_child=lambda: (_LAYOUTS.clear(), _EXTENTS.clear(), _GLYPHS.clear()))
 
 
 def _remember(cache: dict, key: tuple, value):

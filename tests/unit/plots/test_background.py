@@ -105,6 +105,25 @@ def die() -> None:
     os.kill(os.getpid(), signal.SIGKILL)
 
 
+def exit_from_the_job() -> None:
+    raise SystemExit(3)
+
+
+def _sleep_then_write(path: str) -> None:
+    time.sleep(PATIENCE_S / 4)
+    Path(path).write_text("written after the worker died")
+
+
+def die_leaving_a_helper(path: str, marker: str) -> None:
+    """Fork a helper that would write ``path`` much later, record its pid in ``marker``, then die (SIGKILL,
+    as the out-of-memory killer would)."""
+    helper = multiprocessing.get_context("fork").Process(target=_sleep_then_write, args=(path,), daemon=True)
+    helper.start()
+    Path(marker + ".part").write_text(str(helper.pid))
+    os.replace(marker + ".part", marker)
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
 # ------------------------------------------------------------------------------------------------- helpers
 
 
@@ -270,6 +289,78 @@ def test_an_unpicklable_job_is_refused_at_submit_and_an_unpicklable_error_is_rep
     assert renderer.submit(square, 5).result() == 25 and renderer._worker.process is worker
     renderer.close()
     assert not worker.is_alive() and worker.exitcode == 0  # close() lets the worker exit by itself
+
+
+def test_a_job_the_worker_cannot_load_fails_instead_of_hanging(monkeypatch):
+    """A function that exists here but not in the worker (added after the fork) fails its job with the
+    worker's error; before, the outcome carried no job number, was dropped, and the job waited for ever."""
+    renderer = FigureRenderer(preload=())
+    assert renderer.submit(square, 2).result() == 4  # the worker is up (forked before the function exists)
+
+    def added_later(value):
+        return value
+
+    added_later.__qualname__ = added_later.__name__ = "added_later"
+    monkeypatch.setattr(sys.modules[__name__], "added_later", added_later, raising=False)
+    job = renderer.submit(added_later, 1)
+    with pytest.raises(AttributeError, match="added_later") as caught:
+        job.result(timeout=PATIENCE_S)
+    assert any("figure job" in note for note in caught.value.__notes__)
+    assert renderer.submit(square, 3).result() == 9  # the same worker goes on
+    with pytest.raises(AttributeError):
+        renderer.wait()
+    renderer.close()
+
+
+def test_a_job_that_raises_system_exit_fails_with_its_traceback():
+    renderer = FigureRenderer(preload=())
+    job = renderer.submit(exit_from_the_job)
+    with pytest.raises(FigureWorkerError, match=r"raised SystemExit\(3\)"):
+        job.result()
+    assert "exit_from_the_job" in job.traceback_text
+    assert renderer.submit(square, 4).result() == 16  # the worker did not exit
+    with pytest.raises(FigureWorkerError):
+        renderer.wait()
+    renderer.close()
+
+
+def test_a_single_job_is_not_cancelled_behind_the_renderers_back():
+    """Future.cancel() on a job is refused (the worker may be drawing it); FigureRenderer.cancel() stops jobs."""
+    with FigureRenderer(preload=()) as renderer:
+        job = renderer.submit(square, 6)
+        assert job.cancel() is False
+        assert job.result() == 36
+
+
+def test_jobs_cancelled_by_the_renderer_are_not_waited_for(tmp_path):
+    marker, target = tmp_path / "writing", tmp_path / "figure.png"
+    with FigureRenderer(preload=()) as renderer:
+        job = renderer.submit(write_stalled, str(target), str(marker))
+        _wait_for(marker)
+        renderer.cancel()
+        assert job.cancelled()
+        assert renderer.submit(square, 5).result() == 25
+    # leaving the block normally after a deliberate cancel raised no CancelledError
+    assert not target.exists()
+
+
+@LINUX_PROC
+def test_a_helper_of_a_killed_worker_dies_with_it(tmp_path):
+    """A worker killed outright (SIGKILL) takes the processes its job forked with it: the job fails at once
+    instead of waiting for the helper, and the helper never writes its file."""
+    marker, target = tmp_path / "helper", tmp_path / "figure.png"
+    renderer = FigureRenderer(preload=())
+    job = renderer.submit(die_leaving_a_helper, str(target), str(marker))
+    started = time.monotonic()
+    with pytest.raises(FigureWorkerError, match="killed by SIGKILL"):
+        job.result()
+    assert time.monotonic() - started < PATIENCE_S / 8  # not after the helper's PATIENCE_S / 4 of sleep
+    _wait_for(marker)
+    assert _wait_dead(int(marker.read_text()))
+    assert not target.exists()
+    with pytest.raises(FigureWorkerError):
+        renderer.wait()
+    renderer.close()
 
 
 def test_a_dead_worker_fails_its_jobs_instead_of_hanging():
