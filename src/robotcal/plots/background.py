@@ -173,15 +173,25 @@ def _job_name(function: Callable | str, index: int) -> str:
 #: Set in the worker (and its helpers) by SIGTERM: the ``SystemExit`` that follows is a stop, not a job's failure.
 _STOPPING = False
 
+#: True in the worker while a job runs (and so in the processes a job forks).
+_IN_JOB = False
+
 
 def _on_sigterm_in_worker(signum, frame):
     """SIGTERM in the worker (or a process it forked): stop its own forked helpers, then unwind with
-    ``SystemExit`` so that ``finally`` blocks run (an atomic write removes its temporary file)."""
+    ``SystemExit`` so that ``finally`` blocks run (an atomic write removes its temporary file).
+
+    Outside a job there is nothing to unwind, and the worker exits at once: a ``SystemExit`` raised while the
+    handler happens to run inside a weakref callback or a ``__del__`` is printed and swallowed ("Exception
+    ignored in ..."), and the idle worker then waited for its SIGKILL (5 s; about one stop in ten of a run).
+    Inside a job, the same swallowing lets the job go on; the worker exits as soon as the job returns."""
     global _STOPPING
     _STOPPING = True
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one is enough: the unwinding must not be interrupted
     for child in multiprocessing.active_children():
         child.terminate()
+    if not _IN_JOB:
+        os._exit(128 + signum)
     raise SystemExit(128 + signum)
 
 
@@ -228,6 +238,7 @@ def _set_up_worker(parent_pid: int) -> None:
 
 def _worker_main(jobs, results, unused, preload: tuple[str, ...], parent_pid: int) -> None:
     """The worker: preload, then run jobs until the stop message, a closed pipe or a new parent."""
+    global _IN_JOB
     for connection in unused:
         connection.close()
     _set_up_worker(parent_pid)
@@ -253,7 +264,11 @@ def _worker_main(jobs, results, unused, preload: tuple[str, ...], parent_pid: in
                 _read_exactly(jobs.fileno(), buffer)
         except (EOFError, OSError):
             return
+        _IN_JOB = True
         outcome = _run_job(index, header, buffers)
+        _IN_JOB = False
+        if _STOPPING:  # stopped during the job, whose SystemExit was swallowed (see _on_sigterm_in_worker)
+            os._exit(128 + signal.SIGTERM)
         del header, buffers  # the job's arguments are not kept while the worker waits for the next one
         results.send_bytes(outcome)
 

@@ -105,6 +105,22 @@ def die() -> None:
     os.kill(os.getpid(), signal.SIGKILL)
 
 
+class _SlowToDelete:
+    def __init__(self, marker: str):
+        self.marker = marker
+
+    def __del__(self):
+        Path(self.marker + ".part").write_text(str(os.getpid()))
+        os.replace(self.marker + ".part", self.marker)
+        time.sleep(PATIENCE_S / 4)  # the SIGTERM arrives here: its SystemExit is printed and swallowed by Python
+
+
+def stopped_inside_a_finaliser(marker: str) -> str:
+    """A job in a ``__del__`` when it is stopped (as happens when the signal lands in a weakref callback)."""
+    _SlowToDelete(marker)  # deleted at once: __del__ runs here
+    return "went on"
+
+
 def exit_from_the_job() -> None:
     raise SystemExit(3)
 
@@ -450,6 +466,36 @@ def test_cancel_stops_a_write_in_progress_and_leaves_no_temporary_file(tmp_path,
     with pytest.raises(CancelledError):
         job.result()
     assert renderer.submit(square, 8).result() == 64  # the next job starts a new worker
+    renderer.close()
+
+
+@LINUX_PROC
+def test_a_stop_swallowed_by_a_finaliser_still_stops_the_worker_at_once(tmp_path):
+    """The SystemExit of a SIGTERM raised inside a ``__del__`` (or weakref callback) is swallowed by Python; the
+    worker then exits when the job returns, instead of waiting for its SIGKILL (STOP_TIMEOUT_S later)."""
+    marker = tmp_path / "in-del"
+    renderer = FigureRenderer(preload=())
+    job = renderer.submit(stopped_inside_a_finaliser, str(marker))
+    _wait_for(marker)
+    worker = renderer._worker.process
+    started = time.monotonic()
+    renderer.cancel()
+    assert worker.exitcode == 128 + signal.SIGTERM  # not -SIGKILL
+    assert time.monotonic() - started < background.STOP_TIMEOUT_S / 2
+    assert job.cancelled()
+    renderer.close()
+
+
+@LINUX_PROC
+def test_an_idle_worker_exits_at_once_on_sigterm():
+    renderer = FigureRenderer(preload=())
+    assert renderer.submit(square, 2).result() == 4
+    worker = renderer._worker.process
+    started = time.monotonic()
+    os.kill(worker.pid, signal.SIGTERM)
+    worker.join(PATIENCE_S)
+    assert worker.exitcode == 128 + signal.SIGTERM and time.monotonic() - started < background.STOP_TIMEOUT_S / 2
+    renderer.cancel()
     renderer.close()
 
 
