@@ -163,7 +163,7 @@ def run(
     ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP) and write DIR/report.html."""
+    """Run the whole pipeline (simulate, CPA, joints, refine, evaluate, Monte Carlo, TCP) and write DIR/report.html."""
     options = dict(seed=seed, draws=draws, workspace=workspace, workers=workers, refined_draws=refined_draws)
     with figure_worker() as figures:
         plan = plan_run(

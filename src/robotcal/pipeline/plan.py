@@ -38,7 +38,7 @@ __all__ = [
 ]
 
 #: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
-STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "iso9283", "plan", "report")
+STAGES = ("simulate", "identify", "joints", "refine", "evaluate", "uncertainty", "tcp", "iso9283", "plan", "report")
 #: What each stage writes under the run folder (docs/results.md).
 OUTPUTS = {
     "simulate": ("truth.json", "capture.csv", "validation.csv"),
