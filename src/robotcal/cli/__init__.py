@@ -136,9 +136,21 @@ def _robotcal(
 
 def main() -> None:
     """The ``robotcal`` entry point: one BLAS thread and a steadier allocator (:func:`~robotcal.cli._common.tune_numeric_runtime`);
-    SIGTERM and SIGINT become clean interrupts (exit 143 / 130)."""
-    from robotcal.cli._common import install_signal_handlers, tune_numeric_runtime
+    SIGTERM and SIGINT become clean interrupts (exit 143 / 130); the process ends without the
+    interpreter's teardown once the command and every exit handler are done
+    (:func:`~robotcal.cli._common.end_without_teardown`)."""
+    from robotcal.cli._common import (
+        end_without_teardown,
+        install_signal_handlers,
+        record_exit_status,
+        tune_numeric_runtime,
+    )
 
     tune_numeric_runtime()  # before any command module imports numpy
     install_signal_handlers()
-    app()
+    end_without_teardown()  # before any module registers an exit handler of its own
+    try:
+        app()
+    except SystemExit as exc:  # the status Typer (and robotcal's handlers) give
+        record_exit_status(exc.code)
+        raise

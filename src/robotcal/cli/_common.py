@@ -166,6 +166,56 @@ def install_signal_handlers() -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+#: The exit status of the command, once :func:`robotcal.cli.main` has it (see :func:`end_without_teardown`).
+_EXIT_STATUS: list[int] = []
+
+
+def end_without_teardown() -> bool:
+    """Let the process end as soon as the command is done, without the interpreter's teardown.
+
+    After the last ``atexit`` handler Python frees every module and object one by one (~0.1 s for the
+    ~960 modules of ``robotcal run``, 0.2-0.3 s more for the results a run keeps): work nobody waits
+    for, since the kernel reclaims the memory at once. This registers an ``atexit`` handler that flushes
+    stdout and stderr and calls ``os._exit`` with the status :func:`record_exit_status` recorded.
+    Handlers run last-registered first, so registered before any other this one runs after all
+    of them (the multiprocessing, concurrent.futures and logging clean-ups, temporary files'
+    finalizers, a coverage tool's...); threads have been joined before any handler runs. It is not
+    registered (False) when some handler is already there, since that one would be skipped; nor
+    where the interpreter cannot tell (no ``atexit._ncallbacks``). Only the ``robotcal`` entry point
+    calls it: library callers keep their interpreter's normal exit.
+    """
+    import atexit
+
+    count = getattr(atexit, "_ncallbacks", None)
+    if count is None or count() != 0:
+        return False
+    atexit.register(_exit_now, os.getpid())
+    return True
+
+
+def record_exit_status(code) -> None:
+    """The status the command's ``SystemExit`` carries (None: 0); anything else (a message) is left to Python."""
+    if code is None:
+        code = 0
+    if isinstance(code, int) and not isinstance(code, bool):
+        _EXIT_STATUS[:] = [code]
+
+
+def _exit_now(pid: int) -> None:
+    """The handler of :func:`end_without_teardown`: in the process that registered it, once a status is
+    recorded and the standard streams are flushed (a failed flush, e.g. a closed pipe, is left to Python,
+    which reports it), end the process with that status."""
+    if os.getpid() != pid or not _EXIT_STATUS:
+        return
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
+    except Exception:  # noqa: BLE001 - Python's own exit reports it
+        return
+    os._exit(_EXIT_STATUS[0])
+
+
 def handle_errors(function):
     """Run a command: robotcal errors become a one-line message and exit status 2, never a traceback;
     an interrupt exits 130 (Ctrl-C) or 143 (SIGTERM) after the cleanup has run."""
