@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from report_run import (
     BACKLASH_MM,
     CONSISTENCY_MM,
@@ -35,7 +37,17 @@ from report_run import (
 from robotcal.errors import InputError
 from robotcal.pipeline.result import RunResult, Table
 from robotcal.pipeline.summary import Summary
-from robotcal.report.html import _CAPTIONS, REPORT_NAME, _fmt, _label, _length, build_report, render_report
+from robotcal.report.html import (
+    _CAPTIONS,
+    REPORT_NAME,
+    _all_numbers,
+    _fmt,
+    _label,
+    _length,
+    _number,
+    build_report,
+    render_report,
+)
 
 SECTION_IDS = [
     "summary",
@@ -269,6 +281,27 @@ def test_number_formatting():
     assert (_length(0.0123), _length(1.234), _length(None)) == ("12.3 µm", "1.23 mm", "n/a")
     assert _label("plane_rms_mm") == "plane rms (mm)" and _label("b_um_per_m") == "b (µm/m)"
     assert _label("improvement_pct") == "improvement (%)" and _label("points") == "points"
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.sampled_from(["", " 1.5 ", "\u20031e3\u2003", "1_000", "nan", "-inf", "1e999", "0x10", "1,5", "12 mm"]),
+            st.text(alphabet=" \t\u00a0\u20030123456789.eE+-_infa", max_size=8),
+            st.floats(allow_nan=True),
+            st.integers(),
+            st.booleans(),
+            st.none(),
+        ),
+        max_size=6,
+    )
+)
+def test_a_numeric_column_is_one_whose_every_cell_is_a_number(cells):
+    """The fast test of a column (``float`` on text cells) against its definition through ``_number``."""
+    present = [cell for cell in cells if cell != ""]
+    expected = bool(present) and all(_number(cell) is not None for cell in present)
+    assert _all_numbers(cells) == expected
 
 
 def test_page_text_is_escaped(run_folder):

@@ -9,8 +9,9 @@ decimals), so ``robotcal identify DIR/capture.csv`` reproduces the run's CPA bit
 The report is the last stage: it is rendered once, from the RunResult in memory, after the final record
 (status, total time) is known; ``report.html`` and then ``run.json`` are written after it. This is the one
 place the pipeline calls the layer above it (:func:`robotcal.report.html.render_report`, a consumer of
-RunResult), through a lazy import inside the function: importing :mod:`robotcal.pipeline` never imports
-:mod:`robotcal.report.html`.
+RunResult, and :func:`~robotcal.report.html.load_templates`, which compiles the templates while the last
+figures are drawn), through a lazy import inside the function: importing :mod:`robotcal.pipeline` never
+imports :mod:`robotcal.report.html`.
 """
 
 from __future__ import annotations
@@ -393,8 +394,10 @@ class _Run:
         self.progress(name, 0, None, "running")
         started = time.perf_counter()
         try:
+            from robotcal.report.html import load_templates, render_report  # the layer above: see the module docstring
+
+            load_templates()  # compiled while the figure worker draws the last figures
             self._collect_figures()
-            from robotcal.report.html import render_report  # the layer above: see the module docstring
 
             now = time.perf_counter()
             self.record["stages"][name].update(

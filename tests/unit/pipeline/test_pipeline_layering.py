@@ -43,7 +43,11 @@ def test_pipeline_reaches_the_report_only_through_run_calibration():
         for name in sorted(_imported_modules(path)):
             if name.split(".")[:2] != ["robotcal", "report"]:
                 continue
-            if path.name == "run.py" and name in ("robotcal.report.html", "robotcal.report.html.render_report"):
+            if path.name == "run.py" and name in (
+                "robotcal.report.html",
+                "robotcal.report.html.render_report",
+                "robotcal.report.html.load_templates",  # compiles the templates while the last figures are drawn
+            ):
                 continue
             offenders.append(f"pipeline/{path.name}: {name}")
     for path in sorted((PACKAGE / "plots").glob("*.py")):
