@@ -48,6 +48,14 @@ chain and angles, one BLAS thread per process, and the figures drawn by a proces
 starts, while the stages compute (the run's own process imports no matplotlib). CPU is now about 20-24 s for
 the two cores: figures ~6 s, Monte Carlo draws ~7.5 s, TCP stage ~5 s, the rest (start-up, refinement,
 files, report) ~3 s; the 12 s target is met on the faster days of this machine only.
+
+Issue 13, third part (2026-11-27; the code stop 18 landed, c06e526, "old", and this code, "new", alternately,
+6 pairs in one sitting): old 10.97-15.08 s (median 13.5, CPU median 22.8 s), new 11.06-14.15 s (median 12.4,
+CPU median 21.9 s); this script, new, 3 runs: 11.9-12.4 s, stages joints 0.2, refine 0.8-1.1, uncertainty
+4.6-4.9, tcp 4.0-4.4, plan 0.4, report 0.4-0.6. What changed: the joints stage runs before refine, so that
+its five figures (~1.2 s of CPU) are drawn while refine imports scipy and computes on one core (median
+-0.6 s on its own, 6 pairs); the report's templates are compiled while the last figures are drawn and its
+numeric-column test is cheaper (~0.1 s); the process ends without the interpreter's teardown (~0.2 s).
 """
 
 from __future__ import annotations

@@ -65,6 +65,18 @@ CPU of the command's own process [s]        1.18 (1.17-1.19)    1.28 (1.21-1.32)
     0.43-0.63 s: the helper inherits the prepared page, so the preparation saves more than it costs).
 (5) the command's own process is unchanged: start-up and imports (~0.5 s before the draws), statistics and
     linearised comparison (~0.2 s, inside ``run_monte_carlo``) remain on the critical path.
+
+Issue 13, third part (2026-11-27, load average 1.1-1.6, 4 alternating runs per tree): the code stop 18 landed
+(c06e526) against the process ending without the interpreter's teardown (``cli._common.end_without_teardown``):
+overhead 1.50-1.63 s -> 1.31-1.55 s (draws 2.27-2.58 s and 2.60-2.77 s: a slow sitting). Where the rest goes,
+from a timeline of one run (2.08 s of draws): 0.62 s from the command's start to the first draw (imports:
+typer ~0.08 s, rich.progress ~0.1 s, numpy ~0.1 s, robotcal.io ~0.2 s of which pydantic ~0.13 s; this machine
+sets PYTHONDONTWRITEBYTECODE, so an editable install compiles robotcal's 72 modules at every start, ~0.15 s),
+0.05 s setting up the problem, 0.2 s of statistics and linearised comparison, 0.04 s of files, 0.35 s waiting
+for the histograms (two processes), ~0.1 s to exit. The 1 s target is still missed by 0.3-0.5 s.
+
+The main process's CPU is printed by an exit handler the command registers as it starts (not before
+``main()``: that would keep ``main()`` from ending the process early, so the times would not be a user's).
 """
 
 from __future__ import annotations
@@ -92,9 +104,21 @@ def _children_cpu() -> float:
 
 def run_command(n_draws: int, *, model: str, save_draws: bool, src: str | None) -> dict:
     """One run of the command in a fresh interpreter; its wall, CPU (with its children), draws and overhead [s]."""
-    prefix = "" if src is None else f"import sys; sys.path.insert(0, {src!r}); "
-    report_cpu = "import atexit, os, sys; atexit.register(lambda: print('MAIN_CPU', sum(os.times()[:2]), file=sys.stderr)); "
-    entry = [sys.executable, "-c", report_cpu + prefix + "from robotcal.cli import main; main()"]
+    prefix = "" if src is None else f"import sys; sys.path.insert(0, {src!r})\n"
+    # the main process's CPU, printed by an exit handler the command registers as it starts: registered before
+    # main(), it would keep main() from ending the process without the interpreter's teardown (as the
+    # installed `robotcal` does, robotcal.cli._common.end_without_teardown), and the figures would not be the user's
+    script = prefix + (
+        "import atexit, os, sys\n"
+        "import robotcal.cli as cli\n"
+        "command = cli.app\n"
+        "def app():\n"
+        "    atexit.register(lambda: print('MAIN_CPU', sum(os.times()[:2]), file=sys.stderr))\n"
+        "    command()\n"
+        "cli.app = app\n"
+        "cli.main()\n"
+    )
+    entry = [sys.executable, "-c", script]
     with tempfile.TemporaryDirectory(prefix="bench-uncertainty-") as folder:
         out = Path(folder) / "uncertainty"
         command = [*entry, "uncertainty", SCENARIO, "-n", str(n_draws), "--model", model, "--out", str(out)]
