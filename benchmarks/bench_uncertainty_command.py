@@ -76,7 +76,8 @@ sets PYTHONDONTWRITEBYTECODE, so an editable install compiles robotcal's 72 modu
 for the histograms (two processes), ~0.1 s to exit. The 1 s target is still missed by 0.3-0.5 s.
 
 The main process's CPU is printed by an exit handler the command registers as it starts (not before
-``main()``: that would keep ``main()`` from ending the process early, so the times would not be a user's).
+``robotcal.cli.entry()``, the console script's function: that would keep it from ending the process early,
+so the times would not be a user's).
 """
 
 from __future__ import annotations
@@ -106,7 +107,7 @@ def run_command(n_draws: int, *, model: str, save_draws: bool, src: str | None) 
     """One run of the command in a fresh interpreter; its wall, CPU (with its children), draws and overhead [s]."""
     prefix = "" if src is None else f"import sys; sys.path.insert(0, {src!r})\n"
     # the main process's CPU, printed by an exit handler the command registers as it starts: registered before
-    # main(), it would keep main() from ending the process without the interpreter's teardown (as the
+    # entry(), it would keep entry() from ending the process without the interpreter's teardown (as the
     # installed `robotcal` does, robotcal.cli._common.end_without_teardown), and the figures would not be the user's
     script = prefix + (
         "import atexit, os, sys\n"
@@ -116,7 +117,7 @@ def run_command(n_draws: int, *, model: str, save_draws: bool, src: str | None) 
         "    atexit.register(lambda: print('MAIN_CPU', sum(os.times()[:2]), file=sys.stderr))\n"
         "    command()\n"
         "cli.app = app\n"
-        "cli.main()\n"
+        "getattr(cli, 'entry', cli.main)()\n"  # the console script's function (main before it existed)
     )
     entry = [sys.executable, "-c", script]
     with tempfile.TemporaryDirectory(prefix="bench-uncertainty-") as folder:

@@ -287,8 +287,10 @@ def test_number_formatting():
 @given(
     st.lists(
         st.one_of(
-            st.sampled_from(["", " 1.5 ", "\u20031e3\u2003", "1_000", "nan", "-inf", "1e999", "0x10", "1,5", "12 mm"]),
-            st.text(alphabet=" \t\u00a0\u20030123456789.eE+-_infa", max_size=8),
+            st.sampled_from(
+                ["", " 1.5 ", "\u20031e3\u2003", "1_000", "nan", "-inf", "1e999", "0x10", "1,5", "12 mm", "1\x1f", "\x1c2"]
+            ),
+            st.text(alphabet=" \t\u00a0\u2003\x1c\x1f0123456789.eE+-_infa\u0661", max_size=8),
             st.floats(allow_nan=True),
             st.integers(),
             st.booleans(),

@@ -135,22 +135,25 @@ def _robotcal(
 
 
 def main() -> None:
-    """The ``robotcal`` entry point: one BLAS thread and a steadier allocator (:func:`~robotcal.cli._common.tune_numeric_runtime`);
-    SIGTERM and SIGINT become clean interrupts (exit 143 / 130); the process ends without the
-    interpreter's teardown once the command and every exit handler are done
-    (:func:`~robotcal.cli._common.end_without_teardown`)."""
-    from robotcal.cli._common import (
-        end_without_teardown,
-        install_signal_handlers,
-        record_exit_status,
-        tune_numeric_runtime,
-    )
+    """The ``robotcal`` command in this process: one BLAS thread and a steadier allocator
+    (:func:`~robotcal.cli._common.tune_numeric_runtime`); SIGTERM and SIGINT become clean interrupts
+    (exit 143 / 130). Ends with ``SystemExit``, which a caller may catch: the process goes on as usual."""
+    from robotcal.cli._common import install_signal_handlers, tune_numeric_runtime
 
     tune_numeric_runtime()  # before any command module imports numpy
     install_signal_handlers()
+    app()
+
+
+def entry() -> None:
+    """The ``robotcal`` console script: :func:`main`, then the process ends without the interpreter's teardown
+    once every exit handler has run (:func:`~robotcal.cli._common.end_without_teardown`), with the command's
+    exit status. For the script only: a Python caller of :func:`main` keeps its own status and teardown."""
+    from robotcal.cli._common import end_without_teardown, record_exit_status
+
     end_without_teardown()  # before any module registers an exit handler of its own
     try:
-        app()
+        main()
     except SystemExit as exc:  # the status Typer (and robotcal's handlers) give
         record_exit_status(exc.code)
         raise

@@ -166,7 +166,7 @@ def install_signal_handlers() -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-#: The exit status of the command, once :func:`robotcal.cli.main` has it (see :func:`end_without_teardown`).
+#: The exit status of the command, once :func:`robotcal.cli.entry` has it (see :func:`end_without_teardown`).
 _EXIT_STATUS: list[int] = []
 
 
@@ -181,8 +181,9 @@ def end_without_teardown() -> bool:
     of them (the multiprocessing, concurrent.futures and logging clean-ups, temporary files'
     finalizers, a coverage tool's...); threads have been joined before any handler runs. It is not
     registered (False) when some handler is already there, since that one would be skipped; nor
-    where the interpreter cannot tell (no ``atexit._ncallbacks``). Only the ``robotcal`` entry point
-    calls it: library callers keep their interpreter's normal exit.
+    where the interpreter cannot tell (no ``atexit._ncallbacks``). Only the ``robotcal`` console script
+    (:func:`robotcal.cli.entry`) calls it: Python callers of :func:`robotcal.cli.main` keep their normal exit.
+    ``os._exit`` also skips C-level exit handlers and C stdio buffers (robotcal's dependencies have none).
     """
     import atexit
 
@@ -194,10 +195,11 @@ def end_without_teardown() -> bool:
 
 
 def record_exit_status(code) -> None:
-    """The status the command's ``SystemExit`` carries (None: 0); anything else (a message) is left to Python."""
+    """The status the command's ``SystemExit`` carries (None: 0). Anything else (a message, a bool, an integer
+    beyond a C int, which ``os._exit`` refuses) is left to Python's own exit."""
     if code is None:
         code = 0
-    if isinstance(code, int) and not isinstance(code, bool):
+    if isinstance(code, int) and not isinstance(code, bool) and -(2**31) <= code < 2**31:
         _EXIT_STATUS[:] = [code]
 
 

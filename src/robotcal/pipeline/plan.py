@@ -43,9 +43,9 @@ STAGES = ("simulate", "identify", "joints", "refine", "evaluate", "uncertainty",
 OUTPUTS = {
     "simulate": ("truth.json", "capture.csv", "validation.csv"),
     "identify": ("cpa",),
+    "joints": ("joints",),
     "refine": ("refine",),
     "evaluate": ("evaluation",),
-    "joints": ("joints",),
     "uncertainty": ("uncertainty", "uncertainty-refined"),
     "tcp": ("tcp",),
     "iso9283": ("iso9283",),
@@ -55,7 +55,7 @@ OUTPUTS = {
 #: The run's own record, rewritten after every stage.
 RUN_RECORD = "run.json"
 #: Steps per stage for a progress display (the Monte Carlo counts draws instead).
-STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "iso9283": 1, "plan": 2, "report": 1}
+STEPS = {"simulate": 3, "identify": 1, "joints": 1, "refine": 2, "evaluate": 1, "tcp": 3, "iso9283": 1, "plan": 2, "report": 1}
 #: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
 PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
 PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)

@@ -83,3 +83,15 @@ def test_seeds_and_scenarios_of_the_wrong_type_are_refused_up_front(tmp_path):
     with pytest.raises(InputError, match=r"^--draws: "):
         plan_run("kr5-demo", draws=10)
     assert not (tmp_path / "out").exists()
+
+
+def test_the_stage_tables_follow_the_stage_order():
+    """OUTPUTS (hence RUN_ENTRIES and the report's table of stages) and STEPS list the stages in run order."""
+    from robotcal.pipeline.folder import RUN_ENTRIES
+    from robotcal.pipeline.plan import OUTPUTS, RUN_RECORD, STAGES, STEPS
+
+    assert tuple(OUTPUTS) == STAGES
+    assert tuple(STEPS) == tuple(stage for stage in STAGES if stage in STEPS)
+    assert RUN_ENTRIES[:4] == (RUN_RECORD, *OUTPUTS["simulate"])
+    # joints needs only the capture: it runs before refine, so that its figures are drawn while refine computes
+    assert STAGES.index("identify") < STAGES.index("joints") < STAGES.index("refine")
