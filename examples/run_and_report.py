@@ -6,7 +6,7 @@ What it shows
     1. :func:`robotcal.plan_run` loads and checks everything the run needs before any computation
        (scenario, seeds, Monte Carlo settings, TCP targets, memory, the output folder);
     2. :func:`robotcal.run_calibration` runs every stage (simulate, identify, joints, refine, evaluate,
-       uncertainty, tcp, plan, report) into the run folder and returns a :class:`robotcal.RunResult`:
+       uncertainty, plan, tcp, iso9283, report) into the run folder and returns a :class:`robotcal.RunResult`:
        ``record`` (run.json), ``documents`` (every file, in memory), ``summary`` (the headline figures)
        and ``results`` (the typed results: parameter sets, Monte Carlo results, TCP uncertainties...);
     3. :func:`robotcal.read_run` reads a run folder back into the same object, and

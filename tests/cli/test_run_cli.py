@@ -250,9 +250,9 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
         ("refine", "pending"),
         ("evaluate", "pending"),
         ("uncertainty", "pending"),
+        ("plan", "pending"),
         ("tcp", "pending"),
         ("iso9283", "pending"),
-        ("plan", "pending"),
         ("report", "pending"),
     ]
     # --seed N seeds every random part separately

@@ -38,7 +38,7 @@ __all__ = [
 ]
 
 #: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
-STAGES = ("simulate", "identify", "joints", "refine", "evaluate", "uncertainty", "tcp", "iso9283", "plan", "report")
+STAGES = ("simulate", "identify", "joints", "refine", "evaluate", "uncertainty", "plan", "tcp", "iso9283", "report")
 #: What each stage writes under the run folder (docs/results.md).
 OUTPUTS = {
     "simulate": ("truth.json", "capture.csv", "validation.csv"),
@@ -47,15 +47,15 @@ OUTPUTS = {
     "refine": ("refine",),
     "evaluate": ("evaluation",),
     "uncertainty": ("uncertainty", "uncertainty-refined"),
+    "plan": ("plan",),
     "tcp": ("tcp",),
     "iso9283": ("iso9283",),
-    "plan": ("plan",),
     "report": ("report.html",),
 }
 #: The run's own record, rewritten after every stage.
 RUN_RECORD = "run.json"
 #: Steps per stage for a progress display (the Monte Carlo counts draws instead).
-STEPS = {"simulate": 3, "identify": 1, "joints": 1, "refine": 2, "evaluate": 1, "tcp": 3, "iso9283": 1, "plan": 2, "report": 1}
+STEPS = {"simulate": 3, "identify": 1, "joints": 1, "refine": 2, "evaluate": 1, "plan": 2, "tcp": 3, "iso9283": 1, "report": 1}
 #: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
 PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
 PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)

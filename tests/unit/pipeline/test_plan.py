@@ -95,3 +95,5 @@ def test_the_stage_tables_follow_the_stage_order():
     assert RUN_ENTRIES[:4] == (RUN_RECORD, *OUTPUTS["simulate"])
     # joints needs only the capture: it runs before refine, so that its figures are drawn while refine computes
     assert STAGES.index("identify") < STAGES.index("joints") < STAGES.index("refine")
+    # plan needs only the scenario: before tcp, its figures are drawn while tcp computes the workspace
+    assert STAGES.index("uncertainty") < STAGES.index("plan") < STAGES.index("tcp")
