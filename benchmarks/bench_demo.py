@@ -65,6 +65,14 @@ code as the installed ``robotcal``; 6 alternated pairs): old 12.03-13.81 s (medi
 new 10.90-12.97 s (median 11.9, CPU median 21.2 s), every pair -0.66 to -1.38 s; stages, new: uncertainty
 4.4-5.7, tcp 3.8-4.7 (old 3.4-4.6: the plan figures are drawn during it now), plan 0.5-0.8, report 0.10-0.14
 (old 0.46-0.67).
+
+Tried and rejected (2026-11-27 01:47-01:49 UTC, the machine on a fast spell; 4 rounds of the three settings in turn):
+the figure worker at a lower priority (``os.nice`` 10 or 19 in the worker), so that the TCP stage gets the
+cores first. It only moves time: the tcp stage fell from 3.5-3.9 s (nice 0) to 2.6-3.6 s, but the report then
+waited 1.1-2.1 s for the figures held back (0.09-0.12 s at nice 0), and the whole demo was no faster (nice 0
+10.0-10.7 s, nice 10 10.2-11.6 s, nice 19 9.4-12.4 s). CPU per process in one run (nice 0): the run 8.4 s, the
+figure worker 5.1 s, the CPA Monte Carlo's two workers 3.4 s, the refined model's 2.9 s, the histogram helpers
+0.65 s; 20.5 s on 2 cores is at least 10.3 s of wall.
 """
 
 from __future__ import annotations
@@ -135,7 +143,9 @@ def main() -> None:
                 folder = args.keep
             outcome = run_once(folder, args.extra)
         runs.append(outcome)
-        stages = ", ".join(f"{name} {seconds:.2f}" for name, seconds in outcome["stages"].items() if seconds is not None)
+        stages = ", ".join(
+            f"{name} {seconds:.2f}" for name, seconds in outcome["stages"].items() if seconds is not None
+        )
         print(
             f"run {k + 1}: wall {outcome['wall_s']:.1f} s, cpu {outcome['cpu_s']:.1f} s, "
             f"load {outcome['load_before']:.1f} -> {outcome['load_after']:.1f}; stages (s): {stages}"

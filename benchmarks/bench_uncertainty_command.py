@@ -75,6 +75,16 @@ sets PYTHONDONTWRITEBYTECODE, so an editable install compiles robotcal's 72 modu
 0.05 s setting up the problem, 0.2 s of statistics and linearised comparison, 0.04 s of files, 0.35 s waiting
 for the histograms (two processes), ~0.1 s to exit. The 1 s target is still missed by 0.3-0.5 s.
 
+The same code on 2026-11-27 at 01:42 and 01:49 UTC (the machine's speed drifts within minutes): this script, 3
+runs, overhead 1.36-1.56 s (draws 2.62-2.74 s, CPU of all processes 6.84-7.20 s, of the command's own process
+0.98-1.18 s); 7 minutes later, 5 runs, overhead 1.15-1.32 s (draws 2.12-2.53 s); per process from /proc
+(3 of them): the command 0.91-0.94 s of CPU, the two Monte Carlo workers 1.55-1.68 s each, the figure worker
+1.14-1.23 s, its histogram helper 0.19-0.31 s. In 0.2 s bins: the figure worker imports matplotlib and prepares
+the pages from 0.2 s to 1.6 s at 0.45-0.8 of a core, so the workers draw with ~1.3 cores until then and ~1.9
+after; the statistics (0.1-0.14 s) and the linearised comparison (0.05-0.07 s) run on one core while the worker
+waits for them (the histograms' lines need them); the five pages then take ~0.5 s in two processes. Each of these is
+work that has to run somewhere on the two cores; what is left to gain without dropping work is ~0.05 s per item.
+
 The main process's CPU is printed by an exit handler the command registers as it starts (not before
 ``robotcal.cli.entry()``, the console script's function: that would keep it from ending the process early,
 so the times would not be a user's).
