@@ -126,17 +126,23 @@ def test_every_refined_draw_is_the_stationary_point_of_the_independent_model(
     assert _stationarity(model, start[0], measured[0], tracker[0]) > 1e3
 
 
-def test_a_draw_has_the_same_bits_in_any_batch_across_product_blocks(demo):
+def test_a_draw_does_not_depend_on_the_batch_it_is_drawn_in(demo):
     # 500 draws: the point products run in blocks of draws (_PRODUCT_SIZE); draws on either side of a block
-    # boundary and in the last, short block must come out as in a batch of their own
+    # boundary and in the last, short block must come out as in a batch of their own. Not bit for bit: the
+    # BLAS kernel a matrix product takes depends on its shape and on the CPU (an AVX-512 OpenBLAS rounds
+    # the same draw differently in a 4-draw and a 500-draw block: up to 3e-15 mm seen), so the tolerance is
+    # 1e-9 [mm, rad], six orders above that rounding and far below what a draw mixed up with its neighbour
+    # or a block boundary off by one would give (the draws differ by ~1e-3 mm).
     measured, start, tracker = _demo_draws(demo, 500, seed=4)
     full = refine_batch(demo.refined, measured, start, tracker)
     for chosen in (np.array([0, 484, 485, 499]), np.arange(480, 490), np.array([3, 250])):
         part = refine_batch(demo.refined, measured[chosen], start[chosen], tracker[chosen])
-        np.testing.assert_array_equal(part.values, full.values[chosen])
-        np.testing.assert_array_equal(part.cost, full.cost[chosen])
+        np.testing.assert_allclose(part.values, full.values[chosen], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(part.cost, full.cost[chosen], rtol=1e-6, atol=1e-12)
     one = refine_batch(demo.refined, measured[7:8], start[7:8], tracker[7:8])
-    np.testing.assert_array_equal(one.values, full.values[7:8])
+    np.testing.assert_allclose(one.values, full.values[7:8], rtol=0, atol=1e-9)
+    # the draws really differ from each other at that scale, so the check can fail
+    assert np.abs(np.diff(full.values[480:490], axis=0)).max() > 1e-6
 
 
 @pytest.mark.parametrize("which", ["joint targets", "flange target"])
