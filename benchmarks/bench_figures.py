@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robotcal.api import monte_carlo_problem, simulate
 from robotcal.diagnostics import analyze_joints, fit_harmonics
 from robotcal.io import load_robot, load_scenario
 from robotcal.io.trajectory_csv import load_trajectory
@@ -55,7 +56,6 @@ from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter, plot_traje
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 from robotcal.uncertainty.tcp import propagate_to_tcp
 from robotcal.uncertainty.workspace import workspace_uncertainty
-from robotcal.workflow import scenario_monte_carlo, simulate_scenario
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_tcp import make_draws  # noqa: E402
@@ -87,7 +87,7 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=100_000)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    problem = scenario_monte_carlo(load_scenario(SCENARIO))
+    problem = monte_carlo_problem(load_scenario(SCENARIO))
     started = time.perf_counter()
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=args.draws, keep_draws=True), seed=1)
     print(f"cpu cores: {os.cpu_count()}")
@@ -99,7 +99,7 @@ def main() -> None:
     path = propagate_to_tcp(robot, draws[:2000], readings)
     workspace = workspace_uncertainty(robot, draws[:2000], 1000, rng=1)
     demo = load_scenario("kr5-demo")
-    diagnostics = analyze_joints(simulate_scenario(demo, seed=0).capture, method=demo.identification.circle_fit)
+    diagnostics = analyze_joints(simulate(demo, rng=0).capture, method=demo.identification.circle_fit)
     model = fit_harmonics(diagnostics, order=2)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

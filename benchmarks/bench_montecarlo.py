@@ -80,17 +80,17 @@ from pathlib import Path
 
 import numpy as np
 
+from robotcal.api import monte_carlo_problem
 from robotcal.identification.cpa import identify_cpa
 from robotcal.io import load_scenario
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, draw_block, run_monte_carlo
-from robotcal.workflow import scenario_monte_carlo
 
 SCENARIO = "thesis-laser-tracker"
 
 
 def _problem():
     scenario = load_scenario(SCENARIO)
-    problem = scenario_monte_carlo(scenario)
+    problem = monte_carlo_problem(scenario)
     return scenario, problem
 
 
@@ -124,7 +124,7 @@ def cpu_per_draw(scenario: str, repeat: int = 3, n_draws: int = 4_000) -> dict:
     minor page faults per draw, in this process."""
     import resource
 
-    problem = scenario_monte_carlo(load_scenario(scenario))
+    problem = monte_carlo_problem(load_scenario(scenario))
     draw_block(problem, 1, 0, 2_000, 2_000)  # warm-up
     best = float("inf")
     faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt

@@ -45,6 +45,7 @@ import warnings
 import numpy as np
 from bench_montecarlo import whole_command  # sibling script (this folder is on sys.path when run as one)
 
+from robotcal.api import monte_carlo_problem
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.refine import refine_parameters
@@ -52,7 +53,6 @@ from robotcal.io import load_scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, run_monte_carlo
 from robotcal.uncertainty.refined import refine_batch
-from robotcal.workflow import scenario_monte_carlo
 
 SCENARIO = "kr5-demo"
 
@@ -123,7 +123,7 @@ def main() -> None:
         print(json.dumps({"whole_command": figures}, indent=2))
         return
     began = time.perf_counter()
-    problem = scenario_monte_carlo(load_scenario(SCENARIO), model="refined")
+    problem = monte_carlo_problem(load_scenario(SCENARIO), model="refined")
     report = {"scenario": SCENARIO, "points": problem.n_points, "prepare_s": round(time.perf_counter() - began, 3)}
     loop = per_draw_loop(problem, args.loop, report)
     report["loop_s_per_draw"] = round(loop, 5)

@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     scenario = robotcal.load_scenario("kr5-demo")
     truth = robotcal.perturb(scenario, rng=args.seed)
     capture = robotcal.simulate(scenario, rng=args.seed + 1, true_parameters=truth)
-    refined = robotcal.refine(capture, robotcal.identify(capture, scenario), scenario)
+    refined = robotcal.refine(capture, scenario, robotcal.identify(capture, scenario))
 
     # 2. the Monte Carlo of the deployed model, centred on the estimate
     result = robotcal.monte_carlo(scenario, draws=draws, model="refined", parameters=refined, rng=args.seed)
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     from robotcal.io import load_trajectory
 
     readings_rad, source = load_trajectory("kr5-sweep-75", n_joints=scenario.robot.n_joints)
-    tcp = robotcal.tcp_uncertainty("kuka-kr5-sixx-r650-krc", result, np.rad2deg(readings_rad), tool_mm=TOOL_MM)
+    tcp = robotcal.tcp_uncertainty(robotcal.load_robot("kuka-kr5-sixx-r650-krc"), result, np.rad2deg(readings_rad), tool_mm=TOOL_MM)
     position_um = tcp.position_uncertainty * 1000.0
     worst = int(np.argmax(position_um))
     print(

@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 import robotcal
+from robotcal.api import coverage_study
 from robotcal.io import load_scenario
 from robotcal.io.atomic import atomic_write_text
 from robotcal.simulation.perturb import perturb_parameters
-from robotcal.uncertainty.coverage import COVERAGE_METHODS, coverage_study
+from robotcal.uncertainty.coverage import COVERAGE_METHODS
 
 ROOT = Path(__file__).resolve().parents[1]
 START, END = "<!-- coverage:start -->", "<!-- coverage:end -->"

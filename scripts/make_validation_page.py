@@ -17,17 +17,17 @@ from pathlib import Path
 import numpy as np
 
 import robotcal
+from robotcal.api import monte_carlo_problem
 from robotcal.io import load_scenario
 from robotcal.io.atomic import atomic_write_text
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-from robotcal.workflow import scenario_monte_carlo
 
 ROOT = Path(__file__).resolve().parents[1]
 ANGLES = (1, 3, 4)
 
 
 def run(scenario, draws: int, seed: int, instrument=None):
-    problem = scenario_monte_carlo(scenario, instrument=instrument)
+    problem = monte_carlo_problem(scenario, instrument=instrument)
     return run_monte_carlo(problem, MonteCarloSettings(iterations=draws, workers=2), seed=seed, linearised=False)
 
 

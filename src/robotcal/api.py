@@ -1,19 +1,21 @@
-"""The front door for Python users: one call per calibration step, on a scenario (docs/api.md).
+"""The front door for Python users: one call per calibration step (docs/api.md).
 
-Each function wraps the scenario-level operations of :mod:`robotcal.workflow` and the core
-(:mod:`robotcal.identification`, :mod:`robotcal.uncertainty`, :mod:`robotcal.planning`) without
-repeating their logic; it only turns friendly arguments into core objects:
+Every function takes the objects a user already has, explicitly: a robot (:class:`RobotModel`, from
+:func:`robotcal.load_robot` or built by hand), a capture (:class:`Capture`, from :func:`robotcal.read_capture`
+or :func:`simulate`), targets, an instrument, options. A :class:`~robotcal.io.scenario.Scenario` is a
+convenience: given in place of the robot, it supplies the robot and every keyword the call leaves out
+(its targets, base frame, instrument, capture plan, joint errors, identification options and seeds), as
+``robotcal run`` uses it. The command line and the pipeline call these same functions.
 
-- a scenario is a :class:`~robotcal.io.scenario.Scenario`, a built-in scenario name or a TOML path;
-- a capture is a :class:`~robotcal.capture.Capture` or a capture CSV path;
-- parameters are a :class:`~robotcal.kinematics.model.ParameterSet`, a result holding one
-  (``CPAResult``, ``RefinementResult``: its ``.parameters``) or a parameter JSON path;
-- numbers given here are in millimetres and degrees (names carry the unit: ``poses_deg``,
-  ``tool_mm``); the result objects returned are the core's, in mm and radians;
-- randomness comes from ``rng``: None, an int seed or a ``numpy.random.Generator``
-  (:func:`seed_from`). The core functions take an int seed, so that their blocks of draws are
-  reproducible for any batch size or worker count; a Generator gives them ``rng.integers(2**63)``,
-  and every result records the seed it used.
+Conventions:
+
+- numbers given here are in millimetres and degrees (names carry the unit: ``poses_deg``, ``tool_mm``); the
+  result objects returned are the core's, in mm and radians;
+- a capture may be given as a :class:`Capture` or a capture CSV path, parameters as a :class:`ParameterSet`,
+  a result holding one (``.parameters``) or a parameter JSON path;
+- randomness comes from ``rng``: None, an int seed or a ``numpy.random.Generator`` (:func:`seed_from`); the
+  core takes an int seed, so that blocks of draws are reproducible for any batch size or worker count, and
+  every result records the seed it used.
 
 These functions never print and never write files (use :func:`robotcal.write_capture`,
 :func:`robotcal.write_parameters`, or the pipeline of :func:`robotcal.run_calibration`).
@@ -23,41 +25,72 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import sys
-from collections.abc import Mapping
-from typing import TYPE_CHECKING
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from robotcal.capture import Capture
-from robotcal.errors import InputError
-from robotcal.io.scenario import Scenario
-from robotcal.kinematics.model import ParameterSet, RobotModel
+from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
+from robotcal.errors import InputError, JointLimitWarning
+from robotcal.identification.cpa import CPAOptions, CPAResult, identify_cpa
+from robotcal.identification.evaluation import EvaluationRow, evaluate_parameters
+from robotcal.identification.health import cpa_health, refine_health, report_health
+from robotcal.identification.plausibility import check_capture
+from robotcal.identification.refine import RefinementResult, refine_parameters
+from robotcal.identification.targets import Target
+from robotcal.instruments import Instrument
+from robotcal.io.robots import load_robot
+from robotcal.io.scenario import Scenario, TCPTable, TruthTable, ValidationTable
+from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
+from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
+from robotcal.limits import SEED_BOUND
+from robotcal.simulation import CapturePlan, JointErrorModel, simulate_capture
+from robotcal.simulation.perturb import perturb_parameters
+from robotcal.simulation.poses import random_poses, simulate_poses
+from robotcal.uncertainty.tcp import check_readings
 
-if TYPE_CHECKING:  # the modules of the refinement, the Monte Carlo and the TCP load when a function needs them
-    from robotcal.identification.cpa import CPAResult
-    from robotcal.identification.evaluation import EvaluationRow
-    from robotcal.identification.refine import RefinementResult
-    from robotcal.planning.cell import PlanCheck
+if TYPE_CHECKING:  # the Monte Carlo, TCP and planning modules load when a function needs them
+    from robotcal.planning.cell import CellModel, PlanCheck
     from robotcal.uncertainty.montecarlo import MonteCarloResult
     from robotcal.uncertainty.tcp import TCPUncertainty
+    from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
 __all__ = [
     "SEED_BOUND",
-    "seed_from",
-    "perturb",
-    "simulate",
-    "identify",
-    "refine",
-    "evaluate",
-    "monte_carlo",
-    "tcp_uncertainty",
-    "check_plan",
+    "JointAnalysis",
+    "diagnose_joints",
+    "capture_targets",
     "change_plan",
+    "check_plan",
+    "evaluate",
+    "identify",
+    "measured_monte_carlo",
+    "monte_carlo",
+    "monte_carlo_problem",
+    "perturb",
+    "refine",
+    "seed_from",
+    "simulate",
+    "simulate_validation",
+    "tcp_uncertainty",
+    "validation_consistency",
+    "validation_target",
+    "workspace_uncertainty",
+    "DEFAULT_TRAJECTORY",
+    "KUKA_CONTROLLER_ROBOT",
+    "TABLE_5_8_READINGS_DEG",
+    "TCPTargets",
+    "convert_readings",
+    "coverage_study",
+    "tcp_targets",
 ]
 
-#: Seeds are integers in ``[0, SEED_BOUND)``; a Generator gives ``rng.integers(SEED_BOUND)``.
-SEED_BOUND = 2**63
+
+Criterion = Literal["points", "distances"]
+Health = Literal["warn", "strict", "off"]
 
 
 # ------------------------------------------------------------------------------------------ coercion
@@ -104,30 +137,25 @@ def seed_from(rng, default: int | None = None) -> int:
     return int(rng)
 
 
-def _scenario(scenario) -> Scenario:
-    """A Scenario from a Scenario, a built-in scenario name or a scenario TOML path."""
-    if isinstance(scenario, Scenario):
-        return scenario
-    if isinstance(scenario, str | os.PathLike):
-        from robotcal.io.scenario import load_scenario
-
-        return load_scenario(scenario)
+def _split(robot) -> tuple[RobotModel, Scenario | None]:
+    """The robot and the scenario (None) of a ``robot`` argument: a RobotModel or a Scenario."""
+    if isinstance(robot, Scenario):
+        return robot.robot, robot
+    if isinstance(robot, RobotModel):
+        return robot, None
     raise InputError(
-        f"`scenario` must be a Scenario, a built-in scenario name or a path; got {type(scenario).__name__}"
+        "`robot` must be a RobotModel (robotcal.load_robot) or a Scenario (robotcal.load_scenario); "
+        f"got {type(robot).__name__}"
     )
 
 
-def _robot(robot) -> RobotModel:
-    """A RobotModel from a RobotModel, a Scenario (its robot), a built-in robot name or a robot TOML path."""
-    if isinstance(robot, RobotModel):
-        return robot
-    if isinstance(robot, Scenario):
-        return robot.robot
-    if isinstance(robot, str | os.PathLike):
-        from robotcal.io.robots import load_robot
-
-        return load_robot(robot)
-    raise InputError(f"`robot` must be a RobotModel, a Scenario, a robot name or a path; got {type(robot).__name__}")
+def _needed(value, name: str, scenario: Scenario | None, what: str):
+    """``value``, else the scenario's ``what`` (a callable of the scenario), else an error naming ``name``."""
+    if value is not None:
+        return value
+    if scenario is None:
+        raise InputError(f"`{name}` is needed (or give a Scenario in place of the robot)")
+    return what(scenario)
 
 
 def _capture(capture, robot: RobotModel, name: str = "capture") -> Capture:
@@ -159,25 +187,121 @@ def _parameters(parameters, robot: RobotModel, name: str = "parameters") -> Para
     if parameters.robot.n_joints != robot.n_joints:
         raise InputError(
             f"`{name}` belong to robot {parameters.robot.name!r} ({parameters.robot.n_joints} joints); "
-            f"the scenario's robot {robot.name!r} has {robot.n_joints}"
+            f"the robot {robot.name!r} has {robot.n_joints}"
         )
     return parameters
 
 
-# ---------------------------------------------------------------------------------------- one step each
+def _instrument(instrument, scenario: Scenario | None) -> Instrument | None:
+    if instrument is not None or scenario is None:
+        return instrument
+    return scenario.instrument if scenario.has_instrument else None
 
 
-def perturb(scenario, *, rng=None) -> ParameterSet:
+# --------------------------------------------------------------------------- targets of a scenario's captures
+
+
+def validation_target(scenario: Scenario) -> ReflectorMount:
+    """The flange target of a scenario's captures at free poses: ``[validation].flange_reflector_mm``, else the
+    plan's (or ``[capture]``'s) reflector when it is a flange one, else the only known flange target of
+    ``[[targets]]``."""
+    if scenario.validation is not None:
+        return ReflectorMount(frame="flange", positions=scenario.validation.flange_reflector_mm)
+    reflector = scenario.plan.reflector if scenario.has_plan else scenario.reflector
+    if reflector is not None and reflector.frame == "flange":
+        return reflector
+    flange = [t for t in scenario.targets if t.frame == "flange" and t.known]
+    if reflector is None and len(flange) == 1:
+        return flange[0].mount
+    raise InputError(
+        f"{scenario.source}: a capture at free poses (circle = 0) needs a flange target: add a [validation] table "
+        "with `flange_reflector_mm`, use a scenario with `capture.flange_reflector_mm`, or give the capture a "
+        "`target` column naming [[targets]] entries"
+    )
+
+
+def capture_targets(scenario: Scenario, capture: Capture) -> ReflectorMount | Target | tuple[Target, ...]:
+    """The target(s) the points of ``capture`` were measured on, as the scenario declares them.
+
+    * a ``target`` column: the scenario's declared targets (each point names one);
+    * free poses (circle = 0): the validation flange target (:func:`validation_target`), or the
+      only ``[[targets]]`` entry (whose offset may be unknown);
+    * circles: the plan's reflector, else ``[capture]``'s, else the only ``[[targets]]`` entry.
+    """
+    if capture.target is not None:
+        return scenario.targets
+    declared = [t for t in scenario.targets if t.name not in ("capture", "validation")]
+    if np.any(capture.circle == 0):
+        if len(declared) == 1 and scenario.validation is None and scenario.reflector is None:
+            return declared[0]
+        return validation_target(scenario)
+    if scenario.has_plan:
+        return scenario.plan.reflector
+    if scenario.reflector is not None:
+        return scenario.reflector
+    if len(declared) == 1:
+        return declared[0]
+    raise InputError(
+        f"{scenario.source}: which target was measured? declare one (`capture.flange_reflector_mm`, "
+        "`capture.reflector_mm` or one [[targets]] entry) or give the capture a `target` column"
+    )
+
+
+def _cpa_rows(capture: Capture, target) -> tuple[Capture, ReflectorMount]:
+    """The rows CPA uses and their (known) target: all rows, or with a ``target`` column those of ``target``
+    (a Target or a name; None: the capture's first target)."""
+    if isinstance(target, ReflectorMount):
+        if capture.target is not None:
+            raise InputError(
+                f"{capture.source}: the capture has a `target` column; give CPA's target as a Target (or its name)"
+            )
+        return capture, target
+    if capture.target is not None:
+        names = capture.target_names
+        name = names[int(capture.target[0])] if target is None else getattr(target, "name", target)
+        if name not in names:
+            raise InputError(f"{capture.source}: no point of target {name!r} (targets: {', '.join(names)})")
+        capture = capture.select(capture.target == names.index(name))
+    if not isinstance(target, Target):
+        raise InputError(f"`target` must be a ReflectorMount or a Target; got {type(target).__name__}")
+    if not target.known:
+        raise InputError(
+            f"CPA needs a target of known position; the offset of target {target.name!r} is unknown (refine from "
+            "the nominal parameters instead, which estimates it)"
+        )
+    return capture, target.mount
+
+
+def _scenario_cpa_target(scenario: Scenario, capture: Capture):
+    if capture.target is not None:
+        return scenario.target(capture.target_names[int(capture.target[0])])
+    target = capture_targets(scenario, capture)
+    return target if isinstance(target, ReflectorMount | Target) else target[0]
+
+
+# ---------------------------------------------------------------------------------------- simulation
+
+
+def perturb(
+    robot,
+    *,
+    length_sd_mm: float | None = None,
+    angle_sd_deg: float | None = None,
+    include_base: bool | None = None,
+    rng=None,
+) -> ParameterSet:
     """A perturbed "true" robot for a synthetic study: nominal + N(0, sd) on the identifiable parameters.
-
-    The standard deviations are the scenario's ``[truth]`` table (``length_sd_mm``, ``angle_sd_deg``,
-    ``include_base``; 0.2 mm and 0.05 deg when it has none), as ``robotcal run`` uses them.
 
     Parameters
     ----------
-    scenario : Scenario, str or path
+    robot : RobotModel or Scenario
+        A scenario supplies its ``[truth]`` table's ``length_sd_mm``, ``angle_sd_deg``, ``include_base`` and
+        seed; without a scenario or table, the table's defaults (0.2 mm, 0.05 deg).
+    length_sd_mm, angle_sd_deg : float, optional
+        Standard deviations [mm, deg].
+    include_base : bool, optional
+        Also perturb d1 and theta1.
     rng : None, int or numpy.random.Generator
-        None: the scenario's ``truth.seed``, else fresh entropy (see :func:`seed_from`).
 
     Returns
     -------
@@ -187,38 +311,53 @@ def perturb(scenario, *, rng=None) -> ParameterSet:
     Examples
     --------
     >>> import numpy as np, robotcal
-    >>> scenario = robotcal.load_scenario("kr5-demo")
-    >>> truth = robotcal.perturb(scenario, rng=11)
-    >>> nominal = robotcal.ParameterSet.nominal(scenario.robot)
-    >>> bool(np.any(truth.values != nominal.values))
-    True
-    >>> truth.values.shape
-    (6, 5)
+    >>> robot = robotcal.load_robot("kuka-kr5-sixx-r650")
+    >>> truth = robotcal.perturb(robot, length_sd_mm=0.2, angle_sd_deg=0.05, rng=11)
+    >>> bool(np.any(truth.values != robot.nominal)), truth.values.shape
+    (True, (6, 5))
     """
-    from robotcal.workflow import scenario_truth
+    robot, scenario = _split(robot)
+    table = (scenario.truth if scenario is not None else None) or TruthTable()  # the table's defaults
+    return perturb_parameters(
+        robot,
+        length_sd_mm=table.length_sd_mm if length_sd_mm is None else length_sd_mm,
+        angle_sd_deg=table.angle_sd_deg if angle_sd_deg is None else angle_sd_deg,
+        include_base=table.include_base if include_base is None else include_base,
+        rng=np.random.default_rng(seed_from(rng, table.seed)),
+    )
 
-    scenario = _scenario(scenario)
-    truth, _ = scenario_truth(scenario, seed=seed_from(rng, None if scenario.truth is None else scenario.truth.seed))
-    return truth
 
+def simulate(
+    robot,
+    plan: CapturePlan | None = None,
+    *,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
+    true_parameters=None,
+    joint_errors: JointErrorModel | None = None,
+    joint_limits: Literal["warn", "error", "ignore"] | None = None,
+    rng=None,
+) -> Capture:
+    """Simulate a Circle Point capture (thesis ch. 5.2.1).
 
-def simulate(scenario, *, rng=None, true_parameters=None, validation: bool = False) -> Capture:
-    """Simulate the scenario's Circle Point capture (thesis ch. 5.2.1), or a validation capture.
-
-    Joint errors of the scenario's ``[capture.joint_errors]`` and instrument noise U(L) = A + B L come
-    from one generator seeded from ``rng``; the capture records the seed (``capture.seed``).
+    Joint errors (eqs 5-2..5-4 and backlash) and instrument noise U(L) = A + B L come from one generator
+    seeded from ``rng``; the capture records the seed (``capture.seed``).
 
     Parameters
     ----------
-    scenario : Scenario, str or path
-    rng : None, int or numpy.random.Generator
-        None: the scenario's seed (``capture.seed``, or ``validation.seed`` with ``validation=True``),
-        else fresh entropy (see :func:`seed_from`).
+    robot : RobotModel or Scenario
+        A scenario supplies the plan, instrument, base frame, joint errors, limits policy and seed.
+    plan : CapturePlan
+        The circles: start, sweep and points per joint, and the reflector.
+    instrument : Instrument
+    tracker_from_base : array_like, shape (4, 4), optional
+        The robot base in the instrument frame [mm] (default identity).
     true_parameters : ParameterSet, CPAResult, RefinementResult or path, optional
         The robot that is measured [mm, rad] (e.g. from :func:`perturb`); default nominal.
-    validation : bool
-        Simulate the scenario's validation capture instead: random reachable poses (``[validation]``
-        table), each measured once with the flange target (``circle = 0``).
+    joint_errors : JointErrorModel, optional
+    joint_limits : {"warn", "error", "ignore"}, optional
+        What a plan reaching beyond the joint limits does (default "warn").
+    rng : None, int or numpy.random.Generator
 
     Returns
     -------
@@ -229,40 +368,145 @@ def simulate(scenario, *, rng=None, true_parameters=None, validation: bool = Fal
     Examples
     --------
     >>> import robotcal
-    >>> capture = robotcal.simulate("kr5-demo", rng=7)
+    >>> capture = robotcal.simulate(robotcal.load_scenario("kr5-demo"), rng=7)
     >>> capture.n_points, capture.n_joints, capture.seed
     (270, 6, 7)
-    >>> validation = robotcal.simulate("kr5-demo", rng=8, validation=True)
+    """
+    robot, scenario = _split(robot)
+    plan = _needed(plan, "plan", scenario, lambda s: s.plan)
+    instrument = _needed(instrument, "instrument", scenario, lambda s: s.instrument)
+    if tracker_from_base is None:
+        tracker_from_base = np.eye(4) if scenario is None else scenario.tracker_from_base
+    if joint_errors is None and scenario is not None:
+        joint_errors = scenario.joint_errors
+    if joint_limits is None:
+        joint_limits = "warn" if scenario is None else scenario.joint_limits
+    seed = seed_from(rng, None if scenario is None else scenario.seed)
+    capture, _ = simulate_capture(
+        robot,
+        plan,
+        instrument,
+        tracker_from_base,
+        true_parameters=_parameters(true_parameters, robot, "true_parameters"),
+        joint_errors=joint_errors,
+        joint_limits=joint_limits,
+        rng=np.random.default_rng(seed),
+    )
+    source = "capture simulated" + (f" from {scenario.name}" if scenario is not None else "")
+    return dataclasses.replace(capture, source=source, seed=seed)
+
+
+def simulate_validation(
+    robot,
+    *,
+    target: ReflectorMount | None = None,
+    poses: int | None = None,
+    margin_deg: float | None = None,
+    min_height_mm: float | None = None,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
+    true_parameters=None,
+    rng=None,
+) -> Capture:
+    """A validation capture: random reachable poses within the joint limits, each measured once on a flange
+    target (``circle = 0``). One generator seeded from ``rng`` draws the poses, then the noise.
+
+    Parameters
+    ----------
+    robot : RobotModel or Scenario
+        A scenario supplies its ``[validation]`` table (poses, margin, minimum height, seed, flange target),
+        instrument and base frame.
+    target : ReflectorMount, optional
+        The flange target (``frame="flange"``) [mm].
+    poses : int
+        Number of poses (default 100).
+    margin_deg : float
+        Distance kept from the joint limits [deg] (default 5).
+    min_height_mm : float, optional
+        Lowest height of the target above the base [mm].
+    instrument, tracker_from_base, true_parameters, rng
+        As for :func:`simulate`.
+
+    Examples
+    --------
+    >>> import robotcal
+    >>> validation = robotcal.simulate_validation(robotcal.load_scenario("kr5-demo"), rng=8)
     >>> validation.n_points, int(validation.circle.max())
     (100, 0)
     """
-    from robotcal.workflow import simulate_scenario, simulate_validation
+    robot, scenario = _split(robot)
+    table = ValidationTable() if scenario is None or scenario.validation is None else scenario.validation
+    target = _needed(target, "target", scenario, validation_target)
+    instrument = _needed(instrument, "instrument", scenario, lambda s: s.instrument)
+    if tracker_from_base is None:
+        tracker_from_base = np.eye(4) if scenario is None else scenario.tracker_from_base
+    seed = seed_from(rng, table.seed)
+    generator = np.random.default_rng(seed)
+    readings = random_poses(
+        robot,
+        table.poses if poses is None else poses,
+        margin_deg=table.margin_deg if margin_deg is None else margin_deg,
+        min_height_mm=table.min_height_mm if min_height_mm is None else min_height_mm,
+        reflector=target,
+        rng=generator,
+    )
+    capture, _ = simulate_poses(
+        robot,
+        readings,
+        target,
+        instrument,
+        tracker_from_base,
+        true_parameters=_parameters(true_parameters, robot, "true_parameters"),
+        rng=generator,
+    )
+    source = "validation capture simulated" + (f" from {scenario.name}" if scenario is not None else "")
+    return dataclasses.replace(capture, source=source, seed=seed)
 
-    scenario = _scenario(scenario)
-    truth = _parameters(true_parameters, scenario.robot, "true_parameters")
-    if validation:
-        seed = seed_from(rng, None if scenario.validation is None else scenario.validation.seed)
-        return simulate_validation(scenario, seed=seed, true_parameters=truth).capture
-    return simulate_scenario(scenario, seed=seed_from(rng, scenario.seed), true_parameters=truth).capture
+
+# ------------------------------------------------------------------------------------ identification
 
 
-def identify(capture, scenario, *, check: bool = True) -> CPAResult:
-    """Circle Point Analysis of a capture (thesis ch. 4.4-4.5) with the scenario's robot, targets and options.
+def identify(
+    capture,
+    robot,
+    *,
+    target: ReflectorMount | Target | str | None = None,
+    tracker_from_base=None,
+    options: CPAOptions | None = None,
+    instrument: Instrument | None = None,
+    check: bool = True,
+    health: Health = "warn",
+) -> CPAResult:
+    """Circle Point Analysis of a capture (thesis ch. 4.4-4.5).
 
     Parameters
     ----------
     capture : Capture or path
-        A capture, or a capture CSV (``circle,direction,q1..qN,x,y,z``: deg, mm in the tracker frame).
-    scenario : Scenario, str or path
-        Gives the robot, the target positions, the base frame and the ``[identification]`` options.
+        One circle per joint (``circle,direction,q1..qN,x,y,z``: deg, mm in the tracker frame).
+    robot : RobotModel or Scenario
+        A scenario supplies the target, the base frame, the ``[identification]`` options and the instrument.
+    target : ReflectorMount, Target or str
+        Where the measured target sat (a known target); with a ``target`` column, the target (or its name)
+        whose rows CPA uses (default: the capture's first target).
+    tracker_from_base : array_like, shape (4, 4), optional
+        The base frame in the tracker frame [mm]; None: registered from the data (Horn), unless
+        ``options.base_frame`` says "given".
+    options : CPAOptions, optional
+        Circle fit, base frame and base axis choices (docs/scenario.md, ``[identification]``).
+    instrument : Instrument, optional
+        For the plausibility checks and the fit health (the points' U(95) when the capture has them).
     check : bool
         First run the plausibility checks (units, radians for degrees, another robot, outliers):
-        :func:`robotcal.identification.plausibility.check_capture`.
+        :func:`robotcal.identification.plausibility.check_capture` (they need the instrument).
+    health : {"warn", "strict", "off"}
+        The fit health (:mod:`robotcal.identification.health`): warn when it is not OK, raise
+        :class:`~robotcal.errors.FitHealthError` (``"strict"``), or neither; ``result.health`` holds it.
 
     Returns
     -------
     CPAResult
-        ``.parameters`` [mm, rad], the fitted circles, the line-pair cases, ``success`` and ``message``.
+        ``.parameters`` [mm, rad], the fitted circles, the line-pair cases, the base frame of the identified
+        model, ``health``, ``success`` and ``message``.
 
     Examples
     --------
@@ -275,39 +519,78 @@ def identify(capture, scenario, *, check: bool = True) -> CPAResult:
     >>> cpa = robotcal.identify(capture, scenario)
     >>> int(cpa.parameters.identified.sum())  # of the 6 x 5 table, those CPA determines
     20
-    >>> error = cpa.parameters.difference(truth)  # mm, rad (angles wrapped)
-    >>> bool(np.abs(error).max() < 1e-9)
+    >>> bool(np.abs(cpa.parameters.difference(truth)).max() < 1e-9)  # mm, rad (angles wrapped)
     True
     """
-    from robotcal.workflow import identify_scenario
+    robot, scenario = _split(robot)
+    capture = _capture(capture, robot)
+    if scenario is not None:
+        if target is None:
+            target = _scenario_cpa_target(scenario, capture)
+        elif isinstance(target, str):
+            target = scenario.target(target)
+        if options is None:
+            options = scenario.identification
+        if tracker_from_base is None and options.base_frame == "given":
+            tracker_from_base = scenario.tracker_from_base
+    if target is None:
+        raise InputError("`target` is needed: where the target sat (a ReflectorMount or a known Target)")
+    if options is None:
+        options = CPAOptions(base_frame="given" if tracker_from_base is not None else "registered")
+    instrument = _instrument(instrument, scenario)
+    capture, mount = _cpa_rows(capture, target)
+    if check and instrument is not None:
+        check_capture(capture, robot, mount, instrument, options=options)
+    result = identify_cpa(capture, robot, mount, tracker_from_base=tracker_from_base, options=options)
+    verdict = cpa_health(result, capture, instrument)
+    if health != "off":
+        report_health(verdict, source=capture.source, strict=health == "strict")
+    return dataclasses.replace(result, health=verdict)
 
-    scenario = _scenario(scenario)
-    return identify_scenario(_capture(capture, scenario.robot), scenario, check=check)
 
-
-def refine(capture, start, scenario, *, criterion: str = "points", **options) -> RefinementResult:
-    """Least-squares refinement of ``start`` over every measured point (thesis ch. 4.5.7).
+def refine(
+    capture,
+    robot,
+    start=None,
+    *,
+    targets: ReflectorMount | Target | Sequence[Target] | None = None,
+    tracker_from_base=None,
+    criterion: Criterion = "points",
+    instrument: Instrument | None = None,
+    health: Health = "warn",
+    **options,
+) -> RefinementResult:
+    """Least-squares refinement over every measured point (thesis ch. 4.5.7).
 
     Parameters
     ----------
     capture : Capture or path
+        Circles or free poses, one or several targets (``target`` column).
+    robot : RobotModel or Scenario
+        A scenario supplies the targets, the base frame (held when ``[identification] base_frame = "given"``,
+        estimated when "registered") and the instrument.
     start : ParameterSet, CPAResult, RefinementResult, path or None
         Start values (usually :func:`identify`'s result; None: nominal).
-    scenario : Scenario, str or path
-        Gives the robot, the targets and the base frame: with ``[identification] base_frame = "given"``
-        the points criterion holds the scenario's ``tracker_from_base`` (pass ``estimate_base=True`` to
-        estimate it); with ``"registered"`` it is estimated.
+    targets : ReflectorMount, Target or sequence of Target
+        Where the points were measured; flange targets may have unknown offsets, which are estimated.
+    tracker_from_base : array_like, shape (4, 4), optional
+        Points criterion: the base frame, held (pass ``estimate_base=True`` to estimate it from there);
+        None: estimated from a Horn registration start.
     criterion : {"points", "distances"}
         Eq. 4-101 (positions in the tracker frame) or eq. 4-102 (all pairwise distances).
+    instrument : Instrument, optional
+        For the fit health (the points' U(95) when the capture has them).
+    health : {"warn", "strict", "off"}
+        As for :func:`identify`; ``result.health`` holds the verdict.
     **options
         Passed to :func:`robotcal.identification.refine.refine_parameters` (``free``, ``estimate_base``,
-        ``method``, ``max_nfev``, ``tolerance``, ...).
+        ``method``, ``max_nfev``, ``tolerance``, ``weights``, ``on_unidentifiable``...).
 
     Returns
     -------
     RefinementResult
         ``.parameters`` [mm, rad], ``success``, residual statistics [mm], convergence history,
-        linearised covariance and ``standard_uncertainty`` [mm, rad].
+        linearised covariance and ``standard_uncertainty`` [mm, rad], ``health``.
 
     Examples
     --------
@@ -315,39 +598,64 @@ def refine(capture, start, scenario, *, criterion: str = "points", **options) ->
     >>> scenario = robotcal.load_scenario("kr5-demo")
     >>> truth = robotcal.perturb(scenario, rng=11)
     >>> capture = robotcal.simulate(scenario, rng=1, true_parameters=truth)
-    >>> cpa = robotcal.identify(capture, scenario)
-    >>> result = robotcal.refine(capture, cpa, scenario, criterion="distances")
+    >>> result = robotcal.refine(capture, scenario, robotcal.identify(capture, scenario), criterion="distances")
     >>> bool(result.success), result.criterion
     (True, 'distances')
     >>> bool(result.residual_rms < 0.05)  # mm: laser-tracker noise and the backlash the model does not hold
     True
     """
-    from robotcal.workflow import refine_scenario
-
-    scenario = _scenario(scenario)
-    robot = scenario.robot
-    return refine_scenario(
-        _capture(capture, robot), scenario, _parameters(start, robot, "start"), criterion=criterion, **options
+    robot, scenario = _split(robot)
+    capture = _capture(capture, robot)
+    if scenario is not None:
+        if targets is None:
+            targets = capture_targets(scenario, capture)
+        if tracker_from_base is None and scenario.identification.base_frame == "given":
+            tracker_from_base = scenario.tracker_from_base
+    if targets is None:
+        raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
+    instrument = _instrument(instrument, scenario)
+    result = refine_parameters(
+        capture,
+        _parameters(start, robot, "start"),
+        targets,
+        criterion=criterion,
+        tracker_from_base=tracker_from_base,
+        **options,
     )
+    verdict = refine_health(result, capture, instrument)
+    if health != "off":
+        report_health(verdict, source=capture.source, strict=health == "strict")
+    return dataclasses.replace(result, health=verdict)
 
 
 def evaluate(
-    captures, parameter_sets: Mapping, scenario, *, views=("points", "distances")
+    captures,
+    parameter_sets: Mapping,
+    robot,
+    *,
+    targets=None,
+    views: Sequence[str] = ("points", "distances"),
+    bases: Mapping | None = None,
+    set_targets: Mapping | None = None,
 ) -> tuple[EvaluationRow, ...]:
     """Mean, max and RMS errors of named parameter sets on captures (thesis Tables 4.10/4.11).
 
     Parameters
     ----------
     captures : Capture, path, or mapping of str to Capture or path
-        E.g. ``{"validation": ...}``; a single capture is named ``"capture"``. A capture at free
-        poses (``circle = 0``) is measured with the scenario's validation flange target.
-    parameter_sets : mapping of str to ParameterSet, CPAResult, RefinementResult or path
+        E.g. ``{"validation": ...}``; a single capture is named ``"capture"``.
+    parameter_sets : mapping of str to ParameterSet, CPAResult, RefinementResult, path or None
         E.g. ``{"nominal": None, "cpa": cpa, "refined": refined}`` (None: nominal); the first is the
         reference of ``improvement_pct``.
-    scenario : Scenario, str or path
-    views : sequence of {"points", "distances"}
-        Points after a best-fit registration of the prediction on the measurement, or all pairwise
-        distances.
+    robot : RobotModel or Scenario
+        A scenario supplies each capture's target(s) (:func:`capture_targets`).
+    targets : ReflectorMount, Target, sequence of Target, or mapping of capture name to those
+        Where each capture's points were measured.
+    views : sequence of {"points", "distances", "absolute"}
+        Points after a best-fit registration of the prediction on the measurement, all pairwise distances,
+        or points in a given base frame (``bases``: set name -> 4x4).
+    set_targets : mapping, optional
+        Per set, the flange offsets it estimated (name -> xyz [mm]).
 
     Returns
     -------
@@ -361,8 +669,8 @@ def evaluate(
     >>> scenario = robotcal.load_scenario("kr5-demo")
     >>> truth = robotcal.perturb(scenario, rng=11)
     >>> capture = robotcal.simulate(scenario, rng=1, true_parameters=truth)
-    >>> validation = robotcal.simulate(scenario, rng=2, true_parameters=truth, validation=True)
-    >>> refined = robotcal.refine(capture, robotcal.identify(capture, scenario), scenario)
+    >>> validation = robotcal.simulate_validation(scenario, rng=2, true_parameters=truth)
+    >>> refined = robotcal.refine(capture, scenario, robotcal.identify(capture, scenario))
     >>> rows = robotcal.evaluate({"validation": validation}, {"nominal": None, "refined": refined}, scenario,
     ...                          views=["points"])
     >>> [(row.parameter_set, row.view) for row in rows]
@@ -370,10 +678,7 @@ def evaluate(
     >>> bool(rows[1].mean_error_mm < 0.25 * rows[0].mean_error_mm)  # calibration removes most of the error
     True
     """
-    from robotcal.workflow import evaluate_scenario
-
-    scenario = _scenario(scenario)
-    robot = scenario.robot
+    robot, scenario = _split(robot)
     if isinstance(captures, Mapping):
         named = {str(name): _capture(value, robot, f"captures[{name!r}]") for name, value in captures.items()}
     else:
@@ -383,57 +688,162 @@ def evaluate(
             f"`parameter_sets` must be a mapping of names to parameters; got {type(parameter_sets).__name__}"
         )
     sets = {str(name): _parameters(value, robot, f"parameter_sets[{name!r}]") for name, value in parameter_sets.items()}
-    return evaluate_scenario(scenario, named, sets, views=tuple(views))
+    if targets is None:
+        if scenario is None:
+            raise InputError("`targets` is needed: where the points of each capture were measured")
+        targets = {name: capture_targets(scenario, capture) for name, capture in named.items()}
+    elif not isinstance(targets, Mapping):
+        targets = dict.fromkeys(named, targets)
+    return evaluate_parameters(named, sets, targets, views=tuple(views), bases=bases, set_targets=set_targets)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class JointAnalysis:
+    """Joint diagnostics of a capture (thesis ch. 4.6) and the harmonic model fitted to them."""
+
+    diagnostics: JointDiagnostics
+    harmonics: HarmonicModel
+
+    def __repr__(self) -> str:
+        return f"JointAnalysis({len(self.diagnostics.circles)} circles, backlash={self.diagnostics.backlash})"
+
+
+def diagnose_joints(
+    capture,
+    robot=None,
+    *,
+    backlash: bool = True,
+    circle_fit: Literal["geometric", "algebraic"] | None = None,
+    order: int = 2,
+    match_tolerance_deg: float = 1e-3,
+) -> JointAnalysis:
+    """Backlash and axial/radial eccentricity per joint from a (bidirectional) Circle Point capture (thesis
+    ch. 4.6), and their harmonic model.
+
+    Parameters
+    ----------
+    capture : Capture or path
+        A path needs ``robot`` (its joint count).
+    robot : RobotModel or Scenario, optional
+        A scenario supplies the circle fit (``[identification] circle_fit``).
+    backlash : bool
+        Match forward and return points (a bidirectional capture).
+    circle_fit : {"geometric", "algebraic"}, optional
+    order : int
+        Order of the harmonic series.
+    match_tolerance_deg : float
+        Readings closer than this are the same reading [deg].
+    """
+    scenario = None
+    if robot is not None:
+        robot, scenario = _split(robot)
+        capture = _capture(capture, robot)
+    elif not isinstance(capture, Capture):
+        raise InputError("`capture` must be a Capture (or give `robot` to read a capture CSV)")
+    if circle_fit is None:
+        circle_fit = "geometric" if scenario is None else scenario.identification.circle_fit
+    diagnostics = analyze_joints(
+        capture, backlash=backlash, match_tolerance=float(np.deg2rad(match_tolerance_deg)), method=circle_fit
+    )
+    return JointAnalysis(diagnostics=diagnostics, harmonics=fit_harmonics(diagnostics, order=order))
 
 
 # ------------------------------------------------------------------------------------------ uncertainty
 
 
-def monte_carlo(
-    scenario,
+def monte_carlo_problem(
+    robot,
     *,
-    draws: int | None = None,
-    model: str = "cpa",
-    criterion: str = "points",
+    plan: CapturePlan | None = None,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
     parameters=None,
+    options: CPAOptions | None = None,
+    joint_errors: JointErrorModel | None = None,
+    joint_limits: str | None = None,
+    model: Literal["cpa", "refined"] = "cpa",
+    criterion: Criterion = "points",
+):
+    """The Monte Carlo problem (:func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`) of a capture plan:
+    every input check happens here, before any draw. Arguments as for :func:`monte_carlo`."""
+    from robotcal.uncertainty.montecarlo import prepare_monte_carlo
+
+    robot, scenario = _split(robot)
+    if scenario is not None:
+        plan = scenario.plan if plan is None else plan
+        instrument = scenario.instrument if instrument is None else instrument
+        tracker_from_base = scenario.tracker_from_base if tracker_from_base is None else tracker_from_base
+        options = scenario.identification if options is None else options
+        joint_errors = scenario.joint_errors if joint_errors is None else joint_errors
+        joint_limits = scenario.joint_limits if joint_limits is None else joint_limits
+    if plan is None or instrument is None:
+        raise InputError("`plan` and `instrument` are needed (or give a Scenario in place of the robot)")
+    return prepare_monte_carlo(
+        robot,
+        plan,
+        instrument,
+        np.eye(4) if tracker_from_base is None else tracker_from_base,
+        options=options,
+        true_parameters=_parameters(parameters, robot, "parameters"),
+        joint_errors=joint_errors,
+        joint_limits=joint_limits or "warn",
+        model=model,
+        criterion=criterion,
+    )
+
+
+def monte_carlo(
+    robot,
+    *,
+    plan: CapturePlan | None = None,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
+    parameters=None,
+    options: CPAOptions | None = None,
+    joint_errors: JointErrorModel | None = None,
+    joint_limits: str | None = None,
+    draws: int | None = None,
+    model: Literal["cpa", "refined"] = "cpa",
+    criterion: Criterion = "points",
     rng=None,
     workers: int = 1,
+    scheduler: str | None = None,
     coverage: float | None = None,
-    interval: str = "symmetric",
+    interval: Literal["symmetric", "shortest"] = "symmetric",
     adaptive: bool = False,
     keep_draws: bool = True,
     linearised: bool | None = None,
-    progress=None,
+    batch_size: int | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
 ) -> MonteCarloResult:
-    """GUM Supplement 1 Monte Carlo of the calibration of a scenario (thesis ch. 5.2.3).
+    """GUM Supplement 1 Monte Carlo of a calibration by Circle Point Analysis (thesis ch. 5.2.3).
 
-    Every draw adds the instrument noise (and the random part of the joint errors) to the capture the
-    scenario's plan gives on the robot ``parameters``, identifies it by CPA and, with
-    ``model="refined"``, refines it (the deployed model); the spread of the draws is the uncertainty
-    of the parameters.
+    Every draw adds the instrument noise (and the random part of the joint errors) to the capture the plan
+    gives on the robot ``parameters``, identifies it by CPA and, with ``model="refined"``, refines it (the
+    deployed model); the spread of the draws is the uncertainty of the parameters.
 
     Parameters
     ----------
-    scenario : Scenario, str or path
-    draws : int, optional
-        Number of draws M (default the scenario's ``montecarlo.iterations``; JCGM 101 recommends 10^4
-        or more, the examples here use a few hundred to stay fast).
-    model : {"cpa", "refined"}
-        The parameters of CPA, or of CPA followed by the refinement with ``criterion``.
-    criterion : {"points", "distances"}
-        Refinement objective, ``model="refined"`` only.
+    robot : RobotModel or Scenario
+        A scenario supplies the plan, instrument, base frame, CPA options, joint errors, limits policy and its
+        ``[montecarlo]`` table (draws, seed, coverage).
+    plan, instrument, tracker_from_base, options, joint_errors, joint_limits
+        As for :func:`simulate` and :func:`identify`.
     parameters : ParameterSet, CPAResult, RefinementResult, path or None
         The robot the capture is simulated from: the estimate, when stating the uncertainty of a
-        calibration (``robotcal run`` uses the CPA estimate for ``"cpa"`` and the refined one for
-        ``"refined"``); default nominal.
+        calibration; default nominal.
+    draws : int, optional
+        Number of draws M (default the scenario's ``montecarlo.iterations``, else 10^4; JCGM 101
+        recommends 10^4 or more).
+    model : {"cpa", "refined"}
+        The parameters of CPA, or of CPA followed by the refinement with ``criterion``.
     rng : None, int or numpy.random.Generator
-        None: the scenario's ``montecarlo.seed``, else fresh entropy. The draws are seeded per block
-        from one int seed (``rng.integers(2**63)`` for a Generator), so the result does not depend on
-        ``workers``; ``result.seed`` records it.
+        The draws are seeded per block from one int seed, so the result does not depend on ``workers``;
+        ``result.seed`` records it.
     workers : int
-        Processes computing blocks of draws in parallel.
+        Processes computing blocks of draws in parallel; ``scheduler`` a Dask scheduler address instead.
     coverage : float, optional
-        Coverage probability of the intervals (default the scenario's ``montecarlo.coverage``).
+        Coverage probability of the intervals (default the scenario's, else 0.95).
     interval : {"symmetric", "shortest"}
     adaptive : bool
         JCGM 101 §7.9 adaptive procedure instead of a fixed ``draws``.
@@ -442,6 +852,8 @@ def monte_carlo(
     linearised : bool, optional
         Also compute the GUM law-of-propagation comparison (JCGM 101 §8); default True for
         ``model="cpa"``, False for ``"refined"`` (where it costs as much as many draws).
+    batch_size : int, optional
+        Draws per vectorised call (bounds memory).
     progress : callable, optional
         ``progress(draws_done, draws_total)`` after every block.
 
@@ -454,7 +866,7 @@ def monte_carlo(
     Examples
     --------
     >>> import numpy as np, robotcal
-    >>> result = robotcal.monte_carlo("thesis-laser-tracker", draws=200, rng=1)
+    >>> result = robotcal.monte_carlo(robotcal.load_scenario("thesis-laser-tracker"), draws=200, rng=1)
     >>> result.n_draws, result.seed, result.model
     (200, 1, 'cpa')
     >>> u = result.summary.std_uncertainty  # (6, 5): d, theta, a, alpha, beta per joint [mm, rad]
@@ -462,24 +874,117 @@ def monte_carlo(
     (True, True)
     """
     from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-    from robotcal.workflow import scenario_monte_carlo
 
-    scenario = _scenario(scenario)
-    table = scenario.montecarlo
-    seed = seed_from(rng, table.seed)
+    _, scenario = _split(robot)
+    table = None if scenario is None else scenario.montecarlo
     settings = MonteCarloSettings(
-        iterations=int(table.iterations if draws is None else draws),
-        coverage=float(table.coverage if coverage is None else coverage),
+        iterations=int(draws if draws is not None else (table.iterations if table else 10_000)),
+        coverage=float(coverage if coverage is not None else (table.coverage if table else 0.95)),
         interval=interval,
         adaptive=adaptive,
         workers=workers,
+        scheduler=scheduler,
         keep_draws=keep_draws,
+        **({} if batch_size is None else {"batch_size": batch_size}),
     )
-    truth = _parameters(parameters, scenario.robot, "parameters")
-    problem = scenario_monte_carlo(scenario, true_parameters=truth, model=model, criterion=criterion)
+    problem = monte_carlo_problem(
+        robot,
+        plan=plan,
+        instrument=instrument,
+        tracker_from_base=tracker_from_base,
+        parameters=parameters,
+        options=options,
+        joint_errors=joint_errors,
+        joint_limits=joint_limits,
+        model=model,
+        criterion=criterion,
+    )
+    seed = seed_from(rng, table.seed if table else None)
     if linearised is None:
         linearised = model == "cpa"
     return run_monte_carlo(problem, settings, seed=seed, linearised=linearised, progress=progress)
+
+
+def measured_monte_carlo(
+    capture,
+    robot,
+    estimate,
+    *,
+    targets=None,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
+    draws: int = 300,
+    criterion: Criterion | None = None,
+    offsets: Mapping | None = None,
+    estimate_base: bool = False,
+    weights: Literal["auto", "none"] = "auto",
+    rng=None,
+    workers: int = 1,
+    scheduler: str | None = None,
+    coverage: float = 0.95,
+    interval: Literal["symmetric", "shortest"] = "symmetric",
+    progress: Callable[[int, int | None], None] | None = None,
+):
+    """Monte Carlo (JCGM 101) of the refinement of a measured capture: each draw adds each point's noise (its
+    U(95), else the instrument's U(L)) to the points the estimate predicts and refines them again
+    (:mod:`robotcal.uncertainty.measured`).
+
+    Parameters
+    ----------
+    capture : Capture or path
+    robot : RobotModel or Scenario
+        A scenario supplies the targets, the instrument and the held base frame (``base_frame = "given"``).
+    estimate : RefinementResult, ParameterSet or path
+        The refined parameters (a RefinementResult also gives its criterion and estimated target offsets).
+    targets, instrument, tracker_from_base
+        As for :func:`refine`.
+    draws : int
+        A few hundred: each draw is one refinement.
+    criterion, offsets, estimate_base, weights
+        See :func:`robotcal.uncertainty.measured.prepare_measured`.
+    rng, workers, scheduler, coverage, interval, progress
+        As for :func:`monte_carlo`.
+
+    Returns
+    -------
+    MeasuredMonteCarloResult
+    """
+    from robotcal.uncertainty.measured import measured_monte_carlo as run_measured
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings
+
+    robot, scenario = _split(robot)
+    capture = _capture(capture, robot)
+    if scenario is not None:
+        targets = capture_targets(scenario, capture) if targets is None else targets
+        if tracker_from_base is None and scenario.identification.base_frame == "given":
+            tracker_from_base = scenario.tracker_from_base
+    if targets is None:
+        raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
+    if not isinstance(estimate, RefinementResult):
+        estimate = _parameters(estimate, robot, "estimate")
+    given = estimate.parameters.robot if isinstance(estimate, RefinementResult) else estimate.robot
+    if given.name != robot.name:
+        raise InputError(
+            f"the estimate is for robot {given.name!r}; the capture is of robot {robot.name!r} (give the parameter "
+            "JSON that `robotcal refine` wrote for this capture)"
+        )
+    settings = MonteCarloSettings(
+        iterations=int(draws), coverage=coverage, interval=interval, workers=workers, scheduler=scheduler
+    )
+    return run_measured(
+        capture,
+        estimate,
+        targets,
+        settings,
+        seed=seed_from(rng),
+        instrument=_instrument(instrument, scenario),
+        tracker_from_base=tracker_from_base,
+        criterion=criterion,
+        offsets=offsets,
+        estimate_base=estimate_base,
+        weights=weights,
+        progress=progress,
+    )
 
 
 def _parameter_draws(draws, robot: RobotModel) -> np.ndarray:
@@ -488,19 +993,18 @@ def _parameter_draws(draws, robot: RobotModel) -> np.ndarray:
     Draws that name their robot (a Monte Carlo result, a draws file) must be of ``robot``'s model (same
     joint types and nominal parameters; its reading map may differ, e.g. controller readings).
     """
-    source = None
-    montecarlo = sys.modules.get("robotcal.uncertainty.montecarlo")  # not loaded: not a MonteCarloResult
-    if montecarlo is not None and isinstance(draws, montecarlo.MonteCarloResult):
-        if draws.draws is None:
-            raise InputError("`draws`: this Monte Carlo result kept no draws; run monte_carlo(..., keep_draws=True)")
-        values, source = draws.draws, draws.robot
-    elif isinstance(draws, str | os.PathLike):
+    source = getattr(draws, "robot", None)
+    if isinstance(draws, str | os.PathLike):
         from robotcal.io.draws_npz import read_draws
 
         read = read_draws(draws)
         values, source = read.values, read.robot
+    elif hasattr(draws, "draws") and hasattr(draws, "summary"):  # a MonteCarloResult
+        if draws.draws is None:
+            raise InputError("`draws`: this Monte Carlo result kept no draws; run monte_carlo(..., keep_draws=True)")
+        values = draws.draws
     else:
-        values, source = getattr(draws, "values", draws), getattr(draws, "robot", None)  # a ParameterDraws
+        values = getattr(draws, "values", draws)  # a ParameterDraws, or an array
     values = np.asarray(values, dtype=float)
     if values.ndim != 3 or values.shape[1:] != (robot.n_joints, 5):
         raise InputError(
@@ -523,8 +1027,8 @@ def tcp_uncertainty(
 
     Parameters
     ----------
-    robot : RobotModel, Scenario, str or path
-        The robot whose readings ``poses_deg`` are (a scenario's robot, a built-in name, a TOML path).
+    robot : RobotModel or Scenario
+        The robot whose readings ``poses_deg`` are.
     draws : MonteCarloResult, path, or array_like of shape (n_draws, n_joints, 5)
         :func:`monte_carlo`'s result (run with ``keep_draws=True``), a ``draws.npz`` written by
         ``robotcal uncertainty --save-draws``, or draws in core units [mm, rad].
@@ -533,7 +1037,7 @@ def tcp_uncertainty(
     tool_mm : array_like, shape (3,), optional
         TCP in flange coordinates [mm]; default the flange origin.
     coverage : float
-        Coverage probability of the intervals and of the 95 % ellipsoid.
+        Coverage probability of the intervals and of the ellipsoid.
     keep_draws : bool
         Keep the TCP coordinates of every draw (``result.draws``; for scatter plots of a few poses).
 
@@ -559,24 +1063,130 @@ def tcp_uncertainty(
     """
     from robotcal.uncertainty.tcp import propagate_to_tcp
 
-    robot = _robot(robot)
+    robot, _ = _split(robot)
     values = _parameter_draws(draws, robot)
-    poses = np.asarray(poses_deg, dtype=float)
+    poses = np.deg2rad(np.asarray(poses_deg, dtype=float))
     tool = None if tool_mm is None else np.asarray(tool_mm, dtype=float)
-    return propagate_to_tcp(robot, values, np.deg2rad(poses), tool=tool, coverage=coverage, keep_draws=keep_draws)
+    return propagate_to_tcp(robot, values, poses, tool=tool, coverage=coverage, keep_draws=keep_draws)
+
+
+def workspace_uncertainty(
+    robot, draws, n_poses: int = 1000, *, tool_mm=None, coverage: float = 0.95, rng=0
+) -> WorkspaceUncertainty:
+    """TCP position uncertainty over ``n_poses`` random poses within the joint limits (thesis ch. 5.3, Fig. 5.21):
+    the map of where the calibration can be trusted. Arguments as for :func:`tcp_uncertainty`."""
+    from robotcal.uncertainty.workspace import workspace_uncertainty as workspace
+
+    robot, _ = _split(robot)
+    tool = None if tool_mm is None else np.asarray(tool_mm, dtype=float)
+    return workspace(robot, _parameter_draws(draws, robot), n_poses, rng=rng, tool=tool, coverage=coverage)
+
+
+def validation_consistency(
+    validation,
+    estimate,
+    draws,
+    robot,
+    *,
+    target: ReflectorMount | None = None,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
+    model: str = "refined",
+) -> dict:
+    """Does the stated uncertainty explain the error observed at the validation points?
+
+    The check a metrologist asks for: at every validation pose the Monte Carlo draws of the model give the
+    covariance of the predicted target position, so the RMS position uncertainty predicted by the
+    calibration is ``sqrt(mean_p tr V_p)``; the instrument adds ``3 sigma_p^2`` per point (sigma from its
+    U(L), uniform: U/sqrt(3), normal: U/k). If the model explains the data, the RMS of the observed errors
+    ``|T p(estimate) - m|`` is close to ``sqrt(mean_p (tr V_p + 3 sigma_p^2))``; a larger observed RMS points
+    to what the model does not hold (joint errors such as backlash, eccentricity, gravity sag, or a wrong
+    instrument level).
+
+    Parameters
+    ----------
+    validation : Capture
+        Free poses (circle = 0) measured with the flange ``target`` [mm].
+    estimate : ParameterSet or result
+        The deployed parameters [mm, rad].
+    draws : MonteCarloResult, path or array, shape (n_draws, n_joints, 5)
+        Monte Carlo draws of the same model [mm, rad].
+    robot : RobotModel or Scenario
+        A scenario supplies the target, the instrument and the base frame (given, or registered).
+    target : ReflectorMount
+    instrument : Instrument
+    tracker_from_base : array_like, shape (4, 4), optional
+        The base frame; None: a Horn registration of the predictions on the measurements (which absorbs part
+        of the error).
+    model : str
+        Name of the model, recorded.
+
+    Returns
+    -------
+    dict
+        JSON-ready figures in mm (``predicted_rms_mm``, ``instrument_rms_mm``, ``expected_rms_mm``,
+        ``observed_rms_mm``, ``ratio``), the base-frame mode and the counts.
+    """
+    from robotcal.geometry.registration import register_points
+    from robotcal.kinematics.forward import target_positions
+    from robotcal.uncertainty.tcp import position_covariance
+
+    robot, scenario = _split(robot)
+    target = _needed(target, "target", scenario, validation_target)
+    instrument = _needed(instrument, "instrument", scenario, lambda s: s.instrument)
+    if tracker_from_base is None and scenario is not None and scenario.identification.base_frame == "given":
+        tracker_from_base = scenario.tracker_from_base
+    values = _parameter_draws(draws, robot)
+    estimate = _parameters(estimate, robot, "estimate")
+    q = robot.model_joint_variables(validation.readings)
+    measured = np.asarray(validation.points, dtype=float)
+    predicted = target_positions(estimate.values, q, np.zeros(validation.n_points, dtype=int), target)
+    if tracker_from_base is not None:
+        tracker, base = np.asarray(tracker_from_base, dtype=float), "given"
+    else:
+        tracker, base = register_points(predicted, measured).transform, "registered"
+    observed = np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - measured, axis=1)
+    # the Monte Carlo covariance of the target position at every validation pose (positions only)
+    traces = np.trace(position_covariance(robot, values, validation.readings, tool=target.positions[0]), axis1=1, axis2=2)
+    noise = 3.0 * instrument.standard_uncertainty(measured) ** 2
+    expected = float(np.sqrt(np.mean(traces + noise)))
+    observed_rms = float(np.sqrt(np.mean(observed**2)))
+    return {
+        "model": model,
+        "poses": int(validation.n_points),
+        "draws": int(values.shape[0]),
+        "base_frame": base,
+        "predicted_rms_mm": float(np.sqrt(np.mean(traces))),
+        "instrument_rms_mm": float(np.sqrt(np.mean(noise))),
+        "expected_rms_mm": expected,
+        "observed_rms_mm": observed_rms,
+        "observed_mean_mm": float(observed.mean()),
+        "ratio": observed_rms / expected if expected > 0 else None,
+        "method": (
+            "predicted = sqrt(mean over poses of tr V_p), V_p the covariance of the validation target position "
+            "over the Monte Carlo draws; instrument = sqrt(mean of 3 sigma_p^2) from U(L); expected = "
+            "sqrt(predicted^2 + instrument^2); observed = RMS of |T p(estimate) - measured|"
+        ),
+    }
 
 
 # ----------------------------------------------------------------------------------------------- planning
 
 
 def change_plan(
-    scenario, *, start_deg=None, sweep_deg=None, points=None, reflector_mm=None, bidirectional: bool | None = None
+    scenario: Scenario,
+    *,
+    start_deg=None,
+    sweep_deg=None,
+    points=None,
+    reflector_mm=None,
+    bidirectional: bool | None = None,
 ) -> Scenario:
     """The scenario with another capture plan: the keys given replace those of ``[capture]``.
 
     Parameters
     ----------
-    scenario : Scenario, str or path
+    scenario : Scenario
     start_deg : array_like, shape (n_joints,) or (n_joints, n_joints), optional
         Readings where the circles start [deg] (one start for all, or one full start per circle).
     sweep_deg : array_like, shape (n_joints,), optional
@@ -600,10 +1210,9 @@ def change_plan(
     ...                                                       [120, 0, 0], [0, 80, 0], [0, 60, 0]])
     >>> float(longer.plan.reflector.positions[3, 0]), float(scenario.plan.reflector.positions[3, 0])
     (120.0, 20.0)
-    >>> np.rad2deg(longer.plan.sweep).tolist() == np.rad2deg(scenario.plan.sweep).tolist()
-    True
     """
-    scenario = _scenario(scenario)
+    if not isinstance(scenario, Scenario):
+        raise InputError(f"`scenario` must be a Scenario (robotcal.load_scenario); got {type(scenario).__name__}")
     plan = scenario.plan  # a scenario without a capture plan raises its InputError (naming the key) on first use
     if plan.n_joints != scenario.robot.n_joints:
         raise InputError(
@@ -627,19 +1236,30 @@ def change_plan(
     return dataclasses.replace(scenario, plan=new_plan)
 
 
-def check_plan(scenario, *, acceptance_deg: float | None = None, aim: str = "middle") -> PlanCheck:
-    """Check every point of the scenario's capture plan in its cell (thesis ch. 4.5.2).
+def check_plan(
+    robot,
+    plan: CapturePlan | None = None,
+    *,
+    cell: CellModel | None = None,
+    acceptance_deg: float | None = None,
+    aim: str = "middle",
+) -> PlanCheck:
+    """Check every point of a capture plan in its cell (thesis ch. 4.5.2).
 
     Joint limits, the instrument's measuring range, the reflector's acceptance angle and the line of
     sight past the robot's links (capsules), as ``robotcal plan check`` does.
 
     Parameters
     ----------
-    scenario : Scenario, str or path
-        Its plan (see :func:`change_plan`), tracker pose, robot and instrument preset (range, acceptance).
+    robot : RobotModel or Scenario
+        A scenario supplies the plan and builds the cell: tracker pose, link capsules, instrument preset
+        (range, acceptance).
+    plan : CapturePlan, optional
+    cell : CellModel, optional
+        :class:`robotcal.planning.cell.CellModel`; needed without a scenario.
     acceptance_deg : float, optional
-        Reflector acceptance half-angle [deg] (default the instrument preset's; unchecked when it has none).
-    aim : {"middle", ...}
+        Reflector acceptance half-angle [deg] (a scenario's cell: default the instrument preset's).
+    aim : str
         How the reflector is aimed (:class:`robotcal.planning.cell.CellModel`).
 
     Returns
@@ -653,7 +1273,7 @@ def check_plan(scenario, *, acceptance_deg: float | None = None, aim: str = "mid
     the reflector's acceptance angle and to the line of sight past the links:
 
     >>> import robotcal
-    >>> check = robotcal.check_plan("kr5-demo")
+    >>> check = robotcal.check_plan(robotcal.load_scenario("kr5-demo"))
     >>> check.feasible
     False
     >>> [(c.circle, c.feasible_points, c.points) for c in check.circles if c.feasible_points < c.points]
@@ -664,6 +1284,209 @@ def check_plan(scenario, *, acceptance_deg: float | None = None, aim: str = "mid
     from robotcal.planning.cell import check_plan as check_points
     from robotcal.planning.scenario import cell_from_scenario
 
-    scenario = _scenario(scenario)
-    cell, _ = cell_from_scenario(scenario, acceptance_deg=acceptance_deg, aim=aim)
-    return check_points(scenario.robot, scenario.plan, cell)
+    robot, scenario = _split(robot)
+    if scenario is not None:
+        plan = scenario.plan if plan is None else plan
+        if cell is None:
+            cell, _ = cell_from_scenario(scenario, acceptance_deg=acceptance_deg, aim=aim)
+    if plan is None or cell is None:
+        raise InputError("`plan` and `cell` are needed (or give a Scenario in place of the robot)")
+    return check_points(robot, plan, cell)
+
+
+def coverage_study(
+    robot,
+    truth,
+    *,
+    captures: int,
+    draws: int,
+    plan: CapturePlan | None = None,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
+    options: CPAOptions | None = None,
+    joint_errors: JointErrorModel | None = None,
+    tcp_readings_deg=None,
+    **study,
+):
+    """Empirical coverage of the Monte Carlo and linearised intervals over repeated simulated captures of one
+    true robot (:func:`robotcal.uncertainty.coverage.coverage_study`): does a stated 95 % interval contain
+    the truth 95 % of the time?
+
+    Parameters
+    ----------
+    robot : RobotModel or Scenario
+        A scenario supplies the plan, instrument, base frame, CPA options, joint errors and the TCP pose
+        (:func:`tcp_targets`).
+    truth : ParameterSet
+        The fixed true robot [mm, rad].
+    captures, draws : int
+        K captures, Monte Carlo draws per capture and model.
+    tcp_readings_deg : array_like, shape (n_joints,), optional
+        Readings [deg] of the pose where the TCP ellipsoid is checked.
+    **study
+        ``methods``, ``criterion``, ``coverage``, ``rng``, ``progress`` of the core study.
+    """
+    from robotcal.uncertainty.coverage import coverage_study as study_coverage
+
+    robot, scenario = _split(robot)
+    if scenario is not None:
+        plan = scenario.plan if plan is None else plan
+        instrument = scenario.instrument if instrument is None else instrument
+        tracker_from_base = scenario.tracker_from_base if tracker_from_base is None else tracker_from_base
+        options = scenario.identification if options is None else options
+        joint_errors = scenario.joint_errors if joint_errors is None else joint_errors
+        pose = tcp_targets(scenario).pose if tcp_readings_deg is None else None
+    else:
+        pose = None
+    readings = np.deg2rad(np.asarray(tcp_readings_deg, dtype=float)) if tcp_readings_deg is not None else pose
+    if plan is None or instrument is None:
+        raise InputError("`plan` and `instrument` are needed (or give a Scenario in place of the robot)")
+    return study_coverage(
+        robot,
+        plan,
+        instrument,
+        _parameters(truth, robot, "truth"),
+        captures=captures,
+        draws=draws,
+        tracker_from_base=tracker_from_base,
+        options=options,
+        joint_errors=joint_errors,
+        joint_limits="ignore" if scenario is None else scenario.joint_limits,
+        tcp_readings=None if readings is None else np.atleast_2d(readings)[0],
+        **study,
+    )
+
+
+# --------------------------------------------------------------------------------------- a scenario's TCP
+
+#: Robot whose readings are KUKA controller angles; the thesis's Table 5.8 pose and the built-in
+#: trajectories are given in its readings.
+KUKA_CONTROLLER_ROBOT = "kuka-kr5-sixx-r650-krc"
+#: Thesis Table 5.8 pose, KUKA controller readings A1..A6 [deg] (the text's "68" is a misprint: docs/conventions.md).
+TABLE_5_8_READINGS_DEG = (60.0, 80.0, -45.0, 200.0, 125.0, 280.0)
+#: Built-in 75-pose trajectory of the TCP stage (docs/tcp.md), KUKA controller readings.
+DEFAULT_TRAJECTORY = "kr5-sweep-75"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TCPTargets:
+    """Where ``robotcal run`` states the TCP uncertainty: readings of the scenario's robot [rad].
+
+    ``pose`` (1, n) and ``trajectory`` (m, n) are ``None`` when the stage part is skipped (the reason
+    is in ``notes``); ``*_source`` say where the readings come from.
+    """
+
+    pose: np.ndarray | None
+    pose_source: str
+    trajectory: np.ndarray | None
+    trajectory_source: str
+    workspace_poses: int
+    workspace_draws: int | None
+    workspace_seed: int
+    tool_mm: np.ndarray | None
+    notes: tuple[str, ...] = ()
+
+
+def _same_geometry(a, b) -> bool:
+    return (
+        a.n_joints == b.n_joints
+        and bool(np.all(a.hayati == b.hayati))
+        and np.allclose(a.nominal, b.nominal, rtol=0.0, atol=1e-9)
+    )
+
+
+def convert_readings(readings, from_robot, to_robot) -> np.ndarray:
+    """Readings of ``from_robot`` [rad] as readings of ``to_robot`` [rad], through the model joint
+    variables (``q = sign * reading + offset`` of each robot file); both must share the same model."""
+    if not _same_geometry(from_robot, to_robot):
+        raise InputError(
+            f"readings of robot {from_robot.name!r} cannot be used on robot {to_robot.name!r}: "
+            "their joint count, joint types or nominal parameters differ"
+        )
+    return to_robot.readings_from_model(from_robot.model_joint_variables(readings))
+
+
+def tcp_targets(scenario: Scenario) -> TCPTargets:
+    """Resolve and check the ``[tcp]`` table (defaults when absent) before any computation.
+
+    Defaults: the Table 5.8 pose and the trajectory ``kr5-sweep-75``, both KUKA controller readings
+    (robot ``kuka-kr5-sixx-r650-krc``), converted to the scenario robot's readings when it has the
+    same model (e.g. ``kuka-kr5-sixx-r650``, model q = (-60, -80, 45, -200, 125, -280) deg); for
+    another robot without ``pose_deg``/``trajectory`` that part is skipped, with a note. Readings
+    outside the limits are noted (the thesis's pose is outside them), not refused.
+    """
+    table: TCPTable = scenario.tcp
+    robot = scenario.robot
+    where = f"{scenario.source}: key `tcp"
+    notes: list[str] = []
+    kuka = load_robot(KUKA_CONTROLLER_ROBOT)
+    kuka_compatible = _same_geometry(kuka, robot)
+    readings_robot = robot
+    if table.readings_robot:
+        try:
+            readings_robot = load_robot(table.readings_robot)
+        except InputError as exc:
+            raise InputError(f"{where}.readings_robot`: {exc}") from None
+        if not _same_geometry(readings_robot, robot):
+            raise InputError(
+                f"{where}.readings_robot`: robot {readings_robot.name!r} does not share the model of {robot.name!r}"
+            )
+
+    def checked(values, key, source_robot):
+        values = np.asarray(values, dtype=float)
+        if values.ndim != 2 or values.shape[1] != robot.n_joints:
+            raise InputError(
+                f"{where}.{key}`: {values.shape[-1]} joint readings; robot {robot.name!r} has {robot.n_joints}"
+            )
+        values = convert_readings(values, source_robot, robot)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", JointLimitWarning)
+            try:
+                values = check_readings(robot, values, name=f"tcp.{key}")
+            except InputError as exc:
+                raise InputError(f"{scenario.source}: key {exc}") from None
+        notes.extend(str(w.message) for w in caught if issubclass(w.category, JointLimitWarning))
+        return values
+
+    pose = trajectory = None
+    pose_source = trajectory_source = "skipped"
+    if table.pose_deg is not None:
+        pose = checked(np.deg2rad([table.pose_deg]), "pose_deg", readings_robot)
+        pose_source = f"tcp.pose_deg = {list(table.pose_deg)} (readings of {readings_robot.name})"
+    elif kuka_compatible:
+        pose = checked(np.deg2rad([TABLE_5_8_READINGS_DEG]), "pose_deg", kuka)
+        shown = ", ".join(f"{v:g}" for v in np.rad2deg(pose[0]))
+        pose_source = (
+            f"thesis Table 5.8 pose, KUKA readings {', '.join(f'{v:g}' for v in TABLE_5_8_READINGS_DEG)} deg "
+            f"({KUKA_CONTROLLER_ROBOT}) = readings {shown} deg of {robot.name}"
+        )
+    else:
+        notes.append("no TCP pose: give `tcp.pose_deg` (the Table 5.8 default is for the KR 5 sixx R650)")
+    name = table.trajectory
+    builtin = name is None or name in builtin_trajectories()
+    if name is None and not kuka_compatible:
+        notes.append(
+            f"no trajectory: give `tcp.trajectory` (the {DEFAULT_TRAJECTORY} default is for the KR 5 sixx R650)"
+        )
+    else:
+        try:
+            values, path = load_trajectory(DEFAULT_TRAJECTORY if name is None else name, n_joints=robot.n_joints)
+        except InputError as exc:
+            raise InputError(f"{where}.trajectory`: {exc}") from None
+        trajectory = checked(values, "trajectory", kuka if builtin else readings_robot)
+        trajectory_source = (
+            f"built-in {DEFAULT_TRAJECTORY if name is None else name} ({path}), KUKA readings converted to {robot.name}"
+            if builtin
+            else path
+        )
+    return TCPTargets(
+        pose=pose,
+        pose_source=pose_source,
+        trajectory=trajectory,
+        trajectory_source=trajectory_source,
+        workspace_poses=table.workspace_poses,
+        workspace_draws=table.workspace_draws,
+        workspace_seed=table.workspace_seed,
+        tool_mm=None if table.tool_mm is None else np.asarray(table.tool_mm, dtype=float),
+        notes=tuple(notes),
+    )

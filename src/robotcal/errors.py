@@ -16,6 +16,7 @@ __all__ = [
     "IdentifiabilityWarning",
     "FitHealthWarning",
     "FitHealthError",
+    "Terminated",
 ]
 
 
@@ -42,6 +43,16 @@ class IdentifiabilityError(RobotcalError):
     def __init__(self, message: str, parameters: list[str] | tuple[str, ...] = ()):
         super().__init__(message)
         self.parameters = tuple(parameters)
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised in the main thread by the command line's SIGTERM (and SIGHUP) handler, so that every cleanup
+    (``finally``, context managers, pool shutdown) runs as for Ctrl-C; a :class:`KeyboardInterrupt` so code
+    that handles an interrupt handles this too."""
+
+    def __init__(self, signal_name: str = "SIGTERM"):
+        super().__init__(signal_name)
+        self.signal_name = signal_name
 
 
 class RobotcalWarning(UserWarning):

@@ -1,4 +1,4 @@
-"""One execution backend for independent tasks: Monte Carlo blocks, sweeps, plan candidates.
+"""One execution backend for independent tasks: Monte Carlo blocks, sweeps, plan candidates, figures.
 
 ``open_executor`` yields an :class:`Executor` whose ``map(function, items)`` returns the results in
 the order of ``items``:
@@ -6,22 +6,27 @@ the order of ``items``:
 * ``scheduler`` (or the environment variable ``ROBOTCAL_SCHEDULER``) set: the tasks run on a Dask
   distributed cluster (``dask.distributed.Client(scheduler)``; Dask is the optional extra
   ``robotcal[distributed]`` and is imported only here, only then);
-* else ``workers > 1``: a local pool of ``workers`` processes;
+* else ``workers > 1``: a local pool of ``workers`` processes (:func:`process_pool`);
 * else serially in this process.
 
 Results never depend on the backend as long as every task carries its own seed (robotcal seeds a
 Monte Carlo block from ``SeedSequence(seed, spawn_key=(block,))``): the same tasks give
 bit-identical results serially, in local processes and on Dask workers.
 
-The local pool is ``concurrent.futures.ProcessPoolExecutor`` with the ``fork`` start method where the platform has
-it: the workers inherit the parent's imported modules and data, so start-up costs milliseconds and
-large task arguments need not be pickled at start. The tasks are pure numpy (no threads, locks or
-files are shared with the parent), which is what makes forking safe here; platforms without
-``fork`` (Windows, macOS by default) use ``spawn``, which needs ``function`` and ``items`` to be
-picklable (they must be anyway, for Dask). Workers ignore SIGINT (Ctrl-C reaches the whole process
-group; only the parent acts on it) and, on Linux, receive SIGTERM when the parent dies. The parent
-terminates and joins the workers when it leaves the ``with`` block by an exception, including
-``KeyboardInterrupt`` and ``SystemExit``, so that no worker outlives it.
+The local pool (:func:`process_pool`, the one place a pool is made) is ``concurrent.futures.ProcessPoolExecutor``
+with the ``fork`` start method where the platform has it: the workers inherit the parent's imported modules and
+data, so start-up costs milliseconds and large task arguments need not be pickled at start. The tasks are pure
+numpy (no threads, locks or files are shared with the parent), which is what makes forking safe here; platforms
+without ``fork`` (Windows, macOS by default) use ``spawn``, which needs ``function`` and ``items`` to be
+picklable (they must be anyway, for Dask).
+
+Stopping. Signals are the parent's business: workers ignore SIGINT, SIGTERM and SIGHUP (Ctrl-C reaches the
+whole process group) and, on Linux, are killed when the parent dies. When the parent leaves the pool's ``with``
+block by an exception (a task's error, Ctrl-C, SIGTERM turned into an exception by the CLI) it cancels the
+tasks not started and sets the pool's stop event; a running task sees it at its next :func:`check_stop` (the
+Monte Carlo checks between batches, every few tenths of a second) and ends, so the pool shuts down within a
+batch, through the public API only. A worker is never killed while it may be sending its result: that can leave
+the pool's manager thread waiting for the rest of the message for ever.
 """
 
 from __future__ import annotations
@@ -35,9 +40,11 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
+from threadpoolctl import threadpool_limits
+
 from robotcal.errors import InputError
 
-__all__ = ["Executor", "open_executor", "SCHEDULER_ENV"]
+__all__ = ["Executor", "StopRequested", "check_stop", "open_executor", "process_pool", "single_blas_thread", "SCHEDULER_ENV"]
 
 #: Environment variable read when ``scheduler`` is None.
 SCHEDULER_ENV = "ROBOTCAL_SCHEDULER"
@@ -74,16 +81,51 @@ class Executor:
         return (future.result() for future in futures)
 
 
-def _ignore_interrupts() -> None:
-    """Pool initializer: Ctrl-C is the parent's business; die with the parent (Linux)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+def single_blas_thread():
+    """A context in which BLAS runs one thread (``threadpoolctl.threadpool_limits``), the limit before restored
+    when it ends.
+
+    robotcal's parallelism is its own (Monte Carlo worker processes, threads over poses) and its linear algebra
+    is small (3x3 fits, 40-column QRs, blocks of a few hundred draws): a multi-threaded BLAS only adds threads
+    that spin waiting for each other, which on a loaded 2-core machine made such calls up to 50 times slower
+    (benchmarks/bench_refined_montecarlo.py). Library callers get this without any environment variable.
+    """
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+class StopRequested(Exception):
+    """Raised in a pool worker by :func:`check_stop` when its pool is being shut down."""
+
+
+#: In a pool worker: the pool's stop event (None elsewhere).
+_STOP = None
+
+
+def check_stop() -> None:
+    """In a pool worker whose pool is shutting down, raise :class:`StopRequested`; elsewhere do nothing.
+
+    Long tasks call it between their steps so that an interrupt of the parent ends them within a step.
+    """
+    if _STOP is not None and _STOP.is_set():
+        raise StopRequested("the pool is shutting down")
+
+
+def _start_worker(stop) -> None:
+    """Pool initializer: signals are the parent's business, the pool's stop event, one BLAS thread for the
+    worker's life, and (Linux) death with the parent."""
+    global _STOP
+    _STOP = stop
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    threadpool_limits(limits=1, user_api="blas")
     if sys.platform.startswith("linux"):
         try:
             import ctypes
 
             libc = ctypes.CDLL("libc.so.6", use_errno=True)
-            libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-        except OSError:  # pragma: no cover - no libc: the parent still terminates the pool
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG: a worker never outlives a parent killed outright
+        except OSError:  # pragma: no cover - not glibc: the pool still stops its workers
             pass
 
 
@@ -141,45 +183,22 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Iterator
     if workers == 1:
         yield Executor("serial")
         return
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    pool = ProcessPoolExecutor(
-        max_workers=workers, mp_context=multiprocessing.get_context(method), initializer=_ignore_interrupts
-    )
-    try:
+    with process_pool(workers) as pool:
         yield Executor("processes", workers, pool=pool)
+
+
+@contextmanager
+def process_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A local :class:`~concurrent.futures.ProcessPoolExecutor` of ``workers`` processes for a ``with`` block
+    (module docstring: start method, signals, stopping). Leaving the block normally waits for every task;
+    leaving it by an exception cancels the tasks not started and asks the running ones to stop."""
+    context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+    stop = context.Event()
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_worker, initargs=(stop,))
+    try:
+        yield pool
     except BaseException:
-        _terminate(pool)  # KeyboardInterrupt, SystemExit, a task's exception: no worker survives
+        stop.set()  # running tasks end at their next check_stop
+        pool.shutdown(wait=True, cancel_futures=True)
         raise
-    pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _terminate(pool: ProcessPoolExecutor) -> None:
-    """Cancel what is queued, stop the workers now (SIGTERM, then SIGKILL) and reap them.
-
-    ``ProcessPoolExecutor`` has no public terminate; its ``_processes`` (pid -> Process) has been
-    stable since Python 3.2. A worker that died (killed, out of memory) surfaces as
-    ``BrokenProcessPool`` from ``map``, never as a hang.
-    """
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    result_queue = getattr(pool, "_result_queue", None)  # taken now: shutdown() drops the pool's reference
-    pool.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        if process.is_alive():
-            process.terminate()
-    for process in processes:
-        process.join(timeout=2.0)
-        if process.is_alive():  # pragma: no cover - a worker stuck in uninterruptible C code
-            process.kill()
-            process.join(timeout=2.0)
-    # A worker stopped in the middle of sending its result leaves half a message in the result pipe, and the
-    # pool's manager thread then waits in recv() for the rest, for ever: the interpreter's exit joins that
-    # thread, so the command hung at exit (about 1 Ctrl-C in 20 during the Monte Carlo). This process holds
-    # the pipe's last write end once the workers are gone: closing it ends that recv() with EOFError, which
-    # the manager thread treats as a broken pool and shuts down. (``_result_queue`` is private, as is
-    # ``_processes``; without it the old behaviour remains.)
-    writer = getattr(result_queue, "_writer", None)
-    if writer is not None and not any(process.is_alive() for process in processes):
-        try:
-            writer.close()
-        except OSError:  # pragma: no cover - already closed
-            pass
+    pool.shutdown(wait=True)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from robotcal.api import identify
 from robotcal.cli import app
 from robotcal.io import load_scenario, read_capture, read_parameters, write_parameters
 from robotcal.kinematics import ParameterSet
-from robotcal.workflow import identify_scenario
 
 runner = CliRunner()
 NOMINAL_KR5 = {
@@ -56,7 +56,7 @@ def test_cli_and_library_give_the_same_numbers(tmp_path):
     assert invoke("simulate", "thesis-laser-tracker", "--out", capture, "--seed", 7).exit_code == 0
     assert invoke("identify", capture, "-s", "thesis-laser-tracker", "-o", params).exit_code == 0
     scenario = load_scenario("thesis-laser-tracker")
-    library = identify_scenario(read_capture(capture), scenario).parameters
+    library = identify(read_capture(capture), scenario).parameters
     from_cli = read_parameters(params, scenario.robot)
     # the JSON stores degrees as floats: conversion round trip only
     np.testing.assert_allclose(from_cli.values, library.values, rtol=0, atol=1e-12)

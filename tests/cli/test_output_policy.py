@@ -14,6 +14,7 @@ import typer
 from rich.table import Table
 from typer.testing import CliRunner
 
+from robotcal.api import simulate
 from robotcal.cli import app
 from robotcal.cli._common import SEED_BOUND, console, error_console, handle_errors
 from robotcal.errors import InputError
@@ -30,7 +31,6 @@ from robotcal.io.output import (
     write_marker,
 )
 from robotcal.kinematics.model import ParameterSet
-from robotcal.workflow import simulate_scenario
 
 runner = CliRunner()
 
@@ -134,7 +134,7 @@ def test_forbidden_locations_even_with_force(where, tmp_path, monkeypatch):
 
 def test_robotcal_files_are_recognised_and_others_are_not(tmp_path):
     scenario = load_scenario("thesis-noise-free")
-    capture = simulate_scenario(scenario, seed=1).capture
+    capture = simulate(scenario, rng=1)
     write_capture(tmp_path / "c.csv", capture)
     write_parameters(tmp_path / "p.json", ParameterSet.nominal(scenario.robot), {"method": "test"})
     (tmp_path / "report.html").write_text('<html><head><meta name="generator" content="robotcal 1.0"></head>')
@@ -244,7 +244,7 @@ def test_an_interrupt_between_the_renames_restores_the_old_folder(tmp_path, monk
 def test_a_capture_with_target_and_u95_columns_is_recognised(tmp_path):
     """The optional ``target``/``u95_mm`` columns (robotcal import) keep a capture robotcal's own."""
     scenario = load_scenario("thesis-noise-free")
-    text = capture_to_csv(simulate_scenario(scenario, seed=1).capture).splitlines()
+    text = capture_to_csv(simulate(scenario, rng=1)).splitlines()
     tagged = [text[0] + ",target,u95_mm"] + [line + ",T1,0.025" for line in text[1:]]
     (tmp_path / "t.csv").write_text("\n".join(tagged) + "\n")
     assert is_robotcal_file(tmp_path / "t.csv")

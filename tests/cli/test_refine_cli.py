@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from robotcal.api import refine
 from robotcal.cli import app
 from robotcal.io import load_scenario, read_capture, read_parameters
-from robotcal.workflow import refine_scenario
 
 runner = CliRunner()
 
@@ -61,7 +61,7 @@ def test_refine_and_evaluate_end_to_end(tmp_path):
         assert len(provenance["convergence"]["rms_mm"]) >= 2
         # the CLI and the library give the same numbers
         loaded = load_scenario(scenario)
-        library = refine_scenario(read_capture(cal), loaded, read_parameters(cpa, loaded.robot), criterion=criterion)
+        library = refine(read_capture(cal), loaded, read_parameters(cpa, loaded.robot), criterion=criterion)
         np.testing.assert_allclose(read_parameters(out, loaded.robot).values, library.parameters.values, atol=1e-9)
     folder = tmp_path / "evaluation"
     result = invoke(

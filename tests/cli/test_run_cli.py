@@ -9,16 +9,17 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import robotcal.pipeline.stages as pipeline_stages
+import robotcal.api
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters
 from robotcal.io.builtins import read_toml
 from robotcal.io.robots import load_robot
+from robotcal.io.run_folder import STAGES
 from robotcal.io.scenario import scenario_from_dict
-from robotcal.pipeline import STAGES, plan_run
+from robotcal.pipeline import plan_run
+from robotcal.api import TABLE_5_8_READINGS_DEG, tcp_targets
 from robotcal.uncertainty.tcp import tcp_coordinates
-from robotcal.workflow import TABLE_5_8_READINGS_DEG, tcp_targets
 from thesis_data import thesis_tables
 
 runner = CliRunner()
@@ -176,7 +177,7 @@ def test_rerun_replaces_stage_folders(tmp_path, monkeypatch):
     def fail(*args, **kwargs):
         raise InputError("stop here")
 
-    monkeypatch.setattr(pipeline_stages, "evaluate_scenario", fail)
+    monkeypatch.setattr(robotcal.api, "evaluate", fail)
     # not robotcal's folder (no marker): refused, untouched
     result = invoke("run", "kr5-demo", "--draws", 2000, "--out", stale)
     assert result.exit_code == 2 and "--force" in result.output
@@ -227,16 +228,16 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
     def fail(*args, **kwargs):
         raise InputError("joint diagnostics exploded")
 
-    monkeypatch.setattr(pipeline_stages, "compute_joints", fail)
+    monkeypatch.setattr(robotcal.api, "diagnose_joints", fail)
     out = tmp_path / "demo"
     result = invoke("demo", "--out", out, "--draws", 2000, "--seed", 5)
     assert result.exit_code == 2
     text = result.output.replace("\n", " ")
     assert "stage 'joints' failed: joint diagnostics exploded" in text
-    for name in ("capture.csv", "validation.csv", "truth.json", "cpa/parameters.json"):
+    for name in ("capture.csv", "validation.csv", "truth.json", "cpa/parameters.json", "refine/points.json"):
         assert (out / name).is_file(), name
-    # joints runs right after identify (it needs only the capture; its figures are drawn while refine computes)
-    for name in ("joints", "refine", "evaluation", "uncertainty", "report.html"):
+    # the stages run in the method's order: joints after refine and evaluate, before the Monte Carlo
+    for name in ("joints", "uncertainty", "tcp", "report.html"):
         assert not (out / name).exists(), name
     record = json.loads((out / "run.json").read_text())
     assert record["scenario"]["name"] == "kr5-demo"
@@ -246,12 +247,12 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
     assert list(statuses.items()) == [
         ("simulate", "done"),
         ("identify", "done"),
+        ("refine", "done"),
+        ("evaluate", "done"),
         ("joints", "failed"),
-        ("refine", "pending"),
-        ("evaluate", "pending"),
         ("uncertainty", "pending"),
-        ("plan", "pending"),
         ("tcp", "pending"),
+        ("plan", "pending"),
         ("iso9283", "pending"),
         ("report", "pending"),
     ]

@@ -4,21 +4,18 @@ from __future__ import annotations
 
 import csv
 import json
-import multiprocessing
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import robotcal.cli.uncertainty as uncertainty_cli
+import robotcal.io.uncertainty_files as uncertainty_files
+from robotcal.api import monte_carlo_problem
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
 from robotcal.io.draws_npz import read_draws
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-from robotcal.workflow import scenario_monte_carlo
 
 runner = CliRunner()
 DESIGN_COLUMNS = ["name", "unit", "nominal", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max"]
@@ -53,7 +50,7 @@ def test_writes_the_documented_files(run_folder):
 def test_cli_numbers_equal_the_library(run_folder):
     out, _ = run_folder
     scenario = load_scenario("thesis-laser-tracker")
-    problem = scenario_monte_carlo(scenario)
+    problem = monte_carlo_problem(scenario)
     library = run_monte_carlo(problem, MonteCarloSettings(iterations=2000, interval="shortest"), seed=9)
     with (out / "parameters.csv").open() as stream:
         rows = {row["name"]: row for row in csv.DictReader(stream)}
@@ -104,7 +101,7 @@ def test_interrupted_run_leaves_no_output_folder(tmp_path, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(uncertainty_cli, "write_uncertainty_folder", interrupted)
+    monkeypatch.setattr(uncertainty_files, "write_uncertainty_folder", interrupted)
     out = tmp_path / "result"
     result = runner.invoke(
         app, ["uncertainty", "thesis-laser-tracker", "-n", "100", "--workers", "1", "--out", str(out)]
@@ -113,37 +110,7 @@ def test_interrupted_run_leaves_no_output_folder(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []  # neither the folder nor its hidden partial sibling
 
 
-# ------------------------------------------------------------------- the figure worker (issue 13: off the critical path)
-
-
-def _run_python(code: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-
-
-def test_importing_the_command_loads_no_numeric_module():
-    # the figure worker is forked when the command starts: what the module imports, both processes pay for
-    done = _run_python(
-        "import sys\nimport robotcal.cli.uncertainty\n"
-        "print(*sorted(m for m in ('numpy', 'scipy', 'matplotlib', 'pydantic', 'robotcal.io') if m in sys.modules))"
-    )
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == []
-
-
-@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="figures drawn here without fork")
-def test_the_histograms_are_drawn_outside_the_command_process(tmp_path):
-    out = tmp_path / "result"
-    done = _run_python(
-        "import atexit, sys\n"
-        "atexit.register(lambda: print('MATPLOTLIB', 'matplotlib' in sys.modules, file=sys.stderr))\n"
-        "from robotcal.cli import main\n"
-        f"sys.argv = ['robotcal', 'uncertainty', 'thesis-laser-tracker', '-n', '300', '--seed', '3', '--out', {str(out)!r}]\n"
-        "main()\n"
-    )
-    assert done.returncode == 0, done.stderr
-    assert "MATPLOTLIB False" in done.stderr
-    assert sorted(path.name for path in out.glob("hist_J*.png")) == [f"hist_J{i}.png" for i in range(1, 6)]
-    assert done.stdout.index("Monte Carlo uncertainty") < done.stdout.index("wrote")  # the table, then the folder
+# ----------------------------------------------------------------------------------------------- figures
 
 
 def test_a_figure_error_leaves_no_output_folder(tmp_path, monkeypatch):
@@ -152,7 +119,7 @@ def test_a_figure_error_leaves_no_output_folder(tmp_path, monkeypatch):
     def refuse(result, folder, **kwargs):
         raise InputError("cannot draw: no space left on the device")
 
-    monkeypatch.setattr(histograms, "write_histograms", refuse)  # the figure worker is forked with it
+    monkeypatch.setattr(histograms, "write_histograms", refuse)
     out = tmp_path / "result"
     result = runner.invoke(app, ["uncertainty", "thesis-laser-tracker", "-n", "200", "--workers", "1", "--out", str(out)])
     assert result.exit_code == 2, result.output

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from robotcal.api import measured_monte_carlo
 from robotcal.cli import app
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.targets import Target
@@ -24,8 +25,6 @@ from robotcal.io.uncertainty_files import read_uncertainty_csv
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
-from robotcal.uncertainty.measured import measured_monte_carlo
-from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
 runner = CliRunner()
 ROBOT = load_robot("abb-irb120")
@@ -94,9 +93,7 @@ def test_cli_numbers_equal_the_library(cell):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
         estimate = read_parameters(refined, scenario.robot)
-    library = measured_monte_carlo(
-        capture, scenario, estimate, MonteCarloSettings(iterations=30), seed=4, targets=read_targets(refined)
-    )
+    library = measured_monte_carlo(capture, scenario, estimate, draws=30, rng=4, offsets=read_targets(refined))
     rows = {row["name"]: row for row in read_uncertainty_csv(out / "parameters.csv")}
     u = library.parameters.summary.std_uncertainty
     for (i, k), flag in np.ndenumerate(library.parameters.identified):
@@ -134,7 +131,7 @@ def test_errors_name_the_problem(cell, tmp_path):
         warnings.simplefilter("ignore", IdentifiabilityWarning)
         said = invoke("uncertainty", "--capture", no_u95, "--params", refined, "--scenario", scenario, "-n", 25,
                       "--out", tmp_path / "b", code=2)  # fmt: skip
-    assert "no `u95_mm` column" in said and "no [instrument] table" in said
+    assert "no `u95_mm` column" in said and "[instrument] table" in said
     # parameters of another robot
     other = tmp_path / "other.json"
     document = json.loads(refined.read_text(encoding="utf-8"))

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robotcal.api import monte_carlo_problem
 from robotcal.io import load_scenario
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-from robotcal.workflow import scenario_monte_carlo
 from thesis_data import thesis_tables
 
 DRAWS = 20_000
@@ -22,7 +22,7 @@ PUBLISHED_DRAWS = 100_000  # the thesis's iteration count for Tables 5.6/5.7 (ch
 def igps():
     published = thesis_tables()["table_5_7_igps"]
     scenario = load_scenario("thesis-igps")
-    problem = scenario_monte_carlo(scenario)
+    problem = monte_carlo_problem(scenario)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=DRAWS, workers=2), seed=1, linearised=False)
     names = np.array(scenario.robot.parameter_names).reshape(scenario.robot.n_joints, 5)
     to_file = np.where(np.isin(np.arange(5), [1, 3, 4]), 180.0 / np.pi, 1.0)

@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from robotcal.api import identify, simulate
 from robotcal.io import load_scenario, write_capture, write_parameters
+from robotcal.io.provenance import cpa_provenance
 from robotcal.kinematics.model import ParameterSet
 from robotcal.plots.figures import new_figure, save_figure
-from robotcal.workflow import cpa_provenance, identify_scenario, simulate_scenario
 
 #: Synthetic standard uncertainties written to uncertainty/parameters.csv [mm or deg].
 U_LENGTH_MM = 0.012
@@ -117,12 +118,12 @@ def _statistics_json(rows: list[list], *, draws: int, model: str) -> dict:
 def make_run_folder(root: Path) -> Path:
     """Write a complete run folder under ``root`` (the file names and keys of docs/results.md); returns it."""
     scenario = load_scenario("thesis-laser-tracker")
-    run = simulate_scenario(scenario, seed=3)
-    validation = simulate_scenario(scenario, seed=4)
-    result = identify_scenario(run.capture, scenario)
-    write_capture(root / "capture.csv", run.capture)
-    write_capture(root / "validation.csv", validation.capture)
-    write_parameters(root / "cpa" / "parameters.json", result.parameters, cpa_provenance(result, run.capture, scenario))
+    capture = simulate(scenario, rng=3)
+    validation = simulate(scenario, rng=4)
+    result = identify(capture, scenario)
+    write_capture(root / "capture.csv", capture)
+    write_capture(root / "validation.csv", validation)
+    write_parameters(root / "cpa" / "parameters.json", result.parameters, cpa_provenance(result, capture, scenario=scenario))
     write_parameters(root / "truth.json", ParameterSet.nominal(scenario.robot), {"source": "nominal robot"})
     write_parameters(
         root / "refine" / "points.json",
@@ -130,8 +131,8 @@ def make_run_folder(root: Path) -> Path:
         {
             "method": "levenberg-marquardt",
             "criterion": "points",
-            "points": run.capture.n_points,
-            "residuals": 3 * run.capture.n_points,
+            "points": capture.n_points,
+            "residuals": 3 * capture.n_points,
             "residual_rms_mm": POINT_RMS_MM,
             "convergence": {"criterion": "points", "rms_mm": [0.13, CRITERION_RMS_MM]},
             "standard_uncertainty": {"J1.a": 0.00686, "J1.alpha": 0.0012},
@@ -283,15 +284,15 @@ def make_run_folder(root: Path) -> Path:
 
 
 def load_run(folder: Path):
-    """The RunResult of a run folder: ``robotcal.pipeline.folder.read_run`` where it exists, else a small
+    """The RunResult of a run folder: ``robotcal.io.run_folder.read_run`` where it exists, else a small
     loader of the tests' own (JSON -> dict, CSV -> Table, other files -> Path), without its checks."""
     try:
-        from robotcal.pipeline.folder import read_run
+        from robotcal.io.run_folder import read_run
     except ImportError:
         read_run = None
     if read_run is not None:
         return read_run(folder)
-    from robotcal.pipeline.result import RunResult, Table
+    from robotcal.io.run_folder import RunResult, Table
 
     documents = {}
     for path in sorted(p for p in Path(folder).rglob("*") if p.is_file() and not p.name.startswith(".")):

@@ -16,8 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from report_run import (
     BACKLASH_MM,
     CONSISTENCY_MM,
@@ -35,19 +33,10 @@ from report_run import (
 )
 
 from robotcal.errors import InputError
-from robotcal.pipeline.result import RunResult, Table
-from robotcal.pipeline.summary import Summary
-from robotcal.report.html import (
-    _CAPTIONS,
-    REPORT_NAME,
-    _all_numbers,
-    _fmt,
-    _label,
-    _length,
-    _number,
-    build_report,
-    render_report,
-)
+from robotcal.io.run_folder import RunResult, Table
+from robotcal.io.run_summary import Summary
+from robotcal.report.html import REPORT_NAME, build_report, render_report
+from robotcal.report.page import _CAPTIONS, _fmt, _label, _length
 
 SECTION_IDS = [
     "summary",
@@ -283,29 +272,6 @@ def test_number_formatting():
     assert _label("improvement_pct") == "improvement (%)" and _label("points") == "points"
 
 
-@settings(max_examples=300, deadline=None)
-@given(
-    st.lists(
-        st.one_of(
-            st.sampled_from(
-                ["", " 1.5 ", "\u20031e3\u2003", "1_000", "nan", "-inf", "1e999", "0x10", "1,5", "12 mm", "1\x1f", "\x1c2"]
-            ),
-            st.text(alphabet=" \t\u00a0\u2003\x1c\x1f0123456789.eE+-_infa\u0661", max_size=8),
-            st.floats(allow_nan=True),
-            st.integers(),
-            st.booleans(),
-            st.none(),
-        ),
-        max_size=6,
-    )
-)
-def test_a_numeric_column_is_one_whose_every_cell_is_a_number(cells):
-    """The fast test of a column (``float`` on text cells) against its definition through ``_number``."""
-    present = [cell for cell in cells if cell != ""]
-    expected = bool(present) and all(_number(cell) is not None for cell in present)
-    assert _all_numbers(cells) == expected
-
-
 def test_page_text_is_escaped(run_folder):
     result = load_run(run_folder)
     record = {**result.record, "robot": "<b>robot</b>", "notes": ["<script>alert(1)</script>"]}
@@ -456,7 +422,7 @@ def test_out_elsewhere(run_folder, tmp_path):
 
 def test_angle_differences_are_within_a_half_turn():
     """"CPA − truth" of an angle near ±180 deg: two values a turn apart differ by their error, not 360 deg."""
-    from robotcal.report.html import _difference
+    from robotcal.report.page import _difference
 
     assert _difference("J5.theta", 179.74, -179.92) == pytest.approx(-0.34, abs=1e-9)
     assert _difference("J5.theta", 179.74, 180.08) == pytest.approx(-0.34, abs=1e-9)

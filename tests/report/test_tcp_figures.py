@@ -6,13 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robotcal.api import simulate
 from robotcal.diagnostics import analyze_joints, fit_harmonics
 from robotcal.errors import InputError
 from robotcal.io import load_robot, load_scenario
-from robotcal.plots.figures import plt
 from robotcal.plots.tcp import plot_tcp_histograms, plot_tcp_scatter
 from robotcal.uncertainty.tcp import propagate_to_tcp
-from robotcal.workflow import simulate_scenario
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
 
@@ -27,24 +26,15 @@ def test_figures_of_draws_need_keep_draws(plot, tmp_path):
     assert not (tmp_path / "figure.png").exists()
 
 
-def test_joint_figures_on_one_reused_figure_equal_separate_figures(tmp_path, monkeypatch):
+def test_joint_figures_are_written_and_show_the_noise_floor(tmp_path, monkeypatch):
     import robotcal.plots.joints as joints_figures
 
     demo = load_scenario("kr5-demo")
-    diagnostics = analyze_joints(simulate_scenario(demo, seed=3).capture)
+    diagnostics = analyze_joints(simulate(demo, rng=3))
     model = fit_harmonics(diagnostics, order=2)
-    reused, separate = tmp_path / "reused", tmp_path / "separate"
-    reused.mkdir()
-    separate.mkdir()
-    written = joints_figures.write_joint_figures(diagnostics, reused, model=model)
+    written = joints_figures.write_joint_figures(diagnostics, tmp_path, model=model)
     assert [path.name for path in written] == list(joints_figures.FIGURE_NAMES)
-    joints_figures.plot_backlash_vectors(diagnostics, separate / "backlash_vectors.png")
-    joints_figures.plot_backlash_xyz(diagnostics, separate / "backlash_xyz.png")
-    joints_figures.plot_backlash_magnitude(diagnostics, separate / "backlash_magnitude.png")
-    for kind in ("axial", "radial"):
-        joints_figures.plot_eccentricity(diagnostics, separate / f"eccentricity_{kind}.png", kind=kind, model=model)
-    for name in joints_figures.FIGURE_NAMES:
-        assert (reused / name).read_bytes() == (separate / name).read_bytes(), name
+    assert all(path.read_bytes().startswith(b"\x89PNG") for path in written)
     # the noise floor is drawn (a dashed line per joint with pairs) and labelled in the figure legend
     drawn = []
     monkeypatch.setattr(joints_figures, "save_figure", lambda figure, path: drawn.append(figure) or path)
@@ -55,23 +45,3 @@ def test_joint_figures_on_one_reused_figure_equal_separate_figures(tmp_path, mon
     floors = {round(c.backlash_noise_floor * 1000.0, 9) for c in diagnostics.circles}
     dashed = {round(line.get_ydata()[0], 9) for axis in figure.axes for line in axis.lines if line.get_linestyle() == "--"}
     assert floors <= dashed
-    plt.close(figure)
-
-
-def test_monte_carlo_histograms_on_reused_figures_equal_new_figures(tmp_path, monkeypatch):
-    import robotcal.plots.montecarlo as histograms
-    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-    from robotcal.workflow import scenario_monte_carlo
-
-    problem = scenario_monte_carlo(load_scenario("thesis-laser-tracker"))
-    result = run_monte_carlo(problem, MonteCarloSettings(iterations=500, keep_draws=True), seed=1)
-    folders = {}
-    for reuse in (False, True):
-        monkeypatch.setattr(histograms, "_REUSE_FIGURES", reuse)
-        folders[reuse] = tmp_path / str(reuse)
-        folders[reuse].mkdir()
-        histograms.write_histograms(result, folders[reuse])
-    names = sorted(path.name for path in folders[False].iterdir())
-    assert len(names) == 5  # J1..J5, 4 identified parameters each (J6: none): one grid, reused four times
-    for name in names:
-        assert (folders[True] / name).read_bytes() == (folders[False] / name).read_bytes(), name

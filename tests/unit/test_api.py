@@ -49,6 +49,20 @@ def _fresh_modules(code: str) -> list[str]:
 # ------------------------------------------------------------------------------------------ namespace
 
 
+def _stub_names() -> dict[str, str]:
+    """Public name -> defining module, as robotcal/__init__.pyi lists them (the one list)."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse((Path(robotcal.__file__).parent / "__init__.pyi").read_text())
+    return {
+        alias.asname or alias.name: f"robotcal.{node.module}"
+        for node in tree.body
+        if isinstance(node, ast.ImportFrom)
+        for alias in node.names
+    }
+
+
 def test_import_robotcal_imports_nothing_heavy():
     loaded = _fresh_modules(
         "import sys, robotcal\n"
@@ -58,63 +72,39 @@ def test_import_robotcal_imports_nothing_heavy():
     assert loaded == ["robotcal"]
 
 
-def test_a_name_imports_only_what_it_needs():
-    # the errors module needs no numpy; a Capture needs numpy but not the I/O layer (pydantic)
+def test_a_name_imports_its_module_on_first_use():
     loaded = _fresh_modules(
         "import sys, robotcal\n"
         "robotcal.InputError\n"
-        "print('numpy' in sys.modules)\n"
-        "robotcal.Capture\n"
-        "print('numpy' in sys.modules, 'pydantic' in sys.modules, 'robotcal.api' in sys.modules)\n"
-        "robotcal.simulate\n"  # the front door loads the Monte Carlo engine only when monte_carlo runs
-        "print('robotcal.api' in sys.modules, 'robotcal.uncertainty.montecarlo' in sys.modules)\n"
+        "print('numpy' in sys.modules, 'robotcal.api' in sys.modules)\n"
+        "robotcal.identify\n"
+        "print('robotcal.api' in sys.modules)\n"
     )
-    assert loaded == ["False", "True", "False", "False", "True", "False"]
+    assert loaded == ["False", "False", "True"]
 
 
-def test_every_public_name_resolves_and_is_listed_by_dir():
-    for name in robotcal.__all__:
-        value = getattr(robotcal, name)
-        module = robotcal._EXPORTS.get(name)
-        if module is not None:
-            assert value is getattr(importlib.import_module(module), name)
+def test_every_public_name_resolves_to_its_stub_entry_and_is_listed():
+    names = _stub_names()
+    assert set(robotcal.__all__) == {*names, "__version__"}
+    for name, module in names.items():
+        assert getattr(robotcal, name) is getattr(importlib.import_module(module), name), name
         assert name in dir(robotcal)
-    assert robotcal.run_calibration is importlib.import_module("robotcal.pipeline.run").run_calibration
 
 
 def test_the_front_door_names():
     expected = {
-        "load_scenario",
-        "load_robot",
-        "simulate",
-        "identify",
-        "refine",
-        "monte_carlo",
-        "tcp_uncertainty",
-        "evaluate",
-        "plan_run",
-        "run_calibration",
-        "read_run",
-        "render_report",
-        "RunResult",
-        "ParameterSet",
-        "RobotModel",
-        "Capture",
-        "read_capture",
-        "write_capture",
-        "read_parameters",
-        "write_parameters",
-        "InputError",
-        "__version__",
-    }
+        "load_scenario", "load_robot", "simulate", "simulate_validation", "identify", "refine", "evaluate",
+        "diagnose_joints", "monte_carlo", "tcp_uncertainty", "workspace_uncertainty", "plan_run", "run_calibration",
+        "read_run", "render_report", "RunResult", "ParameterSet", "RobotModel", "Capture", "Target", "Instrument",
+        "read_capture", "write_capture", "read_parameters", "write_parameters", "InputError", "__version__",
+    }  # fmt: skip
     assert expected <= set(robotcal.__all__)
     assert len(robotcal.__all__) == len(set(robotcal.__all__))
 
 
 def test_unknown_name_is_an_attribute_error():
-    with pytest.raises(AttributeError, match="module 'robotcal' has no attribute 'calibrate'"):
+    with pytest.raises(AttributeError, match="calibrate"):
         robotcal.calibrate  # noqa: B018
-    assert not hasattr(robotcal.uncertainty, "no_such_function")
 
 
 @pytest.mark.parametrize("package", SUB_PACKAGES)
@@ -133,23 +123,6 @@ def test_sub_package_all_is_complete_and_resolves(package):
             assert getattr(pkg, name) is getattr(module, name)
     for name in pkg.__all__:
         getattr(pkg, name)
-        assert name in dir(pkg)
-
-
-def test_star_import_of_a_lazy_package():
-    namespace: dict = {}
-    exec("from robotcal.uncertainty import *", namespace)
-    assert namespace["propagate_to_tcp"] is importlib.import_module("robotcal.uncertainty.tcp").propagate_to_tcp
-
-
-def test_lazy_sub_packages_stay_light():
-    # the TCP propagation does not pull the Monte Carlo engine in; the planning package not the I/O layer
-    loaded = _fresh_modules(
-        "import sys\n"
-        "import robotcal.uncertainty.tcp, robotcal.planning\n"
-        "print(*sorted(m for m in ('robotcal.uncertainty.montecarlo', 'robotcal.io', 'pydantic') if m in sys.modules))\n"
-    )
-    assert loaded == []
 
 
 # ----------------------------------------------------------------------------------------------- rng
@@ -169,7 +142,7 @@ def test_seed_from():
             api.seed_from(bad)
 
 
-# -------------------------------------------------------------------------------------------- wrappers
+# ----------------------------------------------------------------------------- explicit objects or a scenario
 
 
 @pytest.fixture(scope="module")
@@ -187,19 +160,34 @@ def capture(scenario, truth):
     return robotcal.simulate(scenario, rng=3, true_parameters=truth)
 
 
-def test_perturb_and_simulate_are_the_workflow_calls(scenario, truth, capture):
-    from robotcal.workflow import scenario_truth, simulate_scenario, simulate_validation
-
-    expected_truth, _ = scenario_truth(scenario, seed=11)
-    np.testing.assert_array_equal(truth.values, expected_truth.values)
-    expected = simulate_scenario(scenario, seed=3, true_parameters=truth).capture
-    np.testing.assert_array_equal(capture.points, expected.points)
-    np.testing.assert_array_equal(capture.readings, expected.readings)
-    assert capture.seed == 3
-    validation = robotcal.simulate(scenario, rng=4, true_parameters=truth, validation=True)
-    np.testing.assert_array_equal(
-        validation.points, simulate_validation(scenario, seed=4, true_parameters=truth).capture.points
+def test_simulate_explicit_objects_equal_the_scenario(scenario, truth, capture):
+    explicit = robotcal.simulate(
+        scenario.robot,
+        scenario.plan,
+        instrument=scenario.instrument,
+        tracker_from_base=scenario.tracker_from_base,
+        true_parameters=truth,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
+        rng=3,
     )
+    np.testing.assert_array_equal(explicit.points, capture.points)
+    np.testing.assert_array_equal(explicit.readings, capture.readings)
+    assert capture.seed == 3
+    with pytest.raises(InputError, match="`plan` is needed"):
+        robotcal.simulate(scenario.robot, instrument=scenario.instrument, joint_limits="ignore")
+    validation = robotcal.simulate_validation(scenario, rng=4, true_parameters=truth)
+    explicit = robotcal.simulate_validation(
+        scenario.robot,
+        target=api.validation_target(scenario),
+        poses=scenario.validation.poses,
+        instrument=scenario.instrument,
+        tracker_from_base=scenario.tracker_from_base,
+        true_parameters=truth,
+        rng=4,
+    )
+    np.testing.assert_array_equal(explicit.points, validation.points)
+    assert validation.n_points == 100 and int(validation.circle.max()) == 0
 
 
 def test_simulate_seeds(scenario):
@@ -207,47 +195,71 @@ def test_simulate_seeds(scenario):
     assert robotcal.simulate(scenario).seed == scenario.seed == 1
     # a Generator gives the seed rng.integers(2**63), recorded by the capture
     drawn = int(np.random.default_rng(8).integers(2**63))
-    capture = robotcal.simulate("kr5-demo", rng=np.random.default_rng(8))
+    capture = robotcal.simulate(scenario, rng=np.random.default_rng(8))
     assert capture.seed == drawn
     np.testing.assert_array_equal(capture.points, robotcal.simulate(scenario, rng=drawn).points)
 
 
 @DATA_QUALITY_WARNINGS
-def test_identify_accepts_a_capture_file(scenario, capture, tmp_path):
-    path = robotcal.write_capture(tmp_path / "capture.csv", capture)
-    from_file = robotcal.identify(path, "kr5-demo")
+def test_identify_explicit_objects_equal_the_scenario(scenario, capture, tmp_path):
     in_memory = robotcal.identify(capture, scenario)
+    explicit = robotcal.identify(
+        capture,
+        scenario.robot,
+        target=scenario.plan.reflector,
+        tracker_from_base=scenario.tracker_from_base,
+        options=scenario.identification,
+        instrument=scenario.instrument,
+    )
+    np.testing.assert_array_equal(explicit.parameters.values, in_memory.parameters.values)
+    assert explicit.health == in_memory.health and in_memory.health.verdict == "OK"
+    # without a base frame the base is registered (the robot's frame in the tracker's is then estimated)
+    registered = robotcal.identify(capture, scenario.robot, target=scenario.plan.reflector)
+    assert registered.options.base_frame == "registered" and registered.registration_rms is not None
+    assert registered.health.verdict == "NOT CHECKED"  # no instrument, no U(95): nothing to compare with
+    path = robotcal.write_capture(tmp_path / "capture.csv", capture)
+    from_file = robotcal.identify(path, scenario)
     # the CSV holds 12 decimals of mm and deg: the identified values agree far below the 10 um noise
     np.testing.assert_allclose(from_file.parameters.values, in_memory.parameters.values, rtol=0, atol=1e-8)
-    from robotcal.workflow import identify_scenario
-
-    np.testing.assert_array_equal(in_memory.parameters.values, identify_scenario(capture, scenario).parameters.values)
+    with pytest.raises(InputError, match="`target` is needed"):
+        robotcal.identify(capture, scenario.robot)
+    with pytest.raises(InputError, match="`robot` must be a RobotModel"):
+        robotcal.identify(capture, "kr5-demo")
 
 
 @DATA_QUALITY_WARNINGS
-def test_refine_start_forms_agree(scenario, capture, tmp_path):
+def test_refine_start_forms_and_explicit_objects_agree(scenario, capture, tmp_path):
     cpa = robotcal.identify(capture, scenario)
     path = robotcal.write_parameters(tmp_path / "cpa.json", cpa.parameters)
-    from_result = robotcal.refine(capture, cpa, scenario)
-    from_set = robotcal.refine(capture, cpa.parameters, scenario)
-    from_file = robotcal.refine(capture, path, scenario)
-    from robotcal.workflow import refine_scenario
-
-    expected = refine_scenario(capture, scenario, cpa.parameters, criterion="points")
+    expected = robotcal.refine(capture, scenario, cpa.parameters, criterion="points")
+    from_result = robotcal.refine(capture, scenario, cpa)
+    from_file = robotcal.refine(capture, scenario, path)
+    explicit = robotcal.refine(
+        capture,
+        scenario.robot,
+        cpa,
+        targets=scenario.plan.reflector,
+        tracker_from_base=scenario.tracker_from_base,
+        instrument=scenario.instrument,
+    )
     np.testing.assert_array_equal(from_result.parameters.values, expected.parameters.values)
-    np.testing.assert_array_equal(from_set.parameters.values, expected.parameters.values)
+    np.testing.assert_array_equal(explicit.parameters.values, expected.parameters.values)
+    assert explicit.health == expected.health
     # the JSON stores 12 significant digits of mm/deg: the refinement converges to the same point
     np.testing.assert_allclose(from_file.parameters.values, expected.parameters.values, rtol=0, atol=1e-7)
     with pytest.raises(InputError, match="`start` must be a ParameterSet"):
-        robotcal.refine(capture, np.zeros((6, 5)), scenario)
+        robotcal.refine(capture, scenario, np.zeros((6, 5)))
+    with pytest.raises(InputError, match="`targets` is needed"):
+        robotcal.refine(capture, scenario.robot, cpa)
 
 
 def test_evaluate(scenario, truth, capture):
-    from robotcal.workflow import evaluate_scenario
-
     nominal = robotcal.ParameterSet.nominal(scenario.robot)
     rows = robotcal.evaluate(capture, {"nominal": None, "truth": truth}, scenario)
-    assert rows == evaluate_scenario(scenario, {"capture": capture}, {"nominal": nominal, "truth": truth})
+    explicit = robotcal.evaluate(
+        {"capture": capture}, {"nominal": nominal, "truth": truth}, scenario.robot, targets=scenario.plan.reflector
+    )
+    assert rows == explicit
     # the true parameters explain the capture up to its noise and the joint errors (tens of um)
     truth_points = [r for r in rows if r.parameter_set == "truth" and r.view == "points"][0]
     assert truth_points.mean_error_mm < 0.05
@@ -259,18 +271,37 @@ def test_evaluate(scenario, truth, capture):
 
 @pytest.fixture(scope="module")
 def laser_tracker_mc():
-    return robotcal.monte_carlo("thesis-laser-tracker", draws=120, rng=5)
+    return robotcal.monte_carlo(robotcal.load_scenario("thesis-laser-tracker"), draws=120, rng=5)
 
 
-def test_monte_carlo_is_the_core_call(laser_tracker_mc):
-    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-    from robotcal.workflow import scenario_monte_carlo
+def test_monte_carlo_is_the_core_call_with_the_scenarios_objects(laser_tracker_mc):
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
 
     scenario = robotcal.load_scenario("thesis-laser-tracker")
-    expected = run_monte_carlo(scenario_monte_carlo(scenario), MonteCarloSettings(iterations=120), seed=5)
+    problem = prepare_monte_carlo(
+        scenario.robot,
+        scenario.plan,
+        scenario.instrument,
+        scenario.tracker_from_base,
+        options=scenario.identification,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
+    )
+    expected = run_monte_carlo(problem, MonteCarloSettings(iterations=120), seed=5)
     np.testing.assert_array_equal(laser_tracker_mc.draws, expected.draws)
     assert laser_tracker_mc.seed == 5 and laser_tracker_mc.settings.coverage == scenario.montecarlo.coverage
     assert laser_tracker_mc.linearised is not None
+    explicit = robotcal.monte_carlo(
+        scenario.robot,
+        plan=scenario.plan,
+        instrument=scenario.instrument,
+        tracker_from_base=scenario.tracker_from_base,
+        options=scenario.identification,
+        joint_limits=scenario.joint_limits,
+        draws=120,
+        rng=5,
+    )
+    np.testing.assert_array_equal(explicit.draws, expected.draws)
 
 
 def test_monte_carlo_centred_on_given_parameters(scenario, truth):
@@ -295,7 +326,7 @@ def test_tcp_uncertainty_converts_degrees(laser_tracker_mc, tmp_path):
 
     robot = laser_tracker_mc.robot
     poses_deg = np.array([[10.0, 20.0, 30.0, 40.0, 50.0, 60.0], [0.0, 45.0, 90.0, 0.0, 45.0, 0.0]])
-    result = robotcal.tcp_uncertainty("kuka-kr5-sixx-r650", laser_tracker_mc, poses_deg, tool_mm=[0, 0, 50])
+    result = robotcal.tcp_uncertainty(robot, laser_tracker_mc, poses_deg, tool_mm=[0, 0, 50])
     expected = propagate_to_tcp(robot, laser_tracker_mc.draws, np.deg2rad(poses_deg), tool=[0.0, 0.0, 50.0])
     np.testing.assert_array_equal(result.std_uncertainty, expected.std_uncertainty)
     np.testing.assert_allclose(np.rad2deg(result.readings), poses_deg, rtol=0, atol=1e-12)
@@ -312,9 +343,9 @@ def test_tcp_uncertainty_errors(laser_tracker_mc):
 
     without = dataclasses.replace(laser_tracker_mc, draws=None)
     with pytest.raises(InputError, match="kept no draws"):
-        robotcal.tcp_uncertainty("kuka-kr5-sixx-r650", without, [0.0] * 6)
+        robotcal.tcp_uncertainty(laser_tracker_mc.robot, without, [0.0] * 6)
     with pytest.raises(InputError, match=r"shape \(n_draws, 6, 5\)"):
-        robotcal.tcp_uncertainty("kuka-kr5-sixx-r650", np.zeros((10, 6)), [0.0] * 6)
+        robotcal.tcp_uncertainty(laser_tracker_mc.robot, np.zeros((10, 6)), [0.0] * 6)
     with pytest.raises(InputError, match="`robot` must be"):
         robotcal.tcp_uncertainty(3, laser_tracker_mc, [0.0] * 6)
     # draws of another model (here: J1.d 1 mm longer) are refused, not propagated through the wrong robot
@@ -325,7 +356,8 @@ def test_tcp_uncertainty_errors(laser_tracker_mc):
     with pytest.raises(InputError, match="whose model differs from robot 'other'"):
         robotcal.tcp_uncertainty(other, laser_tracker_mc, [0.0] * 6)
     # the controller-reading robot shares the model: accepted
-    krc = robotcal.tcp_uncertainty("kuka-kr5-sixx-r650-krc", laser_tracker_mc, [10.0, -80.0, 45.0, 0.0, 30.0, 0.0])
+    krc_robot = robotcal.load_robot("kuka-kr5-sixx-r650-krc")
+    krc = robotcal.tcp_uncertainty(krc_robot, laser_tracker_mc, [10.0, -80.0, 45.0, 0.0, 30.0, 0.0])
     assert krc.n_poses == 1
 
 
@@ -351,8 +383,11 @@ def test_check_plan_is_the_cell_check(scenario):
     assert result.circles == expected.circles
 
 
-def test_scenario_arguments():
-    with pytest.raises(InputError, match="unknown scenario 'no-such-scenario'"):
-        robotcal.simulate("no-such-scenario")
-    with pytest.raises(InputError, match="`scenario` must be a Scenario"):
-        robotcal.simulate(42)
+def test_check_plan_explicit_cell(scenario):
+    from robotcal.planning.scenario import cell_from_scenario
+
+    cell, _ = cell_from_scenario(scenario)
+    explicit = robotcal.check_plan(scenario.robot, scenario.plan, cell=cell)
+    np.testing.assert_array_equal(explicit.failures, robotcal.check_plan(scenario).failures)
+    with pytest.raises(InputError, match="`plan` and `cell` are needed"):
+        robotcal.check_plan(scenario.robot, scenario.plan)

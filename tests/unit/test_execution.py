@@ -9,11 +9,11 @@ import time
 import numpy as np
 import pytest
 
+from robotcal.api import monte_carlo_problem
 from robotcal.errors import InputError
-from robotcal.execution import SCHEDULER_ENV, open_executor
+from robotcal.execution import SCHEDULER_ENV, check_stop, open_executor
 from robotcal.io import load_scenario
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-from robotcal.workflow import scenario_monte_carlo
 
 
 def _square(x):
@@ -25,7 +25,10 @@ def _pid(_):
 
 
 def _slow(x):
-    time.sleep(30)
+    """A 30 s task that checks for a stop between its steps, as the Monte Carlo blocks do."""
+    for _ in range(3000):
+        check_stop()
+        time.sleep(0.01)
     return x
 
 
@@ -71,34 +74,20 @@ def test_an_exception_terminates_the_workers_promptly(monkeypatch, error):
             time.sleep(0.2)
             raise error
     assert pids and not _wait_dead(pids), "a worker outlived the pool"
-    assert time.monotonic() - began < 10.0  # no wait for the 30 s tasks
+    assert time.monotonic() - began < 10.0  # no wait for the 30 s tasks: they stop at their next check
 
 
-def test_a_worker_stopped_while_sending_its_result_does_not_hang_the_exit(monkeypatch):
-    """A worker killed in the middle of sending a result leaves half a message in the pool's result pipe; the
-    pool's manager thread waited for the rest for ever and the interpreter's exit, which joins it, hung (a
-    slow signal test caught it about once in 20 Ctrl-Cs). Half a message is written here by hand."""
-    import struct
-
-    monkeypatch.delenv(SCHEDULER_ENV, raising=False)
-    with pytest.raises(KeyboardInterrupt):  # noqa: PT012 - the pool must be torn down by the exception
-        with open_executor(workers=2) as pool:
-            assert list(pool.map(_square, range(2))) == [0, 1]  # workers and the manager thread are up
-            manager = pool._pool._executor_manager_thread
-            writer = pool._pool._result_queue._writer
-            writer._send(struct.pack("!i", 1000) + b"x" * 10)  # a header announcing 1000 bytes, then 10
-            time.sleep(0.2)  # the manager thread is now in recv(), waiting for 990 more bytes
-            raise KeyboardInterrupt
-    manager.join(timeout=10.0)
-    assert not manager.is_alive(), "the pool's manager thread still waits on the result pipe"
-
-
-def test_workers_ignore_sigint(monkeypatch):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_workers_leave_signals_to_the_parent(monkeypatch, signum):
     monkeypatch.delenv(SCHEDULER_ENV, raising=False)
     with open_executor(workers=2) as pool:
         pid = next(iter(pool.map(_pid, [0])))
-        os.kill(pid, signal.SIGINT)
+        os.kill(pid, signum)
         assert list(pool.map(_square, range(4))) == [0, 1, 4, 9]
+
+
+def test_check_stop_does_nothing_outside_a_stopping_pool():
+    check_stop()  # in this (parent) process: no pool, no stop
 
 
 def test_bad_arguments_are_refused(monkeypatch):
@@ -114,7 +103,7 @@ def test_bad_arguments_are_refused(monkeypatch):
 def test_same_seed_bit_identical_statistics_serial_processes_and_dask(monkeypatch):
     distributed = pytest.importorskip("distributed")
     monkeypatch.delenv(SCHEDULER_ENV, raising=False)
-    problem = scenario_monte_carlo(load_scenario("thesis-laser-tracker"))
+    problem = monte_carlo_problem(load_scenario("thesis-laser-tracker"))
 
     def run(workers, scheduler=None):
         settings = MonteCarloSettings(

@@ -7,11 +7,11 @@ import dataclasses
 import numpy as np
 import pytest
 
+from robotcal.api import simulate_validation, validation_consistency, validation_target
 from robotcal.instruments import Instrument
 from robotcal.io import load_scenario
 from robotcal.kinematics.forward import target_positions
 from robotcal.simulation.perturb import perturb_parameters
-from robotcal.workflow import simulate_validation, validation_consistency, validation_reflector
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +19,7 @@ def case():
     scenario = load_scenario("kr5-demo")
     noise_free = dataclasses.replace(scenario, instrument=Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0))
     truth = perturb_parameters(scenario.robot, length_sd_mm=0.2, angle_sd_deg=0.05, rng=4)
-    validation = simulate_validation(noise_free, seed=3, true_parameters=truth).capture
+    validation = simulate_validation(noise_free, rng=3, true_parameters=truth)
     return scenario, noise_free, truth, validation
 
 
@@ -32,9 +32,9 @@ def test_closed_form_for_a_base_rotation_spread(case):
     rng = np.random.default_rng(0)
     draws = np.repeat(truth.values[None], 4000, axis=0)
     draws[:, 0, 1] += rng.normal(0.0, s, 4000)
-    result = validation_consistency(noise_free, validation, truth, draws, model="test")
+    result = validation_consistency(validation, truth, draws, noise_free, model="test")
     q = noise_free.robot.model_joint_variables(validation.readings)
-    points = target_positions(truth.values, q, np.zeros(validation.n_points, int), validation_reflector(noise_free))
+    points = target_positions(truth.values, q, np.zeros(validation.n_points, int), validation_target(noise_free))
     radius2 = points[:, 0] ** 2 + points[:, 1] ** 2
     sample_s = draws[:, 0, 1].std(ddof=1)  # the draws' own spread, so the check is exact, not statistical
     np.testing.assert_allclose(result["predicted_rms_mm"], sample_s * np.sqrt(radius2.mean()), rtol=1e-4)
@@ -49,7 +49,7 @@ def test_closed_form_for_a_base_rotation_spread(case):
 def test_instrument_term_is_the_uniform_noise_variance(case):
     scenario, _, truth, validation = case
     draws = np.repeat(truth.values[None], 100, axis=0)  # no parameter spread
-    result = validation_consistency(scenario, validation, truth, draws, model="test")
+    result = validation_consistency(validation, truth, draws, scenario, model="test")
     # uniform +-U per coordinate: variance U^2/3 per coordinate, 3 coordinates -> U^2 per point
     bound = scenario.instrument.error_bound(np.asarray(validation.points))
     assert result["predicted_rms_mm"] == pytest.approx(0.0, abs=1e-12)

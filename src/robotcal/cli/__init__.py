@@ -18,7 +18,6 @@ from importlib import import_module
 from typing import Annotated, NamedTuple
 
 import typer
-from typer._click.exceptions import UsageError  # the click that Typer vendors and raises
 from typer.core import TyperGroup
 
 
@@ -93,15 +92,14 @@ class LazyCommandGroup(TyperGroup):
             formatter.write_dl([(name, entry.help) for name, entry in COMMANDS.items()])
 
     def resolve_command(self, ctx, args):
-        try:
-            return super().resolve_command(ctx, args)
-        except UsageError as error:  # "Did you mean": Typer's suggestions look at self.commands, empty here
+        if args and args[0] not in COMMANDS and not args[0].startswith("-"):
+            # "Did you mean": Typer's own suggestions look at self.commands, empty here
             from difflib import get_close_matches
 
-            matches = get_close_matches(args[0], list(COMMANDS)) if args else []
-            if matches:
-                error.message = f"{error.message.rstrip('.')}. Did you mean {', '.join(map(repr, matches))}?"
-            raise
+            matches = get_close_matches(args[0], list(COMMANDS))
+            hint = f" Did you mean {', '.join(map(repr, matches))}?" if matches else ""
+            ctx.fail(f"No such command {args[0]!r}.{hint}")
+        return super().resolve_command(ctx, args)
 
 
 app = typer.Typer(
@@ -135,25 +133,9 @@ def _robotcal(
 
 
 def main() -> None:
-    """The ``robotcal`` command in this process: one BLAS thread and a steadier allocator
-    (:func:`~robotcal.cli._common.tune_numeric_runtime`); SIGTERM and SIGINT become clean interrupts
-    (exit 143 / 130). Ends with ``SystemExit``, which a caller may catch: the process goes on as usual."""
-    from robotcal.cli._common import install_signal_handlers, tune_numeric_runtime
+    """The ``robotcal`` command (the console script): SIGTERM and SIGHUP become clean interrupts (exit 143 /
+    129, as SIGINT's 130), with every cleanup run (:func:`~robotcal.cli._common.install_signal_handlers`)."""
+    from robotcal.cli._common import install_signal_handlers
 
-    tune_numeric_runtime()  # before any command module imports numpy
     install_signal_handlers()
     app()
-
-
-def entry() -> None:
-    """The ``robotcal`` console script: :func:`main`, then the process ends without the interpreter's teardown
-    once every exit handler has run (:func:`~robotcal.cli._common.end_without_teardown`), with the command's
-    exit status. For the script only: a Python caller of :func:`main` keeps its own status and teardown."""
-    from robotcal.cli._common import end_without_teardown, record_exit_status
-
-    end_without_teardown()  # before any module registers an exit handler of its own
-    try:
-        main()
-    except SystemExit as exc:  # the status Typer (and robotcal's handlers) give
-        record_exit_status(exc.code)
-        raise

@@ -20,12 +20,11 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from robotcal.errors import InputError, RobotcalError
-from robotcal.pipeline.runtime import (  # noqa: F401  (re-exported: the commands import them from here)
+from robotcal.errors import InputError, RobotcalError, Terminated
+from robotcal.limits import (  # noqa: F401  (re-exported: the commands import them from here)
     BYTES_PER_POSE,
     FALLBACK_MEMORY,
     SEED_BOUND,
-    Terminated,
     available_memory,
     check_memory,
     monte_carlo_bytes,
@@ -69,9 +68,11 @@ FORCE_HELP = (
     "Replace an existing output that robotcal did not write (never an input of the command, "
     "the home folder, / or the current folder)."
 )
-#: Exit status after SIGINT (Ctrl-C) and SIGTERM: 128 + the signal number, as shells report them.
+#: Exit status after SIGINT (Ctrl-C), SIGHUP and SIGTERM: 128 + the signal number, as shells report them.
 EXIT_INTERRUPTED = 130
-EXIT_TERMINATED = 143
+EXIT_STATUS = {"SIGHUP": 129, "SIGTERM": 143}
+
+
 def command_app(**settings) -> typer.Typer:
     """A command module's Typer application, ``app = command_app()``, on which the module registers its
     command(s) (``@app.command()``); :data:`robotcal.cli.COMMANDS` names the module for each command.
@@ -101,121 +102,33 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     _error_console().print(_line("warning:", "yellow", message), highlight=False)
 
 
-def _on_sigterm(signum, frame):
-    if os.getpid() != _MAIN_PID[0]:  # a forked worker: die as the signal asks
+def _on_signal(signum, frame):
+    """SIGTERM or SIGHUP in the main process: raise :class:`Terminated` so that every cleanup runs (run.json
+    records the interruption, locks and temporary folders are removed); in a forked worker: die as asked."""
+    if os.getpid() != _MAIN_PID[0]:
         signal.signal(signum, signal.SIG_DFL)
         os.kill(os.getpid(), signum)
         return
     # one interrupt is enough: a second signal must not break the cleanup the first one started
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    raise Terminated()
+    for name in EXIT_STATUS:
+        signal.signal(getattr(signal, name), signal.SIG_IGN)
+    raise Terminated(signal.Signals(signum).name)
 
 
 _MAIN_PID = [os.getpid()]
 
 
-#: Thread-count variables of the BLAS / OpenMP libraries numpy and scipy may load.
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
-
-
-def limit_blas_threads() -> None:
-    """One BLAS / OpenMP thread (:data:`BLAS_THREAD_VARIABLES` set to 1) unless the user set them."""
-    for variable in BLAS_THREAD_VARIABLES:
-        os.environ.setdefault(variable, "1")
-
-
-def tune_numeric_runtime() -> None:
-    """Process settings for the ``robotcal`` command, applied before numpy is imported.
-
-    - One BLAS thread per process, unless the user set the variables: robotcal's parallelism is its own
-      (Monte Carlo workers, the figure worker, threads over poses), and its linear algebra is small
-      (3x3 fits, 40-column QRs, 500-draw blocks). On the 2-core reference machine a multi-threaded
-      OpenBLAS made such calls up to 50x slower when the cores were busy (its threads spin waiting for
-      each other): in one pair of demo runs under the same load, 58 s with the default threads, 32 s with one.
-    - glibc's malloc keeps blocks up to 32 MiB in its heap and returns freed memory above 256 MiB only:
-      the Monte Carlo batches allocate and free the same tens of megabytes thousands of times, which with
-      the default (mmap above 128 KiB or a moving threshold) cost about 1 s of system time in page faults.
-      Set only on Linux with glibc; other platforms are left as they are.
-
-    Library callers are not affected: this runs in :func:`robotcal.cli.main` only.
-    """
-    limit_blas_threads()
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL("libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):  # not glibc (musl has no mallopt): keep the allocator as it is
-        return
-    m_trim_threshold, m_mmap_threshold = -1, -3
-    # 32 MiB: the largest threshold mallopt(3) documents on 64-bit (an older glibc refuses more, returning 0);
-    # the trim threshold only when it was taken (setting it alone would freeze the mmap threshold at 128 KiB)
-    if mallopt(m_mmap_threshold, 32 * 2**20) == 1:
-        mallopt(m_trim_threshold, 256 * 2**20)
-
-
 def install_signal_handlers() -> None:
-    """SIGTERM raises :class:`Terminated` in the main thread (exit 143 after cleanup); SIGINT keeps
-    Python's :class:`KeyboardInterrupt` (exit 130). Called by the ``robotcal`` entry point."""
+    """SIGTERM and SIGHUP (a closed terminal or ssh session) raise :class:`Terminated` in the main thread (exit
+    143 / 129 after cleanup); SIGINT keeps Python's :class:`KeyboardInterrupt` (exit 130). Called by
+    :func:`robotcal.cli.main`."""
     _MAIN_PID[0] = os.getpid()
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    for name in EXIT_STATUS:
+        if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN:
+            signal.signal(getattr(signal, name), _on_signal)  # nohup's SIGHUP stays ignored
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         return  # started in the background with SIGINT ignored: keep it so
     signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
-#: The exit status of the command, once :func:`robotcal.cli.entry` has it (see :func:`end_without_teardown`).
-_EXIT_STATUS: list[int] = []
-
-
-def end_without_teardown() -> bool:
-    """Let the process end as soon as the command is done, without the interpreter's teardown.
-
-    After the last ``atexit`` handler Python frees every module and object one by one (~0.1 s for the
-    ~960 modules of ``robotcal run``, 0.2-0.3 s more for the results a run keeps): work nobody waits
-    for, since the kernel reclaims the memory at once. This registers an ``atexit`` handler that flushes
-    stdout and stderr and calls ``os._exit`` with the status :func:`record_exit_status` recorded.
-    Handlers run last-registered first, so registered before any other this one runs after all
-    of them (the multiprocessing, concurrent.futures and logging clean-ups, temporary files'
-    finalizers, a coverage tool's...); threads have been joined before any handler runs. It is not
-    registered (False) when some handler is already there, since that one would be skipped; nor
-    where the interpreter cannot tell (no ``atexit._ncallbacks``). Only the ``robotcal`` console script
-    (:func:`robotcal.cli.entry`) calls it: Python callers of :func:`robotcal.cli.main` keep their normal exit.
-    ``os._exit`` also skips C-level exit handlers and C stdio buffers (robotcal's dependencies have none).
-    """
-    import atexit
-
-    count = getattr(atexit, "_ncallbacks", None)
-    if count is None or count() != 0:
-        return False
-    atexit.register(_exit_now, os.getpid())
-    return True
-
-
-def record_exit_status(code) -> None:
-    """The status the command's ``SystemExit`` carries (None: 0). Anything else (a message, a bool, an integer
-    beyond a C int, which ``os._exit`` refuses) is left to Python's own exit."""
-    if code is None:
-        code = 0
-    if isinstance(code, int) and not isinstance(code, bool) and -(2**31) <= code < 2**31:
-        _EXIT_STATUS[:] = [code]
-
-
-def _exit_now(pid: int) -> None:
-    """The handler of :func:`end_without_teardown`: in the process that registered it, once a status is
-    recorded and the standard streams are flushed (a failed flush, e.g. a closed pipe, is left to Python,
-    which reports it), end the process with that status."""
-    if os.getpid() != pid or not _EXIT_STATUS:
-        return
-    try:
-        for stream in (sys.stdout, sys.stderr):
-            if stream is not None:
-                stream.flush()
-    except Exception:  # noqa: BLE001 - Python's own exit reports it
-        return
-    os._exit(_EXIT_STATUS[0])
 
 
 def handle_errors(function):
@@ -237,10 +150,16 @@ def handle_errors(function):
                 highlight=False,
             )
             raise typer.Exit(code=2) from None
+        except OSError as exc:  # a full disk, a folder that cannot be written: the file named, no traceback
+            where = f"{exc.filename}: " if exc.filename else ""
+            _error_console().print(_line("error:", "red", f"{where}{exc.strerror or exc}"), highlight=False)
+            raise typer.Exit(code=2) from None
         except KeyboardInterrupt as exc:
-            terminated = isinstance(exc, Terminated)
-            _error_console().print(styled("terminated" if terminated else "interrupted", "red"))
-            sys.exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
+            if isinstance(exc, Terminated):
+                _error_console().print(styled(f"terminated ({exc.signal_name})", "red"))
+                sys.exit(EXIT_STATUS.get(exc.signal_name, 143))
+            _error_console().print(styled("interrupted", "red"))
+            sys.exit(EXIT_INTERRUPTED)
         finally:
             warnings.showwarning = previous
 
@@ -305,3 +224,25 @@ def circle_table(result) -> Table:
             f"{float(fit.circle_rms):.2e}",
         )
     return table
+
+
+#: Style of each fit-health verdict on the console.
+_VERDICT_STYLE = {"OK": "green", "NOT CHECKED": "yellow", "MODEL ERROR": "yellow", "FAILED": "bold red"}
+
+
+def print_health(health) -> None:
+    """The fit-health verdict (:class:`robotcal.identification.health.FitHealth`): one line, then why and what to
+    do; a FAILED fit ends the command with exit status 1 (its result file was written, marked failed)."""
+    from rich.text import Text
+
+    verdict, _, rest = health.line().partition(": ")
+    line = Text("fit health: ")
+    line.append(verdict, style=_VERDICT_STYLE.get(verdict, ""))
+    line.append(f": {rest}")
+    console = __getattr__("console")
+    console.print(line, highlight=False, soft_wrap=True)
+    for label, items in (("why", health.problems), ("advice", health.advice), ("poorly determined", health.poorly_determined)):
+        for item in items:
+            console.print(f"  {label}: {item}", highlight=False, markup=False, soft_wrap=True)
+    if health.failed:
+        raise typer.Exit(code=1)

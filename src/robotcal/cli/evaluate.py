@@ -6,23 +6,19 @@ import json
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 from rich.table import Table
 
+from robotcal import api
 from robotcal.cli._common import FORCE_HELP, check_memory, command_app, console, handle_errors, pairs_bytes
 from robotcal.errors import InputError
-from robotcal.io import load_scenario, read_capture, read_parameters
+from robotcal.io.capture_csv import read_capture
+from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.io.parameters_json import read_targets
+from robotcal.io.parameters_json import read_parameters, read_targets
+from robotcal.io.scenario import load_scenario
 from robotcal.kinematics.model import ParameterSet
-from robotcal.pipeline.evaluation import (  # noqa: F401  (the evaluation files: one home, re-exported)
-    COLUMNS,
-    evaluation_csv,
-    evaluation_document,
-    evaluation_headline,
-    write_evaluation_folder,
-)
-from robotcal.workflow import absolute_bases, evaluate_scenario
 
 app = command_app()
 
@@ -56,6 +52,37 @@ def _borrow_offsets(scenario, set_targets: dict, labels, files: dict) -> dict[st
         else:
             notes[label] = "unknown target offsets at their guess (guess_mm)"
     return notes
+
+
+def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
+    """Base frame of each parameter set for the absolute view, and a note per set saying where it comes from.
+
+    ``provenances``: set name -> the parameter JSON's ``provenance`` (empty for the nominal set). The base
+    frame a fit recorded (``provenance.tracker_from_base``: a refinement's estimated or held one, CPA's given
+    or registered one) is used as it is; a set without one (the nominal set, a distances-criterion refinement)
+    is evaluated in the scenario's ``tracker_from_base``, which the scenario must then give.
+    """
+    bases, notes = {}, {}
+    for name, provenance in provenances.items():
+        recorded = (provenance or {}).get("tracker_from_base")
+        if recorded is not None:
+            bases[name] = np.asarray(recorded, dtype=float)
+            notes[name] = "the base frame recorded in its parameter JSON (provenance.tracker_from_base)"
+            continue
+        why = (
+            "the distances criterion has no base frame"
+            if (provenance or {}).get("criterion") == "distances"
+            else "no base frame recorded"
+        )
+        if not scenario.gives_tracker_from_base:
+            raise InputError(
+                f"--absolute: parameter set {name!r} has no base frame ({why}) and {scenario.source} gives no "
+                "`tracker_from_base`: the absolute error cannot be computed; give the scenario's tracker_from_base "
+                "or evaluate only sets that recorded their base frame (--no-nominal)"
+            )
+        bases[name] = np.asarray(scenario.tracker_from_base, dtype=float)
+        notes[name] = f"{why}: the scenario's tracker_from_base is used"
+    return bases, notes
 
 
 def _convergence(path: Path) -> dict | None:
@@ -127,8 +154,8 @@ def evaluate(
     )
     target_notes = _borrow_offsets(loaded, set_targets, list(sets), files)
     views = ("points", "distances", "absolute") if absolute else ("points", "distances")
-    bases, base_notes = absolute_bases(loaded, provenances) if absolute else (None, {})
-    rows = evaluate_scenario(loaded, captures, sets, views=views, bases=bases, set_targets=set_targets)
+    bases, base_notes = _absolute_bases(loaded, provenances) if absolute else (None, {})
+    rows = api.evaluate(captures, sets, loaded, views=views, bases=bases, set_targets=set_targets)
     document = evaluation_document(
         rows,
         loaded,
@@ -146,6 +173,10 @@ def evaluate(
         document["settings"]["target_offsets"] = target_notes
     with result_folder(out, inputs=inputs, force=force, command="robotcal evaluate") as folder:
         write_evaluation_folder(folder, rows, document)
+        if histories:
+            from robotcal.plots.refine import plot_convergence
+
+            plot_convergence(convergence_of(document), folder / "convergence.png")
     for capture_name in captures:
         for view in views:
             table = Table(title=f"{capture_name}: {view} view", title_justify="left")

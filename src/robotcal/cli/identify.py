@@ -7,15 +7,26 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, circle_table, command_app, console, handle_errors, parameter_table
+from robotcal import api
+from robotcal.cli._common import (
+    FORCE_HELP,
+    circle_table,
+    command_app,
+    console,
+    handle_errors,
+    parameter_table,
+    print_health,
+)
 from robotcal.identification.cpa import point_rows
 from robotcal.identification.plausibility import OUTLIER_MAD, OUTLIER_U
 from robotcal.identification.plausibility import reject_outliers as drop_outliers
 from robotcal.identification.refine import wrap_angles
-from robotcal.io import load_scenario, read_capture, write_parameters
+from robotcal.io.capture_csv import read_capture
 from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.parameters_json import write_parameters
+from robotcal.io.provenance import cpa_provenance
+from robotcal.io.scenario import load_scenario
 from robotcal.kinematics.model import ParameterSet
-from robotcal.workflow import cpa_provenance, identify_scenario
 
 app = command_app()
 
@@ -33,8 +44,8 @@ def identify(
         bool,
         typer.Option(
             "--strict",
-            help="Fail when the fit does not pass the fit-health test (circle residual > 3 x the stated noise, "
-            "or a circle whose axis direction the noise leaves uncertain by more than 1 deg).",
+            help="Fail (exit 1, no file written) unless the fit health is OK or NOT CHECKED: a MODEL ERROR "
+            "(circle residual > 3 x the stated noise) fails too, not only a FAILED fit.",
         ),
     ] = False,
     reject_outliers: Annotated[
@@ -56,8 +67,8 @@ def identify(
     removed = None
     if reject_outliers:
         measured, removed = drop_outliers(measured, loaded.instrument, circle_fit=loaded.identification.circle_fit)
-    result = identify_scenario(measured, loaded, health="strict" if strict else "warn")
-    provenance = cpa_provenance(result, measured, loaded)
+    result = api.identify(measured, loaded, health="strict" if strict else "warn")
+    provenance = cpa_provenance(result, measured, scenario=loaded)
     if removed is not None:
         provenance["outliers_rejected"] = {
             "rule": f"residual > {OUTLIER_U:g} U(L) and > median + {OUTLIER_MAD:g} x 1.4826 MAD per circle, twice",
@@ -77,14 +88,10 @@ def identify(
         )
     )
     console.print(circle_table(result))
-    health = provenance["fit_health"]
-    ratio = (
-        f"not compared ({health['noise_source']})"
-        if health["ratio"] is None
-        else f"{health['ratio']:.3g} x the stated noise ({health['noise_source']})"
-    )
-    verdict = "OK" if health["healthy"] else "FAILED (" + "; ".join(health["problems"]) + ")"
-    console.print(f"fit health: {verdict}: circle residual {ratio}", highlight=False, markup=False)
     if result.registration_rms is not None:
-        console.print(f"base frame registered: RMS residual {result.registration_rms:.4f} mm", highlight=False)
-    console.print(f"wrote {out}", highlight=False)
+        console.print(
+            f"base frame registered with the identified model: RMS residual {result.registration_rms:.4f} mm",
+            highlight=False,
+        )
+    console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
+    print_health(result.health)

@@ -10,11 +10,13 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from robotcal import api
 from robotcal.cli._common import FORCE_HELP, command_app, console, error_console, handle_errors
 from robotcal.diagnostics import JointDiagnostics
-from robotcal.io import load_scenario, read_capture
+from robotcal.io.capture_csv import read_capture
+from robotcal.io.joints_files import write_joints_folder
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.pipeline.joints import compute_joints, write_joints_folder
+from robotcal.io.scenario import load_scenario
 
 app = command_app()
 
@@ -65,11 +67,15 @@ def joints(
     loaded = load_scenario(scenario)
     inputs += existing_inputs(*loaded.files)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
-    diagnostics, model = compute_joints(
+    analysis = api.diagnose_joints(
         measured, loaded, order=order, backlash=backlash, match_tolerance_deg=match_tolerance_deg
     )
+    diagnostics, model = analysis.diagnostics, analysis.harmonics
     with result_folder(out, inputs=inputs, force=force, command="robotcal joints") as folder:
-        files = write_joints_folder(folder, diagnostics, model, capture=capture, scenario=loaded, scale=scale)
+        files = list(write_joints_folder(folder, diagnostics, model, capture=capture, scenario=loaded))
+        from robotcal.plots.joints import write_joint_figures
+
+        files += [path.name for path in write_joint_figures(diagnostics, folder, model=model, scale=scale)]
     console.print(_table(diagnostics))
     for note in (*diagnostics.messages, *model.messages):
         error_console.print(f"note: {note}", highlight=False)

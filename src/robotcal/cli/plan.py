@@ -92,7 +92,8 @@ def check(
         console.print(f"note: {note}", highlight=False)
 
     def write(folder: Path) -> None:
-        from robotcal.plots.planning import check_document, plot_check, write_check_files
+        from robotcal.planning.files import check_document, write_check_files
+        from robotcal.plots.planning import plot_check
 
         document = check_document(result, scenario=loaded.source, cell=cell, notes=notes)
         write_check_files(folder, result, document)
@@ -114,13 +115,11 @@ def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, wo
 
     import numpy as np
 
-    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+    from robotcal import api
     from robotcal.uncertainty.workspace import workspace_uncertainty
-    from robotcal.workflow import scenario_monte_carlo
 
     variant = dataclasses.replace(scenario, plan=plan, joint_errors=None, joint_limits="ignore")
-    settings = MonteCarloSettings(iterations=iterations, block_size=min(iterations, 10_000), workers=workers)
-    result = run_monte_carlo(scenario_monte_carlo(variant), settings, seed=seed, linearised=False)
+    result = api.monte_carlo(variant, draws=iterations, rng=seed, workers=workers, linearised=False)
     workspace = workspace_uncertainty(scenario.robot, result.draws, readings=readings)
     return float(np.percentile(workspace.position_uncertainty, 95.0))
 

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from robotcal import api
 from robotcal.cli._common import (
     FORCE_HELP,
     check_memory,
@@ -16,11 +17,14 @@ from robotcal.cli._common import (
     handle_errors,
     pairs_bytes,
     parameter_table,
+    print_health,
 )
-from robotcal.io import load_scenario, read_capture, read_parameters, write_parameters
+from robotcal.io.capture_csv import read_capture
 from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.parameters_json import read_parameters, refined_targets, write_parameters
+from robotcal.io.provenance import refine_provenance
+from robotcal.io.scenario import load_scenario
 from robotcal.kinematics.model import ParameterSet
-from robotcal.workflow import refine_provenance, refine_scenario, refined_targets
 
 app = command_app()
 
@@ -53,8 +57,8 @@ def refine(
         bool,
         typer.Option(
             "--strict",
-            help="Fail instead of holding parameters the data cannot determine, and when the fit does not pass "
-            "the fit-health test (residual > 3 x the stated noise, or scaled condition number > 1e8).",
+            help="Fail (no file written) instead of holding parameters the data cannot determine, and unless the fit "
+            "health is OK or NOT CHECKED (a MODEL ERROR, residual > 3 x the stated noise, fails too).",
         ),
     ] = False,
     weights: Annotated[
@@ -94,7 +98,7 @@ def refine(
             "use the points criterion or a capture with fewer points",
         )
     initial = read_parameters(start, loaded.robot) if start is not None else ParameterSet.nominal(loaded.robot)
-    result = refine_scenario(
+    result = api.refine(
         measured,
         loaded,
         initial,
@@ -105,7 +109,7 @@ def refine(
         **({"estimate_base": True} if estimate_base else {}),
     )
     source = str(start) if start is not None else "nominal"
-    provenance = refine_provenance(result, measured, loaded, source)
+    provenance = refine_provenance(result, measured, source, scenario=loaded)
     with result_file(out, inputs=inputs, force=force):
         write_parameters(out, result.parameters, provenance, refined_targets(result))
     console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
@@ -114,17 +118,8 @@ def refine(
     summary = Table(title="Refinement", title_justify="left", show_header=False)
     summary.add_row("criterion", criterion)
     summary.add_row("solver", f"least_squares, method={result.method}")
-    summary.add_row("status", f"{'converged' if result.success else 'NOT converged'}: {result.message}")
-    health = provenance["fit_health"]
-    ratio = (
-        f"not compared ({health['noise_source']})"
-        if health["ratio"] is None
-        else f"{health['ratio']:.3g} x the stated noise ({health['noise_source']})"
-    )
-    summary.add_row(
-        "fit health",
-        ("OK" if health["healthy"] else "FAILED (" + "; ".join(health["problems"]) + ")") + f": residual {ratio}",
-    )
+    ended = "met its tolerance" if result.success else "did NOT meet its tolerance"
+    summary.add_row("solver end", f"{ended}: {result.message}")
     summary.add_row("weights", provenance["weights"])
     summary.add_row("iterations (Jacobian evaluations)", str(result.njev))
     summary.add_row("residual evaluations", str(result.nfev))
@@ -145,4 +140,5 @@ def refine(
             summary.add_row(f"target {target.name} offset [mm] (± u)", shown)
     summary.add_row("time [s]", f"{result.wall_time_s:.2f}")
     console.print(summary)
-    console.print(f"wrote {out}", highlight=False)
+    console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
+    print_health(result.health)

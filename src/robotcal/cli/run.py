@@ -15,16 +15,17 @@ import typer
 
 from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, console, error_console, handle_errors
 from robotcal.errors import RobotcalError
-from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS, STAGES, STEPS, RunPlan, plan_run
+from robotcal.io.run_folder import STAGES
+from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS, STEPS, RunPlan, plan_run
 
-__all__ = ["figure_worker", "run", "run_and_print", "run_with_display"]
+__all__ = ["run", "run_and_print", "run_with_display"]
 
 app = command_app()
 
 
-def run_with_display(plan: RunPlan, figures=None):
+def run_with_display(plan: RunPlan):
     """:func:`robotcal.pipeline.run_calibration` under one Rich progress display (a task per stage; draws
-    for the Monte Carlo); returns its :class:`~robotcal.pipeline.RunResult`."""
+    for the Monte Carlo); returns its :class:`~robotcal.io.run_folder.RunResult`."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     from robotcal.pipeline.run import run_calibration
@@ -58,7 +59,7 @@ def run_with_display(plan: RunPlan, figures=None):
             display.update(task, completed=done, detail=detail if stage != "uncertainty" else "")
 
         try:
-            return run_calibration(plan, progress=update, figures=figures)
+            return run_calibration(plan, progress=update)
         except BaseException:
             for task in display.tasks:
                 if task.started and not task.finished:
@@ -91,22 +92,12 @@ def _command_line(command: str, *arguments, **options) -> str:
     return " ".join(parts)
 
 
-def figure_worker():
-    """The run's figure renderer, started before the run is planned so that its worker imports matplotlib
-    while this process loads the scenario and checks the plan (:func:`robotcal.pipeline.run_calibration`)."""
-    from robotcal.pipeline.figures import FIGURE_MODULES
-    from robotcal.plots.background import FigureRenderer
-
-    return FigureRenderer(preload=FIGURE_MODULES)
-
-
-def run_and_print(plan: RunPlan, figures=None):
-    """The ``run``/``demo`` command body: display, summary, and the report's path and total time; ``figures``:
-    the run's :class:`~robotcal.plots.background.FigureRenderer` (:func:`figure_worker`), or None."""
+def run_and_print(plan: RunPlan):
+    """The ``run``/``demo`` command body: display, summary, and the report's path and total time."""
     started = time.perf_counter()
     console.rule(f"robotcal run {plan.scenario.name}: {plan.scenario.description}")
     try:
-        result = run_with_display(plan, figures)
+        result = run_with_display(plan)
     except RobotcalError as exc:
         record = getattr(exc, "robotcal_record", None)
         if record is None:
@@ -163,14 +154,8 @@ def run(
     ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """Run the whole pipeline (simulate, CPA, joints, refine, evaluate, Monte Carlo, TCP) and write DIR/report.html."""
+    """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP, plan, ISO 9283) and write
+    DIR/report.html."""
     options = dict(seed=seed, draws=draws, workspace=workspace, workers=workers, refined_draws=refined_draws)
-    with figure_worker() as figures:
-        plan = plan_run(
-            scenario,
-            out,
-            **options,
-            command=_command_line("run", scenario, out=out, **options),
-            force=force,
-        )
-        run_and_print(plan, figures)
+    plan = plan_run(scenario, out, **options, command=_command_line("run", scenario, out=out, **options), force=force)
+    run_and_print(plan)

@@ -74,7 +74,8 @@ def sensitivity(
         "cases": [dict(case.values, draws=case.n_draws) for case in study.cases],
     }
     with result_folder(out, inputs=inputs, force=force, command="robotcal sensitivity") as folder:
-        from robotcal.plots.planning import plot_sensitivity, write_sensitivity_files
+        from robotcal.planning.files import write_sensitivity_files
+        from robotcal.plots.planning import plot_sensitivity
 
         write_sensitivity_files(folder, rows, summary)
         plot_sensitivity(rows, study.keys, folder)

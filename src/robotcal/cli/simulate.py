@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from robotcal import api
 from robotcal.cli._common import (
     BYTES_PER_POSE,
     FORCE_HELP,
@@ -20,8 +21,8 @@ from robotcal.cli._common import (
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters, write_capture, write_parameters
 from robotcal.io.output import existing_inputs, result_file
+from robotcal.io.provenance import versions
 from robotcal.io.scenario import TruthTable, ValidationTable
-from robotcal.workflow import scenario_truth, simulate_scenario, simulate_validation, versions
 
 app = command_app()
 
@@ -79,7 +80,8 @@ def simulate(
 def _simulate(loaded, out, seed, true_params, truth_out, validation) -> None:
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     if truth_out is not None:
-        truth, truth_seed = scenario_truth(loaded)
+        truth_seed = api.seed_from(None, (loaded.truth or TruthTable()).seed)
+        truth = api.perturb(loaded, rng=truth_seed)
         write_parameters(
             truth_out,
             truth,
@@ -93,14 +95,15 @@ def _simulate(loaded, out, seed, true_params, truth_out, validation) -> None:
         )
         console.print(f"wrote {truth_out}: perturbed 'true' robot (seed {truth_seed})", highlight=False)
     if validation:
-        run = simulate_validation(loaded, seed=seed, true_parameters=truth)
-        kind = f"{run.capture.n_points} random poses, flange target"
+        capture = api.simulate_validation(loaded, rng=seed, true_parameters=truth)
+        kind = f"{capture.n_points} random poses, flange target"
     else:
-        run = simulate_scenario(loaded, seed=seed, true_parameters=truth)
-        kind = f"{run.capture.n_points} points in {loaded.robot.n_joints} circles"
-    write_capture(out, run.capture)
+        capture = api.simulate(loaded, rng=seed, true_parameters=truth)
+        kind = f"{capture.n_points} points in {loaded.robot.n_joints} circles"
+    write_capture(out, capture)
     console.print(
         f"wrote {out}: {kind} "
-        f"(scenario {loaded.name}, instrument {loaded.instrument.name}, noise {loaded.instrument.noise}, seed {run.seed})",
+        f"(scenario {loaded.name}, instrument {loaded.instrument.name}, noise {loaded.instrument.noise}, "
+        f"seed {capture.seed})",
         highlight=False,
     )

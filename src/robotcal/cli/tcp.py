@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -10,6 +11,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from robotcal import api
 from robotcal.cli._common import (
     BYTES_PER_POSE,
     FORCE_HELP,
@@ -19,14 +21,14 @@ from robotcal.cli._common import (
     console,
     handle_errors,
 )
-from robotcal.errors import InputError
+from robotcal.errors import InputError, JointLimitWarning
 from robotcal.io.draws_npz import ParameterDraws, read_draws
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+from robotcal.io.provenance import versions
+from robotcal.io.tcp_results import write_tcp_folder
 from robotcal.io.trajectory_csv import load_trajectory
-from robotcal.pipeline.tcp import compute_tcp, write_tcp_folder
 from robotcal.uncertainty.statistics import INTERVAL_KINDS
 from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty, check_readings
-from robotcal.workflow import versions
 
 app = command_app()
 
@@ -155,13 +157,23 @@ def tcp(
         provenance["trajectory"] = path
     else:
         mode, readings = "workspace", None
-    result, ws = compute_tcp(
-        robot, values, mode, readings=readings, n_poses=workspace, seed=seed, tool_mm=tool_mm, coverage=coverage
-    )
+    ws = None
+    if mode == "workspace":
+        ws = api.workspace_uncertainty(robot, values, workspace, tool_mm=tool_mm, coverage=coverage, rng=seed)
+        result = ws.tcp
+    else:
+        with warnings.catch_warnings():  # the readings were checked above, naming the option or file
+            warnings.simplefilter("ignore", JointLimitWarning)
+            result = api.tcp_uncertainty(
+                robot, values, np.rad2deg(readings), tool_mm=tool_mm, coverage=coverage, keep_draws=mode == "pose"
+            )
     provenance["mode"] = mode
     provenance["seconds"] = round(time.perf_counter() - started, 3)
     with result_folder(out, inputs=inputs, force=force, command="robotcal tcp") as folder:
-        write_tcp_folder(folder, result, mode, interval=interval, workspace=ws, provenance=provenance)
+        write_tcp_folder(folder, result, interval=interval, workspace=ws, provenance=provenance)
+        from robotcal.plots.tcp import write_tcp_figures
+
+        write_tcp_figures(result, folder, mode, workspace=ws)
 
     if mode == "pose":
         console.print(_summary_table(result, 0, interval))

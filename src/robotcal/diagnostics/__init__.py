@@ -16,7 +16,6 @@ fitted to it over a 300 deg circle gives its amplitude back:
 (0.02, True)
 """
 
-from robotcal import _lazy_exports
 from robotcal.diagnostics.harmonics import (
     HARMONICS_FORMAT,
     QUANTITIES,
@@ -28,15 +27,28 @@ from robotcal.diagnostics.harmonics import (
 )
 from robotcal.diagnostics.iso9283 import (
     ISO_CYCLES,
+    ORIENTATION_AXES,
     Iso9283Result,
+    IsoModel,
+    IsoStudy,
+    default_iso_start,
     iso_cube_corners,
+    iso_cube_plan,
+    iso_from_capture,
     iso_plan_readings,
     iso_test_positions,
+    orientation_deviations,
     pose_characteristics,
+    pose_visits,
+    register_flange_poses,
+    rotation_vectors,
+    scenario_flange_point,
     simulate_attained_positions,
+    simulate_iso_study,
 )
 from robotcal.diagnostics.joints import (
     DEFAULT_MATCH_TOLERANCE,
+    MAXWELL_MEAN_PER_SIGMA,
     CircleDiagnostics,
     JointDiagnostics,
     JointSummary,
@@ -45,51 +57,39 @@ from robotcal.diagnostics.joints import (
     local_frame,
 )
 
-#: Names loaded on first use.
-_LAZY = {
-    "MAXWELL_MEAN_PER_SIGMA": "robotcal.diagnostics.joints",
-    **dict.fromkeys(
-        (
-            "ORIENTATION_AXES",
-            "IsoModel",
-            "IsoStudy",
-            "default_iso_start",
-            "iso_from_capture",
-            "orientation_deviations",
-            "pose_visits",
-            "register_flange_poses",
-            "rotation_vectors",
-            "scenario_flange_point",
-            "simulate_iso_study",
-            "iso_cube_plan",
-        ),
-        "robotcal.diagnostics.iso9283",
-    ),
-}
-
 __all__ = [
-    "HARMONICS_FORMAT",
     "QUANTITIES",
-    "CircleDiagnostics",
-    "CircleGeometry",
-    "DEFAULT_MATCH_TOLERANCE",
     "HarmonicFit",
+    "CircleGeometry",
     "HarmonicModel",
-    "ISO_CYCLES",
-    "Iso9283Result",
-    "JointDiagnostics",
-    "JointSummary",
-    "analyze_joints",
     "fit_harmonic_series",
     "fit_harmonics",
+    "HARMONICS_FORMAT",
+    "ISO_CYCLES",
+    "ORIENTATION_AXES",
+    "Iso9283Result",
+    "IsoModel",
+    "IsoStudy",
+    "default_iso_start",
+    "iso_from_capture",
+    "orientation_deviations",
+    "pose_visits",
+    "register_flange_poses",
+    "rotation_vectors",
+    "scenario_flange_point",
+    "simulate_iso_study",
     "iso_cube_corners",
-    "iso_plan_readings",
+    "iso_cube_plan",
     "iso_test_positions",
-    "lash_state",
-    "local_frame",
+    "iso_plan_readings",
     "pose_characteristics",
     "simulate_attained_positions",
-    *_LAZY,
+    "CircleDiagnostics",
+    "JointSummary",
+    "JointDiagnostics",
+    "analyze_joints",
+    "lash_state",
+    "local_frame",
+    "DEFAULT_MATCH_TOLERANCE",
+    "MAXWELL_MEAN_PER_SIGMA",
 ]
-
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)

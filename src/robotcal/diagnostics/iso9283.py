@@ -748,50 +748,51 @@ def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, sid
 
 
 def simulate_iso_study(
-    scenario,
+    robot,
     parameter_sets: dict,
     *,
+    targets_mm: dict,
+    true_parameters=None,
+    tracker_from_base=None,
+    joint_errors=None,
+    instrument=None,
     cycles: int = ISO_CYCLES,
     seed: int | None = None,
     center_mm=None,
     side_mm: float | None = None,
     start_deg=None,
-    targets_mm: dict | None = None,
-    true_parameters=None,
-    joint_errors="scenario",
-    instrument="scenario",
     orientation_axes: str = "base",
 ) -> IsoStudy:
-    """A simulated ISO 9283 pose test of the scenario's true robot, evaluated with several models.
+    """A simulated ISO 9283 pose test of a true robot, evaluated with several models.
 
     The plan (:func:`iso_plan_readings`, nominal model: the controller's) visits P1..P5 of the cube
-    ``cycles`` times; the true robot (``true_parameters``, else the scenario's ``[truth]`` robot,
-    else nominal) with the joint error model (eq. 5-2 and backlash, redrawn at each visit) attains
-    the flange poses (after one unmeasured warm-up cycle, so that the backlash state of every
-    measured visit is that of the cycle); the instrument measures every flange target in the tracker frame with its
-    noise; :func:`iso_from_capture` evaluates every model.
+    ``cycles`` times; the true robot (``true_parameters``, else nominal) with the joint error model (eq. 5-2
+    and backlash, redrawn at each visit) attains the flange poses (after one unmeasured warm-up cycle, so that
+    the backlash state of every measured visit is that of the cycle); the instrument measures every flange
+    target in the tracker frame with its noise; :func:`iso_from_capture` evaluates every model.
 
     Default cube: :func:`iso_cube_plan` (``start_deg``, ``center_mm``, ``side_mm`` override it).
 
     Parameters
     ----------
-    scenario : Scenario
+    robot : RobotModel
     parameter_sets : dict of str to ParameterSet or IsoModel
         Models to evaluate (e.g. ``{"nominal": ..., "cpa": ..., "refined": ...}``); a ParameterSet is
-        evaluated in the scenario's base frame.
+        evaluated in the base frame ``tracker_from_base``.
+    targets_mm : dict of str to array_like
+        Flange targets measured at each pose [mm] (three or more: the orientation is measured too).
+    true_parameters : ParameterSet, optional
+    tracker_from_base : array_like, shape (4, 4), optional
+        Default identity.
+    joint_errors : JointErrorModel, optional
+        None: no joint errors.
+    instrument : Instrument, optional
+        None: exact measurement.
     cycles : int
     seed : int, optional
         Seeds the joint errors' random part and the instrument noise (one generator).
     center_mm, side_mm, start_deg : optional
         Cube centre [mm], side [mm] and start readings [deg].
-    targets_mm : dict of str to array_like, optional
-        Flange targets measured at each pose [mm]; default: the scenario's known flange targets when
-        there are three or more (orientation measured), else :func:`scenario_flange_point`.
-    true_parameters : ParameterSet, optional
-    joint_errors : JointErrorModel or None or "scenario"
-        None: no joint errors.
-    instrument : Instrument or None or "scenario"
-        None: exact measurement.
     orientation_axes : {"base", "flange"}
 
     Returns
@@ -802,22 +803,11 @@ def simulate_iso_study(
     from robotcal.geometry.transforms import apply_transform
     from robotcal.kinematics.forward import joint_frames
     from robotcal.kinematics.model import ParameterSet
-    from robotcal.workflow import scenario_truth
 
-    robot = scenario.robot
     nominal = ParameterSet.nominal(robot)
     if true_parameters is None:
-        true_parameters = scenario_truth(scenario)[0] if scenario.truth is not None else nominal
-    if isinstance(joint_errors, str):
-        joint_errors = scenario.joint_errors
-    if isinstance(instrument, str):
-        instrument = scenario.instrument if scenario.has_instrument else None
-    if targets_mm is None:
-        known = [t for t in scenario.targets if t.frame == "flange" and t.known]
-        if len(known) >= 3:
-            targets_mm = {t.name: t.positions for t in known}
-        else:
-            targets_mm = {"point": scenario_flange_point(scenario)}
+        true_parameters = nominal
+    tracker_from_base = np.eye(4) if tracker_from_base is None else np.asarray(tracker_from_base, dtype=float)
     targets_mm = {str(name): np.asarray(value, dtype=float).reshape(3) for name, value in targets_mm.items()}
     offsets = np.array(list(targets_mm.values()))
     point = offsets.mean(axis=0)
@@ -831,7 +821,7 @@ def simulate_iso_study(
     errors = None if joint_errors is None else joint_errors.transforms(q, rng=rng)[5:]
     flange = joint_frames(true_parameters.values, q[5:], joint_errors=errors)[:, -1]
     base_points = np.einsum("vij,tj->vti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]
-    tracker_points = apply_transform(scenario.tracker_from_base, base_points.reshape(-1, 3))
+    tracker_points = apply_transform(tracker_from_base, base_points.reshape(-1, 3))
     if instrument is not None and not instrument.is_noise_free:
         tracker_points = tracker_points + instrument.sample_noise(tracker_points, rng=rng)
     n_targets, n_rows = offsets.shape[0], tracker_points.shape[0]
@@ -840,7 +830,7 @@ def simulate_iso_study(
         direction=np.ones(n_rows, dtype=int),
         readings=np.repeat(readings, n_targets, axis=0),
         points=tracker_points,
-        source=f"ISO 9283 study simulated from {scenario.name}",
+        source="ISO 9283 study (simulated)",
         seed=seed,
         target=np.tile(np.arange(n_targets), readings.shape[0]),
         target_names=tuple(targets_mm),
@@ -848,7 +838,7 @@ def simulate_iso_study(
     models = {
         label: value
         if isinstance(value, IsoModel)
-        else IsoModel(parameters=value, tracker_from_base=scenario.tracker_from_base)
+        else IsoModel(parameters=value, tracker_from_base=tracker_from_base)
         for label, value in parameter_sets.items()
     }
     results = iso_from_capture(

@@ -45,6 +45,7 @@ from robotcal.geometry.fits import CircleFit, fit_circle_3d
 from robotcal.geometry.lines import PluckerLine, analyse_dh_pair, analyse_hayati_pair, signed_angle_about
 from robotcal.geometry.registration import register_points
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rotation_about_line
+from robotcal.identification.health import FitHealth
 from robotcal.kinematics.forward import joint_frames, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
 
@@ -208,6 +209,8 @@ class CPAResult:
     options : CPAOptions
     success : bool
     message : str
+    health : FitHealth or None
+        The fit-health verdict (:mod:`robotcal.identification.health`), set by :func:`robotcal.identify`.
     """
 
     parameters: ParameterSet
@@ -220,6 +223,7 @@ class CPAResult:
     options: CPAOptions
     success: bool = True
     message: str = field(default="")
+    health: FitHealth | None = None
 
 
 def prepare_cpa(
@@ -571,14 +575,22 @@ def identify_cpa(
     if not converged:
         messages.append("a geometric circle fit did not meet its step tolerance")
     parameters = ParameterSet(robot=robot, values=batch.values, identified=batch.identified)
-    rms = None if batch.registration_rms is None else float(batch.registration_rms)
+    tracker_from_base, rms = np.array(batch.tracker_from_base), None
+    if batch.registration_rms is not None:
+        # the base frame of the identified model: the registration above (nominal model) only located the axes
+        # and the base; the identified model's points registered on the measured ones give the frame in which
+        # the identified parameters predict the capture (its absolute error)
+        turning = np.maximum(capture.circle - 1, 0)
+        q = robot.model_joint_variables(capture.readings)
+        registration = register_points(target_positions(parameters.values, q, turning, reflector), capture.points)
+        tracker_from_base, rms = registration.transform, float(registration.rms)
     return CPAResult(
         parameters=parameters,
         axes=batch.axes,
         reference_readings=structure.reference_readings,
         circle_fits=batch.circle_fits,
         pair_cases=batch.pair_cases,
-        tracker_from_base=np.array(batch.tracker_from_base),
+        tracker_from_base=tracker_from_base,
         registration_rms=rms,
         options=options,
         success=converged,

@@ -2,7 +2,7 @@
 
 CPA accepts any points that lie on circles, so a capture in the wrong units, readings in radians, a
 file appended to itself or a circle with gross outliers can give a plausible-looking and wrong
-calibration. These checks run before CPA (``robotcal.workflow.identify_scenario``) and compare the
+calibration. These checks run before CPA (:func:`robotcal.identify`) and compare the
 capture with what the nominal model and the instrument predict. Where the answer would certainly
 be wrong they raise :class:`InputError`; where it may be wrong they warn with
 :class:`PlausibilityWarning`. Every message names the capture, the circle and rows, and the likely

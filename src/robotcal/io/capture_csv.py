@@ -21,7 +21,7 @@ from robotcal.errors import InputError
 from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
 
-__all__ = ["read_capture", "write_capture", "capture_to_csv"]
+__all__ = ["capture_to_csv", "read_capture", "read_capture_text", "write_capture"]
 
 
 def capture_to_csv(capture: Capture) -> str:
@@ -59,7 +59,13 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
         Expected number of joint columns (the robot's joint count).
     """
     path = Path(path)
-    text = read_text_file(path, kind="capture CSV")
+    return read_capture_text(read_text_file(path, kind="capture CSV"), source=str(path), n_joints=n_joints)
+
+
+def read_capture_text(text: str, *, source: str, n_joints: int | None = None, seed: int | None = None) -> Capture:
+    """The capture of a capture CSV's ``text`` (:func:`read_capture`; ``source`` names it in messages and in
+    the capture, ``seed`` is recorded with it)."""
+    path = source
     records = [(number, row) for number, row in csv_rows(text, path) if any(cell.strip() for cell in row)]
     rows = [row for _, row in records]
     if not rows:
@@ -125,6 +131,7 @@ def read_capture(path, *, n_joints: int | None = None) -> Capture:
         readings=np.deg2rad(data[:, 2 : 2 + count]),
         points=data[:, 2 + count :],
         source=str(path),
+        seed=seed,
         target=target,
         target_names=names or (),
         u95=u95,

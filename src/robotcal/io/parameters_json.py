@@ -19,7 +19,7 @@ from robotcal.io._validation import _short, as_finite_float, read_json_file
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, ParameterSet, RobotModel
 
-__all__ = ["parameters_to_dict", "write_parameters", "read_parameters", "targets_to_dict", "read_targets"]
+__all__ = ["parameters_to_dict", "read_parameters", "read_targets", "refined_targets", "targets_to_dict", "write_parameters"]
 
 def _wrap_deg(value: float, centre: float = 0.0) -> float:
     """An angle in degrees in (centre - 180, centre + 180] (a turn of 360 deg changes no transform)."""
@@ -145,3 +145,11 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         return ParameterSet(robot=robot, values=values, identified=identified)
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
+
+
+def refined_targets(result) -> dict | None:
+    """The parameter JSON's ``targets`` key of a refinement (estimated offsets with their standard
+    uncertainty), None when it used the historical single mount."""
+    if not result.targets:
+        return None
+    return targets_to_dict(result.targets, result.target_uncertainty)

@@ -194,7 +194,7 @@ class TCPTable(_RunTable):
     """``[tcp]``, the TCP stage of ``robotcal run``: where the TCP uncertainty is stated (always present:
     defaults when absent).
 
-    In the file's units [mm, deg]; :func:`robotcal.workflow.tcp_targets` resolves it into readings [rad].
+    In the file's units [mm, deg]; :func:`robotcal.pipeline.plan.tcp_targets` resolves it into readings [rad].
     ``pose_deg`` and ``trajectory`` None: the thesis's pose and trajectory (KR 5 sixx R650 only).
     """
 
@@ -290,6 +290,9 @@ class Scenario:
     targets: tuple[Target, ...] = ()
     #: The ``[capture]`` reflector (``reflector_mm`` / ``flange_reflector_mm``), plan or not; None if absent.
     reflector: ReflectorMount | None = None
+    #: Whether the file gives ``tracker_from_base`` (else it is the identity, a placeholder: a result that
+    #: needs the real base frame, such as an absolute error, must not use it).
+    gives_tracker_from_base: bool = True
 
     @property
     def has_plan(self) -> bool:
@@ -414,6 +417,7 @@ def scenario_from_dict(
         files=(source, *_robot_file(spec.robot, base_dir)),
         targets=tuple(targets),
         reflector=reflector,
+        gives_tracker_from_base="tracker_from_base" in data,
     )
 
 

@@ -18,7 +18,15 @@ from robotcal.kinematics.model import DISPLAY_UNITS
 from robotcal.uncertainty.tcp import ORIENTATION_CONVENTION, TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
-__all__ = ["TCP_CSV_COLUMNS", "tcp_to_csv", "write_tcp_csv", "tcp_to_dict", "tcp_json_text", "write_tcp_json"]
+__all__ = [
+    "TCP_CSV_COLUMNS",
+    "tcp_json_text",
+    "tcp_to_csv",
+    "tcp_to_dict",
+    "write_tcp_csv",
+    "write_tcp_folder",
+    "write_tcp_json",
+]
 
 TCP_CSV_COLUMNS = (
     "pose",
@@ -207,3 +215,26 @@ def write_tcp_json(path, result: TCPUncertainty, **kwargs) -> Path:
     ``provenance``) raises ``ValueError`` rather than being written as ``NaN``.
     """
     return atomic_write_text(path, tcp_json_text(tcp_to_dict(result, **kwargs)))
+
+
+def write_tcp_folder(
+    folder: Path,
+    result: TCPUncertainty,
+    *,
+    interval: str = "symmetric",
+    workspace: WorkspaceUncertainty | None = None,
+    provenance: dict | None = None,
+) -> dict:
+    """Write ``tcp.csv`` and ``tcp.json`` into ``folder`` (an existing, normally temporary, folder); returns the
+    documents by file name as :func:`robotcal.io.run_folder.read_run` reads them (the figures:
+    :func:`robotcal.plots.tcp.write_tcp_figures`)."""
+    from robotcal.io.run_folder import write_csv
+
+    data = tcp_to_dict(result, interval=interval, workspace=workspace, provenance=provenance or {})
+    atomic_write_text(Path(folder) / "tcp.json", tcp_json_text(data))
+    return {
+        "tcp.csv": write_csv(Path(folder) / "tcp.csv", tcp_to_csv(result, interval=interval)),
+        # the poses of tcp_to_dict are plain JSON values already (lists of floats, str keys, None): they read
+        # back equal, so only the rest goes through the round trip
+        "tcp.json": {key: value if key == "poses" else json.loads(json.dumps(value)) for key, value in data.items()},
+    }

@@ -24,6 +24,10 @@ __all__ = [
     "write_uncertainty_csv",
     "write_uncertainty_json",
     "read_uncertainty_csv",
+    "write_uncertainty_folder",
+    "MEASURED_TARGET_COLUMNS",
+    "measured_target_rows",
+    "write_measured_folder",
 ]
 
 FORMAT = "robotcal-uncertainty/1"
@@ -165,7 +169,7 @@ def _matrix_in_file_units(result: MonteCarloResult, matrix: np.ndarray, *, scale
     return {"names": names, "matrix": [[float(format(v, ".12g")) for v in row] for row in sub]}
 
 
-def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict, versions: dict) -> Path:
+def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | None, versions: dict) -> Path:
     """``parameters.json``: the CSV's content plus covariance, correlation, seed, draws, adaptive
     record, settings, timings, versions and the scenario echo (mm, deg)."""
     settings = result.settings
@@ -225,3 +229,129 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict, ve
         "scenario": scenario,
     }
     return atomic_write_text(path, json.dumps(document, indent=2, allow_nan=False) + "\n")
+
+
+def write_uncertainty_folder(folder: Path, result: MonteCarloResult, *, scenario=None, save_draws: bool) -> dict:
+    """Write ``parameters.csv``, ``parameters.json`` and (optionally) ``draws.npz`` into ``folder`` (an existing,
+    normally temporary, folder); returns the documents by file name as :func:`robotcal.io.run_folder.read_run`
+    reads them (the histograms: :func:`robotcal.plots.montecarlo.write_histograms`)."""
+    from robotcal.io.draws_npz import write_draws
+    from robotcal.io.provenance import versions
+    from robotcal.io.run_folder import read_document
+
+    folder = Path(folder)
+    echo = (
+        None if scenario is None else {"name": scenario.name, "source": scenario.source, "settings": scenario.settings}
+    )
+    write_uncertainty_csv(folder / "parameters.csv", result)
+    write_uncertainty_json(folder / "parameters.json", result, scenario=echo, versions=versions())
+    documents = {name: read_document(folder, name) for name in ("parameters.csv", "parameters.json")}
+    if save_draws:
+        write_draws(
+            folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed, model=result.model
+        )
+        documents["draws.npz"] = folder / "draws.npz"
+    return documents
+
+
+#: Columns of ``targets.csv`` (estimated flange offsets, mm).
+MEASURED_TARGET_COLUMNS = (
+    "name", "axis", "unit", "estimate", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max",
+    "lpu_std_uncertainty",
+)  # fmt: skip
+
+
+def measured_target_rows(result) -> list[dict]:
+    """One dict per estimated offset component (mm)."""
+    rows = []
+    summary = result.target_summary
+    if summary is None:
+        return rows
+    low, high = summary.interval(result.parameters.settings.interval)
+    for t, name in enumerate(result.target_names):
+        for a, axis in enumerate("xyz"):
+            lpu = result.target_linearised_u[t, a]
+            rows.append(
+                {
+                    "name": name,
+                    "axis": axis,
+                    "unit": "mm",
+                    "estimate": float(result.target_estimate[t, a]),
+                    "mean": float(summary.mean[t, a]),
+                    "std_uncertainty": float(summary.std_uncertainty[t, a]),
+                    "coverage_low": float(low[t, a]),
+                    "coverage_high": float(high[t, a]),
+                    "min": float(summary.minimum[t, a]),
+                    "max": float(summary.maximum[t, a]),
+                    "lpu_std_uncertainty": float(lpu) if np.isfinite(lpu) else None,
+                }
+            )
+    return rows
+
+
+def write_measured_folder(
+    folder: Path, result, *, scenario=None, capture: str, params: str, n_points: int, save_draws: bool
+) -> None:
+    """The files of the Monte Carlo of a measured capture (:func:`robotcal.api.measured_monte_carlo`):
+    ``parameters.csv``, ``parameters.json`` (``model: "measured capture"``), ``targets.csv`` (estimated flange
+    offsets) and (``save_draws``) ``draws.npz`` (mm, deg); the histograms:
+    :func:`robotcal.plots.montecarlo.write_histograms` of ``result.parameters``."""
+    import csv
+    import io
+
+    from robotcal.io.draws_npz import write_draws
+    from robotcal.io.provenance import versions
+    from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL
+    from robotcal.uncertainty.measured import with_model
+
+    echo = (
+        None if scenario is None else {"name": scenario.name, "source": scenario.source, "settings": scenario.settings}
+    )
+
+    parameters = result.parameters
+    write_uncertainty_csv(folder / "parameters.csv", parameters)
+    # the JSON writer knows the scenario models; written as "refined", then re-labelled
+    write_uncertainty_json(
+        folder / "parameters.json", with_model(parameters, "refined"), scenario=echo, versions=versions()
+    )
+    document = json.loads((folder / "parameters.json").read_text(encoding="utf-8"))
+    document["model"] = MEASURED_MODEL
+    document["method"] = (
+        "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of a measured capture: its poses and targets simulated on "
+        f"the refined parameters, each point's noise N(0, (U95/2)^2) per coordinate (k = 2, normal), "
+        f"{parameters.criterion} refinement repeated per draw (thesis ch. 4.5.7)"
+    )
+    for row in document["parameters"]:
+        row["model"] = MEASURED_MODEL
+    if document.get("linearised") is not None:
+        document["linearised"]["method"] = (
+            "the refinement's linearised covariance (robotcal refine's, sigma_hat estimated from its residuals) "
+            "rescaled by (u_stated / sigma_hat)^2 to the noise the draws use, u_stated the RMS of the points' "
+            "stated standard uncertainties (U(95) / 2, or the instrument's)"
+        )
+        document["linearised"]["stated_u_mm"] = float(result.stated_u_mm) if np.isfinite(result.stated_u_mm) else None
+        document["linearised"]["residual_sigma_mm"] = (
+            float(result.residual_sigma_mm) if np.isfinite(result.residual_sigma_mm) else None
+        )
+        document["linearised"]["step_mm"] = None
+        document["linearised"]["validation"] = (
+            "JCGM 101 §8.2: both interval ends within the numerical tolerance of one significant digit of u "
+            "(what a few hundred draws resolve)"
+        )
+    document["capture"] = {"source": capture, "params": params, "points": n_points}
+    document["noise"] = result.noise_source
+    document["targets"] = measured_target_rows(result)
+    document["free"] = list(result.reference.free_names)
+    atomic_write_text(folder / "parameters.json", json.dumps(document, indent=2, allow_nan=False) + "\n")
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(MEASURED_TARGET_COLUMNS)
+    for row in measured_target_rows(result):
+        writer.writerow(["" if row[c] is None else (format(row[c], ".12g") if isinstance(row[c], float) else row[c])
+                         for c in MEASURED_TARGET_COLUMNS])  # fmt: skip
+    atomic_write_text(folder / "targets.csv", buffer.getvalue())
+    if save_draws:
+        write_draws(
+            folder / "draws.npz", parameters.robot, parameters.draws, parameters.identified, seed=parameters.seed,
+            model=MEASURED_MODEL,
+        )  # fmt: skip

@@ -18,7 +18,6 @@ A planar two-link arm (links of 300 and 200 mm): at q = (90, -90) deg the flange
 [200.0, 300.0, 0.0]
 """
 
-from robotcal import _lazy_exports
 from robotcal.kinematics.forward import (
     check_joint_variables,
     forward_kinematics,
@@ -26,7 +25,13 @@ from robotcal.kinematics.forward import (
     link_transforms,
     target_positions,
 )
+from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.model import (
+    ANGLE_COLUMNS,
+    ANGLE_KINDS,
+    DISPLAY_UNITS,
+    KIND_UNITS,
+    LENGTH_COLUMNS,
     LENGTH_KINDS,
     PARAMETER_KINDS,
     ParameterSet,
@@ -35,26 +40,22 @@ from robotcal.kinematics.model import (
     check_parameter_array,
 )
 
-_LAZY = {
-    "target_jacobian": "robotcal.kinematics.jacobian",
-    **dict.fromkeys(
-        ("ANGLE_KINDS", "LENGTH_COLUMNS", "ANGLE_COLUMNS", "KIND_UNITS", "DISPLAY_UNITS"), "robotcal.kinematics.model"
-    ),
-}
-
 __all__ = [
-    "check_joint_variables",
-    "forward_kinematics",
-    "joint_frames",
     "link_transforms",
+    "joint_frames",
+    "forward_kinematics",
     "target_positions",
-    "LENGTH_KINDS",
+    "check_joint_variables",
+    "target_jacobian",
     "PARAMETER_KINDS",
+    "LENGTH_KINDS",
+    "ANGLE_KINDS",
+    "LENGTH_COLUMNS",
+    "ANGLE_COLUMNS",
+    "KIND_UNITS",
+    "DISPLAY_UNITS",
+    "RobotModel",
     "ParameterSet",
     "ReflectorMount",
-    "RobotModel",
     "check_parameter_array",
-    *_LAZY,
 ]
-
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)

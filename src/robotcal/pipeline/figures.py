@@ -1,58 +1,54 @@
-"""How the pipeline's stages draw their figures: now, or in the background (docs/pipeline.md, "Figures").
+"""How a run draws its figures: in a process pool while the later stages compute (docs/pipeline.md, "Figures").
 
-A stage draws a figure through ``render(function, *args, **kwargs)``, ``function`` being a plot function of
-:mod:`robotcal.plots` named ``"robotcal.plots.module:function"`` (so that naming it imports no
-matplotlib here). :func:`draw_now` calls it at once and returns its value (the paths written); a
-:class:`~robotcal.plots.background.FigureRenderer`'s ``submit`` returns a job whose result is that value,
-drawn by a worker process while the run goes on. :func:`figure_paths` turns either into the paths written,
-waiting for a job if need be, so a stage's code is the same both ways.
-
-The figures are written into the stage's final folder, after its data files have appeared there
-(:func:`robotcal.io.atomic.atomic_directory`), each atomically (temp file + rename). A run waits for every
-figure before its report (which embeds them).
+A stage asks for a figure with ``figures.draw("robotcal.plots.module:function", *args, **kwargs)``: the
+plot function is named by a string, so that naming it imports no matplotlib in the run's process; it is
+imported where the figure is drawn. :class:`FigureJobs` submits each call to a
+:func:`robotcal.execution.process_pool` (or, without a pool, draws it at once) and :meth:`FigureJobs.paths`
+waits for all of them. The plot functions write their files themselves, atomically, into the stage's
+final folder (its data files are already there), and return the paths written.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Executor, Future
 from importlib import import_module
 from pathlib import Path
 from typing import Any
 
-__all__ = ["FIGURE_MODULES", "Render", "draw_now", "figure_paths"]
-
-#: Plot modules a run's figure worker imports as soon as it starts (matplotlib with them).
-FIGURE_MODULES = (
-    "robotcal.plots.refine",
-    "robotcal.plots.joints",
-    "robotcal.plots.montecarlo",
-    "robotcal.plots.tcp",
-    "robotcal.plots.iso9283",
-    "robotcal.plots.planning",
-)
-
-#: ``render(function, *args, **kwargs)``: draw now and return the value, or submit and return a Future of it.
-Render = Callable[..., Any]
+__all__ = ["FigureJobs", "draw_figure"]
 
 
-def _function(function: Callable | str) -> Callable:
-    if not isinstance(function, str):
-        return function
+def draw_figure(function: str, /, *args, **kwargs) -> Any:
+    """Call the plot function named ``"package.module:function"``; returns its value (the paths written)."""
     module, _, name = function.partition(":")
-    return getattr(import_module(module), name)
+    return getattr(import_module(module), name)(*args, **kwargs)
 
 
-def draw_now(function: Callable | str, /, *args, **kwargs) -> Any:
-    """Call the plot function (or ``"package.module:function"``) here and now; returns its value."""
-    return _function(function)(*args, **kwargs)
+class FigureJobs:
+    """The figures of a run: drawn by ``pool`` (a :class:`concurrent.futures.Executor`) or, without one, at once."""
 
+    def __init__(self, pool: Executor | None = None):
+        self.pool = pool
+        self.jobs: list[tuple[str, Any]] = []
 
-def figure_paths(drawn: Any) -> list[Path]:
-    """The paths a plot call wrote: its value (a path or a list of paths), or a Future's, once done."""
-    value = drawn.result() if isinstance(drawn, Future) else drawn
-    if value is None:
-        return []
-    if isinstance(value, (str, Path)):
-        return [Path(value)]
-    return [Path(path) for path in value]
+    def draw(self, function: str, /, *args, **kwargs) -> None:
+        """Draw a figure (see the module docstring); an error of a figure drawn at once is raised here."""
+        if self.pool is None:
+            self.jobs.append((function, draw_figure(function, *args, **kwargs)))
+        else:
+            self.jobs.append((function, self.pool.submit(draw_figure, function, *args, **kwargs)))
+
+    def paths(self) -> list[Path]:
+        """Wait for every figure; the paths written, in the order asked. A figure's error is raised with a
+        note naming its plot function."""
+        written: list[Path] = []
+        for function, job in self.jobs:
+            try:
+                value = job.result() if isinstance(job, Future) else job
+            except Exception as exc:
+                exc.add_note(f"(while drawing the figure of {function})")
+                raise
+            if value is None:
+                continue
+            written.extend([Path(value)] if isinstance(value, str | Path) else [Path(path) for path in value])
+        return written

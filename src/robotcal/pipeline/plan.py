@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
+from robotcal.api import TCPTargets, seed_from, tcp_targets, validation_target
 from robotcal.errors import InputError
-from robotcal.io import load_scenario
 from robotcal.io.output import check_output_folder, existing_inputs
-from robotcal.io.scenario import Scenario, ValidationTable
-from robotcal.pipeline.runtime import BYTES_PER_POSE, SEED_BOUND, check_memory, monte_carlo_bytes, pairs_bytes
+from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES
+from robotcal.io.scenario import Scenario, ValidationTable, load_scenario
+from robotcal.limits import BYTES_PER_POSE, SEED_BOUND, check_memory, monte_carlo_bytes, pairs_bytes
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
-from robotcal.workflow import TCPTargets, resolve_seed, tcp_targets, validation_reflector
 
 __all__ = [
     "OUTPUTS",
@@ -34,28 +34,13 @@ __all__ = [
     "STAGES",
     "STEPS",
     "RunPlan",
+    "TCPTargets",
     "plan_run",
+    "tcp_targets",
 ]
 
-#: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
-STAGES = ("simulate", "identify", "joints", "refine", "evaluate", "uncertainty", "plan", "tcp", "iso9283", "report")
-#: What each stage writes under the run folder (docs/results.md).
-OUTPUTS = {
-    "simulate": ("truth.json", "capture.csv", "validation.csv"),
-    "identify": ("cpa",),
-    "joints": ("joints",),
-    "refine": ("refine",),
-    "evaluate": ("evaluation",),
-    "uncertainty": ("uncertainty", "uncertainty-refined"),
-    "plan": ("plan",),
-    "tcp": ("tcp",),
-    "iso9283": ("iso9283",),
-    "report": ("report.html",),
-}
-#: The run's own record, rewritten after every stage.
-RUN_RECORD = "run.json"
 #: Steps per stage for a progress display (the Monte Carlo counts draws instead).
-STEPS = {"simulate": 3, "identify": 1, "joints": 1, "refine": 2, "evaluate": 1, "plan": 2, "tcp": 3, "iso9283": 1, "report": 1}
+STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "plan": 2, "iso9283": 1, "report": 1}
 #: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
 PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
 PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)
@@ -172,7 +157,7 @@ def plan_run(
     robot = loaded.robot
     if not loaded.has_plan:  # first: any use of the missing plan raises simulate's message (`capture.start_deg`)
         _ = loaded.plan.points
-    validation_reflector(loaded)  # a validation capture needs a flange target
+    validation_target(loaded)  # a validation capture needs a flange target
     validation = loaded.validation or ValidationTable()
     if not np.all(np.isfinite(robot.limits)):
         raise InputError(
@@ -185,10 +170,10 @@ def plan_run(
         seeds = {name: seed + offset for name, offset in SEED_OFFSETS.items()}
     else:
         seeds = {
-            "capture": resolve_seed(loaded.seed),
-            "truth": None if loaded.truth is None else resolve_seed(loaded.truth.seed),
-            "validation": resolve_seed(validation.seed),
-            "montecarlo": resolve_seed(loaded.montecarlo.seed),
+            "capture": seed_from(loaded.seed),
+            "truth": None if loaded.truth is None else seed_from(loaded.truth.seed),
+            "validation": seed_from(validation.seed),
+            "montecarlo": seed_from(loaded.montecarlo.seed),
             "workspace": None,
             # the ISO 9283 study (joint errors and noise of its visits): derived from the capture seed
             "iso9283": None,

@@ -1,17 +1,15 @@
 """Run a planned calibration: every stage into one run folder, and a :class:`RunResult` in memory.
 
-:func:`run_calibration` runs :data:`~robotcal.pipeline.plan.STAGES` in order (the functions of
+:func:`run_calibration` runs :data:`~robotcal.io.run_folder.STAGES` in order (the functions of
 :mod:`robotcal.pipeline.stages`), each writing its own files (docs/results.md); ``run.json`` is rewritten
 atomically after every stage, so a failed stage leaves the earlier stages' outputs and a record of which
 stage failed and why. The calibration capture is kept in memory exactly as its CSV file holds it (12
 decimals), so ``robotcal identify DIR/capture.csv`` reproduces the run's CPA bit for bit.
 
-The report is the last stage: it is rendered once, from the RunResult in memory, after the final record
-(status, total time) is known; ``report.html`` and then ``run.json`` are written after it. This is the one
-place the pipeline calls the layer above it (:func:`robotcal.report.html.render_report`, a consumer of
-RunResult, and :func:`~robotcal.report.html.load_templates`, which compiles the templates while the last
-figures are drawn), through a lazy import inside the function: importing :mod:`robotcal.pipeline` never
-imports :mod:`robotcal.report.html`.
+Figures are drawn by one worker process (:func:`robotcal.execution.process_pool`) while the later stages
+compute; the report, the last stage, waits for them (it embeds them) and is rendered once, from the
+RunResult in memory, after the final record (status, total time) is known; ``report.html`` and then
+``run.json`` are written after it.
 """
 
 from __future__ import annotations
@@ -25,18 +23,18 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from robotcal.errors import InputError, RobotcalError
+from robotcal.errors import InputError, RobotcalError, Terminated
+from robotcal.execution import process_pool
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.output import check_output_folder, output_lock, write_marker
+from robotcal.io.provenance import versions
+from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES, Document, RunResult, json_text
+from robotcal.io.run_summary import summarise
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline import stages
-from robotcal.pipeline.figures import FIGURE_MODULES, draw_now, figure_paths
-from robotcal.pipeline.folder import json_text
-from robotcal.pipeline.plan import OUTPUTS, RUN_RECORD, STAGES, RunPlan
-from robotcal.pipeline.result import Document, RunResult
-from robotcal.pipeline.runtime import Terminated
-from robotcal.plots.background import FigureRenderer
-from robotcal.workflow import versions
+from robotcal.pipeline.figures import FigureJobs
+from robotcal.pipeline.plan import RunPlan
+from robotcal.report import html
 
 __all__ = ["REPORT_NAME", "StageProgress", "run_calibration", "run_record"]
 
@@ -47,9 +45,7 @@ StageProgress = Callable[[str, int, int | None, str], None]
 REPORT_NAME = "report.html"
 
 
-def run_calibration(
-    plan: RunPlan, progress: StageProgress | None = None, *, figures: FigureRenderer | None = None
-) -> RunResult:
+def run_calibration(plan: RunPlan, progress: StageProgress | None = None, *, figure_workers: int = 1) -> RunResult:
     """Run every stage of ``plan`` into ``plan.out``; returns the run in memory.
 
     Parameters
@@ -59,21 +55,19 @@ def run_calibration(
         is refused: the figures and the Monte Carlo draws are files, and the report embeds them).
     progress : callable, optional
         :data:`StageProgress`, called as stages advance (``robotcal run`` drives its display with it).
-    figures : FigureRenderer, optional
-        Draws the figures (:mod:`robotcal.pipeline.figures`); default: one started for the run, preloading
-        :data:`~robotcal.pipeline.figures.FIGURE_MODULES`. ``robotcal run`` starts its own before it plans
-        the run, so that matplotlib is imported meanwhile. The run stops its jobs if it fails; the caller
-        closes it.
+    figure_workers : int
+        Processes drawing the figures while the stages compute; 0 draws each figure when it is asked for.
 
     Returns
     -------
     RunResult
         ``record`` (``run.json``), ``documents`` (every file written), ``summary`` (headline figures),
         ``results``: the typed results, ``"truth"``, ``"nominal"``, ``"cpa"`` (ParameterSet), ``"cpa_result"``
-        (CPAResult), ``"refined"`` (criterion -> RefineResult), ``"capture"``, ``"validation"`` (Capture),
-        ``"evaluation"`` (rows), ``"joints"`` ((JointDiagnostics, HarmonicModel)), ``"montecarlo"``
-        (``"cpa"``/``"refined"`` -> MonteCarloResult), ``"tcp"`` (mode -> TCPUncertainty, with
-        ``"workspace_map"`` and ``"consistency"``), ``"iso9283"`` (the simulated ISO 9283 study), ``"plan"`` (cell check and sensitivity study), ``"report"``.
+        (CPAResult), ``"refined"`` (criterion -> RefinementResult), ``"capture"``, ``"validation"`` (Capture),
+        ``"evaluation"`` (rows), ``"joints"`` (JointAnalysis), ``"montecarlo"`` (``"cpa"``/``"refined"`` ->
+        MonteCarloResult), ``"tcp"`` (mode -> TCPUncertainty, with ``"workspace_map"`` and ``"consistency"``),
+        ``"plan"`` (cell check and sensitivity study), ``"iso9283"`` (the simulated ISO 9283 study),
+        ``"report"``.
 
     Raises
     ------
@@ -91,7 +85,9 @@ def run_calibration(
     with output_lock(plan.out):
         # checked again under the lock: another process may have written the folder since plan_run
         check_output_folder(plan.out, inputs=plan.inputs, force=plan.force, keeps_other_files=True)
-        return _Run(plan, progress, figures).execute()
+        pool = process_pool(figure_workers) if figure_workers > 0 else contextlib.nullcontext(None)
+        with pool as executor:
+            return _Run(plan, progress, FigureJobs(executor)).execute()
 
 
 def _scenario_echo(plan: RunPlan) -> dict:
@@ -154,12 +150,12 @@ def _status(exc: BaseException) -> str:
 
 
 def _message(exc: BaseException) -> str:
-    if isinstance(exc, Terminated):  # the SIGTERM interrupt (robotcal.cli installs the handler)
-        return "terminated (SIGTERM)"
+    if isinstance(exc, Terminated):  # SIGTERM or SIGHUP (robotcal.cli installs the handlers)
+        return f"terminated ({exc.signal_name})"
     if isinstance(exc, KeyboardInterrupt):
         return "interrupted (SIGINT, Ctrl-C)"
     message = str(exc) if isinstance(exc, RobotcalError) else f"{type(exc).__name__}: {exc}"
-    notes = getattr(exc, "__notes__", None) or ()  # e.g. the figure job that failed
+    notes = getattr(exc, "__notes__", None) or ()  # e.g. the figure that failed
     return " ".join([message, *map(str, notes)])
 
 
@@ -178,16 +174,14 @@ def _clear_previous(out: Path) -> None:
 class _Run:
     """One execution of a plan: the record, the documents and typed results gathered stage by stage."""
 
-    def __init__(self, plan: RunPlan, progress: StageProgress | None, figures: FigureRenderer | None = None):
+    def __init__(self, plan: RunPlan, progress: StageProgress | None, figures: FigureJobs):
         self.plan = plan
         self.out: Path = plan.out
         self.progress = progress or (lambda stage, done, total, detail="": None)
         self.record: dict = {}
         self.documents: dict[str, Document] = {}
         self.results: dict = {}
-        self.figures: list = []  # what the stages' render calls returned: paths, or jobs of the figure worker
-        self.render = draw_now
-        self.renderer = figures
+        self.figures = figures
         self.started = time.perf_counter()
 
     def write_record(self) -> None:
@@ -207,30 +201,13 @@ class _Run:
         self.record = json_copy(run_record(self.plan))  # plain JSON types: the record is run.json as read back
         self.write_record()
         try:
-            # figures are drawn by a worker process while the stages compute (docs/pipeline.md, "Figures");
-            # leaving this block by an exception stops it at once, and no figure is written after that
-            with self.renderer_context() as renderer:
-                self.render = renderer.submit
-                for name in STAGES[:-1]:
-                    self._stage(name, getattr(self, f"_{name}"))
-                return self._report()
+            for name in STAGES[:-1]:
+                self._stage(name, getattr(self, f"_{name}"))
+            return self._report()
         except BaseException as exc:
             if self.record["status"] == "running":  # interrupted between stages
                 self.record.update(status=_status(exc), error=_message(exc))
                 self.write_record()
-            raise
-
-    @contextlib.contextmanager
-    def renderer_context(self):
-        """The run's figure renderer: the caller's (its jobs stopped if the run fails), or one of its own."""
-        if self.renderer is None:
-            with FigureRenderer(preload=FIGURE_MODULES) as renderer:
-                yield renderer
-            return
-        try:
-            yield self.renderer
-        except BaseException:
-            self.renderer.cancel()
             raise
 
     def _fail(self, name: str, exc: BaseException, started: float) -> None:
@@ -261,7 +238,6 @@ class _Run:
                 self._fail(name, exc, started)
                 raise
         self.documents.update(output.documents)
-        self.figures.extend(output.figures)
         messages = list(dict.fromkeys(str(w.message) for w in caught))
         self.record["stages"][name].update(
             status="done",
@@ -305,14 +281,14 @@ class _Run:
             capture=self.results["capture"],
             validation=self.results["validation"],
             out=self.out,
-            render=self.render,
+            figures=self.figures,
         )
         self.results["evaluation"] = output.value
         return output
 
     def _joints(self) -> stages.StageOutput:
         output = stages.joints_stage(
-            self.plan.scenario, self.results["capture"], backlash=self.plan.backlash, out=self.out, render=self.render
+            self.plan.scenario, self.results["capture"], backlash=self.plan.backlash, out=self.out, figures=self.figures
         )
         self.results["joints"] = output.value
         return output
@@ -326,8 +302,8 @@ class _Run:
             cpa=self.results["cpa"],
             deployed=self.results["refined"][stages.DEPLOYED].parameters,
             out=self.out,
+            figures=self.figures,
             step=self.step("uncertainty"),
-            render=self.render,
         )
         self.results["montecarlo"] = output.value
         return output
@@ -341,10 +317,22 @@ class _Run:
             deployed=self.results["refined"][stages.DEPLOYED].parameters,
             workspace_seed=self.plan.seeds["workspace"],
             out=self.out,
+            figures=self.figures,
             step=self.step("tcp"),
-            render=self.render,
         )
         self.results["tcp"] = output.value
+        return output
+
+    def _plan(self) -> stages.StageOutput:
+        output = stages.plan_stage(
+            self.plan.scenario,
+            seed=self.plan.seeds["montecarlo"],
+            draws=self.plan.montecarlo.iterations,
+            out=self.out,
+            figures=self.figures,
+            step=self.step("plan"),
+        )
+        self.results["plan"] = output.value
         return output
 
     def _iso9283(self) -> stages.StageOutput:
@@ -359,46 +347,22 @@ class _Run:
             models=models,
             seed=self.plan.seeds["iso9283"],
             out=self.out,
-            render=self.render,
+            figures=self.figures,
         )
         self.results["iso9283"] = output.value
         return output
 
-    def _plan(self) -> stages.StageOutput:
-        output = stages.plan_stage(
-            self.plan.scenario,
-            seed=self.plan.seeds["montecarlo"],
-            draws=self.plan.montecarlo.iterations,
-            out=self.out,
-            step=self.step("plan"),
-            render=self.render,
-        )
-        self.results["plan"] = output.value
-        return output
-
-    def _collect_figures(self) -> None:
-        """Wait for every figure (the report embeds them) and add them to the documents, by path in the run
-        folder. A figure that failed fails the report stage, its message naming the figure's job."""
-        for drawn in self.figures:
-            for path in figure_paths(drawn):  # a job's error carries a note naming it (robotcal.plots.background)
-                self.documents[path.relative_to(self.out).as_posix()] = path
-        self.progress("report", 1, None, f"{len(self.figures)} figure jobs drawn")
-
     def _report(self) -> RunResult:
-        """The last stage: the final record, the summary and the report, rendered once from memory."""
-        from robotcal.pipeline.summary import summarise
-
+        """The last stage: every figure waited for, the final record, the summary and the report, rendered once
+        from memory. A figure that failed fails the report stage, its message naming the figure."""
         name = "report"
         self.record["stages"][name]["status"] = "running"
         self.write_record()
         self.progress(name, 0, None, "running")
         started = time.perf_counter()
         try:
-            from robotcal.report.html import load_templates, render_report  # the layer above: see the module docstring
-
-            load_templates()  # compiled while the figure worker draws the last figures
-            self._collect_figures()
-
+            for path in self.figures.paths():
+                self.documents[path.relative_to(self.out).as_posix()] = path
             now = time.perf_counter()
             self.record["stages"][name].update(
                 status="done",
@@ -412,9 +376,9 @@ class _Run:
                 finished=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             )
             documents = {**self.documents, RUN_RECORD: json_copy(self.record)}
-            summary = summarise(self.record, documents)
+            summary = summarise(documents[RUN_RECORD], documents)
             result = RunResult(folder=self.out, record=documents[RUN_RECORD], documents=documents, summary=summary)
-            report = render_report(result)
+            report = html.render_report(result)
             atomic_write_text(self.out / REPORT_NAME, report.html)
         except BaseException as exc:
             self.record["stages"][name].pop("outputs", None)
@@ -438,4 +402,3 @@ class _Run:
 def json_copy(document: dict) -> dict:
     """``document`` as ``run.json`` holds it once written and read back (plain JSON types)."""
     return json.loads(json_text(document, default=str))
-

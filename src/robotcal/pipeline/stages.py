@@ -1,13 +1,14 @@
 """The stages of a calibration run, one plain function each (docs/pipeline.md).
 
-Every stage takes typed inputs (the scenario, the results of earlier stages, the run folder ``out``) and
-returns a :class:`StageOutput`: its typed result, the documents it wrote (keyed by their path relative to
-the run folder, :mod:`robotcal.pipeline.result`) and a one-line detail for the progress display. A stage's
-folder is built with :func:`robotcal.io.atomic.atomic_directory`: it appears whole or not at all (``tcp/``: one
-folder per mode, committed as it is computed; ``plan/`` then ``plan/sensitivity/``), and its figures are drawn
-afterwards, into the final folder, through ``render`` (:mod:`robotcal.pipeline.figures`). The
-stand-alone commands (``robotcal identify``, ``refine``, ``evaluate``, ``joints``, ``uncertainty``,
-``tcp``, ``plan``) call the same library functions and write the same files.
+Every stage calls the front door (:mod:`robotcal.api`) with the run's scenario and the results of earlier
+stages, writes its files through :mod:`robotcal.io` and returns a :class:`StageOutput`: its typed result, the
+documents it wrote (keyed by their path relative to the run folder, :mod:`robotcal.io.run_folder`) and a
+one-line detail for the progress display. A stage's folder is built with
+:func:`robotcal.io.atomic.atomic_directory`: it appears whole or not at all (``tcp/``: one folder per mode;
+``plan/`` then ``plan/sensitivity/``); its figures are then asked of ``figures``
+(:class:`~robotcal.pipeline.figures.FigureJobs`) and drawn into the final folder while the next stages
+compute. The stand-alone commands (``robotcal identify``, ``refine``, ``evaluate``, ``joints``,
+``uncertainty``, ``tcp``, ``plan``) call the same functions and write the same files.
 
 ``step(done, total, detail)`` reports progress inside a stage (``total`` None: the stage's step count).
 """
@@ -22,41 +23,31 @@ from typing import Any
 
 import numpy as np
 
+from robotcal import api
 from robotcal.capture import Capture
+from robotcal.diagnostics.iso9283 import ISO_CYCLES, simulate_iso_study
 from robotcal.io.atomic import atomic_directory
-from robotcal.io.capture_csv import capture_to_csv
-from robotcal.io.parameters_json import parameters_to_dict
+from robotcal.io.capture_csv import capture_to_csv, read_capture_text
+from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
+from robotcal.io.iso9283_files import iso_to_csv
+from robotcal.io.joints_files import write_joints_folder
+from robotcal.io.parameters_json import parameters_to_dict, refined_targets
+from robotcal.io.provenance import cpa_provenance, refine_provenance, scenario_echo, versions
+from robotcal.io.run_folder import Document, read_document, write_csv, write_json
 from robotcal.io.scenario import Scenario
+from robotcal.io.tcp_results import write_tcp_folder
+from robotcal.io.uncertainty_files import write_uncertainty_folder
 from robotcal.kinematics.model import ParameterSet
-from robotcal.pipeline.evaluation import evaluation_document, write_evaluation_figures, write_evaluation_folder
-from robotcal.pipeline.figures import Render, draw_now
-from robotcal.pipeline.folder import read_document, write_csv, write_json
-from robotcal.pipeline.iso9283 import iso9283_stage
-from robotcal.pipeline.joints import compute_joints, write_joint_figure_files, write_joints_folder
-from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES
-from robotcal.pipeline.result import Document, Table
-from robotcal.pipeline.tcp import compute_tcp, write_tcp_figures, write_tcp_folder
-from robotcal.pipeline.uncertainty import HISTOGRAMS, compute_uncertainty, write_uncertainty_folder
+from robotcal.pipeline.figures import FigureJobs
+from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
-from robotcal.workflow import (
-    TCPTargets,
-    cpa_provenance,
-    evaluate_scenario,
-    identify_scenario,
-    refine_provenance,
-    refine_scenario,
-    scenario_truth,
-    simulate_scenario,
-    simulate_validation,
-    validation_consistency,
-    versions,
-)
 
 __all__ = [
     "CRITERIA_RUN",
+    "DEPLOYED",
+    "ISO_TARGETS_MM",
     "Simulated",
     "StageOutput",
-    "capture_from_table",
     "evaluate_stage",
     "identify_stage",
     "iso9283_stage",
@@ -72,6 +63,9 @@ __all__ = [
 CRITERIA_RUN = ("points", "distances")
 #: The deployed model's criterion: its Monte Carlo, TCP figures and consistency check.
 DEPLOYED = "points"
+#: Three flange targets (a typical adapter plate) measured at each ISO 9283 test pose, so that the orientation
+#: characteristics are measured too [mm].
+ISO_TARGETS_MM = {"A": (60.0, 40.0, 30.0), "B": (-50.0, 30.0, 20.0), "C": (0.0, -60.0, 40.0)}
 
 Step = Callable[[int, int | None, str], None]
 
@@ -82,13 +76,11 @@ def _no_step(done: int, total: int | None, detail: str = "") -> None:
 
 @dataclass(frozen=True, slots=True)
 class StageOutput:
-    """What a stage produced: its typed result, its documents (path relative to the run folder), a detail,
-    and its figures as ``render`` returned them (paths, or jobs of paths: :func:`~robotcal.pipeline.figures.figure_paths`)."""
+    """What a stage produced: its typed result, its documents (path relative to the run folder) and a detail."""
 
     value: Any
     documents: dict[str, Document] = field(default_factory=dict)
     detail: str = ""
-    figures: tuple = ()
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -100,7 +92,7 @@ class Simulated:
     validation: Capture
 
 
-def _folder_documents(prefix: str, documents: dict[str, Document], final: Path) -> dict[str, Document]:
+def _in(prefix: str, documents: dict[str, Document], final: Path) -> dict[str, Document]:
     """Documents written into a stage's temporary folder, keyed and located as in the final run folder."""
     return {
         f"{prefix}/{name}": (final / name if isinstance(document, Path) else document)
@@ -108,10 +100,9 @@ def _folder_documents(prefix: str, documents: dict[str, Document], final: Path) 
     }
 
 
-def _written_back(folder: Path, final: Path) -> dict[str, Document]:
-    """The files another module wrote into ``folder`` (a stage's temporary folder; :mod:`robotcal.plots.planning`
-    writes its own), read back once as :func:`robotcal.pipeline.folder.read_run` would: JSON and CSV as
-    documents, others by their path in ``final``."""
+def _read_back(folder: Path, final: Path) -> dict[str, Document]:
+    """The files another module wrote into ``folder`` (a stage's temporary folder), read back once as
+    :func:`robotcal.io.run_folder.read_run` would: JSON and CSV as documents, others by their path in ``final``."""
     return {
         path.name: read_document(folder, path.name) if path.suffix in (".json", ".csv") else final / path.name
         for path in sorted(folder.iterdir())
@@ -119,112 +110,62 @@ def _written_back(folder: Path, final: Path) -> dict[str, Document]:
     }
 
 
-def capture_from_table(table: Table, *, source: str, seed: int | None) -> Capture:
-    """The capture a capture CSV's cells describe, exactly as :func:`robotcal.io.read_capture` reads the file.
-
-    Columns are found by name as the reader finds them (``circle, direction, q1..qN, x, y, z`` and the optional
-    ``target`` and ``u95_mm``); every number goes through ``float`` and readings [deg] through ``np.deg2rad``
-    as in the reader, and target names are numbered in order of first appearance as the reader numbers them,
-    so the capture is bit for bit the file's (12 decimals, :func:`robotcal.io.capture_csv.capture_to_csv`).
-    The table is one the pipeline wrote itself: no input checks are repeated here.
-    """
-    header = [cell.strip().lower() for cell in table.header]
-    joints = sorted((c for c in header if c[:1] == "q" and c[1:].isdigit()), key=lambda c: int(c[1:]))
-    columns = [header.index(c) for c in ("circle", "direction", *joints, "x", "y", "z")]
-    data = np.array([[float(row[k]) for k in columns] for row in table.rows], dtype=float).reshape(-1, len(columns))
-    n = len(joints)
-    target = names = u95 = None
-    if "target" in header:
-        labels = [row[header.index("target")].strip() for row in table.rows]
-        names = tuple(dict.fromkeys(labels))
-        lookup = {name: k for k, name in enumerate(names)}
-        target = np.array([lookup[label] for label in labels], dtype=int)
-    if "u95_mm" in header:
-        u95 = np.array([float(row[header.index("u95_mm")]) for row in table.rows], dtype=float)
-    return Capture(
-        circle=data[:, 0].astype(int),
-        direction=data[:, 1].astype(int),
-        readings=np.deg2rad(data[:, 2 : 2 + n]),
-        points=data[:, 2 + n :],
-        source=source,
-        seed=seed,
-        target=target,
-        target_names=names or (),
-        u95=u95,
-    )
-
-
 def simulate_stage(scenario: Scenario, seeds: dict, out: Path, step: Step = _no_step) -> StageOutput:
     """``truth.json``, ``capture.csv``, ``validation.csv``: the "true" robot and its two simulated captures.
 
-    The captures the later stages use are those of the CSV files (12 decimals), kept in memory: a stand-alone
-    command reading ``capture.csv`` sees the same numbers bit for bit.
+    The captures the later stages use are those of the CSV files (12 decimals), read back from the text
+    written: a stand-alone command reading ``capture.csv`` sees the same numbers bit for bit.
     """
-    robot = scenario.robot
+    provenance = {"scenario": scenario_echo(scenario), "versions": versions()}
     if scenario.truth is not None:
-        truth, truth_seed = scenario_truth(scenario, seed=seeds["truth"])
-        provenance = {
-            "method": "nominal plus normal deviations of the CPA-identifiable parameters (simulation.perturb)",
-            "scenario": {"name": scenario.name, "source": scenario.source},
-            "truth": scenario.truth.model_dump(),
-            "seed": truth_seed,
-            "versions": versions(),
-        }
+        truth = api.perturb(scenario, rng=seeds["truth"])
+        provenance.update(
+            method="nominal plus normal deviations of the CPA-identifiable parameters (simulation.perturb)",
+            truth=scenario.truth.model_dump(),
+            seed=seeds["truth"],
+        )
     else:
-        truth = ParameterSet.nominal(robot)
-        provenance = {
-            "method": "nominal parameters (the scenario has no [truth] table)",
-            "scenario": {"name": scenario.name, "source": scenario.source},
-            "versions": versions(),
-        }
+        truth = ParameterSet.nominal(scenario.robot)
+        provenance["method"] = "nominal parameters (the scenario has no [truth] table)"
     documents: dict[str, Document] = {"truth.json": write_json(out / "truth.json", parameters_to_dict(truth, provenance))}
     step(1, None, "truth")
-    calibration = simulate_scenario(scenario, seed=seeds["capture"], true_parameters=truth)
-    documents["capture.csv"] = write_csv(out / "capture.csv", capture_to_csv(calibration.capture))
-    step(2, None, f"{calibration.capture.n_points} points")
-    validation = simulate_validation(scenario, seed=seeds["validation"], true_parameters=truth)
-    documents["validation.csv"] = write_csv(out / "validation.csv", capture_to_csv(validation.capture))
-    value = Simulated(
-        truth=truth,
-        capture=capture_from_table(documents["capture.csv"], source="capture.csv", seed=calibration.seed),
-        validation=capture_from_table(documents["validation.csv"], source="validation.csv", seed=validation.seed),
-    )
-    detail = f"{calibration.capture.n_points} + {validation.capture.n_points} points"
-    return StageOutput(value, documents, detail)
+    captures = {}
+    for name, capture in (
+        ("capture", api.simulate(scenario, rng=seeds["capture"], true_parameters=truth)),
+        ("validation", api.simulate_validation(scenario, rng=seeds["validation"], true_parameters=truth)),
+    ):
+        text = capture_to_csv(capture)
+        documents[f"{name}.csv"] = write_csv(out / f"{name}.csv", text)
+        captures[name] = read_capture_text(text, source=f"{name}.csv", n_joints=scenario.robot.n_joints, seed=capture.seed)
+        step(len(documents), None, f"{capture.n_points} points")
+    value = Simulated(truth=truth, capture=captures["capture"], validation=captures["validation"])
+    return StageOutput(value, documents, f"{value.capture.n_points} + {value.validation.n_points} points")
 
 
 def identify_stage(scenario: Scenario, capture: Capture, out: Path) -> StageOutput:
-    """``cpa/parameters.json``: Circle Point Analysis of the capture (thesis ch. 3)."""
-    result = identify_scenario(capture, scenario)
+    """``cpa/parameters.json``: Circle Point Analysis of the capture (thesis ch. 4.4-4.5)."""
+    result = api.identify(capture, scenario)
     with atomic_directory(out / "cpa") as folder:
-        document = parameters_to_dict(result.parameters, cpa_provenance(result, capture, scenario))
+        document = parameters_to_dict(result.parameters, cpa_provenance(result, capture, scenario=scenario))
         documents = {"parameters.json": write_json(folder / "parameters.json", document)}
-    return StageOutput(result, _folder_documents("cpa", documents, out / "cpa"), f"{int(result.parameters.identified.sum())} parameters")
+    detail = f"{int(result.parameters.identified.sum())} parameters, fit health {result.health.verdict}"
+    return StageOutput(result, _in("cpa", documents, out / "cpa"), detail)
 
 
 def refine_stage(scenario: Scenario, capture: Capture, start: ParameterSet, out: Path, step: Step = _no_step) -> StageOutput:
     """``refine/points.json``, ``refine/distances.json``: Levenberg-Marquardt refinement from the CPA result."""
     results = {}
     for k, criterion in enumerate(CRITERIA_RUN):
-        results[criterion] = refine_scenario(capture, scenario, start, criterion=criterion)
+        results[criterion] = api.refine(capture, scenario, start, criterion=criterion)
         step(k + 1, None, criterion)
     documents = {}
     with atomic_directory(out / "refine") as folder:
         for criterion, result in results.items():
-            provenance = refine_provenance(result, capture, scenario, "cpa/parameters.json")
-            documents[f"{criterion}.json"] = write_json(
-                folder / f"{criterion}.json", parameters_to_dict(result.parameters, provenance)
-            )
+            provenance = refine_provenance(result, capture, "cpa/parameters.json", scenario=scenario)
+            document = parameters_to_dict(result.parameters, provenance, refined_targets(result))
+            documents[f"{criterion}.json"] = write_json(folder / f"{criterion}.json", document)
     detail = ", ".join(f"{c} RMS {r.rms_history[-1] * 1e3:.1f} um" for c, r in results.items())
-    return StageOutput(results, _folder_documents("refine", documents, out / "refine"), detail)
-
-
-def convergence_histories(refined: dict) -> dict:
-    """The RMS and cost per iteration of each refinement (``evaluation.json`` ``convergence``) [mm, mm^2]."""
-    return {
-        criterion: {"criterion": criterion, "cost_mm2": result.cost_history.tolist(), "rms_mm": result.rms_history.tolist()}
-        for criterion, result in refined.items()
-    }
+    return StageOutput(results, _in("refine", documents, out / "refine"), detail)
 
 
 def evaluate_stage(
@@ -235,40 +176,43 @@ def evaluate_stage(
     capture: Capture,
     validation: Capture,
     out: Path,
-    render: Render = draw_now,
+    figures: FigureJobs,
 ) -> StageOutput:
     """``evaluation/``: nominal, CPA and refined parameters on the validation and calibration captures."""
     sets = {"nominal": ParameterSet.nominal(scenario.robot), "cpa": cpa, **{c: r.parameters for c, r in refined.items()}}
-    rows = evaluate_scenario(scenario, {"validation": validation, "capture": capture}, sets)
+    rows = api.evaluate({"validation": validation, "capture": capture}, sets, scenario)
+    histories = {
+        c: {"criterion": c, "cost_mm2": r.cost_history.tolist(), "rms_mm": r.rms_history.tolist()} for c, r in refined.items()
+    }
     document = evaluation_document(
         rows,
         scenario,
         parameter_files={"cpa": "cpa/parameters.json", **{c: f"refine/{c}.json" for c in refined}},
         capture_files={"validation": "validation.csv", "capture": "capture.csv"},
         reference="nominal",
-        histories=convergence_histories(refined),
+        histories=histories,
         headline_after=DEPLOYED,
     )
     with atomic_directory(out / "evaluation") as folder:
-        documents = write_evaluation_folder(folder, rows, document, figures=False)
-    drawn = write_evaluation_figures(out / "evaluation", document, render=render)
+        documents = write_evaluation_folder(folder, rows, document)
+    figures.draw("robotcal.plots.refine:plot_convergence", convergence_of(document), out / "evaluation" / "convergence.png")
     headline = document["headline"]
     detail = f"{headline['before_mean_mm']:.3f} -> {headline['after_mean_mm']:.4f} mm" if headline else ""
-    return StageOutput(rows, _folder_documents("evaluation", documents, out / "evaluation"), detail, tuple(drawn))
+    return StageOutput(rows, _in("evaluation", documents, out / "evaluation"), detail)
 
 
-def joints_stage(
-    scenario: Scenario, capture: Capture, *, backlash: bool, out: Path, render: Render = draw_now
-) -> StageOutput:
+def joints_stage(scenario: Scenario, capture: Capture, *, backlash: bool, out: Path, figures: FigureJobs) -> StageOutput:
     """``joints/``: backlash and eccentricity per joint with their harmonic model (thesis ch. 4.6)."""
-    diagnostics, model = compute_joints(capture, scenario, backlash=backlash)
+    analysis = api.diagnose_joints(capture, scenario, backlash=backlash)
     with atomic_directory(out / "joints") as folder:
         documents = write_joints_folder(
-            folder, diagnostics, model, capture="capture.csv", scenario=scenario, figures=False
+            folder, analysis.diagnostics, analysis.harmonics, capture="capture.csv", scenario=scenario
         )
-    drawn = write_joint_figure_files(out / "joints", diagnostics, model, render=render)
+    figures.draw(
+        "robotcal.plots.joints:write_joint_figures", analysis.diagnostics, out / "joints", model=analysis.harmonics
+    )
     detail = "backlash and eccentricity" if backlash else "eccentricity (one sweep direction)"
-    return StageOutput((diagnostics, model), _folder_documents("joints", documents, out / "joints"), detail, (drawn,))
+    return StageOutput(analysis, _in("joints", documents, out / "joints"), detail)
 
 
 def uncertainty_stage(
@@ -280,8 +224,8 @@ def uncertainty_stage(
     cpa: ParameterSet,
     deployed: ParameterSet,
     out: Path,
+    figures: FigureJobs,
     step: Step = _no_step,
-    render: Render = draw_now,
 ) -> StageOutput:
     """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model).
 
@@ -290,39 +234,34 @@ def uncertainty_stage(
     Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult}``.
     """
     total = montecarlo.iterations + refined_montecarlo.iterations
-
-    def cpa_done(done: int, expected: int | None) -> None:
-        step(done, total, "draws")
-
-    def refined_done(done: int, expected: int | None) -> None:
-        step(montecarlo.iterations + done, total, "draws")
-
-    drawn: list = []  # the histogram pages are prepared by the figure worker while the draws run
-
-    def prepare(function, *args, **kwargs):
-        drawn.append(render(function, *args, **kwargs))
-
-    result = compute_uncertainty(
-        scenario, montecarlo, seed=seed, true_parameters=cpa, progress=cpa_done, render=prepare
-    )
-    refined = compute_uncertainty(
-        scenario,
-        refined_montecarlo,
-        seed=seed,
-        true_parameters=deployed,
-        progress=refined_done,
-        model="refined",
-        criterion=DEPLOYED,
-    )
+    results = {}
+    for model, settings, parameters, done in (
+        ("cpa", montecarlo, cpa, 0),
+        ("refined", refined_montecarlo, deployed, montecarlo.iterations),
+    ):
+        results[model] = api.monte_carlo(
+            scenario,
+            parameters=parameters,
+            model=model,
+            criterion=DEPLOYED,
+            draws=settings.iterations,
+            coverage=settings.coverage,
+            workers=settings.workers,
+            rng=seed,
+            progress=lambda count, expected, done=done: step(done + count, total, "draws"),
+        )
     documents: dict[str, Document] = {}
-    for name, value in (("uncertainty", result), ("uncertainty-refined", refined)):
+    for name, result in (("uncertainty", results["cpa"]), ("uncertainty-refined", results["refined"])):
         with atomic_directory(out / name) as folder:
-            written = write_uncertainty_folder(folder, value, scenario, save_draws=True, figures=False)
-        documents.update(_folder_documents(name, written, out / name))
-        drawn.append(render(HISTOGRAMS, value, out / name))
-    rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in (result, refined)]
-    detail = f"CPA {result.n_draws:,} draws ({rates[0]:,.0f}/s), refined {refined.n_draws:,} draws ({rates[1]:,.0f}/s)"
-    return StageOutput({"cpa": result, "refined": refined}, documents, detail, tuple(drawn))
+            written = write_uncertainty_folder(folder, result, scenario=scenario, save_draws=True)
+        documents.update(_in(name, written, out / name))
+        figures.draw("robotcal.plots.montecarlo:write_histograms", result, out / name)
+    rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in results.values()]
+    detail = (
+        f"CPA {results['cpa'].n_draws:,} draws ({rates[0]:,.0f}/s), "
+        f"refined {results['refined'].n_draws:,} draws ({rates[1]:,.0f}/s)"
+    )
+    return StageOutput(results, documents, detail)
 
 
 def tcp_stage(
@@ -334,15 +273,14 @@ def tcp_stage(
     deployed: ParameterSet,
     workspace_seed: int,
     out: Path,
+    figures: FigureJobs,
     step: Step = _no_step,
-    render: Render = draw_now,
 ) -> StageOutput:
     """``tcp/``: TCP uncertainty of the deployed (refined) model at the pose, along the trajectory, over the
     workspace (thesis ch. 5.3), and ``tcp/consistency.json``, the check against the validation capture.
 
     Result: ``{mode: TCPUncertainty}`` plus ``"workspace_map"`` (WorkspaceUncertainty) and ``"consistency"``.
     """
-    robot = scenario.robot
     base = {
         "model": "refined (CPA + points refinement), Monte Carlo",
         "draws_file": "uncertainty-refined/draws.npz",
@@ -350,21 +288,21 @@ def tcp_stage(
         "draws_in_file": draws.n_draws,
         "versions": versions(),
     }
-    # one folder per mode, each whole or not at all and committed as soon as it is computed, so that its
-    # figures are drawn while the next mode computes; consistency.json last
     folder = out / "tcp"
     folder.mkdir(exist_ok=True)
     written: dict[str, Document] = {}
-    drawn: list = []
     value: dict = {}
 
-    def commit(mode: str, result, workspace_map, provenance: dict) -> None:
+    def commit(mode: str, result, provenance: dict, workspace=None) -> None:
+        """One folder per mode, whole or not at all, committed as soon as it is computed."""
         with atomic_directory(folder / mode) as partial:
-            files = write_tcp_folder(partial, result, mode, workspace=workspace_map, provenance=provenance, figures=False)
-        written.update(_folder_documents(mode, files, Path(mode)))
-        drawn.extend(write_tcp_figures(folder / mode, result, mode, workspace=workspace_map, render=render))
+            files = write_tcp_folder(partial, result, workspace=workspace, provenance=provenance)
+        written.update(_in(mode, files, folder / mode))
+        figures.draw("robotcal.plots.tcp:write_tcp_figures", result, folder / mode, mode, workspace=workspace)
         value[mode] = result
+        step(len(value), None, mode)
 
+    tool = targets.tool_mm
     for mode, readings, source in (
         ("pose", targets.pose, targets.pose_source),
         ("trajectory", targets.trajectory, targets.trajectory_source),
@@ -372,65 +310,49 @@ def tcp_stage(
         if readings is None:
             continue
         started = time.perf_counter()
-        tcp, _ = compute_tcp(robot, draws.draws, mode, readings=readings, tool_mm=targets.tool_mm)
-        commit(mode, tcp, None, {**base, mode: source, "mode": mode, "seconds": round(time.perf_counter() - started, 3)})
-        step(len(value), None, mode)
+        result = api.tcp_uncertainty(scenario, draws, np.rad2deg(readings), tool_mm=tool, keep_draws=mode == "pose")
+        commit(mode, result, {**base, mode: source, "mode": mode, "seconds": round(time.perf_counter() - started, 3)})
     started = time.perf_counter()
     values = draws.draws if targets.workspace_draws is None else draws.draws[: targets.workspace_draws]
-    tcp, ws = compute_tcp(
-        robot, values, "workspace", n_poses=targets.workspace_poses, seed=workspace_seed, tool_mm=targets.tool_mm
-    )
+    workspace = api.workspace_uncertainty(scenario, values, targets.workspace_poses, tool_mm=tool, rng=workspace_seed)
     provenance = {**base, "mode": "workspace", "seconds": round(time.perf_counter() - started, 3)}
     if values.shape[0] < draws.n_draws:
         provenance["draws_used"] = int(values.shape[0])
-    commit("workspace", tcp, ws, provenance)
-    step(len(value), None, "workspace")
-    consistency = validation_consistency(
-        scenario, validation, deployed, draws.draws, model="refined (CPA + points refinement)"
+    commit("workspace", workspace.tcp, provenance, workspace=workspace)
+    consistency = api.validation_consistency(
+        validation, deployed, draws, scenario, model="refined (CPA + points refinement)"
     )
-    consistency["draws_file"] = "uncertainty-refined/draws.npz"
-    consistency["validation_file"] = "validation.csv"
+    consistency.update(draws_file="uncertainty-refined/draws.npz", validation_file="validation.csv")
     written["consistency.json"] = write_json(folder / "consistency.json", consistency)
     documents = {
         f"tcp/{name}": (folder / document if isinstance(document, Path) else document)
         for name, document in written.items()
     }
     detail = ", ".join(value)
-    value["workspace_map"] = ws
-    value["consistency"] = consistency
-    return StageOutput(value, documents, detail, tuple(drawn))
+    value.update(workspace_map=workspace, consistency=consistency)
+    return StageOutput(value, documents, detail)
 
 
 def plan_stage(
-    scenario: Scenario, *, seed: int, draws: int, out: Path, step: Step = _no_step, render: Render = draw_now
+    scenario: Scenario, *, seed: int, draws: int, out: Path, figures: FigureJobs, step: Step = _no_step
 ) -> StageOutput:
     """``plan/``: the capture plan checked in the cell (thesis 4.5.2) and how its J4 sweep drives the
-    uncertainty (ch. 5.2.4, Fig. 5.15), a sensitivity study of at most :data:`PLAN_SENSITIVITY_DRAWS` draws per case.
-
-    Result: ``{"check": PlanCheck, "study": SensitivityStudy, "notes": [...]}``.
+    uncertainty (ch. 5.2.4, Fig. 5.15), a sensitivity study of at most :data:`PLAN_SENSITIVITY_DRAWS` draws per
+    case. Result: ``{"check": PlanCheck, "study": SensitivityStudy, "notes": [...]}``.
     """
-    from robotcal.planning.cell import check_plan
+    from robotcal.planning.files import check_document, write_check_files, write_sensitivity_files
     from robotcal.planning.scenario import cell_from_scenario, scenario_document
     from robotcal.planning.sensitivity import run_sensitivity, study_rows
-    from robotcal.plots.planning import check_document, write_check_files, write_sensitivity_files
 
     cell, notes = cell_from_scenario(scenario)
-    check = check_plan(scenario.robot, scenario.plan, cell)
+    check = api.check_plan(scenario, cell=cell)
     step(1, None, "cell check")
-    # plan/ with the cell check first, so its figure is drawn while the sensitivity study computes;
-    # plan/sensitivity/ then appears whole, in its turn
     with atomic_directory(out / "plan") as folder:
         check_json = check_document(check, scenario=scenario.source, cell=cell, notes=notes)
         write_check_files(folder, check, check_json)
-        documents = _written_back(folder, out / "plan")
-    drawn = [
-        render(
-            "robotcal.plots.planning:plot_check",
-            check,
-            out / "plan" / "plan_check.png",
-            acceptance_deg=check_json["cell"]["acceptance_deg"],
-        )
-    ]
+        documents = _read_back(folder, out / "plan")
+    acceptance = check_json["cell"]["acceptance_deg"]
+    figures.draw("robotcal.plots.planning:plot_check", check, out / "plan" / "plan_check.png", acceptance_deg=acceptance)
     document, base_dir, name, source = scenario_document(scenario.source)
     study = run_sensitivity(
         document,
@@ -454,9 +376,9 @@ def plan_stage(
         }
         write_sensitivity_files(folder, rows, summary)
         documents.update(
-            {f"sensitivity/{key}": value for key, value in _written_back(folder, out / "plan" / "sensitivity").items()}
+            {f"sensitivity/{key}": value for key, value in _read_back(folder, out / "plan" / "sensitivity").items()}
         )
-    drawn.append(render("robotcal.plots.planning:plot_sensitivity", rows, study.keys, out / "plan" / "sensitivity"))
+    figures.draw("robotcal.plots.planning:plot_sensitivity", rows, study.keys, out / "plan" / "sensitivity")
     bad = int((~check.ok).sum())
     verdict = "feasible in the cell" if bad == 0 else f"{bad} of {check.ok.size} points fail a cell check"
     detail = f"{verdict}; sensitivity to the J4 sweep, {len(study.cases)} cases"
@@ -464,5 +386,47 @@ def plan_stage(
         {"check": check, "study": study, "notes": notes},
         {f"plan/{name}": document for name, document in documents.items()},
         detail,
-        tuple(drawn),
     )
+
+
+def iso9283_stage(
+    scenario: Scenario, *, truth: ParameterSet, models: dict, seed: int, out: Path, figures: FigureJobs
+) -> StageOutput:
+    """``iso9283/``: ``iso9283.csv`` (the ``robotcal iso9283`` columns), ``study.json`` (cube, start, cycles,
+    targets, seed, models) and ``iso9283.png``: a simulated ISO 9283 pose test of the true robot, evaluated with
+    every model. Result: the :class:`~robotcal.diagnostics.iso9283.IsoStudy`."""
+    study = simulate_iso_study(
+        scenario.robot,
+        models,
+        true_parameters=truth,
+        tracker_from_base=scenario.tracker_from_base,
+        joint_errors=scenario.joint_errors,
+        instrument=scenario.instrument if scenario.has_instrument else None,
+        targets_mm=ISO_TARGETS_MM,
+        cycles=ISO_CYCLES,
+        seed=seed,
+    )
+    summary = {
+        "method": (
+            "simulated ISO 9283 pose test: the scenario's true robot with its joint error model and instrument "
+            "noise visits P1..P5 (one unmeasured warm-up cycle); each model's commanded pose is its forward "
+            "kinematics at the commanded readings (docs/iso9283.md)"
+        ),
+        "models": list(models),
+        "cycles": ISO_CYCLES,
+        "seed": seed,
+        "cube": {"center_mm": study.center_mm.tolist(), "side_mm": float(study.side_mm)},
+        "start_deg": np.rad2deg(study.start_readings).tolist(),
+        "point_mm": study.point_mm.tolist(),
+        "targets_mm": {name: np.asarray(value, dtype=float).tolist() for name, value in study.targets_mm.items()},
+        "units": {"AP, RP, AD, RD, l_bar, S_l": "mm", "APa..c, RPa..c": "deg"},
+    }
+    with atomic_directory(out / "iso9283") as folder:
+        documents = {
+            "iso9283/iso9283.csv": write_csv(folder / "iso9283.csv", iso_to_csv(study.results)),
+            "iso9283/study.json": write_json(folder / "study.json", summary),
+        }
+    figures.draw("robotcal.plots.iso9283:plot_iso_results", study.results, out / "iso9283" / "iso9283.png")
+    worst = {model: float(np.max(r.ap)) * 1e3 for model, r in study.results.items()}
+    detail = "max AP " + ", ".join(f"{model} {value:.0f} um" for model, value in worst.items())
+    return StageOutput(study, documents, detail)

@@ -12,43 +12,67 @@ The process capability index of eq. 5-5, ``Cpk = min(USL - mean, mean - LSL) / (
 1.5
 """
 
-from robotcal import _lazy_exports
+from robotcal.planning.cell import REASONS, CellModel, CircleCheck, PlanCheck, check_plan, segment_distance
+from robotcal.planning.files import check_document, write_check_files, write_sensitivity_files
+from robotcal.planning.optimise import (
+    OBJECTIVES,
+    OptimisationResult,
+    PlanProblem,
+    evaluate_plan,
+    optimise_plan,
+    workspace_readings,
+)
+from robotcal.planning.program import LANGUAGES, controller_readings, write_program
+from robotcal.planning.scenario import (
+    DEFAULT_CAPSULE_RADIUS_MM,
+    cell_from_scenario,
+    robot_capsule_radii,
+    scenario_document,
+    scenario_from_document,
+    set_key,
+)
+from robotcal.planning.sensitivity import (
+    DEFAULT_ANGLE_LIMIT_DEG,
+    DEFAULT_LENGTH_LIMIT_MM,
+    SensitivityCase,
+    SensitivityStudy,
+    capability_limits,
+    parse_vary,
+    process_capability,
+    run_sensitivity,
+)
 
-_LAZY = {
-    **dict.fromkeys(
-        ("CellModel", "PlanCheck", "CircleCheck", "segment_distance", "check_plan", "REASONS"), "robotcal.planning.cell"
-    ),
-    **dict.fromkeys(
-        ("OBJECTIVES", "PlanProblem", "OptimisationResult", "evaluate_plan", "optimise_plan", "workspace_readings"),
-        "robotcal.planning.optimise",
-    ),
-    **dict.fromkeys(("LANGUAGES", "write_program", "controller_readings"), "robotcal.planning.program"),
-    **dict.fromkeys(
-        (
-            "DEFAULT_CAPSULE_RADIUS_MM",
-            "scenario_document",
-            "scenario_from_document",
-            "robot_capsule_radii",
-            "cell_from_scenario",
-            "set_key",
-        ),
-        "robotcal.planning.scenario",
-    ),
-    **dict.fromkeys(
-        (
-            "DEFAULT_LENGTH_LIMIT_MM",
-            "DEFAULT_ANGLE_LIMIT_DEG",
-            "process_capability",
-            "capability_limits",
-            "SensitivityCase",
-            "SensitivityStudy",
-            "parse_vary",
-            "run_sensitivity",
-        ),
-        "robotcal.planning.sensitivity",
-    ),
-}
-
-__all__ = list(_LAZY)
-
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)
+__all__ = [
+    "CellModel",
+    "PlanCheck",
+    "CircleCheck",
+    "segment_distance",
+    "check_plan",
+    "REASONS",
+    "check_document",
+    "write_check_files",
+    "write_sensitivity_files",
+    "OBJECTIVES",
+    "PlanProblem",
+    "OptimisationResult",
+    "evaluate_plan",
+    "optimise_plan",
+    "workspace_readings",
+    "LANGUAGES",
+    "write_program",
+    "controller_readings",
+    "DEFAULT_CAPSULE_RADIUS_MM",
+    "scenario_document",
+    "scenario_from_document",
+    "robot_capsule_radii",
+    "cell_from_scenario",
+    "set_key",
+    "DEFAULT_LENGTH_LIMIT_MM",
+    "DEFAULT_ANGLE_LIMIT_DEG",
+    "process_capability",
+    "capability_limits",
+    "SensitivityCase",
+    "SensitivityStudy",
+    "parse_vary",
+    "run_sensitivity",
+]

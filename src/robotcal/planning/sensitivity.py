@@ -110,8 +110,7 @@ def parse_vary(options: list[str]) -> list[tuple[str, list]]:
 def _run_case(task) -> dict:
     """One combination (top level, picklable): build the scenario and run its Monte Carlo."""
     from robotcal.planning.scenario import scenario_from_document, set_key
-    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-    from robotcal.workflow import scenario_monte_carlo
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
 
     document, base_dir, name, source, values, iterations, seed = task
     for key, value in values.items():
@@ -119,7 +118,16 @@ def _run_case(task) -> dict:
     scenario = scenario_from_document(document, Path(base_dir), name, source)
     n = scenario.montecarlo.iterations if iterations is None else int(iterations)
     settings = MonteCarloSettings(iterations=n, coverage=scenario.montecarlo.coverage, keep_draws=False)
-    result = run_monte_carlo(scenario_monte_carlo(scenario), settings, seed=seed, linearised=False)
+    problem = prepare_monte_carlo(
+        scenario.robot,
+        scenario.plan,
+        scenario.instrument,
+        scenario.tracker_from_base,
+        options=scenario.identification,
+        joint_errors=scenario.joint_errors,
+        joint_limits=scenario.joint_limits,
+    )
+    result = run_monte_carlo(problem, settings, seed=seed, linearised=False)
     return {
         "n_draws": result.n_draws,
         "mean": result.summary.mean,

@@ -33,24 +33,14 @@ FORWARD, RETURN = "tab:blue", "tab:orange"
 
 
 #: Fixed margins of the panel grid [in]: left, right, bottom (room for the figure legend), top, and the
-#: gaps between panels. Constrained layout measured every tick label's extent on every draw.
+#: gaps between panels.
 _MARGINS_IN = {"left": 0.8, "right": 0.2, "bottom": 0.85, "top": 0.6, "wspace": 0.85, "hspace": 0.8}
 _PANEL_WIDTH_IN = 4.0
 NOISE = "0.25"  # colour of the noise-floor lines
 
 
-def _panels(n_joints: int, title: str, *, height_per_row: float = 2.6, reuse=None):
-    """A grid of up to 3 panels a row with fixed margins (no layout engine: about 2x quicker to draw).
-
-    ``reuse``: a ``(figure, axes)`` of an earlier call with the same ``n_joints``, emptied and returned
-    instead of a new one (:func:`write_joint_figures` draws its five figures on one: creating the 30
-    axes and their tick objects again took about a third of the drawing time).
-    """
-    if reuse is not None:
-        figure, axes = reuse
-        _empty(figure, axes)
-        figure.suptitle(title)
-        return figure, axes
+def _panels(n_joints: int, title: str, *, height_per_row: float = 2.6):
+    """A grid of up to 3 panels a row with fixed margins."""
     n_cols = min(3, n_joints)
     n_rows = math.ceil(n_joints / n_cols)
     m = _MARGINS_IN
@@ -72,21 +62,6 @@ def _panels(n_joints: int, title: str, *, height_per_row: float = 2.6, reuse=Non
     return figure, flat[:n_joints]
 
 
-def _empty(figure, axes) -> None:
-    """Remove every artist a plot added to ``figure`` and ``axes`` and undo its settings, so that the next
-    plot draws as on a new figure (``write_joint_figures``' test: the same PNG bytes either way)."""
-    for legend in list(figure.legends):
-        legend.remove()
-    for axis in axes:
-        for artist in [*axis.lines, *axis.collections, *axis.texts, *axis.patches, *axis.images]:
-            artist.remove()
-        axis.set_aspect("auto", adjustable="box")
-        axis.set_xlabel("")
-        axis.set_ylabel("")
-        axis.relim()
-        axis.ignore_existing_data_limits = True
-        axis.set_autoscale_on(True)
-        axis.autoscale_view()
 
 
 def _legend(figure, axes) -> None:
@@ -128,14 +103,14 @@ def _no_backlash(axis, circle: CircleDiagnostics) -> bool:
     return circle is None
 
 
-def plot_backlash_vectors(diagnostics: JointDiagnostics, path, *, scale: float = 500.0, reuse=None) -> Path:
+def plot_backlash_vectors(diagnostics: JointDiagnostics, path, *, scale: float = 500.0) -> Path:
     """Backlash vectors along each circle (Fig. 4.26), drawn in the circle's plane.
 
     Arrows start at the forward point and end at the return point, their length multiplied by
     ``scale`` (the thesis uses 500); the axial component is not drawn. Positions in mm.
     """
     figure, axes = _panels(
-        diagnostics.n_joints, f"Backlash vectors in each circle's plane (arrows ×{scale:g})", reuse=reuse
+        diagnostics.n_joints, f"Backlash vectors in each circle's plane (arrows ×{scale:g})"
     )
     for axis, circle in _each_joint(diagnostics, axes):
         if circle is None:
@@ -166,14 +141,14 @@ def plot_backlash_vectors(diagnostics: JointDiagnostics, path, *, scale: float =
     return save_figure(figure, path)
 
 
-def plot_backlash_xyz(diagnostics: JointDiagnostics, path, *, reuse=None) -> Path:
+def plot_backlash_xyz(diagnostics: JointDiagnostics, path) -> Path:
     """Signed backlash per coordinate (x, y, z of the tracker frame) against the angle (Fig. 4.27), in µm.
 
     Dashed: ``+-sqrt(2) sigma``, one standard deviation of a component of the difference of two noisy
     points (:attr:`~robotcal.diagnostics.CircleDiagnostics.noise_sigma`).
     """
     figure, axes = _panels(
-        diagnostics.n_joints, "Backlash per coordinate (return − forward) vs joint angle", reuse=reuse
+        diagnostics.n_joints, "Backlash per coordinate (return − forward) vs joint angle"
     )
     for axis, circle in _each_joint(diagnostics, axes):
         if _no_backlash(axis, circle):
@@ -192,14 +167,14 @@ def plot_backlash_xyz(diagnostics: JointDiagnostics, path, *, reuse=None) -> Pat
     return save_figure(figure, path)
 
 
-def plot_backlash_magnitude(diagnostics: JointDiagnostics, path, *, reuse=None) -> Path:
+def plot_backlash_magnitude(diagnostics: JointDiagnostics, path) -> Path:
     """Euclidean length of the backlash vector against the angle (Fig. 4.28), in µm; turnarounds hollow.
 
     The dashed line is the noise floor, the mean magnitude that instrument noise alone gives
     (:attr:`~robotcal.diagnostics.CircleDiagnostics.backlash_noise_floor`); each panel's title says
     whether the joint's mean lies above it (:attr:`~robotcal.diagnostics.JointSummary.backlash_exceeds_noise`).
     """
-    figure, axes = _panels(diagnostics.n_joints, "Backlash magnitude vs joint angle (dashed: noise floor)", reuse=reuse)
+    figure, axes = _panels(diagnostics.n_joints, "Backlash magnitude vs joint angle (dashed: noise floor)")
     summary = {row.joint: row for row in diagnostics.summary()}
     for axis, circle in _each_joint(diagnostics, axes):
         if _no_backlash(axis, circle):
@@ -227,7 +202,7 @@ def plot_backlash_magnitude(diagnostics: JointDiagnostics, path, *, reuse=None) 
 
 
 def plot_eccentricity(
-    diagnostics: JointDiagnostics, path, *, kind: str, model: HarmonicModel | None = None, reuse=None
+    diagnostics: JointDiagnostics, path, *, kind: str, model: HarmonicModel | None = None
 ) -> Path:
     """Axial (Fig. 4.29) or radial (Fig. 4.30) eccentricity against the angle, with the harmonic model, in µm.
 
@@ -238,7 +213,7 @@ def plot_eccentricity(
         raise ValueError(f"kind must be 'axial' or 'radial'; got {kind!r}")
     what = "distance to the fitted plane" if kind == "axial" else "distance to the fitted circle"
     figure, axes = _panels(
-        diagnostics.n_joints, f"{kind.capitalize()} eccentricity ({what}) vs joint angle", reuse=reuse
+        diagnostics.n_joints, f"{kind.capitalize()} eccentricity ({what}) vs joint angle"
     )
     for axis, circle in _each_joint(diagnostics, axes):
         if circle is None:
@@ -266,17 +241,13 @@ def plot_eccentricity(
 def write_joint_figures(
     diagnostics: JointDiagnostics, folder, *, model: HarmonicModel | None = None, scale: float = 500.0
 ) -> list[Path]:
-    """Write the figures of :data:`FIGURE_NAMES` into ``folder`` (backlash ones only with backlash).
-
-    All are drawn on one figure, emptied between them (the same PNG bytes as separate figures).
-    """
+    """Write the figures of :data:`FIGURE_NAMES` into ``folder`` (backlash ones only with backlash)."""
     folder = Path(folder)
-    shared = _panels(diagnostics.n_joints, "")
-    plots = []
+    written = []
     if diagnostics.backlash:
-        plots.append(lambda: plot_backlash_vectors(diagnostics, folder / FIGURE_NAMES[0], scale=scale, reuse=shared))
-        plots.append(lambda: plot_backlash_xyz(diagnostics, folder / FIGURE_NAMES[1], reuse=shared))
-        plots.append(lambda: plot_backlash_magnitude(diagnostics, folder / FIGURE_NAMES[2], reuse=shared))
-    plots.append(lambda: plot_eccentricity(diagnostics, folder / FIGURE_NAMES[3], kind="axial", model=model, reuse=shared))
-    plots.append(lambda: plot_eccentricity(diagnostics, folder / FIGURE_NAMES[4], kind="radial", model=model, reuse=shared))
-    return [plot() for plot in plots]
+        written.append(plot_backlash_vectors(diagnostics, folder / FIGURE_NAMES[0], scale=scale))
+        written.append(plot_backlash_xyz(diagnostics, folder / FIGURE_NAMES[1]))
+        written.append(plot_backlash_magnitude(diagnostics, folder / FIGURE_NAMES[2]))
+    for name, kind in ((FIGURE_NAMES[3], "axial"), (FIGURE_NAMES[4], "radial")):
+        written.append(plot_eccentricity(diagnostics, folder / name, kind=kind, model=model))
+    return written

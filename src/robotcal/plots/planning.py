@@ -1,89 +1,22 @@
-"""Figures and files of the planning commands: cell check, sensitivity (Figs 5.14-5.16), optimisation.
+"""Figures of the planning commands: cell check, sensitivity (Figs 5.14-5.16), optimisation.
 
-The file writers (:func:`check_document`, :func:`write_check_files`, :func:`write_sensitivity_files`) run in
-the pipeline's own process; matplotlib is imported by the ``plot_*`` functions only, which run in the figure
-process (importing it here cost the run's main process about 0.8 s of CPU for nothing).
+The files they accompany: :mod:`robotcal.planning.files`.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 from pathlib import Path
 
 import numpy as np
 
-from robotcal.io.atomic import atomic_write_text
-from robotcal.planning.cell import REASONS, PlanCheck
+from robotcal.planning.cell import PlanCheck
+from robotcal.plots.figures import new_figure, save_figure
 
-__all__ = [
-    "check_document",
-    "write_check_files",
-    "plot_check",
-    "write_sensitivity_files",
-    "plot_sensitivity",
-    "plot_optimisation",
-]
-
-
-def check_document(check: PlanCheck, *, scenario: str, cell, notes: list[str]) -> dict:
-    """The JSON document of a cell check (mm, deg)."""
-    return {
-        "scenario": scenario,
-        "feasible": check.feasible,
-        "cell": {
-            "tracker_position_mm": cell.tracker_position.tolist(),
-            "capsule_radius_mm": cell.capsule_radius.tolist(),
-            "min_distance_mm": cell.min_distance,
-            "max_distance_mm": None if not np.isfinite(cell.max_distance) else cell.max_distance,
-            "acceptance_deg": None if cell.acceptance is None else float(np.rad2deg(cell.acceptance)),
-            "aim": cell.aim,
-        },
-        "notes": notes,
-        "circles": [
-            {
-                "circle": c.circle,
-                "points": c.points,
-                "feasible_points": c.feasible_points,
-                "start_deg": c.start_deg,
-                "end_deg": c.end_deg,
-                "usable_deg": None if c.usable_deg is None else list(c.usable_deg),
-                "first_failure": c.first_failure,
-                "first_reasons": list(c.first_reasons),
-            }
-            for c in check.circles
-        ],
-        "failures": {reason: int(check.failures[:, k].sum()) for k, reason in enumerate(REASONS)},
-    }
-
-
-def write_check_files(folder: Path, check: PlanCheck, document: dict) -> None:
-    """``plan_check.json`` and ``plan_check.csv`` (one row per point) in ``folder``."""
-    atomic_write_text(folder / "plan_check.json", json.dumps(document, indent=2) + "\n")
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    n = check.readings.shape[1]
-    writer.writerow(
-        ["circle", "direction", *[f"q{j + 1}_deg" for j in range(n)], "distance_mm", "incidence_deg", "clearance_mm"]
-        + [reason.replace(" ", "_") for reason in REASONS]
-        + ["ok"]
-    )
-    for i in range(check.readings.shape[0]):
-        writer.writerow(
-            [int(check.circle[i]), int(check.direction[i])]
-            + [f"{v:.6f}" for v in np.rad2deg(check.readings[i])]
-            + [f"{check.distance[i]:.3f}", f"{np.rad2deg(check.incidence[i]):.3f}", f"{check.clearance[i]:.3f}"]
-            + [int(v) for v in check.failures[i]]
-            + [int(check.ok[i])]
-        )
-    atomic_write_text(folder / "plan_check.csv", buffer.getvalue())
+__all__ = ["plot_check", "plot_sensitivity", "plot_optimisation"]
 
 
 def plot_check(check: PlanCheck, path: Path, *, acceptance_deg: float | None) -> Path:
     """Per circle: line-of-sight clearance and incidence angle against the turning joint's reading."""
-    from robotcal.plots.figures import new_figure, save_figure
-
     n = check.readings.shape[1]
     width, height = 2.6 * n, 5.0
     # fixed margins [in] instead of constrained layout, which measured all 2 n panels on every draw
@@ -116,22 +49,9 @@ def plot_check(check: PlanCheck, path: Path, *, acceptance_deg: float | None) ->
     return save_figure(figure, path)
 
 
-def write_sensitivity_files(folder: Path, rows: list[dict], document: dict) -> None:
-    """``sensitivity.csv`` (one row per case and parameter) and ``sensitivity.json``."""
-    buffer = io.StringIO()
-    if rows:
-        writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
-        writer.writeheader()
-        writer.writerows(rows)
-    atomic_write_text(folder / "sensitivity.csv", buffer.getvalue())
-    atomic_write_text(folder / "sensitivity.json", json.dumps(document | {"rows": rows}, indent=2) + "\n")
-
-
 def plot_sensitivity(rows: list[dict], keys: tuple[str, ...], folder: Path, *, parameters: list[str] | None = None):
     """Per varied key (the others at their first value): Cpk and mean deviation of each parameter
     against the key's value (Figs 5.15/5.16 for sweeps and points; Fig. 5.14 for iterations)."""
-    from robotcal.plots.figures import new_figure, save_figure
-
     paths = []
     for key in keys:
         others = [k for k in keys if k != key]
@@ -164,8 +84,6 @@ def plot_sensitivity(rows: list[dict], keys: tuple[str, ...], folder: Path, *, p
 
 def plot_optimisation(history: np.ndarray, baseline: float, confirmed: dict, path: Path, *, objective: str) -> Path:
     """Best linearised objective per generation, with the baseline and the Monte Carlo confirmations."""
-    from robotcal.plots.figures import new_figure, save_figure
-
     figure, axis = new_figure(1, 1, width_in=6.4, height_in=4.0)
     axis.semilogy(np.arange(1, history.size + 1), history, marker=".", label="best (linearised)")
     axis.axhline(baseline, color="tab:red", ls="--", label="baseline (linearised)")

@@ -9,11 +9,11 @@ from matplotlib.colors import Normalize
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.errors import InputError
-from robotcal.plots.figures import blank_figure, new_figure, save_figure, set_margins
+from robotcal.plots.figures import new_figure, save_figure, set_margins
 from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
-__all__ = ["plot_tcp_scatter", "plot_tcp_histograms", "plot_trajectory", "plot_workspace"]
+__all__ = ["plot_tcp_scatter", "plot_tcp_histograms", "plot_trajectory", "plot_workspace", "write_tcp_figures"]
 
 _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
 
@@ -45,7 +45,7 @@ def plot_tcp_scatter(result: TCPUncertainty, path, *, pose: int = 0, max_points:
     draws = _need_draws(result, pose)[:, :3] - mean
     if draws.shape[0] > max_points:
         draws = draws[rng.choice(draws.shape[0], max_points, replace=False)]
-    figure = blank_figure(6.4, 5.6)
+    figure, _ = new_figure(0, width_in=6.4, height_in=5.6, layout=None)
     axes = figure.add_axes((0.0, 0.04, 0.94, 0.82), projection="3d")
     axes.scatter(draws[:, 0], draws[:, 1], draws[:, 2], s=2, alpha=0.25, color="tab:blue", label="draws")
     x, y, z = _ellipsoid_mesh(result.ellipsoid.semi_axes[pose], result.ellipsoid.directions[pose])
@@ -97,7 +97,7 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
 
 def plot_trajectory(result: TCPUncertainty, path) -> Path:
     """The trajectory coloured by its uncertainty (Fig. 5.20) with per-pose u and ranges."""
-    figure = blank_figure(11.0, 8.0)
+    figure, _ = new_figure(0, width_in=11.0, height_in=8.0, layout=None)
     # fixed positions [figure fraction]; the 3-D panel and its colour bar keep clear of each other's labels
     grid = figure.add_gridspec(2, 2, left=0.085, right=0.985, bottom=0.065, top=0.93, wspace=0.25, hspace=0.3)
     axes3d = figure.add_subplot(grid[0, 0], projection="3d")
@@ -174,3 +174,14 @@ def plot_workspace(workspace: WorkspaceUncertainty, path) -> Path:
     axes[2].set_ylabel("poses")
     axes[2].set_title(f"{result.n_poses} random poses, {result.n_draws} draws", fontsize=9, y=1.0)
     return save_figure(figure, path)
+
+
+def write_tcp_figures(result: TCPUncertainty, folder, mode: str, *, workspace: WorkspaceUncertainty | None = None) -> list[Path]:
+    """The figures of a TCP folder: pose -> ``scatter.png``, ``histograms.png``; trajectory -> ``trajectory.png``;
+    workspace -> ``workspace.png`` (from ``workspace``). Returns the paths written."""
+    folder = Path(folder)
+    if mode == "pose":
+        return [plot_tcp_scatter(result, folder / "scatter.png"), plot_tcp_histograms(result, folder / "histograms.png")]
+    if mode == "trajectory":
+        return [plot_trajectory(result, folder / "trajectory.png")]
+    return [plot_workspace(workspace, folder / "workspace.png")]

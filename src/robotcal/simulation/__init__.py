@@ -20,26 +20,37 @@ axis, so its points lie 100 mm from the base origin:
 [100.0, 100.0, 100.0, 100.0, 100.0]
 """
 
-from robotcal import _lazy_exports
-from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel, motion_direction, simulate_capture
+from robotcal.simulation.generator import (
+    ERROR_TERMS,
+    JointErrorModel,
+    motion_direction,
+    simulate_capture,
+    simulate_target_poses,
+)
+from robotcal.simulation.perturb import perturb_parameters, perturbable_mask
 from robotcal.simulation.plan import CapturePlan
+from robotcal.simulation.poses import (
+    TABLE_4_1_RANGE_DEG,
+    TABLE_4_2_START_DEG,
+    TABLE_4_4_POINTS,
+    random_poses,
+    simulate_poses,
+    thesis_test2_plan,
+)
 
-_LAZY = {
-    "simulate_target_poses": "robotcal.simulation.generator",
-    **dict.fromkeys(("perturb_parameters", "perturbable_mask"), "robotcal.simulation.perturb"),
-    **dict.fromkeys(
-        (
-            "random_poses",
-            "simulate_poses",
-            "thesis_test2_plan",
-            "TABLE_4_1_RANGE_DEG",
-            "TABLE_4_2_START_DEG",
-            "TABLE_4_4_POINTS",
-        ),
-        "robotcal.simulation.poses",
-    ),
-}
-
-__all__ = ["CapturePlan", "ERROR_TERMS", "JointErrorModel", "motion_direction", "simulate_capture", *_LAZY]
-
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)
+__all__ = [
+    "JointErrorModel",
+    "simulate_capture",
+    "simulate_target_poses",
+    "motion_direction",
+    "ERROR_TERMS",
+    "perturb_parameters",
+    "perturbable_mask",
+    "CapturePlan",
+    "random_poses",
+    "simulate_poses",
+    "thesis_test2_plan",
+    "TABLE_4_1_RANGE_DEG",
+    "TABLE_4_2_START_DEG",
+    "TABLE_4_4_POINTS",
+]

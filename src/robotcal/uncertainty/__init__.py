@@ -23,76 +23,104 @@ u(Y) = 0.05 mm, and u(X) is of second order:
 (True, True)
 """
 
-from robotcal import _lazy_exports
+from robotcal.uncertainty.coverage import COVERAGE_METHODS, CoverageStudy, binomial_band, coverage_study
+from robotcal.uncertainty.measured import (
+    DRAWS_PER_BLOCK,
+    MODEL,
+    MeasuredMonteCarloResult,
+    MeasuredProblem,
+    measured_block,
+    measured_monte_carlo,
+    prepare_measured,
+)
+from robotcal.uncertainty.montecarlo import (
+    AdaptiveRecord,
+    LinearisedResult,
+    MonteCarloProblem,
+    MonteCarloResult,
+    MonteCarloSettings,
+    draw_block,
+    linearised_uncertainty,
+    prepare_monte_carlo,
+    run_monte_carlo,
+)
+from robotcal.uncertainty.refined import (
+    RefinedBatch,
+    RefinedModel,
+    prepare_refined_model,
+    refine_batch,
+    refined_covariance,
+)
+from robotcal.uncertainty.statistics import (
+    INTERVAL_KINDS,
+    SampleSummary,
+    check_coverage,
+    coverage_interval,
+    numerical_tolerance,
+    summarize_draws,
+)
+from robotcal.uncertainty.tcp import (
+    ORIENTATION_CONVENTION,
+    TCP_COORDINATES,
+    TCP_UNITS,
+    CoverageEllipsoid,
+    TCPUncertainty,
+    check_readings,
+    check_tool,
+    coverage_ellipsoid,
+    position_covariance,
+    propagate_to_tcp,
+    tcp_coordinates,
+    tcp_jacobian,
+)
+from robotcal.uncertainty.workspace import PERCENTILES, WorkspaceUncertainty, sample_workspace, workspace_uncertainty
 
-_LAZY = {
-    **dict.fromkeys(
-        (
-            "MonteCarloProblem",
-            "MonteCarloSettings",
-            "MonteCarloResult",
-            "AdaptiveRecord",
-            "LinearisedResult",
-            "prepare_monte_carlo",
-            "run_monte_carlo",
-            "linearised_uncertainty",
-            "draw_block",
-        ),
-        "robotcal.uncertainty.montecarlo",
-    ),
-    **dict.fromkeys(
-        ("RefinedModel", "RefinedBatch", "prepare_refined_model", "refine_batch", "refined_covariance"),
-        "robotcal.uncertainty.refined",
-    ),
-    **dict.fromkeys(
-        (
-            "INTERVAL_KINDS",
-            "SampleSummary",
-            "summarize_draws",
-            "coverage_interval",
-            "numerical_tolerance",
-            "check_coverage",
-        ),
-        "robotcal.uncertainty.statistics",
-    ),
-    **dict.fromkeys(
-        (
-            "TCP_COORDINATES",
-            "TCP_UNITS",
-            "ORIENTATION_CONVENTION",
-            "CoverageEllipsoid",
-            "TCPUncertainty",
-            "check_readings",
-            "check_tool",
-            "tcp_coordinates",
-            "tcp_jacobian",
-            "position_covariance",
-            "coverage_ellipsoid",
-            "propagate_to_tcp",
-        ),
-        "robotcal.uncertainty.tcp",
-    ),
-    **dict.fromkeys(
-        ("PERCENTILES", "WorkspaceUncertainty", "sample_workspace", "workspace_uncertainty"),
-        "robotcal.uncertainty.workspace",
-    ),
-    **dict.fromkeys(
-        ("COVERAGE_METHODS", "CoverageStudy", "coverage_study", "binomial_band"), "robotcal.uncertainty.coverage"
-    ),
-    **dict.fromkeys(
-        (
-            "DRAWS_PER_BLOCK",
-            "MODEL",
-            "MeasuredProblem",
-            "MeasuredMonteCarloResult",
-            "prepare_measured",
-            "measured_monte_carlo",
-            "measured_block",
-        ),
-        "robotcal.uncertainty.measured",
-    ),
-}
-
-__all__ = list(_LAZY)
-
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY)
+__all__ = [
+    "COVERAGE_METHODS",
+    "CoverageStudy",
+    "coverage_study",
+    "binomial_band",
+    "DRAWS_PER_BLOCK",
+    "MODEL",
+    "MeasuredProblem",
+    "MeasuredMonteCarloResult",
+    "prepare_measured",
+    "measured_monte_carlo",
+    "measured_block",
+    "MonteCarloProblem",
+    "MonteCarloSettings",
+    "MonteCarloResult",
+    "AdaptiveRecord",
+    "LinearisedResult",
+    "prepare_monte_carlo",
+    "run_monte_carlo",
+    "linearised_uncertainty",
+    "draw_block",
+    "RefinedModel",
+    "RefinedBatch",
+    "prepare_refined_model",
+    "refine_batch",
+    "refined_covariance",
+    "INTERVAL_KINDS",
+    "SampleSummary",
+    "summarize_draws",
+    "coverage_interval",
+    "numerical_tolerance",
+    "check_coverage",
+    "TCP_COORDINATES",
+    "TCP_UNITS",
+    "ORIENTATION_CONVENTION",
+    "CoverageEllipsoid",
+    "TCPUncertainty",
+    "check_readings",
+    "check_tool",
+    "tcp_coordinates",
+    "tcp_jacobian",
+    "position_covariance",
+    "coverage_ellipsoid",
+    "propagate_to_tcp",
+    "PERCENTILES",
+    "WorkspaceUncertainty",
+    "sample_workspace",
+    "workspace_uncertainty",
+]

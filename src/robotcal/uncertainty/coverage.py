@@ -43,7 +43,12 @@ from statistics import NormalDist
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.kinematics.model import ParameterSet
+from robotcal.execution import single_blas_thread
+from robotcal.identification.cpa import CPAOptions
+from robotcal.instruments import Instrument
+from robotcal.kinematics.model import ParameterSet, RobotModel
+from robotcal.simulation.generator import JointErrorModel
+from robotcal.simulation.plan import CapturePlan
 
 __all__ = ["COVERAGE_METHODS", "CoverageStudy", "coverage_study", "binomial_band"]
 
@@ -134,11 +139,17 @@ def _inside_ellipsoid(positions: np.ndarray, point: np.ndarray, coverage: float)
 
 
 def coverage_study(
-    scenario,
+    robot: RobotModel,
+    plan: CapturePlan,
+    instrument: Instrument,
     truth: ParameterSet,
     *,
     captures: int,
     draws: int,
+    tracker_from_base=None,
+    options: CPAOptions | None = None,
+    joint_errors: JointErrorModel | None = None,
+    joint_limits: str = "warn",
     methods=COVERAGE_METHODS,
     criterion: str = "points",
     coverage: float = 0.95,
@@ -150,14 +161,20 @@ def coverage_study(
 
     Parameters
     ----------
-    scenario : Scenario
-        Robot, capture plan, instrument, base frame and joint errors of every capture.
+    robot, plan, instrument : RobotModel, CapturePlan, Instrument
+        The robot, its capture plan (with the reflector) and the instrument of every capture.
     truth : ParameterSet
         The fixed true robot [mm, rad].
     captures : int
         K independent captures (>= 10; 300 gives the 0.918..0.982 band).
     draws : int
         Monte Carlo draws per capture and model (>= 200).
+    tracker_from_base : array_like, shape (4, 4), optional
+        The base frame (default identity); held by CPA and the refinement when ``options.base_frame`` is
+        "given", else registered.
+    options : CPAOptions, optional
+    joint_errors : JointErrorModel, optional
+    joint_limits : {"warn", "error", "ignore"}
     methods : sequence of str
         Subset of :data:`COVERAGE_METHODS`.
     criterion : {"points", "distances"}
@@ -165,111 +182,131 @@ def coverage_study(
     coverage : float
         Coverage probability p.
     tcp_readings : array_like, shape (n_joints,), optional
-        Controller readings [rad] of the pose where the TCP ellipsoid is checked; default the
-        scenario's TCP pose (``[tcp] pose_deg``, Table 5.8 for the KR 5).
+        Controller readings [rad] of the pose where the TCP ellipsoid is checked (needed by the Monte Carlo
+        methods).
     rng : numpy.random.Generator or int or None
         Seeds every capture (one child seed per capture) and every Monte Carlo.
     progress : callable, optional
         ``progress(done, captures)`` after each capture.
     """
-    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
-    from robotcal.uncertainty.tcp import tcp_coordinates
-    from robotcal.workflow import (
-        identify_scenario,
-        refine_scenario,
-        scenario_monte_carlo,
-        simulate_scenario,
-        tcp_targets,
-    )
+    with single_blas_thread():
+        from robotcal.identification.cpa import identify_cpa
+        from robotcal.identification.refine import refine_parameters
+        from robotcal.simulation.generator import simulate_capture
+        from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+        from robotcal.uncertainty.tcp import tcp_coordinates
 
-    methods = tuple(methods)
-    unknown = [m for m in methods if m not in COVERAGE_METHODS]
-    if unknown or not methods:
-        raise InputError(f"`methods` must be a non-empty subset of {COVERAGE_METHODS}; got {methods!r}")
-    if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
-        raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
-    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
-        raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
-    began = time.perf_counter()
-    if isinstance(rng, np.random.Generator):
-        seed = int(rng.integers(2**63 - 1))
-    else:
-        seed = int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
-    children = np.random.SeedSequence(seed).spawn(captures)
-    robot = scenario.robot
-    if tcp_readings is None:
-        tcp_readings = tcp_targets(scenario).pose
-    if tcp_readings is None and any(m.endswith("-mc") for m in methods):
-        raise InputError(
-            f"{scenario.source}: the coverage study checks the TCP ellipsoid at a pose: give `tcp_readings` or "
-            "the scenario's `[tcp] pose_deg`"
+        options = CPAOptions() if options is None else options
+        tracker_from_base = np.eye(4) if tracker_from_base is None else np.asarray(tracker_from_base, dtype=float)
+        held_base = tracker_from_base if options.base_frame == "given" else None
+        methods = tuple(methods)
+        unknown = [m for m in methods if m not in COVERAGE_METHODS]
+        if unknown or not methods:
+            raise InputError(f"`methods` must be a non-empty subset of {COVERAGE_METHODS}; got {methods!r}")
+        if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
+            raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
+        if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
+            raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
+        began = time.perf_counter()
+        if isinstance(rng, np.random.Generator):
+            seed = int(rng.integers(2**63 - 1))
+        else:
+            seed = int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
+        children = np.random.SeedSequence(seed).spawn(captures)
+        if tcp_readings is None and any(m.endswith("-mc") for m in methods):
+            raise InputError("the coverage study checks the TCP ellipsoid at a pose: give `tcp_readings`")
+        if tcp_readings is not None:
+            q_tcp = robot.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
+            true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
+        z = NormalDist().inv_cdf(0.5 + coverage / 2.0)
+        settings = MonteCarloSettings(
+            iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000)
         )
-    if tcp_readings is not None:
-        q_tcp = robot.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
-        true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
-    z = NormalDist().inv_cdf(0.5 + coverage / 2.0)
-    settings = MonteCarloSettings(iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000))
 
-    contained = {m: [] for m in methods}
-    tcp_contained = {m: [] for m in methods if m.endswith("-mc")}
-    std = {m: [] for m in methods}
-    error = {"cpa": [], "refined": []}
-    checked = None
-    for k, child in enumerate(children):
-        capture_seed, mc_seed = (int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(2))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            capture = simulate_scenario(scenario, seed=capture_seed, true_parameters=truth).capture
-            cpa = identify_scenario(capture, scenario).parameters
-            refined = refine_scenario(capture, scenario, cpa, criterion=criterion)
-        mask = cpa.identified & refined.free
-        if checked is None:
-            checked = mask
-        elif not np.array_equal(mask, checked):
-            # every capture of one plan has the same structure; a different free set means a rank
-            # decision sat on a threshold, and the study would compare different things
-            changed = [
-                n for n, a, b in zip(robot.parameter_names, mask.ravel(), checked.ravel(), strict=True) if a != b
-            ]
-            raise InputError(
-                f"capture {k + 1} of the coverage study determines a different set of parameters ({', '.join(changed)}) "
-                "than the first capture; the study needs one fixed set"
-            )
-        error["cpa"].append((cpa.values - truth.values)[checked])
-        error["refined"].append((refined.parameters.values - truth.values)[checked])
-        for method in methods:
-            if method == "refined-linearised":
-                u = refined.standard_uncertainty
-                low, high = refined.parameters.values - z * u, refined.parameters.values + z * u
-                draws_values = None
-            else:
-                centre = cpa if method == "cpa-mc" else refined.parameters
-                model = "cpa" if method == "cpa-mc" else "refined"
-                problem = scenario_monte_carlo(scenario, true_parameters=centre, model=model, criterion=criterion)
-                result = run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
-                low, high = result.interval()
-                u = result.summary.std_uncertainty
-                draws_values = result.draws
-            truth_values = truth.values[checked]
-            contained[method].append((low[checked] <= truth_values) & (truth_values <= high[checked]))
-            std[method].append(u[checked])
-            if draws_values is not None:
-                positions = tcp_coordinates(draws_values, q_tcp)[:, 0, :3]
-                tcp_contained[method].append(_inside_ellipsoid(positions, true_tcp, coverage))
-        if progress is not None:
-            progress(k + 1, captures)
-    names = tuple(name for name, flag in zip(robot.parameter_names, checked.ravel(), strict=True) if flag)
-    return CoverageStudy(
-        truth=truth,
-        names=names,
-        captures=captures,
-        draws=draws,
-        coverage=coverage,
-        band=binomial_band(captures, coverage),
-        contained={m: np.array(v, dtype=bool) for m, v in contained.items()},
-        tcp_contained={m: np.array(v, dtype=bool) for m, v in tcp_contained.items()},
-        std_uncertainty={m: np.array(v) for m, v in std.items()},
-        error={m: np.array(v) for m, v in error.items()},
-        seed=seed,
-        seconds=time.perf_counter() - began,
-    )
+        contained = {m: [] for m in methods}
+        tcp_contained = {m: [] for m in methods if m.endswith("-mc")}
+        std = {m: [] for m in methods}
+        error = {"cpa": [], "refined": []}
+        checked = None
+        for k, child in enumerate(children):
+            capture_seed, mc_seed = (int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(2))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                capture, _ = simulate_capture(
+                    robot,
+                    plan,
+                    instrument,
+                    tracker_from_base,
+                    true_parameters=truth,
+                    joint_errors=joint_errors,
+                    joint_limits=joint_limits,
+                    rng=np.random.default_rng(capture_seed),
+                )
+                cpa = identify_cpa(
+                    capture, robot, plan.reflector, tracker_from_base=held_base, options=options
+                ).parameters
+                refined = refine_parameters(
+                    capture, cpa, plan.reflector, criterion=criterion, tracker_from_base=held_base
+                )
+            mask = cpa.identified & refined.free
+            if checked is None:
+                checked = mask
+            elif not np.array_equal(mask, checked):
+                # every capture of one plan has the same structure; a different free set means a rank
+                # decision sat on a threshold, and the study would compare different things
+                changed = [
+                    n for n, a, b in zip(robot.parameter_names, mask.ravel(), checked.ravel(), strict=True) if a != b
+                ]
+                raise InputError(
+                    f"capture {k + 1} of the coverage study determines a different set of parameters ({', '.join(changed)}) "
+                    "than the first capture; the study needs one fixed set"
+                )
+            error["cpa"].append((cpa.values - truth.values)[checked])
+            error["refined"].append((refined.parameters.values - truth.values)[checked])
+            for method in methods:
+                if method == "refined-linearised":
+                    u = refined.standard_uncertainty
+                    low, high = refined.parameters.values - z * u, refined.parameters.values + z * u
+                    draws_values = None
+                else:
+                    centre = cpa if method == "cpa-mc" else refined.parameters
+                    model = "cpa" if method == "cpa-mc" else "refined"
+                    problem = prepare_monte_carlo(
+                        robot,
+                        plan,
+                        instrument,
+                        tracker_from_base,
+                        options=options,
+                        true_parameters=centre,
+                        joint_errors=joint_errors,
+                        joint_limits=joint_limits,
+                        model=model,
+                        criterion=criterion,
+                    )
+                    result = run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
+                    low, high = result.interval()
+                    u = result.summary.std_uncertainty
+                    draws_values = result.draws
+                truth_values = truth.values[checked]
+                contained[method].append((low[checked] <= truth_values) & (truth_values <= high[checked]))
+                std[method].append(u[checked])
+                if draws_values is not None:
+                    positions = tcp_coordinates(draws_values, q_tcp)[:, 0, :3]
+                    tcp_contained[method].append(_inside_ellipsoid(positions, true_tcp, coverage))
+            if progress is not None:
+                progress(k + 1, captures)
+        names = tuple(name for name, flag in zip(robot.parameter_names, checked.ravel(), strict=True) if flag)
+        return CoverageStudy(
+            truth=truth,
+            names=names,
+            captures=captures,
+            draws=draws,
+            coverage=coverage,
+            band=binomial_band(captures, coverage),
+            contained={m: np.array(v, dtype=bool) for m, v in contained.items()},
+            tcp_contained={m: np.array(v, dtype=bool) for m, v in tcp_contained.items()},
+            std_uncertainty={m: np.array(v) for m, v in std.items()},
+            error={m: np.array(v) for m, v in error.items()},
+            seed=seed,
+            seconds=time.perf_counter() - began,
+        )

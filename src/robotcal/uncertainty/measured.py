@@ -64,7 +64,7 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityWarning, InputError, RobotcalError, RobotcalWarning
-from robotcal.execution import open_executor
+from robotcal.execution import check_stop, open_executor, single_blas_thread
 from robotcal.geometry.registration import register_points
 from robotcal.geometry.transforms import apply_transform
 from robotcal.identification.refine import (
@@ -218,27 +218,28 @@ def _base_points(capture: Capture, parameters: ParameterSet, reflector) -> np.nd
     return points
 
 
-def _noise_model(capture: Capture, scenario) -> tuple[np.ndarray | None, Instrument | None, str]:
+def _noise_model(capture: Capture, instrument: Instrument | None) -> tuple[np.ndarray | None, Instrument | None, str]:
     sigmas = point_sigmas(capture)
     if sigmas is not None:
         return _frozen(sigmas), None, "each point's U(95) from the capture's u95_mm column (k = 2, normal: u = U / 2)"
-    if scenario.has_instrument:
-        instrument = scenario.instrument
-        return None, instrument, f"the scenario instrument {instrument.name!r} ({instrument.noise}; no u95_mm column)"
+    if instrument is not None:
+        return None, instrument, f"the instrument {instrument.name!r} ({instrument.noise}; no u95_mm column)"
     raise InputError(
-        f"{capture.source}: no noise to simulate: the capture has no `u95_mm` column and {scenario.source} has no "
-        "[instrument] table; add one of them (the Monte Carlo draws each point's noise from its U(95), k = 2, "
-        "normal, else from the instrument)"
+        f"{capture.source}: no noise to simulate: the capture has no `u95_mm` column and no instrument is given "
+        "(a scenario's [instrument] table); add one of them (the Monte Carlo draws each point's noise from its "
+        "U(95), k = 2, normal, else from the instrument)"
     )
 
 
 def prepare_measured(
     capture: Capture,
-    scenario,
     estimate: ParameterSet,
+    reflector,
     *,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
     criterion: str = "points",
-    targets: Mapping[str, object] | None = None,
+    offsets: Mapping[str, object] | None = None,
     estimate_base: bool = False,
     weights: str = "auto",
 ) -> MeasuredProblem:
@@ -248,35 +249,35 @@ def prepare_measured(
     ----------
     capture : Capture
         The measured capture [mm]; its ``u95_mm`` column (if any) is each point's noise.
-    scenario : Scenario
-        Robot, targets, base-frame mode and (for a capture without ``u95_mm``) the instrument.
     estimate : ParameterSet
         The refined parameters the user obtained [mm, rad].
+    reflector : ReflectorMount, Target or sequence of Target
+        Where the points were measured (as for :func:`refine_parameters`).
+    instrument : Instrument, optional
+        The noise of a capture without ``u95_mm``.
+    tracker_from_base : array_like, shape (4, 4), optional
+        Points criterion: the base frame the refinement held (None: it was estimated from a registration).
     criterion : {"points", "distances"}
-    targets : mapping of str to (x, y, z), optional
+    offsets : mapping of str to (x, y, z), optional
         Estimated flange offsets [mm] by target name (``read_targets`` of the parameter JSON); unknown
-        targets not named here start from the scenario's guess.
+        targets not named here start from their guess.
     estimate_base : bool
-        Points criterion: the base frame was estimated although the scenario gives it (``refine
-        --estimate-base``).
+        Points criterion: the base frame was estimated from ``tracker_from_base`` (``refine --estimate-base``).
     weights : {"auto", "none"}
         As for :func:`refine_parameters`.
     """
-    from robotcal.workflow import capture_reflector
-
     if criterion not in CRITERIA:
         raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
-    if estimate.robot.name != scenario.robot.name or estimate.robot.n_joints != capture.n_joints:
+    if estimate.robot.n_joints != capture.n_joints:
         raise InputError(
-            f"the estimate is for robot {estimate.robot.name!r} ({estimate.robot.n_joints} joints); the scenario's "
-            f"robot is {scenario.robot.name!r} and the capture has {capture.n_joints} joint readings per point"
+            f"the estimate is for robot {estimate.robot.name!r} ({estimate.robot.n_joints} joints); the capture has "
+            f"{capture.n_joints} joint readings per point"
         )
-    noise_sd, instrument, source = _noise_model(capture, scenario)
-    reflector = _with_offsets(capture_reflector(scenario, capture), targets)
-    given = scenario.identification.base_frame == "given"
+    noise_sd, instrument, source = _noise_model(capture, instrument)
+    reflector = _with_offsets(reflector, offsets)
     options: dict = {"criterion": criterion, "weights": weights}
     if criterion == "points":
-        options["tracker_from_base"] = scenario.tracker_from_base if given else None
+        options["tracker_from_base"] = tracker_from_base
         if estimate_base:
             options["estimate_base"] = True
     with warnings.catch_warnings():
@@ -357,6 +358,7 @@ def measured_block(problem: MeasuredProblem, seed: int, item: tuple[int, int]) -
     values = np.full((size, n, 5), np.nan)
     offsets = np.full((size, k, 3), np.nan)
     for draw in range(size):
+        check_stop()  # in a pool worker: end the block when the pool shuts down
         outcome = _refine_draw(problem, problem.exact_points + draw_noise(problem, rng))
         if outcome is not None:
             values[draw], offsets[draw] = outcome
@@ -423,13 +425,15 @@ def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: Mont
 
 def measured_monte_carlo(
     capture: Capture,
-    scenario,
     estimate: ParameterSet | RefinementResult,
+    reflector,
     settings: MonteCarloSettings | None = None,
     *,
     seed: int,
+    instrument: Instrument | None = None,
+    tracker_from_base=None,
     criterion: str | None = None,
-    targets: Mapping[str, object] | None = None,
+    offsets: Mapping[str, object] | None = None,
     estimate_base: bool = False,
     weights: str = "auto",
     progress: ProgressCallback | None = None,
@@ -440,7 +444,6 @@ def measured_monte_carlo(
     ----------
     capture : Capture
         The measured capture; a ``u95_mm`` column gives each point's noise (k = 2, normal).
-    scenario : Scenario
     estimate : ParameterSet or RefinementResult
         The user's refined parameters (a :class:`RefinementResult` also gives its criterion and
         estimated target offsets).
@@ -451,101 +454,110 @@ def measured_monte_carlo(
         Seed of the run; block ``b`` uses ``SeedSequence(seed, spawn_key=(b,))``.
     criterion : {"points", "distances"}, optional
         Default: the estimate's (a RefinementResult), else ``"points"``.
-    targets, estimate_base, weights
+    reflector, instrument, tracker_from_base, offsets, estimate_base, weights
         See :func:`prepare_measured`.
     progress : callable, optional
         ``progress(draws_done, draws_total)`` after every block.
     """
-    settings = MonteCarloSettings(iterations=200) if settings is None else settings
-    if settings.adaptive:
-        raise InputError(
-            "the adaptive mode is not available for the Monte Carlo of a measured capture (each draw is a full "
-            "refinement); give a fixed number of draws"
+    with single_blas_thread():
+        settings = MonteCarloSettings(iterations=200) if settings is None else settings
+        if settings.adaptive:
+            raise InputError(
+                "the adaptive mode is not available for the Monte Carlo of a measured capture (each draw is a full "
+                "refinement); give a fixed number of draws"
+            )
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
+        seed = int(seed)
+        if isinstance(estimate, RefinementResult):
+            criterion = estimate.criterion if criterion is None else criterion
+            if offsets is None and estimate.targets:
+                offsets = {t.name: t.positions for t in estimate.targets if not t.known}
+            if estimate.tracker_from_base is not None and tracker_from_base is not None:
+                estimate_base = estimate_base or bool(np.any(estimate.base_free))
+            estimate = estimate.parameters
+        criterion = "points" if criterion is None else criterion
+        started = time.perf_counter()
+        problem = prepare_measured(
+            capture,
+            estimate,
+            reflector,
+            instrument=instrument,
+            tracker_from_base=tracker_from_base,
+            criterion=criterion,
+            offsets=offsets,
+            estimate_base=estimate_base,
+            weights=weights,
         )
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
-    seed = int(seed)
-    if isinstance(estimate, RefinementResult):
-        criterion = estimate.criterion if criterion is None else criterion
-        if targets is None and estimate.targets:
-            targets = {t.name: t.positions for t in estimate.targets if not t.known}
-        if estimate.tracker_from_base is not None and scenario.identification.base_frame == "given":
-            estimate_base = estimate_base or bool(np.any(estimate.base_free))
-        estimate = estimate.parameters
-    criterion = "points" if criterion is None else criterion
-    started = time.perf_counter()
-    problem = prepare_measured(
-        capture, scenario, estimate, criterion=criterion, targets=targets, estimate_base=estimate_base, weights=weights
-    )
-    items = _block_items(settings.iterations)
-    task = functools.partial(measured_block, problem, seed)
-    values, offsets = [], []
-    done = 0
-    with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
-        for block_values, block_offsets in executor.map(task, items):
-            values.append(block_values)
-            offsets.append(block_offsets)
-            done += block_values.shape[0]
-            if progress is not None:
-                progress(done, settings.iterations)
-    all_values = np.concatenate(values)
-    all_offsets = np.concatenate(offsets)
-    good = np.isfinite(all_values).all(axis=(1, 2)) & np.isfinite(all_offsets).all(axis=(1, 2))
-    n_failed = int((~good).sum())
-    draws, offset_draws = all_values[good], all_offsets[good]
-    if draws.shape[0] < 2:
-        raise RobotcalError(f"only {draws.shape[0]} of {good.size} draws converged: no statistics can be made")
-    draw_time = time.perf_counter() - started
-    reference = problem.reference
-    identified = np.asarray(reference.free, dtype=bool)
-    summary = summarize_draws(draws, settings.coverage)
-    covariance, correlation = draw_covariance(draws, identified)
-    linear = _linearised(problem, summary, settings)
-    message = f"{draws.shape[0]} draws"
-    if n_failed:
-        message += (
-            f"; {n_failed} of {good.size} draws failed (no convergence, or another free set) and are left out of "
-            f"the statistics ({n_failed / good.size:.2%})"
+        items = _block_items(settings.iterations)
+        task = functools.partial(measured_block, problem, seed)
+        values, offsets = [], []
+        done = 0
+        with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
+            for block_values, block_offsets in executor.map(task, items):
+                values.append(block_values)
+                offsets.append(block_offsets)
+                done += block_values.shape[0]
+                if progress is not None:
+                    progress(done, settings.iterations)
+        all_values = np.concatenate(values)
+        all_offsets = np.concatenate(offsets)
+        good = np.isfinite(all_values).all(axis=(1, 2)) & np.isfinite(all_offsets).all(axis=(1, 2))
+        n_failed = int((~good).sum())
+        draws, offset_draws = all_values[good], all_offsets[good]
+        if draws.shape[0] < 2:
+            raise RobotcalError(f"only {draws.shape[0]} of {good.size} draws converged: no statistics can be made")
+        draw_time = time.perf_counter() - started
+        reference = problem.reference
+        identified = np.asarray(reference.free, dtype=bool)
+        summary = summarize_draws(draws, settings.coverage)
+        covariance, correlation = draw_covariance(draws, identified)
+        linear = _linearised(problem, summary, settings)
+        message = f"{draws.shape[0]} draws"
+        if n_failed:
+            message += (
+                f"; {n_failed} of {good.size} draws failed (no convergence, or another free set) and are left out of "
+                f"the statistics ({n_failed / good.size:.2%})"
+            )
+        result = MonteCarloResult(
+            robot=problem.robot,
+            settings=settings,
+            seed=seed,
+            n_draws=int(draws.shape[0]),
+            summary=summary,
+            identified=identified,
+            covariance=covariance,
+            correlation=correlation,
+            draws=draws if settings.keep_draws else None,
+            noise_free_values=reference.parameters.values,
+            true_values=reference.parameters.values,
+            linearised=linear,
+            timings_s={"draws": draw_time, "per_draw": draw_time / good.size, "total": time.perf_counter() - started},
+            success=n_failed <= 0.001 * good.size,
+            message=message,
+            model=MODEL,
+            criterion=criterion,
+            n_failed=n_failed,
         )
-    result = MonteCarloResult(
-        robot=problem.robot,
-        settings=settings,
-        seed=seed,
-        n_draws=int(draws.shape[0]),
-        summary=summary,
-        identified=identified,
-        covariance=covariance,
-        correlation=correlation,
-        draws=draws if settings.keep_draws else None,
-        noise_free_values=reference.parameters.values,
-        true_values=reference.parameters.values,
-        linearised=linear,
-        timings_s={"draws": draw_time, "per_draw": draw_time / good.size, "total": time.perf_counter() - started},
-        success=n_failed <= 0.001 * good.size,
-        message=message,
-        model=MODEL,
-        criterion=criterion,
-        n_failed=n_failed,
-    )
-    unknown = problem.unknown_targets
-    rows = [k for k, t in enumerate(reference.targets) if not t.known]
-    target_u = (
-        np.asarray(reference.target_uncertainty)[rows] * _noise_rescale(problem)
-        if reference.target_uncertainty is not None
-        else np.zeros((0, 3))
-    )
-    return MeasuredMonteCarloResult(
-        parameters=result,
-        target_names=tuple(t.name for t in unknown),
-        target_estimate=np.array([t.positions for t in unknown], dtype=float).reshape(-1, 3),
-        target_linearised_u=target_u.reshape(-1, 3),
-        target_summary=summarize_draws(offset_draws, settings.coverage) if unknown else None,
-        target_draws=offset_draws if (unknown and settings.keep_draws) else None,
-        noise_source=problem.noise_source,
-        reference=reference,
-        stated_u_mm=stated_point_u(problem),
-        residual_sigma_mm=float(reference.sigma),
-    )
+        unknown = problem.unknown_targets
+        rows = [k for k, t in enumerate(reference.targets) if not t.known]
+        target_u = (
+            np.asarray(reference.target_uncertainty)[rows] * _noise_rescale(problem)
+            if reference.target_uncertainty is not None
+            else np.zeros((0, 3))
+        )
+        return MeasuredMonteCarloResult(
+            parameters=result,
+            target_names=tuple(t.name for t in unknown),
+            target_estimate=np.array([t.positions for t in unknown], dtype=float).reshape(-1, 3),
+            target_linearised_u=target_u.reshape(-1, 3),
+            target_summary=summarize_draws(offset_draws, settings.coverage) if unknown else None,
+            target_draws=offset_draws if (unknown and settings.keep_draws) else None,
+            noise_source=problem.noise_source,
+            reference=reference,
+            stated_u_mm=stated_point_u(problem),
+            residual_sigma_mm=float(reference.sigma),
+        )
 
 
 def with_model(result: MonteCarloResult, model: str) -> MonteCarloResult:

@@ -37,7 +37,7 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError, RobotcalError
-from robotcal.execution import open_executor
+from robotcal.execution import check_stop, open_executor, single_blas_thread
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform
 from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
 from robotcal.instruments import Instrument
@@ -465,6 +465,7 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
     chunks = _chunks(n_draws, batch_size)
     buffer = np.empty((max((count for _, count in chunks), default=0), problem.n_points, 3))  # every batch's points
     for start, count in chunks:
+        check_stop()  # in a pool worker: end the block when the pool shuts down
         if problem.joint_errors is not None:
             exact = _noisy_exact_points(problem, count, joint_rng)
         else:
@@ -635,73 +636,74 @@ def run_monte_carlo(
     -------
     MonteCarloResult
     """
-    settings = MonteCarloSettings() if settings is None else settings
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
-    seed = int(seed)
-    started = time.perf_counter()
-    identified = problem.identified
-    capacity = settings.max_draws if settings.adaptive else settings.iterations
-    # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
-    store = _Store(np.empty((capacity, problem.robot.n_joints, 5)))
-    adaptive_record = None
-    with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
-        runner = _BlockRunner(problem, seed, settings, executor)
-        if not settings.adaptive:
-            blocks = list(enumerate(_block_sizes(settings.iterations, settings.block_size)))
-            for _, values in runner.map(blocks):
-                store.add(values)
-                if progress is not None:
-                    progress(store.computed, settings.iterations)
-        else:
-            adaptive_record = _run_adaptive(runner, settings, identified, store, progress)
-    done = store.done
-    draws = store.values[:done]
-    if done < 2:
-        raise RobotcalError(f"only {done} of {store.computed} draws converged: no statistics can be made")
-    draw_time = time.perf_counter() - started
-    summary_start = time.perf_counter()
-    summary = summarize_draws(draws, settings.coverage)
-    covariance, correlation = draw_covariance(draws, identified)
-    timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
-    linear = None
-    if linearised:
-        linear_start = time.perf_counter()
-        linear = linearised_uncertainty(problem, summary, settings)
-        timings["linearised"] = time.perf_counter() - linear_start
-    timings["total"] = time.perf_counter() - started
-    message = f"{draws.shape[0]} draws"
-    if store.failed:
-        message += (
-            f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
-            f"({store.failed / store.computed:.2%})"
-        )
-    success = store.failed <= 0.001 * store.computed
+    with single_blas_thread():
+        settings = MonteCarloSettings() if settings is None else settings
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
+        seed = int(seed)
+        started = time.perf_counter()
+        identified = problem.identified
+        capacity = settings.max_draws if settings.adaptive else settings.iterations
+        # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
+        store = _Store(np.empty((capacity, problem.robot.n_joints, 5)))
+        adaptive_record = None
+        with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
+            runner = _BlockRunner(problem, seed, settings, executor)
+            if not settings.adaptive:
+                blocks = list(enumerate(_block_sizes(settings.iterations, settings.block_size)))
+                for _, values in runner.map(blocks):
+                    store.add(values)
+                    if progress is not None:
+                        progress(store.computed, settings.iterations)
+            else:
+                adaptive_record = _run_adaptive(runner, settings, identified, store, progress)
+        done = store.done
+        draws = store.values[:done]
+        if done < 2:
+            raise RobotcalError(f"only {done} of {store.computed} draws converged: no statistics can be made")
+        draw_time = time.perf_counter() - started
+        summary_start = time.perf_counter()
+        summary = summarize_draws(draws, settings.coverage)
+        covariance, correlation = draw_covariance(draws, identified)
+        timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
+        linear = None
+        if linearised:
+            linear_start = time.perf_counter()
+            linear = linearised_uncertainty(problem, summary, settings)
+            timings["linearised"] = time.perf_counter() - linear_start
+        timings["total"] = time.perf_counter() - started
+        message = f"{draws.shape[0]} draws"
+        if store.failed:
+            message += (
+                f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
+                f"({store.failed / store.computed:.2%})"
+            )
+        success = store.failed <= 0.001 * store.computed
 
-    if adaptive_record is not None:
-        message += f"; adaptive: {adaptive_record.reason}"
-        success = success and adaptive_record.stable
-    return MonteCarloResult(
-        robot=problem.robot,
-        settings=settings,
-        seed=seed,
-        n_draws=int(draws.shape[0]),
-        summary=summary,
-        identified=identified,
-        covariance=covariance,
-        correlation=correlation,
-        draws=draws if settings.keep_draws else None,
-        noise_free_values=problem.noise_free_values,
-        true_values=problem.true_parameters.values,
-        adaptive=adaptive_record,
-        linearised=linear,
-        timings_s=timings,
-        success=success,
-        message=message,
-        model=problem.model,
-        criterion=None if problem.refined is None else problem.refined.criterion,
-        n_failed=store.failed,
-    )
+        if adaptive_record is not None:
+            message += f"; adaptive: {adaptive_record.reason}"
+            success = success and adaptive_record.stable
+        return MonteCarloResult(
+            robot=problem.robot,
+            settings=settings,
+            seed=seed,
+            n_draws=int(draws.shape[0]),
+            summary=summary,
+            identified=identified,
+            covariance=covariance,
+            correlation=correlation,
+            draws=draws if settings.keep_draws else None,
+            noise_free_values=problem.noise_free_values,
+            true_values=problem.true_parameters.values,
+            adaptive=adaptive_record,
+            linearised=linear,
+            timings_s=timings,
+            success=success,
+            message=message,
+            model=problem.model,
+            criterion=None if problem.refined is None else problem.refined.criterion,
+            n_failed=store.failed,
+        )
 
 
 class _Store:

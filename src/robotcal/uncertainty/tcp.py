@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robotcal.errors import InputError, JointLimitWarning
+from robotcal.execution import single_blas_thread
 from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, wrap_angle_near
 from robotcal.kinematics.forward import link_transforms
 from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel, check_parameter_array
@@ -288,51 +289,17 @@ def _chain_points(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray, point
     return moved if n > 1 else np.broadcast_to(end[:, :, None], (m, 3, n_poses)).copy()
 
 
-#: Largest ``|tan(angle - reference)|`` for which :func:`_atan_small` is used (else arctan, arctan2): its series
-#: through ``u^9`` is then within ``u^10 / 11 <= 1e-18`` of ``arctan(u)`` relative, below the double rounding.
-_SERIES_MAX_TAN = 0.02
-
-
-def _atan_small(u: np.ndarray) -> np.ndarray:
-    """``arctan(u)`` in place for ``|u| <= _SERIES_MAX_TAN``: ``u - u^3/3 + u^5/5 - u^7/7 + u^9/9``.
-
-    The alternating series' remainder is below its next term, ``|u|^11 / 11``, a relative error of at most
-    ``0.02^10 / 11 = 9.3e-19`` (the double epsilon is 2.2e-16); about 4x cheaper than ``np.arctan``
-    (libm, ~19 ns per value here). ``tests/unit/uncertainty/test_tcp_reference.py`` checks the bound.
-    """
-    u2 = u * u
-    poly = u2 * (1.0 / 9.0)
-    poly -= 1.0 / 7.0
-    poly *= u2
-    poly += 1.0 / 5.0
-    poly *= u2
-    poly -= 1.0 / 3.0
-    poly *= u2
-    poly *= u
-    u += poly
-    return u
-
-
 def _angle_from(x: np.ndarray, y: np.ndarray, cos_ref: np.ndarray, sin_ref: np.ndarray, out: np.ndarray) -> None:
     """``atan2(y, x) - reference`` into ``(-pi, pi]``, written to ``out``, given ``cos``/``sin`` of the reference.
 
     The vector ``(x, y)`` turned by ``-reference`` is ``(x', y') = (x c + y s, y c - x s)`` and its angle is the
-    difference itself, ``atan2(y', x')``: no quadrant fix and no wrap. Draws lie close to the reference (the
-    nominal), so ``x' > 0`` and ``|y' / x'|`` is small: then ``arctan(y' / x')`` comes from the series of
-    :func:`_atan_small`; else the block goes through ``np.arctan`` (every ``x' > 0``) or ``np.arctan2``.
+    difference itself, ``atan2(y', x')``: no quadrant fix and no wrap.
     """
     along = x * cos_ref
     along += y * sin_ref
     np.multiply(y, cos_ref, out=out)
     out -= x * sin_ref
-    if not along.min() > 0.0:  # some vector 90 deg or more from the reference (or NaN): the general formula
-        np.arctan2(out, along, out=out)
-        return
-    np.divide(out, along, out=out)  # tan of the difference, in (-pi/2, pi/2) since x' > 0
-    if max(out.max(), -out.min()) <= _SERIES_MAX_TAN:
-        _atan_small(out)
-    else:
-        np.arctan(out, out=out)
+    np.arctan2(out, along, out=out)
 
 
 def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -816,41 +783,42 @@ def position_covariance(
     The position part of :attr:`TCPUncertainty.covariance` of :func:`propagate_to_tcp` (the same draws,
     forward kinematics and ``sum c c^T / (M - 1)``, equal up to summation order) without the
     orientation, the order statistics, the ellipsoids and the linearised propagation: for callers
-    that need only the spread of a point, such as :func:`robotcal.workflow.validation_consistency`.
+    that need only the spread of a point, such as :func:`robotcal.api.validation_consistency`.
     Arguments and checks as :func:`propagate_to_tcp` (readings outside the limits warn).
     """
-    draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
-    n_draws, n_poses = draws.shape[0], q.shape[0]
-    pose_chunk = max(1, min(n_poses, int(max_bytes) // (24 * n_draws)))
-    cos_q, sin_q = np.cos(q), np.sin(q)
-    batch_size = int(batch_size) if batch_size is not None else max(1, 3 * _BLOCK_FRAMES // pose_chunk)
-    covariances = []
-    for start in range(0, n_poses, pose_chunk):
-        poses = slice(start, min(start + pose_chunk, n_poses))
-        points = np.empty((poses.stop - poses.start, 3, n_draws))  # draws last, as in propagate_to_tcp
+    with single_blas_thread():
+        draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
+        n_draws, n_poses = draws.shape[0], q.shape[0]
+        pose_chunk = max(1, min(n_poses, int(max_bytes) // (24 * n_draws)))
+        cos_q, sin_q = np.cos(q), np.sin(q)
+        batch_size = int(batch_size) if batch_size is not None else max(1, 3 * _BLOCK_FRAMES // pose_chunk)
+        covariances = []
+        for start in range(0, n_poses, pose_chunk):
+            poses = slice(start, min(start + pose_chunk, n_poses))
+            points = np.empty((poses.stop - poses.start, 3, n_draws))  # draws last, as in propagate_to_tcp
 
-        def fill(first: int, poses=poses, points=points) -> None:
-            rows = slice(first, min(first + batch_size, n_draws))
-            local = _chain_points(_pose_independent_links(draws[rows]), cos_q[poses], sin_q[poses], tool)
-            points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
+            def fill(first: int, poses=poses, points=points) -> None:
+                rows = slice(first, min(first + batch_size, n_draws))
+                local = _chain_points(_pose_independent_links(draws[rows]), cos_q[poses], sin_q[poses], tool)
+                points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
 
-        batches = range(0, n_draws, batch_size)
-        if _THREADS > 1 and len(batches) > 1:
-            with ThreadPoolExecutor(_THREADS) as pool:
-                list(pool.map(fill, batches))
-        else:
-            for first in batches:
-                fill(first)
-        if not np.all(np.isfinite(points)):
-            raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
-        _turn_first_joint(points, cos_q[poses, 0, None], sin_q[poses, 0, None])
-        centred = points - points.mean(axis=-1)[..., None]
-        covariance = np.empty((poses.stop - poses.start, 3, 3))
-        for i in range(3):  # the upper triangle row by row, as in _chunk_statistics
-            covariance[:, i, i:] = np.einsum("pm,pjm->pj", centred[:, i], centred[:, i:])
-            covariance[:, i:, i] = covariance[:, i, i:]
-        covariances.append(covariance / (n_draws - 1))
-    return np.concatenate(covariances)
+            batches = range(0, n_draws, batch_size)
+            if _THREADS > 1 and len(batches) > 1:
+                with ThreadPoolExecutor(_THREADS) as pool:
+                    list(pool.map(fill, batches))
+            else:
+                for first in batches:
+                    fill(first)
+            if not np.all(np.isfinite(points)):
+                raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
+            _turn_first_joint(points, cos_q[poses, 0, None], sin_q[poses, 0, None])
+            centred = points - points.mean(axis=-1)[..., None]
+            covariance = np.empty((poses.stop - poses.start, 3, 3))
+            for i in range(3):  # the upper triangle row by row, as in _chunk_statistics
+                covariance[:, i, i:] = np.einsum("pm,pjm->pj", centred[:, i], centred[:, i:])
+                covariance[:, i:, i] = covariance[:, i, i:]
+            covariances.append(covariance / (n_draws - 1))
+        return np.concatenate(covariances)
 
 
 def propagate_to_tcp(
@@ -906,90 +874,91 @@ def propagate_to_tcp(
     ----------
     Thesis ch. 5.3, Table 5.8, Figs 5.17-5.20; JCGM 101:2008 §7.6-7.7; JCGM 102:2011 §6.2, §6.5.3, §7.7.
     """
-    coverage = check_coverage(coverage)
-    draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
-    n_draws, n_poses = draws.shape[0], q.shape[0]
-    nominal = _coordinates(robot.nominal[None], q, tool)[0]
-    cos_q, sin_q = np.cos(q), np.sin(q)
-    # pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in max_bytes, sizes
-    # evened out, one at a time: its batches of draws fill the coordinates in the threads, then its poses are
-    # split between the threads for the statistics (as many poses as possible per chunk: the per-draw
-    # products of the chain cost less per pose the more poses they hold, ~15 % from 63 to 139 poses)
-    largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
-    n_chunks = -(-n_poses // largest)
-    pose_chunk = -(-n_poses // n_chunks)
-    starts = range(0, n_poses, pose_chunk)
-    if batch_size is None:
-        batch_size = max(1, _BLOCK_FRAMES // pose_chunk)
-    batch_size = int(batch_size)
-    # the link factors B_i of every draw once, when they take no more room than the coordinates of a chunk
-    # (else per batch, so that memory stays bounded by the batch and the pose chunk)
-    all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
-    kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
-    # the coordinates (draws last: contiguous rows for the statistics) and the centred coordinates, reused
-    # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
-    coords_buffer, centred_buffer = np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))
+    with single_blas_thread():
+        coverage = check_coverage(coverage)
+        draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
+        n_draws, n_poses = draws.shape[0], q.shape[0]
+        nominal = _coordinates(robot.nominal[None], q, tool)[0]
+        cos_q, sin_q = np.cos(q), np.sin(q)
+        # pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in max_bytes, sizes
+        # evened out, one at a time: its batches of draws fill the coordinates in the threads, then its poses are
+        # split between the threads for the statistics (as many poses as possible per chunk: the per-draw
+        # products of the chain cost less per pose the more poses they hold, ~15 % from 63 to 139 poses)
+        largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
+        n_chunks = -(-n_poses // largest)
+        pose_chunk = -(-n_poses // n_chunks)
+        starts = range(0, n_poses, pose_chunk)
+        if batch_size is None:
+            batch_size = max(1, _BLOCK_FRAMES // pose_chunk)
+        batch_size = int(batch_size)
+        # the link factors B_i of every draw once, when they take no more room than the coordinates of a chunk
+        # (else per batch, so that memory stays bounded by the batch and the pose chunk)
+        all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
+        kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
+        # the coordinates (draws last: contiguous rows for the statistics) and the centred coordinates, reused
+        # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
+        coords_buffer, centred_buffer = np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))
 
-    def fill(first: int, poses: slice, coords: np.ndarray) -> None:
-        rows = slice(first, min(first + batch_size, n_draws))
-        links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
-        frames = _chain_columns(links, cos_q[poses], sin_q[poses])
-        # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
-        local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
-        block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
-        target = coords[:, :, rows]  # a view: the draws of this batch
-        target[:, :3] = np.transpose(local, (2, 1, 0))  # before Rz(q_1): turned per chunk, in _turn_first_joint
-        target[:, 3:] = np.transpose(_abc_near(block, q[poses, 0], nominal[poses, 3:]), (2, 0, 1))
+        def fill(first: int, poses: slice, coords: np.ndarray) -> None:
+            rows = slice(first, min(first + batch_size, n_draws))
+            links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
+            frames = _chain_columns(links, cos_q[poses], sin_q[poses])
+            # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
+            local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
+            block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
+            target = coords[:, :, rows]  # a view: the draws of this batch
+            target[:, :3] = np.transpose(local, (2, 1, 0))  # before Rz(q_1): turned per chunk, in _turn_first_joint
+            target[:, 3:] = np.transpose(_abc_near(block, q[poses, 0], nominal[poses, 3:]), (2, 0, 1))
 
-    def chunk(start: int, pool: ThreadPoolExecutor | None) -> list:
-        poses = slice(start, min(start + pose_chunk, n_poses))
-        size = poses.stop - poses.start
-        coords, centred = coords_buffer[:size], centred_buffer[:size]
-        batches = range(0, n_draws, batch_size)
-        if pool is not None and len(batches) > 1:  # the batches fill disjoint draws in the threads
-            list(pool.map(lambda first: fill(first, poses, coords), batches))
+        def chunk(start: int, pool: ThreadPoolExecutor | None) -> list:
+            poses = slice(start, min(start + pose_chunk, n_poses))
+            size = poses.stop - poses.start
+            coords, centred = coords_buffer[:size], centred_buffer[:size]
+            batches = range(0, n_draws, batch_size)
+            if pool is not None and len(batches) > 1:  # the batches fill disjoint draws in the threads
+                list(pool.map(lambda first: fill(first, poses, coords), batches))
+            else:
+                for first in batches:
+                    fill(first, poses, coords)
+            c1, s1 = cos_q[poses, 0, None], sin_q[poses, 0, None]
+            if keep_draws:
+                _turn_first_joint(coords, c1, s1)
+                kept[:, poses] = np.moveaxis(coords, -1, 0)
+
+            def statistics(part: slice):  # X, Y turned by the first joint (unless done), then the statistics
+                if not keep_draws:
+                    _turn_first_joint(coords[part], c1[part], s1[part])
+                return _chunk_statistics(coords[part], centred[part], coverage)
+
+            parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
+            slices = [slice(part[0], part[-1] + 1) for part in parts]
+            if len(slices) == 1:
+                return [statistics(slices[0])]
+            return list(pool.map(statistics, slices))
+
+        # numpy releases the GIL in the kinematics and the statistics: the threads share each chunk's work
+        if _THREADS > 1:
+            with ThreadPoolExecutor(_THREADS) as pool:
+                parts = [part for start in starts for part in chunk(start, pool)]
         else:
-            for first in batches:
-                fill(first, poses, coords)
-        c1, s1 = cos_q[poses, 0, None], sin_q[poses, 0, None]
-        if keep_draws:
-            _turn_first_joint(coords, c1, s1)
-            kept[:, poses] = np.moveaxis(coords, -1, 0)
+            parts = [part for start in starts for part in chunk(start, None)]
+        summaries = [part[0] for part in parts]
+        ellipsoids = [part[1] for part in parts]
+        covariances = [part[2] for part in parts]
 
-        def statistics(part: slice):  # X, Y turned by the first joint (unless done), then the statistics
-            if not keep_draws:
-                _turn_first_joint(coords[part], c1[part], s1[part])
-            return _chunk_statistics(coords[part], centred[part], coverage)
-
-        parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
-        slices = [slice(part[0], part[-1] + 1) for part in parts]
-        if len(slices) == 1:
-            return [statistics(slices[0])]
-        return list(pool.map(statistics, slices))
-
-    # numpy releases the GIL in the kinematics and the statistics: the threads share each chunk's work
-    if _THREADS > 1:
-        with ThreadPoolExecutor(_THREADS) as pool:
-            parts = [part for start in starts for part in chunk(start, pool)]
-    else:
-        parts = [part for start in starts for part in chunk(start, None)]
-    summaries = [part[0] for part in parts]
-    ellipsoids = [part[1] for part in parts]
-    covariances = [part[2] for part in parts]
-
-    parameter_mean, lpu_covariance = _linearised(draws, robot.nominal, q, tool)
-    return TCPUncertainty(
-        robot_name=robot.name,
-        readings=readings,
-        q=q,
-        tool=tool,
-        n_draws=n_draws,
-        coverage=coverage,
-        nominal=nominal,
-        summary=_concatenate_summaries(summaries),
-        covariance=np.concatenate(covariances),
-        ellipsoid=_concatenate_ellipsoids(ellipsoids),
-        lpu_covariance=lpu_covariance,
-        parameter_mean=parameter_mean,
-        draws=kept,
-    )
+        parameter_mean, lpu_covariance = _linearised(draws, robot.nominal, q, tool)
+        return TCPUncertainty(
+            robot_name=robot.name,
+            readings=readings,
+            q=q,
+            tool=tool,
+            n_draws=n_draws,
+            coverage=coverage,
+            nominal=nominal,
+            summary=_concatenate_summaries(summaries),
+            covariance=np.concatenate(covariances),
+            ellipsoid=_concatenate_ellipsoids(ellipsoids),
+            lpu_covariance=lpu_covariance,
+            parameter_mean=parameter_mean,
+            draws=kept,
+        )

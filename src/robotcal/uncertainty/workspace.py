@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotcal.errors import InputError
+from robotcal.execution import single_blas_thread
 from robotcal.kinematics.model import RobotModel
 from robotcal.uncertainty.tcp import TCPUncertainty, propagate_to_tcp
 
@@ -106,20 +107,21 @@ def workspace_uncertainty(
     tool, coverage, batch_size, max_bytes
         As in :func:`~robotcal.uncertainty.tcp.propagate_to_tcp`.
     """
-    seed = int(rng) if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) else None
-    if (readings is None) == (n_poses is None):
-        raise InputError("give either `n_poses` (a random sample) or `readings`, not both or neither")
-    if readings is None:
-        readings = sample_workspace(robot, n_poses, rng=rng)
-    result = propagate_to_tcp(
-        robot, parameter_draws, readings, tool=tool, coverage=coverage, batch_size=batch_size, max_bytes=max_bytes
-    )
-    levels = PERCENTILES
-    return WorkspaceUncertainty(
-        tcp=result,
-        seed=seed,
-        percentiles=levels,
-        position_uncertainty_percentiles=np.percentile(result.position_uncertainty, levels),
-        max_semi_axis_percentiles=np.percentile(result.ellipsoid.semi_axes[:, 0], levels),
-        std_uncertainty_percentiles=np.percentile(result.std_uncertainty, levels, axis=0),
-    )
+    with single_blas_thread():
+        seed = int(rng) if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) else None
+        if (readings is None) == (n_poses is None):
+            raise InputError("give either `n_poses` (a random sample) or `readings`, not both or neither")
+        if readings is None:
+            readings = sample_workspace(robot, n_poses, rng=rng)
+        result = propagate_to_tcp(
+            robot, parameter_draws, readings, tool=tool, coverage=coverage, batch_size=batch_size, max_bytes=max_bytes
+        )
+        levels = PERCENTILES
+        return WorkspaceUncertainty(
+            tcp=result,
+            seed=seed,
+            percentiles=levels,
+            position_uncertainty_percentiles=np.percentile(result.position_uncertainty, levels),
+            max_semi_axis_percentiles=np.percentile(result.ellipsoid.semi_axes[:, 0], levels),
+            std_uncertainty_percentiles=np.percentile(result.std_uncertainty, levels, axis=0),
+        )

@@ -20,6 +20,7 @@ from robotcal.diagnostics.iso9283 import (
     pose_characteristics,
     pose_visits,
     register_flange_poses,
+    scenario_flange_point,
     simulate_attained_positions,
     simulate_iso_study,
 )
@@ -265,13 +266,13 @@ THREE_TARGETS = {"a": [60.0, 40.0, 30.0], "b": [-50.0, 30.0, 20.0], "c": [0.0, -
 
 
 def test_simulated_study_of_an_exact_robot_gives_zero_for_its_own_model():
-    from robotcal.workflow import scenario_truth
+    from robotcal.api import perturb
 
-    truth, _ = scenario_truth(SCENARIO)
+    truth = perturb(SCENARIO)
     nominal = ParameterSet.nominal(SCENARIO.robot)
     study = simulate_iso_study(
-        SCENARIO, {"truth": truth, "nominal": nominal}, cycles=3, seed=1, targets_mm=THREE_TARGETS,
-        joint_errors=None, instrument=None,
+        SCENARIO.robot, {"truth": truth, "nominal": nominal}, cycles=3, seed=1, targets_mm=THREE_TARGETS,
+        true_parameters=truth, tracker_from_base=SCENARIO.tracker_from_base,
     )  # fmt: skip
     r = study.results["truth"]
     np.testing.assert_allclose([r.ap.max(), r.rp.max(), abs(r.ad), r.rd], 0.0, rtol=0, atol=1e-8)
@@ -299,8 +300,8 @@ def test_simulated_study_with_random_joint_errors_has_repeatability_of_their_ord
     )
     nominal = ParameterSet.nominal(SCENARIO.robot)
     study = simulate_iso_study(
-        SCENARIO, {"nominal": nominal}, cycles=30, seed=4, targets_mm=THREE_TARGETS, true_parameters=nominal,
-        joint_errors=errors, instrument=None,
+        SCENARIO.robot, {"nominal": nominal}, cycles=30, seed=4, targets_mm=THREE_TARGETS, true_parameters=nominal,
+        joint_errors=errors, tracker_from_base=SCENARIO.tracker_from_base,
     )  # fmt: skip
     r = study.results["nominal"]
     # 6 joints x (3 shifts of 10 um + 2 tilts of 20 urad at lever arms up to ~0.8 m): a flange displacement sd of
@@ -314,21 +315,25 @@ def test_simulated_study_with_random_joint_errors_has_repeatability_of_their_ord
 @pytest.fixture(scope="module")
 def kr5_models():
     """CPA and refined models of a simulated kr5-demo capture (the demo's own path, ~3 s)."""
-    from robotcal.workflow import identify_scenario, refine_scenario, scenario_truth, simulate_scenario
+    from robotcal.api import identify, perturb, refine, simulate
 
-    truth, _ = scenario_truth(SCENARIO)
-    run = simulate_scenario(SCENARIO, true_parameters=truth)
-    cpa = identify_scenario(run.capture, SCENARIO, health="off").parameters
+    truth = perturb(SCENARIO)
+    capture = simulate(SCENARIO, true_parameters=truth)
+    cpa = identify(capture, SCENARIO, health="off").parameters
     with warnings.catch_warnings():  # J6's flange parameters are not identifiable from the circles: held
         warnings.simplefilter("ignore")
-        refined = refine_scenario(run.capture, SCENARIO, cpa, health="off").parameters
+        refined = refine(capture, SCENARIO, cpa, health="off").parameters
     return truth, cpa, refined
 
 
 def test_simulated_study_on_kr5_demo_refined_beats_nominal(kr5_models):
     truth, cpa, refined = kr5_models
     models = {"nominal": ParameterSet.nominal(SCENARIO.robot), "cpa": cpa, "refined": refined}
-    study = simulate_iso_study(SCENARIO, models, seed=7)
+    study = simulate_iso_study(
+        SCENARIO.robot, models, seed=7, true_parameters=truth, tracker_from_base=SCENARIO.tracker_from_base,
+        joint_errors=SCENARIO.joint_errors, instrument=SCENARIO.instrument,
+        targets_mm={"point": scenario_flange_point(SCENARIO)},
+    )  # fmt: skip
     ap = {label: r.ap for label, r in study.results.items()}
     assert np.all(ap["refined"] < ap["nominal"])
     assert ap["refined"].max() < 0.5 * ap["nominal"].max()

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from robotcal.api import identify, perturb, simulate
 from robotcal.capture import Capture
 from robotcal.cli import app
 from robotcal.errors import InputError
@@ -26,7 +27,6 @@ from robotcal.io.builtins import read_toml
 from robotcal.io.capture_csv import write_capture
 from robotcal.io.scenario import scenario_from_dict
 from robotcal.kinematics.model import ParameterSet
-from robotcal.workflow import identify_scenario, scenario_truth, simulate_scenario
 
 LASER = "thesis-laser-tracker"
 
@@ -34,7 +34,7 @@ LASER = "thesis-laser-tracker"
 @pytest.fixture(scope="module")
 def laser():
     scenario = load_scenario(LASER)
-    return scenario, simulate_scenario(scenario, seed=5).capture
+    return scenario, simulate(scenario, rng=5)
 
 
 def _with(capture: Capture, **changes) -> Capture:
@@ -52,8 +52,8 @@ def _check(scenario, capture):
 def test_builtin_scenarios_are_plausible(name):
     # pyproject turns RobotcalWarning into errors: any finding would fail here
     scenario = load_scenario(name)
-    truth = scenario_truth(scenario, seed=3)[0] if scenario.truth else None
-    capture = simulate_scenario(scenario, seed=2, true_parameters=truth).capture
+    truth = perturb(scenario, rng=3) if scenario.truth else None
+    capture = simulate(scenario, rng=2, true_parameters=truth)
     report = _check(scenario, capture)
     assert report.findings == ()
     np.testing.assert_allclose(report.scale_ratio, 1.0, atol=0.01)
@@ -64,13 +64,13 @@ def test_builtin_scenarios_are_plausible(name):
 def test_coordinates_in_other_units(laser, factor, unit):
     scenario, capture = laser
     with pytest.raises(InputError, match=rf"c.csv: the measured points spread .* the coordinates look like {unit}"):
-        identify_scenario(_with(capture, points=capture.points * factor), scenario)
+        identify(_with(capture, points=capture.points * factor), scenario)
 
 
 def test_readings_in_radians(laser):
     scenario, capture = laser
     with pytest.raises(InputError, match=r"c.csv: circle 1 \(J1\): the target turned 57.3 times .* look like radians"):
-        identify_scenario(_with(capture, readings=np.deg2rad(capture.readings)), scenario)
+        identify(_with(capture, readings=np.deg2rad(capture.readings)), scenario)
 
 
 def test_duplicated_file(laser):
@@ -83,7 +83,7 @@ def test_duplicated_file(laser):
         points=np.r_[capture.points, capture.points],
     )
     with pytest.raises(InputError, match=r"135 of 270 rows repeat an earlier row .* appended to itself"):
-        identify_scenario(twice, scenario)
+        identify(twice, scenario)
 
 
 def test_a_few_copied_rows_warn(laser):
@@ -101,7 +101,7 @@ def test_zero_radius_reflector(laser):
     data["capture"]["reflector_mm"][3] = [0.0, 0.0, 0.0]
     on_axis = scenario_from_dict(data, source="zero.toml")
     with pytest.raises(InputError, match=r"circle 4 \(J4\): the scenario's reflector .* lies on axis 4"):
-        identify_scenario(capture, on_axis)
+        identify(capture, on_axis)
 
 
 def test_capture_of_another_robot(laser):
@@ -109,7 +109,7 @@ def test_capture_of_another_robot(laser):
     robot = scenario.robot
     bigger = robot.nominal.copy()
     bigger[:, [0, 2]] *= 1.5  # every length 1.5 times: a larger robot of the same structure
-    capture = simulate_scenario(scenario, seed=1, true_parameters=ParameterSet(robot=robot, values=bigger)).capture
+    capture = simulate(scenario, rng=1, true_parameters=ParameterSet(robot=robot, values=bigger))
     with pytest.warns(PlausibilityWarning) as record:
         _check(scenario, _with(capture))
     text = " ".join(str(w.message) for w in record)
@@ -128,14 +128,14 @@ def test_outliers_on_one_circle_are_named_and_rejected(laser):
     named = ", ".join(str(r + 1) for r in sorted(rows))
     # the fit-health test sees the same outliers: the circle residual is far above the noise (issue 14)
     with (
-        pytest.warns(FitHealthWarning, match=r"CPA \(circle fits\) does not pass .* times the stated noise"),
+        pytest.warns(FitHealthWarning, match=r"CPA \(circle fits\): fit health FAILED: the residual \(\d"),
         pytest.warns(PlausibilityWarning, match=rf"circle 5 \(J5\): RMS .* outliers at points {named}"),
     ):
-        dirty = identify_scenario(bad, scenario)
+        dirty = identify(bad, scenario)
     cleaned, removed = reject_outliers(bad, scenario.instrument)
     np.testing.assert_array_equal(removed, np.sort(rows))
-    clean = identify_scenario(cleaned, scenario)  # no warning left (warnings are errors here)
-    reference = identify_scenario(_with(capture), scenario)
+    clean = identify(cleaned, scenario)  # no warning left (warnings are errors here)
+    reference = identify(_with(capture), scenario)
     error_dirty = np.abs(dirty.parameters.values - reference.parameters.values).max()
     error_clean = np.abs(clean.parameters.values - reference.parameters.values).max()
     # measured: 0.15 (mm or rad) with the outliers, 1.1e-3 without them (3 of 25 circle-5 points fewer
@@ -173,5 +173,9 @@ def test_cli_warns_without_rejection(tmp_path, laser):
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         result = CliRunner().invoke(app, ["identify", str(path), "-s", LASER, "--out", str(tmp_path / "p.json")])
-    assert result.exit_code == 0, result.output
-    assert "outliers at point 101" in result.output.replace("\n", " ")
+    # a 50 mm outlier leaves a circle residual no calibrated robot has: the fit FAILED, exit 1, the file marked so
+    assert result.exit_code == 1, result.output
+    said = result.output.replace("\n", " ")
+    assert "outliers at point 101" in said and "fit health: FAILED" in said and "converged" not in said
+    recorded = json.loads((tmp_path / "p.json").read_text())["provenance"]["fit_health"]
+    assert recorded["verdict"] == "FAILED" and not recorded["healthy"]

@@ -15,12 +15,12 @@ from robotcal.identification import identify_cpa
 from robotcal.identification.refine import _Problem, measurement_pairs, refine_parameters
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot, load_scenario
+from robotcal.io.provenance import refine_provenance
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses, simulate_poses, thesis_test2_plan
-from robotcal.workflow import refine_provenance
 from thesis_data import TABLE_5_1_REFLECTORS_MM
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
@@ -220,7 +220,7 @@ def test_no_degrees_of_freedom_left_gives_nan_sigma_and_no_covariance(criterion)
     assert f"{result.n_residuals} residuals" in result.message
     # the parameter JSON's provenance turns the undefined figures into null instead of failing
     scenario = load_scenario("thesis-laser-tracker")
-    provenance = refine_provenance(result, capture, scenario, "nominal")
+    provenance = refine_provenance(result, capture, "nominal", scenario=scenario)
     assert provenance["sigma_mm"] is None and provenance["correlation"] is None
     json.dumps(provenance, allow_nan=False)
 

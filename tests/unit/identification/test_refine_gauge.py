@@ -17,16 +17,17 @@ from scipy.optimize import OptimizeResult
 from typer.testing import CliRunner
 
 import robotcal.identification.refine as refine_module
+from robotcal.api import identify, refine, simulate
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.identification import identify_cpa
 from robotcal.identification.refine import refine_parameters
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot, load_scenario
+from robotcal.io.provenance import refine_provenance
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturbable_mask
-from robotcal.workflow import identify_scenario, refine_provenance, refine_scenario, simulate_scenario
 from thesis_data import TABLE_5_1_REFLECTORS_MM
 
 ROBOT = load_robot("kuka-kr5-sixx-r650")
@@ -219,35 +220,35 @@ def test_base_correction_the_data_cannot_determine_is_held():
 def seed7():
     """``robotcal simulate thesis-laser-tracker --seed 7`` (truth = nominal) and its CPA."""
     scenario = load_scenario("thesis-laser-tracker")
-    run = simulate_scenario(scenario, seed=7)
+    capture = simulate(scenario, rng=7)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cpa = identify_scenario(run.capture, scenario).parameters
-    return scenario, run, cpa
+        cpa = identify(capture, scenario).parameters
+    return scenario, capture, cpa
 
 
 def test_given_base_frame_is_held_unless_estimation_is_asked(seed7):
-    scenario, run, cpa = seed7
+    scenario, capture, cpa = seed7
     assert scenario.identification.base_frame == "given"
-    held = _scenario_refine(run.capture, scenario, cpa)
+    held = _scenario_refine(capture, scenario, cpa)
     assert not held.base_free.any()
     np.testing.assert_array_equal(held.tracker_from_base, scenario.tracker_from_base)
     assert "base." not in " ".join(held.free_names)
-    estimated = _scenario_refine(run.capture, scenario, cpa, estimate_base=True)
+    estimated = _scenario_refine(capture, scenario, cpa, estimate_base=True)
     assert estimated.base_free.all() and not np.array_equal(estimated.tracker_from_base, scenario.tracker_from_base)
-    provenance = refine_provenance(held, run.capture, scenario, "cpa")
+    provenance = refine_provenance(held, capture, "cpa", scenario=scenario)
     assert provenance["base_frame"] == "held" and provenance["gauge"] == [] and provenance["confounded"] == []
-    assert refine_provenance(estimated, run.capture, scenario, "cpa")["base_frame"] == "estimated"
+    assert refine_provenance(estimated, capture, "cpa", scenario=scenario)["base_frame"] == "estimated"
     registered = dataclasses.replace(
         scenario, identification=dataclasses.replace(scenario.identification, base_frame="registered")
     )
-    assert _scenario_refine(run.capture, registered, cpa).base_free.all()
+    assert _scenario_refine(capture, registered, cpa).base_free.all()
 
 
 def _scenario_refine(capture, scenario, start, **options):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        return refine_scenario(capture, scenario, start, **options)
+        return refine(capture, scenario, start, **options)
 
 
 @pytest.mark.parametrize(
@@ -255,19 +256,19 @@ def _scenario_refine(capture, scenario, start, **options):
 )
 def test_seed7_cpa_start_is_no_worse_than_nominal_start(seed7, criterion, options):
     # the issue's case: from the CPA start J1.a ended 0.22 mm off (14 u) with the hard-coded gauge
-    scenario, run, cpa = seed7
-    from_cpa = _scenario_refine(run.capture, scenario, cpa, criterion=criterion, **options)
+    scenario, capture, cpa = seed7
+    from_cpa = _scenario_refine(capture, scenario, cpa, criterion=criterion, **options)
     from_nominal = _scenario_refine(
-        run.capture, scenario, ParameterSet.nominal(scenario.robot), criterion=criterion, **options
+        capture, scenario, ParameterSet.nominal(scenario.robot), criterion=criterion, **options
     )
     assert from_cpa.success and from_nominal.success
     # the same minimum: costs equal to rounding, parameters to 1e-6 (mm, rad)
     assert from_cpa.cost_history[-1] <= from_nominal.cost_history[-1] * (1 + 1e-9)
     np.testing.assert_allclose(from_cpa.parameters.values, from_nominal.parameters.values, rtol=0, atol=1e-6)
     # the true parameters (nominal) fit the capture no better than the refined ones
-    truth_fit = _scenario_refine(run.capture, scenario, run.true_parameters, criterion=criterion, **options)
+    truth_fit = _scenario_refine(capture, scenario, ParameterSet.nominal(scenario.robot), criterion=criterion, **options)
     assert from_cpa.cost_history[-1] <= truth_fit.start_cost
-    error = run.true_parameters.difference(from_cpa.parameters)[0, 2]
+    error = ParameterSet.nominal(scenario.robot).difference(from_cpa.parameters)[0, 2]
     assert abs(error) < 3.0 * from_cpa.standard_uncertainty[0, 2]  # J1.a within 3 u of the truth
 
 

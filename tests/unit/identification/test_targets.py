@@ -9,14 +9,15 @@ import warnings
 import numpy as np
 import pytest
 
+from robotcal.api import capture_targets, refine
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
-from robotcal.identification.health import FitHealthError, FitHealthWarning, circle_axis_uncertainty, fit_health
+from robotcal.identification.health import FitHealthError, FitHealthWarning, circle_axis_uncertainty
 from robotcal.identification.refine import measurement_pairs, refine_parameters, wrap_angles
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.capture_csv import read_capture, write_capture
-from robotcal.io.parameters_json import read_parameters, read_targets, write_parameters
+from robotcal.io.parameters_json import read_parameters, read_targets, refined_targets, write_parameters
 from robotcal.io.robots import load_robot
 from robotcal.io.scenario import scenario_from_dict
 from robotcal.kinematics.forward import forward_kinematics
@@ -24,7 +25,6 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
-from robotcal.workflow import capture_reflector, refine_scenario, refined_targets
 
 ROBOT = load_robot("kuka-kr5-sixx-r650")
 TRUTH = perturb_parameters(ROBOT, length_sd_mm=0.2, angle_sd_deg=0.05, rng=np.random.default_rng(7))
@@ -292,16 +292,6 @@ def test_angles_are_wrapped_into_the_branch_of_their_nominal(tmp_path):
 # -- fit health -----------------------------------------------------------------------------------------
 
 
-def test_fit_health_figures_and_strict():
-    health = fit_health("fit", 0.011, 0.01, condition_number=50.0, warn=False)
-    assert health.healthy and health.ratio == pytest.approx(1.1)
-    with pytest.warns(FitHealthWarning, match=r"4.2 mm per coordinate\) is 420 times the stated noise"):
-        bad = fit_health("fit", 4.2, 0.01, noise_source="U(95)", condition_number=8.5e8)
-    assert not bad.healthy and len(bad.problems) == 2 and "8.5e+08 exceeds 1e+08" in bad.problems[1]
-    with pytest.raises(FitHealthError):
-        fit_health("fit", 0.01, 0.01, condition_number=np.inf, strict=True)
-
-
 def test_circle_axis_uncertainty_matches_the_full_circle_formula():
     # N points on a full circle of radius r: in-plane scatter N r^2 / 2, so u_axis = u / (r sqrt(N / 2))
     angles = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
@@ -336,7 +326,7 @@ def test_refine_scenario_without_a_plan_warns_on_a_wrong_known_offset():
     capture, _ = _capture(_tracker_noise(0.02))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        result = refine_scenario(capture, scenario, ParameterSet.nominal(ROBOT))  # healthy: no FitHealthWarning
+        result = refine(capture, scenario, ParameterSet.nominal(ROBOT))  # healthy: no FitHealthWarning
     saved = refined_targets(result)
     assert saved["T2"]["known"] is False and all(u > 0 for u in saved["T2"]["u_mm"])
     np.testing.assert_allclose(saved["T2"]["flange_mm"], TRUE_OFFSETS[1], atol=0.05)
@@ -347,10 +337,12 @@ def test_refine_scenario_without_a_plan_warns_on_a_wrong_known_offset():
     assert [t.known for t in wrong.targets] == [True, True, False]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        with pytest.warns(FitHealthWarning, match="times the stated noise"):
-            refine_scenario(capture, wrong, ParameterSet.nominal(ROBOT))
-        with pytest.raises(FitHealthError, match="does not pass the fit-health test"):
-            refine_scenario(capture, wrong, ParameterSet.nominal(ROBOT), health="strict")
+        # a known offset 10 mm wrong leaves millimetres no robot has: an input error, FAILED
+        with pytest.warns(FitHealthWarning, match="fit health FAILED: the residual .* beyond what a calibrated robot"):
+            result = refine(capture, wrong, ParameterSet.nominal(ROBOT))
+        assert result.health.verdict == "FAILED" and "target or target offset" in result.health.problems[0]
+        with pytest.raises(FitHealthError, match="fit health FAILED"):
+            refine(capture, wrong, ParameterSet.nominal(ROBOT), health="strict")
 
 
 def test_missing_plan_and_instrument_name_the_key_and_the_commands():
@@ -361,7 +353,7 @@ def test_missing_plan_and_instrument_name_the_key_and_the_commands():
     with pytest.raises(InputError, match=r"cell.toml: key `instrument` is missing"):
         scenario.instrument.standard_uncertainty  # noqa: B018
     capture, _ = _capture()
-    assert capture_reflector(scenario, capture) == scenario.targets
+    assert capture_targets(scenario, capture) == scenario.targets
 
 
 @pytest.mark.parametrize(
@@ -394,15 +386,15 @@ def _toml(text: str) -> dict:
 
 
 def test_cpa_on_a_capture_with_a_target_column_uses_its_first_target():
+    from robotcal.api import identify, simulate
     from robotcal.io.scenario import load_scenario
-    from robotcal.workflow import identify_scenario, simulate_scenario
 
     scenario = load_scenario("thesis-noise-free")
-    capture = simulate_scenario(scenario, seed=1).capture
+    capture = simulate(scenario, rng=1)
     named = Capture(**{**_fields(capture), "target": np.zeros(capture.n_points, dtype=int), "target_names": ("capture",)})
-    plain = identify_scenario(capture, scenario)
-    tagged = identify_scenario(named, scenario)  # `capture`: the scenario's [capture] reflector, by name
+    plain = identify(capture, scenario)
+    tagged = identify(named, scenario)  # `capture`: the scenario's [capture] reflector, by name
     np.testing.assert_array_equal(tagged.parameters.values, plain.parameters.values)
     unknown = Capture(**{**_fields(capture), "target": np.zeros(capture.n_points, dtype=int), "target_names": ("X",)})
     with pytest.raises(InputError, match="no target named 'X'"):
-        identify_scenario(unknown, scenario)
+        identify(unknown, scenario)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from robotcal.api import identify, simulate
 from robotcal.capture import Capture
 from robotcal.cli import app
 from robotcal.errors import DegenerateGeometryError, InputError
@@ -21,7 +22,6 @@ from robotcal.io.capture_csv import write_capture
 from robotcal.io.draws_npz import read_draws, write_draws
 from robotcal.io.robots import load_robot
 from robotcal.io.trajectory_csv import read_trajectory
-from robotcal.workflow import identify_scenario, simulate_scenario
 
 runner = CliRunner()
 SCENARIO = "thesis-noise-free"
@@ -29,7 +29,7 @@ SCENARIO = "thesis-noise-free"
 
 @pytest.fixture(scope="module")
 def capture():
-    return simulate_scenario(load_scenario(SCENARIO), seed=1).capture
+    return simulate(load_scenario(SCENARIO), rng=1)
 
 
 def _with(capture: Capture, **changes) -> Capture:
@@ -113,7 +113,7 @@ def test_1e308_value_names_the_circle_and_row(capture):
     points = capture.points.copy()
     points[20, 1] = 1e308  # row 20 is on circle 2 (15 points on circle 1)
     with pytest.raises(InputError, match=r"c.csv: circle 2, point 21 \(CSV line 22\): a coordinate is not finite"):
-        identify_scenario(_with(capture, points=points), load_scenario(SCENARIO))
+        identify(_with(capture, points=points), load_scenario(SCENARIO))
 
 
 def test_identical_points_name_the_circle(capture):
@@ -121,7 +121,7 @@ def test_identical_points_name_the_circle(capture):
     rows = np.flatnonzero(capture.circle == 3)
     points[rows] = points[rows[0]]
     with pytest.raises(DegenerateGeometryError, match=r"c.csv: circle 3: all 30 points \(points 36..65\) are the same"):
-        identify_scenario(_with(capture, points=points), load_scenario(SCENARIO))
+        identify(_with(capture, points=points), load_scenario(SCENARIO))
 
 
 def test_cli_identify_gives_one_line_exit_2(tmp_path, capture):

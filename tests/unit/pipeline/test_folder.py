@@ -9,8 +9,16 @@ from pathlib import Path
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.pipeline import RunResult, Table, read_run
-from robotcal.pipeline.folder import read_document, refusal, table_from_text, write_csv, write_json
+from robotcal.io.run_folder import (
+    RunResult,
+    Table,
+    read_document,
+    read_run,
+    refusal,
+    table_from_text,
+    write_csv,
+    write_json,
+)
 
 RECORD = {"command": "robotcal run kr5-demo", "status": "done", "stages": {"simulate": {"status": "done"}}}
 
@@ -123,3 +131,18 @@ def test_writer_returns_what_the_reader_reads(tmp_path):
     with pytest.raises(ValueError):
         write_json(root / "bad.json", {"x": float("nan")})  # strict JSON: no NaN written
     assert not (root / "bad.json").exists()
+
+
+@pytest.mark.parametrize(
+    ("cells", "numeric"),
+    [
+        (["1", " 2.5 ", "-3e-4", ""], True),
+        (["", "  "], False),  # no number at all
+        (["1", "x"], False),
+        (["nan", "inf"], True),  # float() reads them: the report shows them as they are
+        (["1,5"], False),  # a decimal comma is text
+    ],
+)
+def test_a_table_knows_its_numeric_columns(cells, numeric):
+    table = Table(header=("value",), rows=tuple((cell,) for cell in cells))
+    assert table.numeric == (numeric,)

@@ -4,19 +4,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from robotcal.api import perturb
 from robotcal.diagnostics.iso9283 import simulate_iso_study
 from robotcal.io import load_scenario
+from robotcal.io.run_folder import read_document
 from robotcal.kinematics.model import ParameterSet
-from robotcal.pipeline.folder import read_document
-from robotcal.pipeline.iso9283 import ISO_TARGETS_MM, iso9283_stage
-from robotcal.workflow import scenario_truth
+from robotcal.pipeline.figures import FigureJobs
+from robotcal.pipeline.stages import ISO_TARGETS_MM, iso9283_stage
 
 
 def test_iso9283_stage_writes_the_study_it_computed(tmp_path):
     scenario = load_scenario("kr5-demo")
-    truth, _ = scenario_truth(scenario, seed=1)
+    truth = perturb(scenario, rng=1)
     models = {"nominal": ParameterSet.nominal(scenario.robot), "truth": truth}
-    output = iso9283_stage(scenario, truth=truth, models=models, seed=5, out=tmp_path)
+    figures = FigureJobs()
+    output = iso9283_stage(scenario, truth=truth, models=models, seed=5, out=tmp_path, figures=figures)
+    assert [path.name for path in figures.paths()] == ["iso9283.png"]
     # the documents are what the folder holds
     for name, document in output.documents.items():
         relative = name.removeprefix("iso9283/")
@@ -25,7 +28,16 @@ def test_iso9283_stage_writes_the_study_it_computed(tmp_path):
         else:
             assert document == tmp_path / name and document.is_file()
     # the same study as the library's, seed for seed (the stage adds files, not numbers)
-    again = simulate_iso_study(scenario, models, seed=5, true_parameters=truth, targets_mm=ISO_TARGETS_MM)
+    again = simulate_iso_study(
+        scenario.robot,
+        models,
+        seed=5,
+        true_parameters=truth,
+        targets_mm=ISO_TARGETS_MM,
+        tracker_from_base=scenario.tracker_from_base,
+        joint_errors=scenario.joint_errors,
+        instrument=scenario.instrument,
+    )
     for model in models:
         np.testing.assert_array_equal(output.value.results[model].ap, again.results[model].ap)
     table = output.documents["iso9283/iso9283.csv"]

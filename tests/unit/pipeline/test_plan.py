@@ -87,13 +87,14 @@ def test_seeds_and_scenarios_of_the_wrong_type_are_refused_up_front(tmp_path):
 
 def test_the_stage_tables_follow_the_stage_order():
     """OUTPUTS (hence RUN_ENTRIES and the report's table of stages) and STEPS list the stages in run order."""
-    from robotcal.pipeline.folder import RUN_ENTRIES
-    from robotcal.pipeline.plan import OUTPUTS, RUN_RECORD, STAGES, STEPS
+    from robotcal.io.run_folder import OUTPUTS, RUN_ENTRIES, RUN_RECORD, STAGES
+    from robotcal.pipeline.plan import STEPS
 
     assert tuple(OUTPUTS) == STAGES
     assert tuple(STEPS) == tuple(stage for stage in STAGES if stage in STEPS)
     assert RUN_ENTRIES[:4] == (RUN_RECORD, *OUTPUTS["simulate"])
-    # joints needs only the capture: it runs before refine, so that its figures are drawn while refine computes
-    assert STAGES.index("identify") < STAGES.index("joints") < STAGES.index("refine")
-    # plan needs only the scenario: before tcp, its figures are drawn while tcp computes the workspace
-    assert STAGES.index("uncertainty") < STAGES.index("plan") < STAGES.index("tcp")
+    # the method's order (thesis ch. 4-5): identify, refine and evaluate, the joints, the uncertainty of the
+    # parameters, then of the TCP, the plan and its sensitivity, the ISO 9283 test, the report
+    assert STAGES == (
+        "simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "iso9283", "report",
+    )  # fmt: skip

@@ -10,13 +10,14 @@ import pytest
 from typer.testing import CliRunner
 
 import robotcal.report.html as report_html
+from robotcal.api import identify
 from robotcal.capture import Capture
 from robotcal.cli import app
 from robotcal.io import load_scenario, read_capture
+from robotcal.io.run_folder import STAGES, RunResult, Table, read_run
 from robotcal.kinematics.model import ParameterSet
-from robotcal.pipeline import STAGES, RunResult, Table, plan_run, read_run, run_calibration
+from robotcal.pipeline import plan_run, run_calibration
 from robotcal.uncertainty.montecarlo import MonteCarloResult
-from robotcal.workflow import identify_scenario
 
 #: Small enough for the test machine, large enough for every stage: a 95 % interval needs >= 21 draws.
 DRAWS, REFINED_DRAWS, WORKSPACE = 100, 50, 10
@@ -93,7 +94,7 @@ def test_the_capture_in_memory_is_the_csv_file_bit_for_bit(small_run, tmp_path):
     run_cpa = result.json("cpa/parameters.json")
     for key in ("joints", "identified"):  # every parameter value, as written with full precision
         assert stand_alone[key] == run_cpa[key], key
-    np.testing.assert_array_equal(identify_scenario(from_file, scenario).parameters.values, result.results["cpa"].values)
+    np.testing.assert_array_equal(identify(from_file, scenario).parameters.values, result.results["cpa"].values)
 
 
 def test_report_is_rendered_once_from_the_final_record(small_run):

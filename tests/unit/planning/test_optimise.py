@@ -21,14 +21,14 @@ def _problem(objective="p95-tcp", poses=60):
 
 def test_linearised_p95_agrees_with_monte_carlo():
     """The search's fast figure against an independent Monte Carlo of the same plan and poses."""
+    from robotcal.api import monte_carlo_problem
     from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
     from robotcal.uncertainty.workspace import workspace_uncertainty
-    from robotcal.workflow import scenario_monte_carlo
 
     scenario, problem, readings = _problem()
     linear = evaluate_plan(scenario.plan, problem)["p95-tcp"]
     settings = MonteCarloSettings(iterations=2000, block_size=2000)
-    result = run_monte_carlo(scenario_monte_carlo(scenario), settings, seed=5, linearised=False)
+    result = run_monte_carlo(monte_carlo_problem(scenario), settings, seed=5, linearised=False)
     mc = np.percentile(workspace_uncertainty(scenario.robot, result.draws, readings=readings).position_uncertainty, 95)
     # CPA is close to linear at 10 um noise; 2000 draws estimate u to ~1.6 % (1/sqrt(2n)): 10 % is ample
     assert mc == pytest.approx(linear, rel=0.10)

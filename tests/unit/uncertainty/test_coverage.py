@@ -11,10 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robotcal.api import coverage_study
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
 from robotcal.simulation.perturb import perturb_parameters
-from robotcal.uncertainty.coverage import binomial_band, coverage_study
+from robotcal.uncertainty.coverage import binomial_band
 
 
 @pytest.fixture(scope="module")

@@ -20,6 +20,7 @@ import pytest
 from scipy.stats import chi2
 
 import robotcal.uncertainty.measured as measured_module
+from robotcal.api import capture_targets, measured_monte_carlo, refine
 from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.identification.refine import wrap_angles
 from robotcal.identification.targets import Target
@@ -30,9 +31,9 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
-from robotcal.uncertainty.measured import draw_noise, measured_monte_carlo, prepare_measured
+from robotcal.uncertainty.measured import draw_noise, prepare_measured
+from robotcal.uncertainty.measured import measured_monte_carlo as core_measured_monte_carlo
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
-from robotcal.workflow import refine_scenario
 
 ROBOT = load_robot("abb-irb120")
 TRACKER = np.array([[0.0, -1.0, 0.0, 2100.0], [1.0, 0.0, 0.0, -150.0], [0.0, 0.0, 1.0, -420.0], [0.0, 0.0, 0.0, 1.0]])
@@ -72,7 +73,7 @@ def _capture(truth: ParameterSet, seed: int, u95=U95_MM, poses: int = N_POSES):
 def _refine(capture, scenario):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)  # J6's d, theta, a, alpha held: by design
-        return refine_scenario(capture, scenario, ParameterSet.nominal(ROBOT))
+        return refine(capture, scenario, ParameterSet.nominal(ROBOT))
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +87,7 @@ def cell():
 def test_monte_carlo_u_agrees_with_the_linearised_u(cell):
     scenario, _, capture, estimate = cell
     draws = 200
-    result = measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=draws), seed=11)
+    result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=11)
     mc = result.parameters
     assert mc.model == "measured capture" and mc.n_failed == 0 and mc.n_draws == draws
     free = estimate.free
@@ -123,7 +124,7 @@ def test_linearised_u_is_rescaled_to_the_stated_noise_when_the_residuals_disagre
     capture, _ = _capture(truth, 3, u95=2.0 * U95_MM)
     estimate = _refine(capture, scenario)
     draws = 40
-    result = measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=draws), seed=5)
+    result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=5)
     mc = result.parameters
     free = estimate.free
     np.testing.assert_allclose(result.stated_u_mm, U95_MM, rtol=1e-12)
@@ -141,9 +142,9 @@ def test_other_criterion_and_base_frame_repeat_the_users_refinement(criterion, b
     capture = _capture(_truth(7), 3, poses=15)[0]  # 45 points: 990 pairs for the distances criterion
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        estimate = refine_scenario(capture, scenario, ParameterSet.nominal(ROBOT), criterion=criterion)
+        estimate = refine(capture, scenario, ParameterSet.nominal(ROBOT), criterion=criterion)
     draws = 21
-    result = measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=draws), seed=1)
+    result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=1)
     mc = result.parameters
     assert mc.criterion == criterion and mc.n_failed == 0 and np.array_equal(mc.identified, estimate.free)
     # base estimated (registered): every draw estimates it again, so d1/theta1 stay a gauge as in the user's fit
@@ -164,7 +165,7 @@ def _coverage_hits(n_captures: int, draws: int) -> tuple[np.ndarray, int]:
         truth = _truth(100 + k)
         capture, _ = _capture(truth, 200 + k)
         estimate = _refine(capture, scenario)
-        result = measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=draws), seed=k)
+        result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=k)
         low, high = result.parameters.interval()
         free = estimate.free
         true_values = truth.values + 2 * np.pi * np.round((estimate.parameters.values - truth.values) / (2 * np.pi))
@@ -218,7 +219,7 @@ def test_each_point_gets_the_noise_of_its_own_u95():
         circle=capture.circle, direction=capture.direction, readings=capture.readings, points=capture.points,
         target=capture.target, target_names=capture.target_names, u95=u95, source="varied U(95)",
     )  # fmt: skip
-    problem = prepare_measured(capture, _scenario(), _refine(capture, _scenario()).parameters, targets=None)
+    problem = _prepare(capture, _scenario(), _refine(capture, _scenario()).parameters)
     # closed form: standard normal draws scaled by U / 2 per point (k = 2, normal), from the given generator
     expected = np.random.default_rng(9).standard_normal((capture.n_points, 3)) * (u95 / 2.0)[:, None]
     np.testing.assert_array_equal(draw_noise(problem, np.random.default_rng(9)), expected)
@@ -234,18 +235,18 @@ def test_each_point_gets_the_noise_of_its_own_u95():
 def test_without_u95_the_instrument_gives_the_noise_and_without_both_it_is_refused(cell):
     scenario, truth, _, estimate = cell
     capture, _ = _capture(truth, 3, u95=None)
-    problem = prepare_measured(capture, scenario, estimate.parameters, targets=None)
+    problem = _prepare(capture, scenario, estimate.parameters)
     assert "instrument" in problem.noise_source and problem.noise_sd is None
     expected = scenario.instrument.sample_noise(problem.exact_points, rng=np.random.default_rng(2))
     np.testing.assert_array_equal(draw_noise(problem, np.random.default_rng(2)), expected)
-    with pytest.raises(InputError, match="no `u95_mm` column and cell.toml has no \\[instrument\\]"):
-        prepare_measured(capture, _scenario(instrument=False), estimate.parameters)
+    with pytest.raises(InputError, match="no `u95_mm` column and no instrument is given"):
+        _prepare(capture, _scenario(instrument=False), estimate.parameters)
 
 
 def test_draws_do_not_depend_on_the_number_of_workers(cell):
     scenario, _, capture, estimate = cell
     runs = [
-        measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=45, workers=w), seed=3)
+        measured_monte_carlo(capture, scenario, estimate, draws=45, workers=w, rng=3)
         for w in (1, 2)
     ]  # 3 blocks: 20, 20, 5 draws
     np.testing.assert_array_equal(runs[0].parameters.draws, runs[1].parameters.draws)
@@ -263,7 +264,7 @@ def test_failed_draws_are_counted_and_left_out(cell, monkeypatch):
         return None if len(calls) % 5 == 0 else real(problem, points)
 
     monkeypatch.setattr(measured_module, "_refine_draw", every_fifth_fails)
-    result = measured_monte_carlo(capture, scenario, estimate, MonteCarloSettings(iterations=25), seed=3)
+    result = measured_monte_carlo(capture, scenario, estimate, draws=25, rng=3)
     mc = result.parameters
     assert mc.n_failed == 5 and mc.n_draws == 20 and mc.draws.shape[0] == 20 and not mc.success
     assert np.all(np.isfinite(mc.draws)) and "5 of 25 draws failed" in mc.message
@@ -273,9 +274,25 @@ def test_failed_draws_are_counted_and_left_out(cell, monkeypatch):
 def test_adaptive_mode_and_a_foreign_estimate_are_refused(cell):
     scenario, _, capture, estimate = cell
     with pytest.raises(InputError, match="adaptive mode is not available"):
-        measured_monte_carlo(
-            capture, scenario, estimate, MonteCarloSettings(adaptive=True, block_size=10, max_draws=40), seed=1
+        core_measured_monte_carlo(
+            capture,
+            estimate,
+            capture_targets(scenario, capture),
+            MonteCarloSettings(adaptive=True, block_size=10, max_draws=40),
+            seed=1,
         )
     other = ParameterSet.nominal(load_robot("kuka-kr5-sixx-r650"))
     with pytest.raises(InputError, match="the estimate is for robot"):
-        measured_monte_carlo(capture, scenario, other, MonteCarloSettings(iterations=21), seed=1)
+        measured_monte_carlo(capture, scenario, other, draws=21, rng=1)
+
+
+def _prepare(capture, scenario, estimate):
+    """:func:`prepare_measured` with the scenario's targets, instrument and (given) base frame."""
+    given = scenario.identification.base_frame == "given"
+    return prepare_measured(
+        capture,
+        estimate,
+        capture_targets(scenario, capture),
+        instrument=scenario.instrument if scenario.has_instrument else None,
+        tracker_from_base=scenario.tracker_from_base if given else None,
+    )

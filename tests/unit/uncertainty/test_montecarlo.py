@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from robotcal.api import monte_carlo_problem
 from robotcal.errors import InputError
 from robotcal.identification.cpa import identify_cpa
 from robotcal.io import load_scenario
@@ -18,13 +19,12 @@ from robotcal.uncertainty.montecarlo import (
     draw_block,
     run_monte_carlo,
 )
-from robotcal.workflow import scenario_monte_carlo
 
 
 @pytest.fixture(scope="module")
 def laser():
     scenario = load_scenario("thesis-laser-tracker")
-    problem = scenario_monte_carlo(scenario)
+    problem = monte_carlo_problem(scenario)
     return scenario, problem
 
 
@@ -82,7 +82,7 @@ _KR5_DEMO_REFERENCE = {
 
 
 def test_demo_draws_are_those_of_the_reference_implementation():
-    problem = scenario_monte_carlo(load_scenario("kr5-demo"))
+    problem = monte_carlo_problem(load_scenario("kr5-demo"))
     draws = draw_block(problem, seed=7, block=3, n_draws=2_000, batch_size=2_000)
     identified = problem.identified
     assert identified.sum() == len(_KR5_DEMO_REFERENCE["mean"])
@@ -105,7 +105,7 @@ def test_noise_is_the_generator_stream_scaled_by_the_bound(laser, noise):
 
     scenario, _ = laser
     instrument = dataclasses.replace(scenario.instrument, noise=noise)
-    problem = scenario_monte_carlo(scenario, instrument=instrument)
+    problem = monte_carlo_problem(scenario, instrument=instrument)
     draws = _noise(problem, 6, np.random.default_rng(21))
     # the plain formulas on the same generator: ``uniform(-1, 1) * U`` or ``standard_normal * U / k``,
     # the very numbers (exact equality), and the generator left in the same state
@@ -162,7 +162,7 @@ def test_summary_and_covariance_describe_the_draws(laser):
 def test_linearised_uncertainty_agrees_with_monte_carlo_at_low_noise(laser):
     scenario, _ = laser
     quiet = dataclasses.replace(scenario.instrument, a_mm=0.001, b_mm_per_m=0.0)  # 1 um: CPA is ~linear
-    problem = scenario_monte_carlo(scenario, instrument=quiet)
+    problem = monte_carlo_problem(scenario, instrument=quiet)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=8_000, block_size=4_000), seed=3)
     mask = result.identified
     ratio = result.summary.std_uncertainty[mask] / result.linearised.std_uncertainty[mask]
@@ -209,7 +209,7 @@ def test_random_joint_errors_are_redrawn_in_every_draw(laser):
     noise_sd[:, :3] = 0.01  # 10 um translational joint noise, no instrument noise
     joint_errors = dataclasses.replace(JointErrorModel.zeros(n), noise_sd=noise_sd)
     silent = dataclasses.replace(scenario.instrument, a_mm=0.0, b_mm_per_m=0.0)
-    problem = scenario_monte_carlo(dataclasses.replace(scenario, joint_errors=joint_errors), instrument=silent)
+    problem = monte_carlo_problem(dataclasses.replace(scenario, joint_errors=joint_errors), instrument=silent)
     result = run_monte_carlo(problem, MonteCarloSettings(iterations=200, block_size=100, batch_size=64), seed=4)
     assert np.all(result.summary.std_uncertainty[result.identified] > 0.0)
     again = run_monte_carlo(problem, MonteCarloSettings(iterations=200, block_size=100, batch_size=100), seed=4)

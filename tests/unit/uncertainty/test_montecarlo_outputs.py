@@ -10,17 +10,16 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-import robotcal.plots.montecarlo as histograms
+from robotcal.api import monte_carlo_problem
 from robotcal.io import load_scenario
 from robotcal.io.draws_npz import read_draws, write_draws
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, draw_covariance, linearised_uncertainty, run_monte_carlo
 from robotcal.uncertainty.statistics import coverage_interval, summarize_draws
-from robotcal.workflow import scenario_monte_carlo
 
 
 @pytest.fixture(scope="module")
 def laser():
-    return scenario_monte_carlo(load_scenario("thesis-laser-tracker"))
+    return monte_carlo_problem(load_scenario("thesis-laser-tracker"))
 
 
 @pytest.fixture(scope="module")
@@ -69,28 +68,6 @@ def _png_bytes(paths):
     return {path.name: path.read_bytes() for path in paths}
 
 
-def test_histograms_are_the_same_whatever_the_number_of_processes(small_result, tmp_path):
-    (tmp_path / "one").mkdir()
-    (tmp_path / "two").mkdir()
-    one = histograms.write_histograms(small_result, tmp_path / "one", processes=1)
-    two = histograms.write_histograms(small_result, tmp_path / "two", processes=2)
-    assert [path.name for path in one] == [path.name for path in two]
-    assert [path.name for path in one] == [
-        f"hist_J{joint + 1}.png" for joint in range(small_result.robot.n_joints) if small_result.identified[joint].any()
-    ]
-    assert _png_bytes(one) == _png_bytes(two)
-
-
-def test_a_failed_drawing_process_is_made_good_here(small_result, tmp_path, monkeypatch):
-    """A forked process that dies leaves its joints to the calling process: every file is written."""
-    def dies(joints):
-        raise SystemExit(3)
-
-    monkeypatch.setattr(histograms, "_draw_forked", dies)
-    written = histograms.write_histograms(small_result, tmp_path, processes=2)
-    assert len(written) >= 2 and all(path.is_file() and path.stat().st_size > 1000 for path in written)
-
-
 def test_draws_file_is_uncompressed_and_old_compressed_files_still_read(small_result, tmp_path):
     path = write_draws(tmp_path / "draws.npz", small_result.robot, small_result.draws, small_result.identified, seed=5)
     with zipfile.ZipFile(path) as archive:
@@ -108,15 +85,3 @@ def test_draws_file_is_uncompressed_and_old_compressed_files_still_read(small_re
     np.testing.assert_allclose(new.values, small_result.draws, rtol=1e-15, atol=1e-12)  # deg <-> rad round trip
 
 
-def test_histograms_drawn_here_when_no_process_can_start(small_result, tmp_path, monkeypatch):
-    """A daemonic caller (e.g. a pool worker) may not fork: every figure is then drawn in this process."""
-    import multiprocessing.context
-
-    def refuse(self):
-        raise AssertionError("daemonic processes are not allowed to have children")
-
-    monkeypatch.setattr(multiprocessing.context.ForkProcess, "start", refuse)
-    written = histograms.write_histograms(small_result, tmp_path, processes=2)
-    expected = [f"hist_J{joint + 1}.png" for joint in range(small_result.robot.n_joints) if small_result.identified[joint].any()]
-    assert [path.name for path in written] == expected
-    assert all(path.is_file() for path in written)

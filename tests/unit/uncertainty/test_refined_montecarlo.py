@@ -10,6 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
+from robotcal.api import monte_carlo_problem, simulate
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.refine import refine_parameters
@@ -18,18 +19,17 @@ from robotcal.io.uncertainty_files import read_uncertainty_csv, write_uncertaint
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, draw_block, run_monte_carlo
 from robotcal.uncertainty.refined import refine_batch
-from robotcal.workflow import scenario_monte_carlo, simulate_scenario
 
 
 @pytest.fixture(scope="module")
 def laser():
     scenario = load_scenario("thesis-laser-tracker")
-    return scenario, scenario_monte_carlo(scenario, model="refined")
+    return scenario, monte_carlo_problem(scenario, model="refined")
 
 
 @pytest.fixture(scope="module")
 def distances(laser):
-    return scenario_monte_carlo(laser[0], model="refined", criterion="distances")
+    return monte_carlo_problem(laser[0], model="refined", criterion="distances")
 
 
 def _noisy(problem, seed, n_draws):
@@ -67,7 +67,7 @@ def _assert_same_solution(batch_values, batch_cost, reference):
 def test_batched_refinement_of_a_draw_equals_refine_parameters(laser, base_frame):
     scenario, _ = laser
     options = dataclasses.replace(scenario.identification, base_frame=base_frame)
-    problem = scenario_monte_carlo(dataclasses.replace(scenario, identification=options), model="refined")
+    problem = monte_carlo_problem(dataclasses.replace(scenario, identification=options), model="refined")
     assert problem.refined.base_free.any() == (base_frame == "registered")
     points = _noisy(problem, seed=5, n_draws=3)
     cpa = identify_cpa_batch(points, problem.structure, problem.tracker_from_base)
@@ -112,7 +112,7 @@ def test_refined_monte_carlo_u_agrees_with_the_linearised_u(laser):
     assert np.all(np.abs(ratio - 1.0) < 0.09), ratio
     assert abs(np.mean(ratio) - 1.0) < 0.02  # the 20 ratios' mean: ~0.5 % standard error
     # refine_parameters' own linearised u from one noisy capture (sigma estimated from its residuals)
-    capture = simulate_scenario(scenario, seed=4).capture
+    capture = simulate(scenario, rng=4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
         single = refine_parameters(
@@ -133,7 +133,7 @@ def test_draws_are_bit_identical_for_any_batch_size(laser, distances, model):
     if model == "distances":
         problem, sizes = distances, (1, 3)
     else:
-        problem = refined if model == "refined" else scenario_monte_carlo(scenario)
+        problem = refined if model == "refined" else monte_carlo_problem(scenario)
         sizes = (1, 2, 3)
     reference = draw_block(problem, seed=9, block=2, n_draws=7, batch_size=7)
     for batch_size in sizes:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robotcal.api import monte_carlo_problem
 from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.io import load_scenario
 from robotcal.kinematics.forward import target_positions
@@ -22,12 +23,11 @@ from robotcal.uncertainty.refined import (
     prepare_refined_model,
     refine_batch,
 )
-from robotcal.workflow import scenario_monte_carlo
 
 
 @pytest.fixture(scope="module")
 def demo():
-    return scenario_monte_carlo(load_scenario("kr5-demo"), model="refined")
+    return monte_carlo_problem(load_scenario("kr5-demo"), model="refined")
 
 
 @pytest.fixture(scope="module")

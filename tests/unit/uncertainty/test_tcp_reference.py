@@ -134,31 +134,15 @@ def test_abc_fast_path_keeps_the_quadrant_of_a_negative_zero():
     np.testing.assert_allclose(fast, kuka_abc_from_matrix(rotation), atol=1e-15)
 
 
-def test_atan_series_is_within_rounding_of_arctan():
-    """The series of ``_atan_small`` against libm's ``arctan`` up to the largest argument it is used for:
-    its truncation bound (9.3e-19 relative) is far below the double rounding, so the two differ by at most
-    rounding (a relative 4e-16 allows a couple of ulps of each)."""
-    from robotcal.uncertainty.tcp import _SERIES_MAX_TAN, _atan_small
-
-    u = np.concatenate([np.linspace(-_SERIES_MAX_TAN, _SERIES_MAX_TAN, 200_001), [0.0, -0.0, 1e-300, 5e-324]])
-    series = _atan_small(u.copy())
-    np.testing.assert_allclose(series, np.arctan(u), rtol=4e-16, atol=0)
-    # the bound is the first omitted term of the alternating series, relative: u^10 / 11 at the limit
-    assert _SERIES_MAX_TAN**10 / 11 < 1e-17
-    # beyond the limit the truncation shows: the run-time check is what keeps the series exact
-    wide = np.array([0.3])
-    assert abs(_atan_small(wide.copy())[0] - np.arctan(0.3)) > 1e-7
-
-
 @pytest.mark.parametrize(
     ("spread", "offset_deg"),
     [(1e-3, 0.0), (0.05, 0.0), (1e-3, 120.0), (1e-3, 179.0)],
-    ids=["series", "arctan", "arctan2-120deg", "arctan2-179deg"],
+    ids=["near", "wider", "120deg", "179deg"],
 )
-def test_abc_near_takes_every_path_exactly(spread, offset_deg):
-    """``_abc_near`` against ``kuka_abc_from_matrix`` + ``wrap_angle_near`` for rotations near the reference
-    (the series), farther than its limit (``arctan``), and more than 90 deg away, where the turned vector
-    points backwards (``arctan2``); the first joint added to A."""
+def test_abc_near_equals_the_matrix_formula(spread, offset_deg):
+    """``_abc_near`` against ``kuka_abc_from_matrix`` + ``wrap_angle_near`` for rotations near the reference,
+    farther from it, and more than 90 deg away, where the turned vector points backwards; the first joint added
+    to A."""
     from robotcal.uncertainty.tcp import _abc_near
 
     rng = np.random.default_rng(12)

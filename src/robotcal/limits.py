@@ -1,8 +1,7 @@
-"""Process limits shared by the pipeline and the CLI: the seed bound, memory estimates, the SIGTERM interrupt.
+"""Limits checked before work starts: the seed bound and memory estimates of the large computations.
 
-They live below the CLI so that :mod:`robotcal.pipeline` checks a run without importing :mod:`robotcal.cli`;
-:mod:`robotcal.cli._common` is meant to import them from here (one home). Only the standard library and
-:mod:`robotcal.errors` are imported: importing this module costs nothing for ``robotcal --help``.
+Only the standard library and :mod:`robotcal.errors` are imported, so the command line can check its options
+before it imports numpy.
 """
 
 from __future__ import annotations
@@ -13,7 +12,6 @@ __all__ = [
     "BYTES_PER_POSE",
     "FALLBACK_MEMORY",
     "SEED_BOUND",
-    "Terminated",
     "available_memory",
     "check_memory",
     "monte_carlo_bytes",
@@ -27,12 +25,6 @@ SEED_BOUND = 2**63
 FALLBACK_MEMORY = 4 * 2**30
 #: Memory per workspace or trajectory pose (readings, nominal and summary arrays) [bytes], generous.
 BYTES_PER_POSE = 4096
-
-
-class Terminated(KeyboardInterrupt):
-    """Raised in the main thread by the SIGTERM handler so that every cleanup (``finally``, context
-    managers, pool shutdown) runs as for Ctrl-C; a :class:`KeyboardInterrupt` so code that handles an
-    interrupt handles this too."""
 
 
 def available_memory() -> int:

@@ -1,8 +1,8 @@
-"""Joint diagnostics of a capture (thesis ch. 4.6): the computation and the files of ``joints/``.
+"""The files of ``joints/``: joint diagnostics of a capture (thesis ch. 4.6) and their harmonic model, mm and deg.
 
-:func:`compute_joints` runs the diagnostics and their harmonic model; :func:`joints_files` builds the
-CSV texts and ``harmonics.json`` (mm, deg); :func:`write_joints_folder` writes them with the figures (:func:`write_joint_figure_files`).
-``robotcal joints`` and the joints stage of a run call the same functions.
+:func:`joints_files` builds the CSV texts and ``harmonics.json``; :func:`write_joints_folder` writes them.
+``robotcal joints`` and the joints stage of a run call the same functions (the figures:
+:func:`robotcal.plots.joints.write_joint_figures`).
 """
 
 from __future__ import annotations
@@ -14,22 +14,17 @@ from pathlib import Path
 
 import numpy as np
 
-from robotcal.capture import Capture
-from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
-from robotcal.pipeline.figures import Render, draw_now, figure_paths
-from robotcal.pipeline.folder import write_csv, write_json
-from robotcal.pipeline.result import Document
-from robotcal.workflow import versions
+from robotcal.diagnostics import HarmonicModel, JointDiagnostics
+from robotcal.io.provenance import scenario_echo, versions
+from robotcal.io.run_folder import Document, write_csv, write_json
 
 __all__ = [
     "SUMMARY_COLUMNS",
     "backlash_csv",
-    "compute_joints",
     "harmonics_document",
     "joints_files",
     "points_csv",
     "summary_csv",
-    "write_joint_figure_files",
     "write_joints_folder",
 ]
 
@@ -118,7 +113,7 @@ def harmonics_document(model: HarmonicModel, diagnostics: JointDiagnostics, *, c
     document = model.to_dict()
     document["provenance"] = {
         "capture": str(capture),
-        "scenario": {"name": scenario.name, "source": scenario.source},
+        "scenario": scenario_echo(scenario),
         "backlash": diagnostics.backlash,
         "match_tolerance_deg": float(np.rad2deg(diagnostics.match_tolerance)),
         "ignored_points": diagnostics.ignored_points,
@@ -126,19 +121,6 @@ def harmonics_document(model: HarmonicModel, diagnostics: JointDiagnostics, *, c
         "versions": versions(),
     }
     return document
-
-
-def compute_joints(
-    capture: Capture, scenario, *, order: int = 2, backlash: bool = True, match_tolerance_deg: float = 1e-3
-) -> tuple[JointDiagnostics, HarmonicModel]:
-    """Diagnostics (:func:`analyze_joints` with the scenario's circle fit) and their harmonic model."""
-    diagnostics = analyze_joints(
-        capture,
-        backlash=backlash,
-        match_tolerance=float(np.deg2rad(match_tolerance_deg)),
-        method=scenario.identification.circle_fit,
-    )
-    return diagnostics, fit_harmonics(diagnostics, order=order)
 
 
 def joints_files(diagnostics: JointDiagnostics, model: HarmonicModel, *, capture, scenario) -> dict:
@@ -151,36 +133,14 @@ def joints_files(diagnostics: JointDiagnostics, model: HarmonicModel, *, capture
 
 
 def write_joints_folder(
-    folder: Path,
-    diagnostics: JointDiagnostics,
-    model: HarmonicModel,
-    *,
-    capture,
-    scenario,
-    scale: float = 500.0,
-    figures: bool = True,
+    folder: Path, diagnostics: JointDiagnostics, model: HarmonicModel, *, capture, scenario
 ) -> dict[str, Document]:
-    """Write the CSV files, ``harmonics.json`` and (with ``figures``) the figures into ``folder`` (an
-    existing, normally temporary, folder); ``capture`` names the capture in the provenance. A run draws the
-    figures later, in the background (:func:`write_joint_figure_files`).
-
-    Returns the documents written by file name, in order (CSV -> Table, JSON -> dict, figure -> Path).
-    """
+    """Write the CSV files and ``harmonics.json`` into ``folder`` (an existing, normally temporary, folder);
+    ``capture`` names the capture in the provenance. Returns the documents by file name, in order."""
     documents: dict[str, Document] = {}
     for name, content in joints_files(diagnostics, model, capture=capture, scenario=scenario).items():
         if isinstance(content, dict):
             documents[name] = write_json(folder / name, content)
         else:
             documents[name] = write_csv(folder / name, content)
-    if figures:
-        for path in figure_paths(write_joint_figure_files(folder, diagnostics, model, scale=scale)):
-            documents[path.name] = path
     return documents
-
-
-def write_joint_figure_files(
-    folder: Path, diagnostics: JointDiagnostics, model: HarmonicModel, *, scale: float = 500.0, render: Render = draw_now
-):
-    """The backlash and eccentricity figures of ``joints/`` through ``render`` (:mod:`robotcal.pipeline.figures`);
-    returns what ``render`` returned (the paths, or a job of them)."""
-    return render("robotcal.plots.joints:write_joint_figures", diagnostics, Path(folder), model=model, scale=scale)

@@ -1,20 +1,23 @@
-"""The run folder: the one place that reads it back (:func:`read_run`) and the writer of in-memory documents.
+"""A run folder (docs/results.md): its contract, the one reader of it, and the writer of its documents.
 
-A run folder (docs/results.md) holds one file per :data:`~robotcal.pipeline.result.Document`: JSON files
-are read as plain ``dict`` (:func:`robotcal.io._validation.parse_json_text`), CSV files as
-:class:`~robotcal.pipeline.result.Table` (cells exactly as written), every other file (PNG figures,
-``draws.npz``, ``report.html``) as its :class:`~pathlib.Path`, never opened. Only the names a run writes
-(:data:`robotcal.pipeline.plan.OUTPUTS` and ``run.json``) are read: other files the user keeps in the folder
-are not the run's.
+What a calibration run produced is held as *documents*, one per file of the run folder, keyed by the
+file's path relative to the folder (POSIX separators):
+
+- a JSON file is a ``dict`` (plain JSON types only: what ``json.loads`` would give back);
+- a CSV file is a :class:`Table` (header and rows as written, with each column's numbers parsed once);
+- a binary file (a PNG figure, ``draws.npz``) is the :class:`~pathlib.Path` of the file in the run folder:
+  figures are embedded as they are, never parsed.
+
+The pipeline (:func:`robotcal.run_calibration`) builds them as it computes and writes them (:func:`write_json`,
+:func:`write_csv` return a document exactly as :func:`read_run` reads it back); :func:`read_run` is the one
+place that reads a run folder back into the same :class:`RunResult` (for ``robotcal report DIR``), and the
+report renders from it without touching the file system but to embed figures.
 
 Safety: a symbolic link anywhere on a file's way from the run folder, or a path that resolves outside it,
 is refused (the file becomes a problem, never read); so is a file that cannot be read or parsed. Problems
 are ``"relative/path: why"`` strings in :attr:`RunResult.problems`; only a missing folder, or a folder that
-holds none of a run's files, raises :class:`~robotcal.errors.InputError`.
-
-The writer (:func:`write_json`, :func:`write_csv`) writes a document atomically and returns it exactly as
-:func:`read_run` would read it back, so a run held in memory and the same run read from its folder hold
-equal documents.
+holds none of a run's files, raises :class:`~robotcal.errors.InputError`. Only the names a run writes
+(:data:`OUTPUTS` and ``run.json``) are read: other files the user keeps in the folder are not the run's.
 """
 
 from __future__ import annotations
@@ -23,16 +26,25 @@ import csv
 import io
 import json
 import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from robotcal.errors import InputError
 from robotcal.io._validation import parse_json_text, read_text_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.pipeline.plan import OUTPUTS, RUN_RECORD
-from robotcal.pipeline.result import Document, RunResult, Table
+from robotcal.io.run_summary import summarise
 
 __all__ = [
+    "OUTPUTS",
+    "REPORT_NAME",
     "RUN_ENTRIES",
+    "RUN_RECORD",
+    "STAGES",
+    "Document",
+    "RunResult",
+    "Table",
     "json_text",
     "read_document",
     "read_run",
@@ -42,6 +54,120 @@ __all__ = [
     "write_csv",
     "write_json",
 ]
+
+#: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
+STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "iso9283", "report")
+#: What each stage writes under the run folder (docs/results.md).
+OUTPUTS = {
+    "simulate": ("truth.json", "capture.csv", "validation.csv"),
+    "identify": ("cpa",),
+    "refine": ("refine",),
+    "evaluate": ("evaluation",),
+    "joints": ("joints",),
+    "uncertainty": ("uncertainty", "uncertainty-refined"),
+    "tcp": ("tcp",),
+    "plan": ("plan",),
+    "iso9283": ("iso9283",),
+    "report": ("report.html",),
+}
+#: The run's own record, rewritten after every stage.
+RUN_RECORD = "run.json"
+#: The run's report, written last.
+REPORT_NAME = "report.html"
+
+
+@dataclass(frozen=True, slots=True)
+class Table:
+    """The contents of a CSV file: its header, its rows (cells as written, strings) and, per column, whether
+    every non-empty cell is a number (parsed once, when the table is made)."""
+
+    header: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...] = ()
+    numeric: tuple[bool, ...] = field(init=False)
+
+    def __post_init__(self):
+        object.__setattr__(
+            self, "numeric", tuple(_numbers([row[k] for row in self.rows]) for k in range(len(self.header)))
+        )
+
+    def column(self, name: str) -> tuple[str, ...]:
+        """Every cell of column ``name`` (KeyError naming the column when there is none)."""
+        try:
+            k = self.header.index(name)
+        except ValueError:
+            raise KeyError(f"no column {name!r} (columns: {', '.join(self.header)})") from None
+        return tuple(row[k] for row in self.rows)
+
+    def records(self) -> list[dict[str, str]]:
+        """The rows as ``{column: cell}`` dicts."""
+        return [dict(zip(self.header, row, strict=True)) for row in self.rows]
+
+
+def _numbers(cells: list[str]) -> bool:
+    """A column has a non-empty cell and every non-empty cell parses as a float."""
+    present = [cell.strip() for cell in cells if cell.strip()]
+    try:
+        for cell in present:
+            float(cell)
+    except ValueError:
+        return False
+    return bool(present)
+
+
+#: One output of a run: a JSON object, a CSV table, or the path of a binary file (PNG, NPZ).
+Document = dict | Table | Path
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RunResult:
+    """Everything a run produced, in memory.
+
+    Attributes
+    ----------
+    folder : Path or None
+        The run folder the documents were written to (or read from); None for a run kept in memory.
+    record : dict
+        ``run.json``: command, scenario echo, seeds, versions, per-stage status, times and warnings.
+    documents : mapping of str to Document
+        Every output file of the run by its path relative to the run folder (see the module docstring).
+    summary : robotcal.io.run_summary.Summary or None
+        The headline figures (how good, how sure, where), computed once from the documents.
+    problems : tuple of str
+        Files of a run folder that exist but could not be read (``read_run``), each "path: why".
+    results : mapping of str to object
+        The typed results of a run computed in this process, for Python users (empty when read from a
+        folder): ``"truth"``, ``"nominal"``, ``"cpa"`` (ParameterSet), ``"refined"`` (criterion -> RefineResult),
+        ``"capture"``, ``"validation"`` (Capture), ``"evaluation"`` (rows), ``"joints"``, ``"montecarlo"``
+        (``"cpa"``/``"refined"`` -> MonteCarloResult), ``"tcp"`` (mode -> TCPUncertainty), ``"plan"``.
+    """
+
+    folder: Path | None = None
+    record: dict = field(default_factory=dict)
+    documents: Mapping[str, Document] = field(default_factory=dict)
+    summary: Any = None
+    problems: tuple[str, ...] = ()
+    results: Mapping[str, Any] = field(default_factory=dict)
+
+    def json(self, name: str) -> dict | None:
+        """The JSON document ``name`` (a path relative to the run folder), or None when the run has none."""
+        document = self.documents.get(name)
+        return document if isinstance(document, dict) else None
+
+    def table(self, name: str) -> Table | None:
+        """The CSV document ``name``, or None when the run has none."""
+        document = self.documents.get(name)
+        return document if isinstance(document, Table) else None
+
+    def file(self, name: str) -> Path | None:
+        """The binary file ``name`` (a figure, draws), or None when the run has none."""
+        document = self.documents.get(name)
+        return document if isinstance(document, Path) else None
+
+    def names(self, folder: str = "", suffix: str = "") -> list[str]:
+        """Sorted document names under ``folder`` (relative, no trailing slash) ending with ``suffix``."""
+        prefix = f"{folder.rstrip('/')}/" if folder else ""
+        return sorted(name for name in self.documents if name.startswith(prefix) and name.endswith(suffix))
+
 
 #: The top-level names a run writes: ``run.json`` then every stage's outputs, in stage order.
 RUN_ENTRIES = (RUN_RECORD, *(name for names in OUTPUTS.values() for name in names))
@@ -199,8 +325,6 @@ def read_run(folder) -> RunResult:
     documents, problems = run_documents(root)
     record = documents.get(RUN_RECORD)
     record = record if isinstance(record, dict) else {}
-    from robotcal.pipeline.summary import summarise
-
     return RunResult(
         folder=root,
         record=record,

@@ -1,8 +1,9 @@
-"""Evaluation of parameter sets on captures (thesis Tables 4.10/4.11): the files of ``evaluation/``.
+"""The files of ``evaluation/``: parameter sets evaluated on captures (thesis Tables 4.10/4.11), errors in mm.
 
-``robotcal evaluate`` and the evaluate stage of a run build ``evaluation.csv`` (:func:`evaluation_csv`),
-``evaluation.json`` (:func:`evaluation_document`, with the headline of :func:`evaluation_headline`) and
-the convergence figure with the same functions (:func:`write_evaluation_folder`). Errors in mm.
+``robotcal evaluate`` and the evaluate stage of a run build ``evaluation.csv`` (:func:`evaluation_csv`) and
+``evaluation.json`` (:func:`evaluation_document`, with the headline of :func:`evaluation_headline`) with the
+same functions (:func:`write_evaluation_folder`; the convergence figure:
+:func:`robotcal.plots.refine.plot_convergence`).
 """
 
 from __future__ import annotations
@@ -11,17 +12,15 @@ import csv
 import io
 from pathlib import Path
 
-from robotcal.pipeline.figures import Render, draw_now, figure_paths
-from robotcal.pipeline.folder import write_csv, write_json
-from robotcal.pipeline.result import Document
-from robotcal.workflow import versions
+from robotcal.io.provenance import scenario_echo, versions
+from robotcal.io.run_folder import Document, write_csv, write_json
 
 __all__ = [
     "COLUMNS",
     "evaluation_csv",
     "evaluation_document",
+    "convergence_of",
     "evaluation_headline",
-    "write_evaluation_figures",
     "write_evaluation_folder",
 ]
 
@@ -85,7 +84,7 @@ def evaluation_document(
         "reference": reference,
         "headline": evaluation_headline(rows, reference=reference, after=headline_after),
         "settings": {
-            "scenario": {"name": scenario.name, "source": scenario.source},
+            "scenario": scenario_echo(scenario),
             "parameter_files": parameter_files,
             "capture_files": capture_files,
             "views": {
@@ -99,25 +98,17 @@ def evaluation_document(
     }
 
 
-def write_evaluation_folder(folder: Path, rows, document: dict, *, figures: bool = True) -> dict[str, Document]:
-    """Write ``evaluation.csv``, ``evaluation.json`` and (with convergence histories and ``figures``)
-    ``convergence.png`` into ``folder`` (an existing, normally temporary, folder); returns the documents by
-    file name. A run draws the figure later, in the background (:func:`write_evaluation_figures`)."""
-    documents: dict[str, Document] = {
+def write_evaluation_folder(folder: Path, rows, document: dict) -> dict[str, Document]:
+    """Write ``evaluation.csv`` and ``evaluation.json`` into ``folder`` (an existing, normally temporary,
+    folder); returns the documents by file name."""
+    return {
         "evaluation.csv": write_csv(folder / "evaluation.csv", evaluation_csv(rows)),
         "evaluation.json": write_json(folder / "evaluation.json", document),
     }
-    if figures:
-        for drawn in write_evaluation_figures(folder, document):
-            documents.update({path.name: path for path in figure_paths(drawn)})
-    return documents
 
 
-def write_evaluation_figures(folder: Path, document: dict, *, render: Render = draw_now) -> list:
-    """``convergence.png`` of the refinement histories in ``document`` (none without them), through
-    ``render`` (:mod:`robotcal.pipeline.figures`); returns what ``render`` returned."""
+def convergence_of(document: dict) -> dict:
+    """The refinement histories of ``evaluation.json`` as :func:`robotcal.plots.refine.plot_convergence` takes
+    them (label -> criterion and RMS per iteration [mm]); empty without them."""
     histories = document.get("convergence") or {}
-    if not histories:
-        return []
-    convergence = {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()}
-    return [render("robotcal.plots.refine:plot_convergence", convergence, Path(folder) / "convergence.png")]
+    return {label: {"criterion": h["criterion"], "rms_mm": h["rms_mm"]} for label, h in histories.items()}

@@ -1,0 +1,61 @@
+"""The provenance section: the run record, versions and the documents the report was built from."""
+
+from __future__ import annotations
+
+import datetime as _dt
+
+import robotcal
+from robotcal.io.run_folder import REPORT_NAME, Table
+from robotcal.report.page import _block, _facts, _Page, _rows_note, _Table
+
+
+def _provenance(page: _Page) -> dict:
+    record = page.record
+    blocks = (
+        _facts(record, caption="run record", source="run.json", skip=("versions", "scenario.settings"), limit=80)
+        if record
+        else [_block("note", text="No run.json: this run was not recorded by robotcal run.")]
+    )
+    versions = {}
+    for name in ("cpa/parameters.json", "uncertainty/parameters.json"):
+        found = (page.json(name) or {}).get("provenance", {})
+        if isinstance(found, dict) and isinstance(found.get("versions"), dict):
+            versions.update({str(k): str(v) for k, v in found["versions"].items()})
+    if isinstance(record.get("versions"), dict):
+        versions.update({str(k): str(v) for k, v in record["versions"].items()})
+    versions.setdefault("robotcal (this report)", robotcal.__version__)
+    blocks.append(
+        _Table(
+            header=["software", "version"],
+            rows=[[k, v] for k, v in versions.items()],
+            caption="Versions",
+            text_columns=frozenset({0, 1}),
+        )
+    )
+    rows = []
+    for name in sorted(n for n in page.result.documents if n != REPORT_NAME):
+        document = page.result.documents[name]
+        if isinstance(document, Table):
+            rows.append([name, "CSV", f"{len(document.rows)} rows of {len(document.header)} columns"])
+        elif isinstance(document, dict):
+            rows.append([name, "JSON", f"{len(document)} top-level entries"])
+        else:
+            rows.append([name, "figure" if name.endswith(".png") else "binary file", ""])
+    blocks.append(
+        _Table(
+            header=["document", "kind", "contents"],
+            rows=rows[:300],
+            caption="The documents of the run this report was built from",
+            text_columns=frozenset({0, 1, 2}),
+            code_columns=frozenset({0}),
+            note=_rows_note(min(len(rows), 300), len(rows)),
+        )
+    )
+    folder = page.result.folder
+    return {
+        "present": True,
+        "blocks_": blocks,
+        "generated": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        "version": robotcal.__version__,
+        "folder": str(folder) if folder is not None else None,
+    }

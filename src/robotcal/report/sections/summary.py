@@ -1,0 +1,167 @@
+"""The summary section: facts of the run, the headline cards (how good, how sure, where), the stage table."""
+
+from __future__ import annotations
+
+from robotcal.io.run_folder import OUTPUTS
+from robotcal.io.run_summary import set_label
+from robotcal.report.page import _angle, _fmt, _length, _number, _Page
+
+
+def _card(question: str, label: str, value: str, detail: str = "") -> dict:
+    return {"question": question, "label": label, "value": value, "detail": detail, "na": value == "n/a"}
+
+
+def _facts_of_run(page: _Page) -> list[dict]:
+    """Robot, scenario, instrument, captures, seed, method: ``[{"label", "text", "code"}]``."""
+    record = page.record
+    scenario = record.get("scenario") if isinstance(record.get("scenario"), dict) else {}
+    facts = []
+    if isinstance(record.get("robot"), str):
+        facts.append({"label": "robot", "text": record["robot"], "code": None})
+    if isinstance(scenario.get("name"), str):
+        description = scenario.get("description")
+        text = scenario["name"] + (f" — {description}" if isinstance(description, str) and description else "")
+        facts.append({"label": "scenario", "text": text, "code": None})
+    instrument = scenario.get("instrument") if isinstance(scenario.get("instrument"), dict) else {}
+    if isinstance(instrument.get("name"), str):
+        a_um, b_um = _number(instrument.get("a_um")), _number(instrument.get("b_um_per_m"))
+        text = instrument["name"]
+        if a_um is not None and b_um is not None:
+            text += f", U(L) = {_fmt(a_um)} µm + {_fmt(b_um)} µm/m · L"
+        facts.append({"label": "instrument", "text": text, "code": None})
+    for name, what in (("capture.csv", "calibration capture"), ("validation.csv", "validation points")):
+        table = page.table(name)
+        if table is not None:
+            text = f"{len(table.rows)} points"
+            if name == "capture.csv" and "circle" in table.header:
+                text += f" in {len(set(table.column('circle')))} circles"
+            facts.append({"label": what, "text": text, "code": name})
+    if record.get("seed") is not None:
+        facts.append({"label": "seed", "text": str(record["seed"]), "code": None})
+    provenance = (page.json("cpa/parameters.json") or {}).get("provenance")
+    if isinstance(provenance, dict) and isinstance(provenance.get("method"), str):
+        facts.append({"label": "identification", "text": provenance["method"], "code": None})
+    return facts
+
+
+def _cards(page: _Page) -> list[dict]:
+    summary = page.summary
+    cards = []
+    if summary.validation_before_mm is not None and summary.validation_after_mm is not None:
+        before, after = summary.validation_before_set or "before", summary.validation_after_set or "after"
+        detail = (
+            f"mean position error at the {summary.validation_capture or 'validation'} points, {before} → {after}"
+            + (f" ({set_label(after)})" if set_label(after) != after else "")
+        )
+        cards.append(
+            _card(
+                "How good is it?",
+                "validation error, before → after",
+                f"{_length(summary.validation_before_mm)} → {_length(summary.validation_after_mm)}",
+                detail,
+            )
+        )
+    else:
+        why = "evaluation stage not run" if not page.has("evaluation") else "no headline in evaluation.json"
+        cards.append(_card("How good is it?", "validation error, before → after", "n/a", why))
+    if summary.circle_rms_mm is not None:
+        circle = f"circle J{summary.circle_rms_circle}; " if summary.circle_rms_circle is not None else ""
+        cards.append(
+            _card(
+                "How good is it?",
+                "largest circle-fit RMS",
+                f"{_fmt(summary.circle_rms_mm * 1e3, '.2f')} µm",
+                f"{circle}{summary.circles} circles fitted by CPA",
+            )
+        )
+    refined, cpa = summary.uncertainty("uncertainty-refined"), summary.uncertainty("uncertainty")
+    shown = refined or cpa
+    model = "refined model (deployed)" if refined is not None else "CPA model"
+    for label, value_of, name_of, fmt in (
+        ("largest standard uncertainty, lengths", "length_mm", "length_name", _length),
+        ("largest standard uncertainty, angles", "angle_deg", "angle_name", _angle),
+    ):
+        value = getattr(shown, value_of) if shown is not None else None
+        if value is None:
+            cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
+            continue
+        detail = f"{getattr(shown, name_of)}, {model}, Monte Carlo (GUM-S1)"
+        if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
+            detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
+        cards.append(_card("How sure are we?", label, fmt(value), detail))
+    pose = summary.tcp_pose
+    if pose is not None:
+        detail = "√(u_X² + u_Y² + u_Z²) at the first pose" + (f" (of {pose.poses})" if pose.poses > 1 else "")
+        detail += f"; {pose.model}" if pose.model else ""
+        if pose.ellipsoid_mm is not None:
+            share = f"{_fmt(pose.coverage * 100, '.3g')} % " if pose.coverage else ""
+            detail += f"; largest semi-axis of the {share}ellipsoid {_length(pose.ellipsoid_mm)}"
+        cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", _length(pose.first_mm), detail))
+    else:
+        cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", "n/a", "tcp pose not run"))
+    workspace = summary.tcp_workspace
+    if workspace is not None:
+        cards.append(
+            _card(
+                "Where can I trust it?",
+                "TCP position uncertainty over the workspace",
+                f"{_length(workspace.median_mm)} / {_length(workspace.p95_mm)}",
+                f"median / 95th percentile of {workspace.poses} poses; worst {_length(workspace.max_mm)}"
+                + (f"; {workspace.model}" if workspace.model else ""),
+            )
+        )
+    else:
+        cards.append(
+            _card("Where can I trust it?", "TCP uncertainty over the workspace", "n/a", "workspace map not run")
+        )
+    trajectory = summary.tcp_trajectory
+    if trajectory is not None:
+        cards.append(
+            _card(
+                "Where can I trust it?",
+                "TCP uncertainty along the trajectory",
+                f"≤ {_length(trajectory.max_mm)}",
+                f"largest of {trajectory.poses} poses; smallest {_length(trajectory.min_mm)}"
+                + (f"; {trajectory.model}" if trajectory.model else ""),
+            )
+        )
+    check = summary.consistency
+    if check is not None:
+        registered = check.base_frame == "registered"
+        cards.append(
+            _card(
+                "Does the uncertainty explain the error?",
+                "validation RMS error, expected → observed",
+                f"{_length(check.expected_rms_mm)} → {_length(check.observed_rms_mm)}",
+                f"expected = √(predicted² + instrument²) = √({_length(check.predicted_rms_mm)}² + "
+                f"{_length(check.instrument_rms_mm)}²) at {check.poses} validation poses ({check.model}"
+                + (", base frame registered: the registration absorbs part of the error" if registered else "")
+                + f"); observed / expected = {_fmt(check.ratio, '.3g')}: {check.verdict}",
+            )
+        )
+    return cards
+
+
+def _summary(page: _Page) -> dict:
+    stages = page.record.get("stages") if isinstance(page.record.get("stages"), dict) else {}
+    rows = []
+    for stage, outputs in OUTPUTS.items():
+        if stage == "report":
+            continue
+        entry = stages.get(stage) if isinstance(stages.get(stage), dict) else {}
+        present = any(page.has(name) for name in outputs)
+        status = entry.get("status") if isinstance(entry.get("status"), str) else None
+        shown = status or ("done" if present else "not run")
+        css = "failed" if shown in ("failed", "error") else ("ok" if present else "missing")
+        detail = entry.get("detail") if isinstance(entry.get("detail"), str) else ""
+        seconds = _fmt(_number(entry.get("seconds")), ".2f")
+        rows.append(
+            {"stage": stage, "outputs": outputs, "status": shown, "css": css, "seconds": seconds, "detail": detail}
+        )
+    return {
+        "present": True,
+        "facts": _facts_of_run(page),
+        "cards": _cards(page),
+        "stages": rows,
+        "notes": page.summary.notes,
+    }
