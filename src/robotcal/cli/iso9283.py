@@ -207,12 +207,20 @@ def iso9283_plan(
                      "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
     ] = None,
     speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
-    name: Annotated[str, typer.Option("--name", help="Program name.")] = "robotcal_iso9283",
+    name: Annotated[
+        str | None,
+        typer.Option(
+            "--name",
+            help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
+            "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
     with --program also as a robot program (a joint move and a dwell per pose)."""
-    from robotcal.planning.program import LANGUAGES
+    from robotcal.planning.program import LANGUAGES, program_name
+
     loaded = load_scenario(scenario)
     robot = loaded.robot
     centre = None if center is None else parse_vector(center, "--center")
@@ -229,6 +237,7 @@ def iso9283_plan(
         program_out = program_out if program_out is not None else out.with_suffix(PROGRAM_SUFFIX[program])
         if program_out.resolve() == out.resolve():
             raise InputError(f"--program-out {program_out} is the pose CSV --out; give another file")
+        name = program_name(program, program_out, "robotcal_iso9283" if name is None and program != "krl" else name)
         check_output_file(program_out, inputs=inputs, force=force)
     point = flange_target(loaded, target)
     start_readings, centre, side, readings = iso_cube_plan(

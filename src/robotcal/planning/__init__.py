@@ -22,7 +22,10 @@ _LAZY = {
         ("OBJECTIVES", "PlanProblem", "OptimisationResult", "evaluate_plan", "optimise_plan", "workspace_readings"),
         "robotcal.planning.optimise",
     ),
-    **dict.fromkeys(("LANGUAGES", "write_program", "controller_readings"), "robotcal.planning.program"),
+    **dict.fromkeys(
+        ("LANGUAGES", "check_program_name", "program_name", "write_program", "controller_readings"),
+        "robotcal.planning.program",
+    ),
     **dict.fromkeys(
         (
             "DEFAULT_CAPSULE_RADIUS_MM",
