@@ -23,12 +23,10 @@ from robotcal.diagnostics.iso9283 import (
     scenario_flange_point,
 )
 from robotcal.errors import InputError
-from robotcal.geometry.transforms import check_rigid_transform
 from robotcal.io import atomic_write_text, load_scenario, read_capture, read_parameters
-from robotcal.io._validation import read_json_file
 from robotcal.io.iso9283_files import iso_to_csv
 from robotcal.io.output import check_output_file, existing_inputs, result_file
-from robotcal.io.parameters_json import read_targets
+from robotcal.io.parameters_json import read_targets, read_tracker_from_base
 from robotcal.io.trajectory_csv import write_trajectory
 from robotcal.kinematics.model import ParameterSet
 
@@ -38,14 +36,8 @@ PROGRAM_SUFFIX = {"krl": ".src", "rapid": ".mod", "urscript": ".script"}
 
 
 def _tracker_from_base(path: Path, default: np.ndarray) -> np.ndarray:
-    data = read_json_file(path, kind="parameter JSON")
-    matrix = (data.get("provenance") or {}).get("tracker_from_base") if isinstance(data, dict) else None
-    if matrix is None:
-        return default
-    try:
-        return check_rigid_transform(np.asarray(matrix, dtype=float), f"{path}: provenance.tracker_from_base")
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{path}: key `provenance.tracker_from_base` must be a 4x4 rigid transform") from exc
+    matrix = read_tracker_from_base(path)
+    return default if matrix is None else matrix
 
 
 def flange_target(scenario, target: str | None) -> np.ndarray:
