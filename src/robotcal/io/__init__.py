@@ -37,7 +37,7 @@ _LAZY = {
         ("MissingTable", "MonteCarloTable", "TruthTable", "ValidationTable", "TCPTable"), "robotcal.io.scenario"
     ),
     **dict.fromkeys(("ISO_COLUMNS", "iso_to_csv"), "robotcal.io.iso9283_files"),
-    **dict.fromkeys(("targets_to_dict", "read_targets"), "robotcal.io.parameters_json"),
+    **dict.fromkeys(("targets_to_dict", "read_targets", "read_tracker_from_base"), "robotcal.io.parameters_json"),
     **dict.fromkeys(("ParameterDraws", "write_draws", "read_draws", "parameter_units"), "robotcal.io.draws_npz"),
     **dict.fromkeys(
         (
@@ -60,6 +60,7 @@ _LAZY = {
     **dict.fromkeys(
         (
             "MARKER",
+            "SIGNATURE",
             "LOCK_SUFFIX",
             "check_output_folder",
             "check_output_file",
@@ -78,7 +79,14 @@ _LAZY = {
         ("TCP_CSV_COLUMNS", "tcp_to_csv", "write_tcp_csv", "tcp_to_dict", "tcp_json_text", "write_tcp_json"), "robotcal.io.tcp_results"
     ),
     **dict.fromkeys(
-        ("read_trajectory", "write_trajectory", "trajectory_to_csv", "load_trajectory", "builtin_trajectories"),
+        (
+            "MAX_READING_DEG",
+            "read_trajectory",
+            "write_trajectory",
+            "trajectory_to_csv",
+            "load_trajectory",
+            "builtin_trajectories",
+        ),
         "robotcal.io.trajectory_csv",
     ),
     **dict.fromkeys(

@@ -23,7 +23,7 @@ _LAZY = {
         "robotcal.planning.optimise",
     ),
     **dict.fromkeys(
-        ("LANGUAGES", "check_program_name", "program_name", "write_program", "controller_readings"),
+        ("LANGUAGES", "NAME_LIMITS", "check_program_name", "program_name", "write_program", "controller_readings"),
         "robotcal.planning.program",
     ),
     **dict.fromkeys(
