@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
         # and at random validation poses, written as the capture CSVs a real cell would give.
         truth = robotcal.perturb(scenario, rng=args.seed)
         capture = robotcal.simulate(scenario, rng=args.seed + 1, true_parameters=truth)
-        validation = robotcal.simulate_validation(scenario, rng=args.seed + 2, true_parameters=truth)
+        validation = robotcal.simulate_poses(scenario, rng=args.seed + 2, true_parameters=truth)
         args.capture = robotcal.write_capture(args.out / "capture.csv", capture)
         args.validation = robotcal.write_capture(args.out / "validation.csv", validation)
         print(f"simulated {capture.n_points} capture points and {validation.n_points} validation poses into {args.out}")

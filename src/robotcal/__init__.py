@@ -12,7 +12,7 @@ core's units, mm and radians, as their docstrings say.
 ==========================  =====================================================================
 robots, captures, files     :func:`load_robot`, :func:`read_capture`, :func:`write_capture`,
                             :func:`read_parameters`, :func:`write_parameters`, :func:`load_scenario`
-one step at a time          :func:`perturb`, :func:`simulate`, :func:`simulate_validation`,
+one step at a time          :func:`perturb`, :func:`simulate`, :func:`simulate_poses`,
                             :func:`identify`, :func:`refine`, :func:`evaluate`, :func:`diagnose_joints`
 uncertainty                 :func:`monte_carlo`, :func:`tcp_uncertainty`, :func:`workspace_uncertainty`,
                             :func:`validation_consistency`

@@ -9,7 +9,7 @@ from .api import monte_carlo as monte_carlo
 from .api import perturb as perturb
 from .api import refine as refine
 from .api import simulate as simulate
-from .api import simulate_validation as simulate_validation
+from .api import simulate_poses as simulate_poses
 from .api import tcp_uncertainty as tcp_uncertainty
 from .api import validation_consistency as validation_consistency
 from .api import workspace_uncertainty as workspace_uncertainty

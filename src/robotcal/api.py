@@ -45,11 +45,13 @@ from robotcal.instruments import Instrument
 from robotcal.io.robots import load_robot
 from robotcal.io.scenario import Scenario, TCPTable, TruthTable, ValidationTable
 from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
+from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
 from robotcal.limits import SEED_BOUND
 from robotcal.simulation import CapturePlan, JointErrorModel, simulate_capture
 from robotcal.simulation.perturb import perturb_parameters
-from robotcal.simulation.poses import random_poses, simulate_poses
+from robotcal.simulation.poses import random_poses
+from robotcal.simulation.poses import simulate_poses as simulate_poses_core
 from robotcal.uncertainty.tcp import check_readings
 
 if TYPE_CHECKING:  # the Monte Carlo, TCP and planning modules load when a function needs them
@@ -74,7 +76,7 @@ __all__ = [
     "refine",
     "seed_from",
     "simulate",
-    "simulate_validation",
+    "simulate_poses",
     "tcp_uncertainty",
     "validation_consistency",
     "validation_target",
@@ -396,11 +398,13 @@ def simulate(
     return dataclasses.replace(capture, source=source, seed=seed)
 
 
-def simulate_validation(
+def simulate_poses(
     robot,
+    poses_deg=None,
     *,
-    target: ReflectorMount | None = None,
-    poses: int | None = None,
+    n_poses: int | None = None,
+    targets: ReflectorMount | Sequence[Target] | None = None,
+    offsets_mm: Mapping | None = None,
     margin_deg: float | None = None,
     min_height_mm: float | None = None,
     instrument: Instrument | None = None,
@@ -408,58 +412,82 @@ def simulate_validation(
     true_parameters=None,
     rng=None,
 ) -> Capture:
-    """A validation capture: random reachable poses within the joint limits, each measured once on a flange
-    target (``circle = 0``). One generator seeded from ``rng`` draws the poses, then the noise.
+    """A capture at free poses (``circle = 0``): given readings, or random reachable poses within the joint
+    limits, each measured on one flange target (a validation capture) or on several (a ``target`` column).
+    One generator seeded from ``rng`` draws the poses, then the noise.
 
     Parameters
     ----------
     robot : RobotModel or Scenario
-        A scenario supplies its ``[validation]`` table (poses, margin, minimum height, seed, flange target),
-        instrument and base frame.
-    target : ReflectorMount, optional
-        The flange target (``frame="flange"``) [mm].
-    poses : int
-        Number of poses (default 100).
-    margin_deg : float
-        Distance kept from the joint limits [deg] (default 5).
-    min_height_mm : float, optional
-        Lowest height of the target above the base [mm].
+        A scenario supplies its ``[validation]`` table (poses, margin, minimum height, seed, flange target), the
+        instrument and the base frame: ``simulate_poses(scenario)`` is the scenario's validation capture.
+    poses_deg : array_like, shape (n_poses, n_joints), optional
+        Joint readings [deg]; default: ``n_poses`` random poses.
+    n_poses : int, optional
+        Number of random poses (default the ``[validation]`` table's, 100).
+    targets : ReflectorMount or sequence of Target, optional
+        One flange target (a ReflectorMount, ``frame="flange"``: no ``target`` column), or flange Targets
+        measured in turn at every pose. Default: the scenario's validation target.
+    offsets_mm : mapping of str to (x, y, z), optional
+        The true offsets [mm] of Targets whose declared position is only a guess (``known=False``).
+    margin_deg, min_height_mm : float, optional
+        Random poses: distance kept from the joint limits [deg] (default 5); lowest height of the target above
+        the base [mm].
     instrument, tracker_from_base, true_parameters, rng
         As for :func:`simulate`.
 
     Examples
     --------
     >>> import robotcal
-    >>> validation = robotcal.simulate_validation(robotcal.load_scenario("kr5-demo"), rng=8)
+    >>> validation = robotcal.simulate_poses(robotcal.load_scenario("kr5-demo"), rng=8)
     >>> validation.n_points, int(validation.circle.max())
     (100, 0)
     """
+    from robotcal.simulation.generator import simulate_target_poses
+
     robot, scenario = _split(robot)
     table = ValidationTable() if scenario is None or scenario.validation is None else scenario.validation
-    target = _needed(target, "target", scenario, validation_target)
+    targets = _needed(targets, "targets", scenario, validation_target)
     instrument = _needed(instrument, "instrument", scenario, lambda s: s.instrument)
     if tracker_from_base is None:
         tracker_from_base = np.eye(4) if scenario is None else scenario.tracker_from_base
+    truth = _parameters(true_parameters, robot, "true_parameters")
+    single = isinstance(targets, ReflectorMount)
+    if single:
+        offsets = targets.positions
+    else:
+        targets = tuple(targets)
+        offsets = np.array([(offsets_mm or {}).get(t.name, t.positions) for t in targets], dtype=float)
+        guessed = [t.name for t in targets if not t.known and t.name not in (offsets_mm or {})]
+        if guessed:
+            raise InputError(
+                f"target(s) {', '.join(guessed)}: declared with an unknown offset, whose guess is no truth; give "
+                "their true offsets (`offsets_mm`)"
+            )
     seed = seed_from(rng, table.seed)
     generator = np.random.default_rng(seed)
-    readings = random_poses(
-        robot,
-        table.poses if poses is None else poses,
-        margin_deg=table.margin_deg if margin_deg is None else margin_deg,
-        min_height_mm=table.min_height_mm if min_height_mm is None else min_height_mm,
-        reflector=target,
-        rng=generator,
-    )
-    capture, _ = simulate_poses(
-        robot,
-        readings,
-        target,
-        instrument,
-        tracker_from_base,
-        true_parameters=_parameters(true_parameters, robot, "true_parameters"),
-        rng=generator,
-    )
-    source = "validation capture simulated" + (f" from {scenario.name}" if scenario is not None else "")
+    if poses_deg is None:
+        readings = random_poses(
+            robot,
+            table.poses if n_poses is None else n_poses,
+            margin_deg=table.margin_deg if margin_deg is None else margin_deg,
+            min_height_mm=table.min_height_mm if min_height_mm is None else min_height_mm,
+            reflector=ReflectorMount(frame="flange", positions=offsets.mean(axis=0)),
+            rng=generator,
+        )
+    else:
+        readings = np.deg2rad(check_joint_variables(poses_deg, robot.n_joints, "poses_deg"))
+    if single:
+        capture, _ = simulate_poses_core(
+            robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, rng=generator
+        )
+    else:
+        capture, _ = simulate_target_poses(
+            robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, true_offsets=offsets,
+            rng=generator,
+        )  # fmt: skip
+    what = "validation capture" if single else f"capture of {len(targets)} targets at free poses"
+    source = f"{what} simulated" + (f" from {scenario.name}" if scenario is not None else "")
     return dataclasses.replace(capture, source=source, seed=seed)
 
 
@@ -669,7 +697,7 @@ def evaluate(
     >>> scenario = robotcal.load_scenario("kr5-demo")
     >>> truth = robotcal.perturb(scenario, rng=11)
     >>> capture = robotcal.simulate(scenario, rng=1, true_parameters=truth)
-    >>> validation = robotcal.simulate_validation(scenario, rng=2, true_parameters=truth)
+    >>> validation = robotcal.simulate_poses(scenario, rng=2, true_parameters=truth)
     >>> refined = robotcal.refine(capture, scenario, robotcal.identify(capture, scenario))
     >>> rows = robotcal.evaluate({"validation": validation}, {"nominal": None, "refined": refined}, scenario,
     ...                          views=["points"])
@@ -1147,7 +1175,9 @@ def validation_consistency(
         tracker, base = register_points(predicted, measured).transform, "registered"
     observed = np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - measured, axis=1)
     # the Monte Carlo covariance of the target position at every validation pose (positions only)
-    traces = np.trace(position_covariance(robot, values, validation.readings, tool=target.positions[0]), axis1=1, axis2=2)
+    traces = np.trace(
+        position_covariance(robot, values, validation.readings, tool=target.positions[0]), axis1=1, axis2=2
+    )
     noise = 3.0 * instrument.standard_uncertainty(measured) ** 2
     expected = float(np.sqrt(np.mean(traces + noise)))
     observed_rms = float(np.sqrt(np.mean(observed**2)))

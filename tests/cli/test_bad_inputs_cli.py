@@ -169,7 +169,7 @@ def validation_poses_too_many(tmp):
     return ["run", path, "--draws", "50", "--out", tmp / "r"], "validation.poses"
 
 
-def simulate_validation_too_many(tmp):
+def simulate_poses_too_many(tmp):
     path = _scenario(tmp, replace=("poses = 100\n", "poses = 100000000\n"))
     return ["simulate", path, "--validation", "--out", tmp / "v.csv"], "100,000,000 poses"
 
@@ -216,7 +216,7 @@ CASES = [
     workspace_too_many,
     run_workspace_too_many,
     validation_poses_too_many,
-    simulate_validation_too_many,
+    simulate_poses_too_many,
     distances_too_many_points,
     run_tool_nan,
     run_workspace_draws_two,

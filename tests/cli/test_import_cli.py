@@ -72,3 +72,34 @@ def test_import_errors_are_one_line_exit_2(tmp_path):
     assert result.exit_code == 2 and "not written by robotcal" in " ".join(result.output.split())
     assert invoke("import", export, "--joints", log, "--out", foreign, "--force").exit_code == 0
     assert not out.exists()
+
+
+def test_import_refuses_rows_of_another_width_and_writes_nothing(tmp_path):
+    # issue 24: a comma-delimited export with decimal commas was written with y = 470692512790; a
+    # --columns number past the last column and a space-delimited export ended in an IndexError
+    log = tmp_path / "joints.csv"
+    log.write_text(LOG, encoding="utf-8")
+    out = tmp_path / "capture.csv"
+    decimal_commas = tmp_path / "dc.csv"
+    decimal_commas.write_text(
+        "Point ID,X [mm],Y [mm],Z [mm],U(95) [mm],Time Stamp,Target\n"
+        "P1,1234,5,470,692512790,750,25,0,025,2024-05-01,T1\n"
+        "P2,1250,0,-487,5,800,0,0,02,2024-05-01,T1\n",
+        encoding="utf-8",
+    )
+    good = tmp_path / "good.csv"
+    good.write_text("Point ID,X [mm],Y [mm],Z [mm]\nP1,1234.5,470.6,750.2\nP2,1250,-487.5,800\n", encoding="utf-8")
+    for argv, message in [
+        ([decimal_commas], "dc.csv: line 2 has 11 fields; expected 7, as in the header (line 1)"),
+        ([good, "--columns", "x=99,y=3,z=4,name=1"], "good.csv: --columns x=99: no column 99; line 1 has 4 fields"),
+    ]:
+        result = invoke("import", *argv, "--joints", log, "--out", out)
+        lines = [line for line in result.output.splitlines() if line.strip()]
+        assert result.exit_code == 2, result.output
+        assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], result.output
+        assert not out.exists()
+    spaces = tmp_path / "space.txt"
+    spaces.write_text("P1 1234.5 470.6 750.2\nP2 1250 -487.5 800\n", encoding="utf-8")
+    result = invoke("import", spaces, "--units", "mm", "--joints", log, "--out", out)
+    assert result.exit_code == 0, result.output
+    np.testing.assert_allclose(read_capture(out, n_joints=6).points, [[1234.5, 470.6, 750.2], [1250, -487.5, 800]])

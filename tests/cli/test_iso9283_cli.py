@@ -209,3 +209,39 @@ def test_plan_with_the_default_cube(tmp_path):
     reached = forward_kinematics(nominal.values, SCENARIO.robot.model_joint_variables(readings[:5]))
     reached = reached[:, :3, :3] @ TARGET + reached[:, :3, 3]
     np.testing.assert_allclose(reached, iso_test_positions(reached[0], 162.0), rtol=0, atol=1e-8)
+
+
+def test_iso9283_refuses_captures_that_are_not_iso_cycles(tmp_path):
+    # issue 24: pose-major order, unrepeated poses and P1/P2 swapped in one cycle gave RP of 100-1000 mm, exit 0
+    robot = SCENARIO.robot
+    nominal = ParameterSet.nominal(robot)
+    start = np.radians([0.0, 90.0, -90.0, 0.0, 45.0, 0.0])
+    poses = start + np.radians(np.arange(15)[:, None] * np.array([2.0, 1.0, -1.0, 0.5, 1.5, 3.0]))
+    cycle_major = np.tile(poses[:5], (3, 1))
+    cases = {
+        "pose-major": (np.repeat(poses[:5], 3, axis=0), "pose-major order (data rows 1 and 2 visit the same pose)"),
+        "unrepeated": (poses, "15 pose visits hold 15 distinct poses"),
+        "swapped": (cycle_major[np.r_[0:10, 11, 10, 12:15]], "cycle 3 (data row 11) visits P2 where P1 belongs"),
+    }
+    out = tmp_path / "iso.out.csv"
+    out.write_text("kept\n", encoding="utf-8")  # a file of robotcal's? no: it must stay as it is either way
+    for name, (readings, message) in cases.items():
+        frames = forward_kinematics(nominal.values, robot.model_joint_variables(readings))
+        tracker = apply_transform(SCENARIO.tracker_from_base, frames[:, :3, :3] @ TARGET + frames[:, :3, 3])
+        path = tmp_path / f"{name}.csv"
+        write_capture(path, Capture(circle=np.zeros(15, int), direction=np.ones(15, int), readings=readings, points=tracker))
+        result = invoke("iso9283", path, "--scenario", "kr5-demo", "--out", out, "--force")
+        lines = [line for line in result.output.splitlines() if line.strip()]
+        assert result.exit_code == 2, (name, result.output)
+        assert len(lines) == 1 and lines[0].startswith("error: ") and "not ISO 9283 cycles" in lines[0], result.output
+        assert message in lines[0], result.output
+        assert out.read_text(encoding="utf-8") == "kept\n"
+    # the same poses cycle-major are ISO cycles: RP 0 for the exact robot and its own model
+    frames = forward_kinematics(nominal.values, robot.model_joint_variables(cycle_major))
+    tracker = apply_transform(SCENARIO.tracker_from_base, frames[:, :3, :3] @ TARGET + frames[:, :3, 3])
+    path = tmp_path / "iso-cycles.csv"
+    write_capture(path, Capture(circle=np.zeros(15, int), direction=np.ones(15, int), readings=cycle_major, points=tracker))
+    result = invoke("iso9283", path, "--scenario", "kr5-demo", "--out", tmp_path / "good.csv")
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader((tmp_path / "good.csv").open()))
+    assert max(float(r["RP"]) for r in rows if r["RP"]) < 1e-6

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import textwrap
+from pathlib import Path
 
 import numpy as np
 from typer.testing import CliRunner
@@ -130,3 +131,59 @@ def test_plan_optimise_cli(tmp_path):
     cell, _ = cell_from_scenario(scenario, no_acceptance=True)
     assert check_plan(scenario.robot, scenario.plan, cell).feasible
     assert int(scenario.plan.points.sum()) == 135
+
+
+def _feasible_thesis_scenario(tmp_path):
+    """thesis-noise-free with J5 turned 100 deg (within the KRC's +-120): a plan that is a valid program."""
+    from robotcal.io import load_scenario
+
+    text = Path(load_scenario("thesis-noise-free").source).read_text(encoding="utf-8")
+    old = "sweep_deg = [45.0, 80.0, 100.0, 50.0, 200.0, 300.0]"
+    assert old in text
+    path = tmp_path / "feasible.toml"
+    path.write_text(text.replace(old, "sweep_deg = [45.0, 80.0, 100.0, 50.0, 100.0, 300.0]"), encoding="utf-8")
+    return path
+
+
+def test_program_krl_name_is_the_file_name_and_no_negative_zero(tmp_path):
+    # issue 24: --name of 200 characters was written as the DEF name (KRL allows 24), the DEF name differed
+    # from the file name, and zero angles of the KRC's sign convention were written -0.000000
+    scenario = _feasible_thesis_scenario(tmp_path)
+    base = ["program", str(scenario), "--controller", "kuka-kr5-sixx-r650-krc"]
+    out = tmp_path / "kr5_capture.src"
+    result = runner.invoke(app, [*base, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    text = out.read_text(encoding="utf-8")
+    assert re.search(r"^DEF kr5_capture\(\)$", text, re.MULTILINE)
+    assert "-0.000000" not in text and "A2 0.000000" in text
+    for language, suffix in (("rapid", ".mod"), ("urscript", ".script")):
+        other = tmp_path / f"kr5_capture{suffix}"
+        assert runner.invoke(app, [*base, "--language", language, "--out", str(other)]).exit_code == 0
+        assert not re.search(r"-0\.0+\b", other.read_text(encoding="utf-8"))
+    before = out.read_bytes()
+    for extra, message in [
+        (["--name", "a" * 200, "--out", str(out)], "has 200 characters; KRL allows at most 24"),
+        (["--name", "other", "--out", str(out)], "--name 'other' differs from the file name 'kr5_capture.src'"),
+        (["--out", str(tmp_path / ("b" * 30 + ".src"))], "has 30 characters; KRL allows at most 24"),
+        (["--out", str(tmp_path / "my-capture.src")], "'my-capture' is not a valid KRL name"),
+    ]:
+        result = runner.invoke(app, [*base, *extra])
+        lines = [line for line in result.output.splitlines() if line.strip()]
+        assert result.exit_code == 2, result.output
+        assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], result.output
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "feasible.toml", "kr5_capture.mod", "kr5_capture.script", "kr5_capture.src",
+    ]  # fmt: skip
+
+
+def test_iso9283_plan_krl_program_is_named_after_its_file(tmp_path):
+    out = tmp_path / "iso_poses.csv"
+    result = runner.invoke(
+        app,
+        ["iso9283-plan", "--scenario", "kr5-demo", "--side", "150", "--start", "0,90,-90,0,45,0", "--cycles", "2",
+         "--out", str(out), "--program", "krl", "--controller", "kuka-kr5-sixx-r650-krc"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    text = (tmp_path / "iso_poses.src").read_text(encoding="utf-8")
+    assert re.search(r"^DEF iso_poses\(\)$", text, re.MULTILINE) and not re.search(r"-0\.0+\b", text)

@@ -186,7 +186,9 @@ def test_noise_free_cell_gives_back_the_truth(tmp_path):
     for name, offset in OFFSETS.items():
         np.testing.assert_allclose(offsets[name], offset, rtol=0, atol=1e-9)
     # the URDF + offsets reproduce the true target positions at poses never measured
-    readings = np.deg2rad(np.random.default_rng(9).uniform(-90.0, 90.0, (200, 6)))
+    # within the joint limits (J3 of the IRB 120 stops at 70 deg): `predict` below warns for readings outside them
+    low, high = np.maximum(ROBOT.limits[:, 0], np.deg2rad(-90.0)), np.minimum(ROBOT.limits[:, 1], np.deg2rad(90.0))
+    readings = np.random.default_rng(9).uniform(low, high, (200, 6))
     expected = _target_points(truth, readings)
     got = _urdf_target_points(urdf, offsets, readings)
     for name in OFFSETS:

@@ -10,6 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 import robotcal.api
+from robotcal.api import TABLE_5_8_READINGS_DEG, tcp_targets
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters
@@ -18,7 +19,6 @@ from robotcal.io.robots import load_robot
 from robotcal.io.run_folder import STAGES
 from robotcal.io.scenario import scenario_from_dict
 from robotcal.pipeline import plan_run
-from robotcal.api import TABLE_5_8_READINGS_DEG, tcp_targets
 from robotcal.uncertainty.tcp import tcp_coordinates
 from thesis_data import thesis_tables
 

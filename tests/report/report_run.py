@@ -1,7 +1,7 @@
 """make_run_folder: a run folder (docs/results.md) for the report tests.
 
 capture.csv, validation.csv, cpa/parameters.json, truth.json and refine/points.json come from the
-library (simulate_scenario, identify_scenario, write_capture, write_parameters) on the thesis
+library (simulate, identify, write_capture, write_parameters) on the thesis
 laser-tracker scenario; the other stages are small synthetic files that follow docs/results.md.
 """
 

@@ -93,7 +93,7 @@ def test_every_public_name_resolves_to_its_stub_entry_and_is_listed():
 
 def test_the_front_door_names():
     expected = {
-        "load_scenario", "load_robot", "simulate", "simulate_validation", "identify", "refine", "evaluate",
+        "load_scenario", "load_robot", "simulate", "simulate_poses", "identify", "refine", "evaluate",
         "diagnose_joints", "monte_carlo", "tcp_uncertainty", "workspace_uncertainty", "plan_run", "run_calibration",
         "read_run", "render_report", "RunResult", "ParameterSet", "RobotModel", "Capture", "Target", "Instrument",
         "read_capture", "write_capture", "read_parameters", "write_parameters", "InputError", "__version__",
@@ -176,11 +176,11 @@ def test_simulate_explicit_objects_equal_the_scenario(scenario, truth, capture):
     assert capture.seed == 3
     with pytest.raises(InputError, match="`plan` is needed"):
         robotcal.simulate(scenario.robot, instrument=scenario.instrument, joint_limits="ignore")
-    validation = robotcal.simulate_validation(scenario, rng=4, true_parameters=truth)
-    explicit = robotcal.simulate_validation(
+    validation = robotcal.simulate_poses(scenario, rng=4, true_parameters=truth)
+    explicit = robotcal.simulate_poses(
         scenario.robot,
-        target=api.validation_target(scenario),
-        poses=scenario.validation.poses,
+        targets=api.validation_target(scenario),
+        n_poses=scenario.validation.poses,
         instrument=scenario.instrument,
         tracker_from_base=scenario.tracker_from_base,
         true_parameters=truth,

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from robotcal.api import simulate_validation, validation_consistency, validation_target
+from robotcal.api import simulate_poses, validation_consistency, validation_target
 from robotcal.instruments import Instrument
 from robotcal.io import load_scenario
 from robotcal.kinematics.forward import target_positions
@@ -19,7 +19,7 @@ def case():
     scenario = load_scenario("kr5-demo")
     noise_free = dataclasses.replace(scenario, instrument=Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0))
     truth = perturb_parameters(scenario.robot, length_sd_mm=0.2, angle_sd_deg=0.05, rng=4)
-    validation = simulate_validation(noise_free, rng=3, true_parameters=truth)
+    validation = simulate_poses(noise_free, rng=3, true_parameters=truth)
     return scenario, noise_free, truth, validation
 
 

@@ -1,4 +1,5 @@
-"""``robotcal export PARAMS --format json|urdf|ur-yaml|dh|mdh --out F``: the calibrated model out (docs/export.md)."""
+"""``robotcal export PARAMS --format json|urdf|ur-yaml|dh|mdh --out F``: the calibrated model out, and
+``robotcal export --nominal ROBOT ...``: a robot's nominal model in the same formats (docs/export.md)."""
 
 from __future__ import annotations
 
@@ -70,8 +71,20 @@ def load_parameter_set(params: Path, robot: str | None, scenario: str | None) ->
 @app.command()
 @handle_errors
 def export(
-    params: Annotated[Path, typer.Argument(help="Parameter JSON (of identify / refine).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="File to write (.md for a Markdown dh/mdh table).")],
+    params: Annotated[
+        Path | None, typer.Argument(help="Parameter JSON (of identify / refine); omit it with --nominal.")
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="File to write (.md for a Markdown dh/mdh table).")
+    ] = None,
+    nominal: Annotated[
+        str | None,
+        typer.Option(
+            "--nominal",
+            help="Robot name or TOML: write its nominal parameters instead of a PARAMS file (--format json: a "
+            "parameter JSON that identify, refine, predict and export read).",
+        ),
+    ] = None,
     format: Annotated[str, typer.Option("--format", "-f", help="json | urdf | ur-yaml | dh | mdh.")] = "json",
     robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
     scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
@@ -87,13 +100,26 @@ def export(
     ] = "reading",
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """Write the calibrated model as JSON, URDF, UR calibration YAML or a DH / MDH table (exact, else an error)."""
+    """Write the calibrated model (or, with --nominal, a robot's nominal model) as JSON, URDF, UR calibration
+    YAML or a DH / MDH table (exact, else an error)."""
+    if out is None:
+        raise InputError("--out is required: the file to write")
     if format not in EXPORT_FORMATS:
         raise InputError(f"--format must be one of {', '.join(EXPORT_FORMATS)}; got {format!r}")
     tool_mm = parse_vector(tool, "--tool")
     if tool_mm is not None and format != "urdf":
         raise InputError("--tool is written only by --format urdf")
-    parameters, inputs = load_parameter_set(params, robot, scenario)
+    if nominal is not None:
+        if params is not None or robot is not None or scenario is not None:
+            raise InputError("--nominal ROBOT names the robot; give no PARAMS file, --robot or --scenario with it")
+        model = load_robot(nominal)
+        parameters, inputs = ParameterSet.nominal(model), existing_inputs(nominal)
+        provenance = {"method": "nominal parameters of the robot file", "robot_file": str(nominal)}
+    elif params is None:
+        raise InputError("give a parameter JSON (PARAMS) or --nominal ROBOT")
+    else:
+        parameters, inputs = load_parameter_set(params, robot, scenario)
+        provenance = None
     check_output_file(out, inputs=inputs, force=force)
     markdown = Path(out).suffix.lower() in (".md", ".markdown")
     if format == "urdf":
@@ -113,8 +139,10 @@ def export(
         text = None
     with result_file(out, inputs=inputs, force=force):
         if text is None:
-            provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
+            if provenance is None:
+                provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
             write_parameters(out, parameters, provenance if isinstance(provenance, dict) else {})
         else:
             atomic_write_text(out, text)
-    console.print(f"wrote {out} ({format})", highlight=False)
+    what = f", nominal model of {parameters.robot.name}" if nominal is not None else ""
+    console.print(f"wrote {out} ({format}{what})", highlight=False)

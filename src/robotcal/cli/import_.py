@@ -30,7 +30,7 @@ def import_(
         str | None, typer.Option("--units", help="Unit of the export's coordinates: mm | m | in (default: its header).")
     ] = None,
     delimiter: Annotated[
-        str | None, typer.Option("--delimiter", help="Delimiter of the export: ',' | ';' | tab (default: detected).")
+        str | None, typer.Option("--delimiter", help="Delimiter of the export: ',' | ';' | tab | space (default: detected).")
     ] = None,
     decimal: Annotated[
         str | None, typer.Option("--decimal", help="Decimal separator of the export: '.' | ',' (default: detected).")

@@ -23,12 +23,10 @@ from robotcal.diagnostics.iso9283 import (
     scenario_flange_point,
 )
 from robotcal.errors import InputError
-from robotcal.geometry.transforms import check_rigid_transform
 from robotcal.io import atomic_write_text, load_scenario, read_capture, read_parameters
-from robotcal.io._validation import read_json_file
 from robotcal.io.iso9283_files import iso_to_csv
 from robotcal.io.output import check_output_file, existing_inputs, result_file
-from robotcal.io.parameters_json import read_targets
+from robotcal.io.parameters_json import read_targets, read_tracker_from_base
 from robotcal.io.trajectory_csv import write_trajectory
 from robotcal.kinematics.model import ParameterSet
 
@@ -38,14 +36,8 @@ PROGRAM_SUFFIX = {"krl": ".src", "rapid": ".mod", "urscript": ".script"}
 
 
 def _tracker_from_base(path: Path, default: np.ndarray) -> np.ndarray:
-    data = read_json_file(path, kind="parameter JSON")
-    matrix = (data.get("provenance") or {}).get("tracker_from_base") if isinstance(data, dict) else None
-    if matrix is None:
-        return default
-    try:
-        return check_rigid_transform(np.asarray(matrix, dtype=float), f"{path}: provenance.tracker_from_base")
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{path}: key `provenance.tracker_from_base` must be a 4x4 rigid transform") from exc
+    matrix = read_tracker_from_base(path)
+    return default if matrix is None else matrix
 
 
 def flange_target(scenario, target: str | None) -> np.ndarray:
@@ -207,12 +199,20 @@ def iso9283_plan(
                      "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
     ] = None,
     speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
-    name: Annotated[str, typer.Option("--name", help="Program name.")] = "robotcal_iso9283",
+    name: Annotated[
+        str | None,
+        typer.Option(
+            "--name",
+            help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
+            "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
     with --program also as a robot program (a joint move and a dwell per pose)."""
-    from robotcal.planning.program import LANGUAGES
+    from robotcal.planning.program import LANGUAGES, program_name
+
     loaded = load_scenario(scenario)
     robot = loaded.robot
     centre = None if center is None else parse_vector(center, "--center")
@@ -229,6 +229,7 @@ def iso9283_plan(
         program_out = program_out if program_out is not None else out.with_suffix(PROGRAM_SUFFIX[program])
         if program_out.resolve() == out.resolve():
             raise InputError(f"--program-out {program_out} is the pose CSV --out; give another file")
+        name = program_name(program, program_out, "robotcal_iso9283" if name is None and program != "krl" else name)
         check_output_file(program_out, inputs=inputs, force=force)
     point = flange_target(loaded, target)
     start_readings, centre, side, readings = iso_cube_plan(

@@ -35,7 +35,13 @@ def program(
         ),
     ] = None,
     speed: Annotated[float, typer.Option(help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
-    name: Annotated[str, typer.Option(help="Program name.")] = "robotcal_capture",
+    name: Annotated[
+        str | None,
+        typer.Option(
+            help="Program name: KRL takes the --out file's name (DEF name = file name, <= 24 characters; a --name "
+            "must equal it); RAPID module / URScript function (default robotcal_capture)."
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a file not written by robotcal.")] = False,
 ) -> None:
     """Write the capture plan as joint moves with a dwell and a comment per point (thesis 4.5.2)."""
@@ -44,8 +50,9 @@ def program(
     from robotcal.io import load_robot, load_scenario
     from robotcal.io.atomic import atomic_write_text
     from robotcal.io.output import existing_inputs, result_file
-    from robotcal.planning.program import controller_readings, write_program
+    from robotcal.planning.program import controller_readings, program_name, write_program
 
+    name = program_name(language, out, name)
     loaded = load_scenario(scenario)
     plan = loaded.plan if bidirectional is None else dataclasses.replace(loaded.plan, bidirectional=bidirectional)
     target = None if controller is None else load_robot(controller)

@@ -482,6 +482,86 @@ def pose_visits(capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarr
     return visits
 
 
+#: Largest difference of a joint reading [rad] between visits of one test pose (0.05 deg): repeated
+#: visits of a commanded pose log readings within the servo error (~1e-3 deg); ISO 9283's test poses
+#: lie degrees apart.
+SAME_POSE_RAD = np.deg2rad(0.05)
+
+
+def _check_iso_cycles(readings, n_test_poses: int, *, rows, source: str, same_pose_rad: float = SAME_POSE_RAD) -> int:
+    """The number of cycles of visits that are ISO 9283 cycles, else an :class:`InputError` saying what was found.
+
+    ISO 9283 (clause 7.2.1): ``n`` cycles, each visiting the test poses P1..Pm in the same order. The
+    visits are grouped into distinct poses (readings within ``same_pose_rad`` on every joint are one
+    pose); P_k is the pose most cycles visit k-th. Refused: a number of distinct poses other than m
+    (e.g. unrepeated poses), pose-major order (each pose repeated before the next) and a cycle that
+    visits the poses in another order (e.g. P1 and P2 swapped), naming the cycle and the data row.
+
+    Parameters
+    ----------
+    readings : ndarray, shape (n_visits, n_joints)
+        Readings of each visit, in the order measured [rad].
+    n_test_poses : int
+    rows : ndarray of int, shape (n_visits,)
+        1-based data row of the capture where each visit starts (for the messages).
+    source : str
+    same_pose_rad : float
+    """
+    n_visits = readings.shape[0]
+    n_cycles = n_visits // n_test_poses
+    tolerance = f"readings within {np.rad2deg(same_pose_rad):g} deg on every joint count as one pose"
+    representatives: list[np.ndarray] = []
+    labels = np.empty(n_visits, dtype=int)
+    for k, q in enumerate(readings):
+        for label, first in enumerate(representatives):
+            if np.max(np.abs(q - first)) <= same_pose_rad:
+                labels[k] = label
+                break
+        else:
+            labels[k] = len(representatives)
+            representatives.append(q)
+    found = len(representatives)
+    if found > n_test_poses:
+        repeated = n_visits - found
+        raise InputError(
+            f"{source}: not ISO 9283 cycles: {n_visits} pose visits hold {found} distinct poses ({repeated} repeated); "
+            f"expected {n_cycles} cycles of the same {n_test_poses} test poses P1..P{n_test_poses} ({tolerance})"
+        )
+    steps = np.diff(labels)
+    if n_test_poses > 1 and np.all(steps >= 0):  # P1 P1 ... P2 P2 ...: every pose repeated before the next
+        k = int(np.flatnonzero(steps == 0)[0])
+        raise InputError(
+            f"{source}: not ISO 9283 cycles: the poses are in pose-major order (data rows {rows[k]} and {rows[k + 1]} "
+            f"visit the same pose); ISO 9283 cycles visit P1..P{n_test_poses} in turn, cycle after cycle: reorder the "
+            "rows cycle-major"
+        )
+    if found < n_test_poses:
+        raise InputError(
+            f"{source}: not ISO 9283 cycles: {n_visits} pose visits hold only {found} distinct poses; expected "
+            f"{n_test_poses} test poses P1..P{n_test_poses} in each of {n_cycles} cycles ({tolerance})"
+        )
+    by_cycle = labels.reshape(n_cycles, n_test_poses)
+    expected = np.array([np.bincount(column, minlength=found).argmax() for column in by_cycle.T])
+    if np.unique(expected).size != n_test_poses:  # no order that most cycles follow
+        first_cycle = " ".join(f"P{np.flatnonzero(expected == v)[0] + 1}" for v in by_cycle[0])
+        raise InputError(
+            f"{source}: not ISO 9283 cycles: the cycles visit the {n_test_poses} poses in no common order "
+            f"(cycle 1: {first_cycle}); each cycle must visit P1..P{n_test_poses} in the same order"
+        )
+    name = {int(v): k + 1 for k, v in enumerate(expected)}
+    for cycle, visited in enumerate(by_cycle):
+        wrong = np.flatnonzero(visited != expected)
+        if wrong.size:
+            k = int(wrong[0])
+            order = ", ".join(f"P{name[int(v)]}" for v in visited)
+            raise InputError(
+                f"{source}: not ISO 9283 cycles: cycle {cycle + 1} (data row {rows[cycle * n_test_poses + k]}) visits "
+                f"P{name[int(visited[k])]} where P{k + 1} belongs (its order: {order}); every cycle must visit "
+                f"P1..P{n_test_poses} in the order of the other cycles"
+            )
+    return n_cycles
+
+
 def iso_from_capture(
     capture,
     models: dict,
@@ -493,6 +573,10 @@ def iso_from_capture(
     orientation_axes: str = "base",
 ) -> dict:
     """ISO 9283 characteristics of every model on a capture of repeated test poses (``circle = 0`` rows).
+
+    The visits must be ISO 9283 cycles: ``n`` cycles visiting the same test poses P1..Pm in the same
+    order (:func:`_check_iso_cycles`; pose-major order, unrepeated poses or a cycle in another order
+    are an :class:`InputError` naming the cycle and data row).
 
     Without a ``target`` column (or with one target name) each row is one visit of a test pose,
     cycle-major, and the measured point is the flange ``point`` (the named target's offset with one
@@ -544,15 +628,17 @@ def iso_from_capture(
             )
         row_of_visit = order.reshape(n_visits, len(names))
         visit_readings = capture.readings[row_of_visit[:, 0]]
+        visit_rows = free[np.array([np.flatnonzero(visits == v)[0] for v in range(n_visits)])] + 1
     else:
         n_visits = capture.n_points
         visit_readings = capture.readings
+        visit_rows = free + 1
     if n_visits % n_test_poses or n_visits < 2 * n_test_poses:
         raise InputError(
             f"{capture.source}: the capture's {n_visits} free poses are not whole cycles of {n_test_poses} test poses "
             "(at least 2 cycles, cycle-major)"
         )
-    n_cycles = n_visits // n_test_poses
+    n_cycles = _check_iso_cycles(visit_readings, n_test_poses, rows=visit_rows, source=capture.source)
     commands = visit_readings.reshape(n_cycles, n_test_poses, -1).mean(axis=0)
     target_names = [capture.target_names[k] for k in np.unique(capture.target)] if multi else list(names)
 

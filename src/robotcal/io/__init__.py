@@ -64,6 +64,7 @@ from robotcal.io.joints_files import (
 from robotcal.io.output import (
     LOCK_SUFFIX,
     MARKER,
+    SIGNATURE,
     check_output_file,
     check_output_folder,
     existing_inputs,
@@ -79,6 +80,7 @@ from robotcal.io.parameters_json import (
     parameters_to_dict,
     read_parameters,
     read_targets,
+    read_tracker_from_base,
     refined_targets,
     targets_to_dict,
     write_parameters,
@@ -143,6 +145,7 @@ from robotcal.io.tracker_import import (
     read_tracker_export,
 )
 from robotcal.io.trajectory_csv import (
+    MAX_READING_DEG,
     builtin_trajectories,
     load_trajectory,
     read_trajectory,
@@ -208,6 +211,7 @@ __all__ = [
     "summary_csv",
     "write_joints_folder",
     "MARKER",
+    "SIGNATURE",
     "LOCK_SUFFIX",
     "check_output_folder",
     "check_output_file",
@@ -222,6 +226,7 @@ __all__ = [
     "parameters_to_dict",
     "read_parameters",
     "read_targets",
+    "read_tracker_from_base",
     "refined_targets",
     "targets_to_dict",
     "write_parameters",
@@ -282,6 +287,7 @@ __all__ = [
     "read_joint_log",
     "join_points_to_readings",
     "import_tracker_capture",
+    "MAX_READING_DEG",
     "read_trajectory",
     "write_trajectory",
     "trajectory_to_csv",

@@ -31,6 +31,7 @@ import numpy as np
 from robotcal.errors import InputError
 from robotcal.geometry.euler import kuka_abc_from_matrix
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z, translation
+from robotcal.io.output import SIGNATURE  # the first comment by which robotcal recognises its own files
 from robotcal.kinematics.model import ParameterSet
 
 __all__ = [
@@ -198,7 +199,7 @@ def parameters_to_urdf(
         limits = model_variable_limits(robot)
     out = io.StringIO()
     out.write('<?xml version="1.0"?>\n')
-    out.write(f"<!-- written by robotcal: calibrated model of {robot.name}; joint value = controller ")
+    out.write(f"<!-- {SIGNATURE}: calibrated model of {robot.name}; joint value = controller ")
     out.write(f"{'reading' if joint_variable == 'reading' else 'model variable q'} [rad]; lengths in m -->\n")
     out.write(f"<robot name={quoteattr(name or robot.name)}>\n")
     links = [f"{prefix}base_link"] + [f"{prefix}link_{i + 1}" for i in range(robot.n_joints)] + [f"{prefix}flange"]
@@ -275,7 +276,7 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
         )
     origins, _, _ = joint_origins(parameters, joint_variable="reading")
     lines = [
-        f"# written by robotcal: calibrated model of {robot.name}; lengths in m, angles in rad",
+        f"# {SIGNATURE}: calibrated model of {robot.name}; lengths in m, angles in rad",
         "kinematics:",
     ]
     for joint, origin in zip(UR_JOINT_NAMES, origins, strict=True):

@@ -10,7 +10,9 @@ One policy, used by ``simulate``, ``identify``, ``refine``, ``evaluate``, ``join
   refused unless ``--force``.
 * A **single-file output** replaces an existing file only when robotcal recognises it as its own
   (:func:`is_robotcal_file`: a JSON with robotcal's keys, an HTML report with robotcal's generator
-  tag, a capture CSV in robotcal's exact layout), else only with ``--force``.
+  tag, a capture CSV in robotcal's exact layout, a text file whose first comment carries
+  :data:`SIGNATURE` (URDF, UR YAML of ``robotcal export``), a DH/MDH table of ``robotcal export``),
+  else only with ``--force``.
 * **Never**, even with ``--force``: the file system root, the home folder, the current folder or one
   of its parents, an output that *is* an input of the same command, a folder output that *contains*
   an input.
@@ -37,6 +39,7 @@ from robotcal.io.atomic import atomic_directory, atomic_write_text
 
 __all__ = [
     "MARKER",
+    "SIGNATURE",
     "LOCK_SUFFIX",
     "check_output_folder",
     "check_output_file",
@@ -59,6 +62,16 @@ LOCK_SUFFIX = ".robotcal-lock"
 _CAPTURE_HEADER = re.compile(r"^circle,direction,(q\d+,)+x,y,z(,target)?(,u95_mm)?$")
 _CAPTURE_NUMBER = re.compile(r"^-?\d+\.\d{12}$")  # robotcal writes every reading and coordinate with 12 decimals
 _GENERATOR = '<meta name="generator" content="robotcal'
+#: The words of the first comment of a text file robotcal writes (``<!-- written by robotcal: ... -->``,
+#: ``# written by robotcal: ...``), by which :func:`is_robotcal_file` recognises it.
+SIGNATURE = "written by robotcal"
+_COMMENT_SIGNATURE = re.compile(r"^(?:<\?xml[^>]*\?>\s*)?(?:<!--|#)\s*" + re.escape(SIGNATURE) + r"\b")
+#: ``robotcal export --format dh|mdh``: the CSV header and first cells, and the Markdown title.
+_TABLE_HEADER = re.compile(
+    r"^joint,(?:theta_deg,d_mm,a_mm,alpha_deg|alpha_prev_deg,a_prev_mm,theta_deg,d_mm),reading_sign,reading_offset_deg$"
+)
+_TABLE_ROW = re.compile(r"^(?:J\d+|flange)(?:,[-+0-9.e]+|,inf|,-inf){6}$")
+_TABLE_TITLE = re.compile(r"^# (?:Modified )?DH table of .+ \[mm, deg\]")
 
 
 def _resolve(path) -> Path:
@@ -149,7 +162,10 @@ def is_robotcal_file(path) -> bool:
 
     JSON: an object with robotcal's parameter keys (``robot``, ``units``, ``joints``, ``provenance``)
     or a ``format`` key starting with ``robotcal``; HTML: robotcal's ``<meta name="generator">``;
-    CSV: the capture header and every value of the first rows with robotcal's 12 decimals.
+    CSV: the capture header and every value of the first rows with robotcal's 12 decimals, or the
+    header and rows of a DH/MDH table of ``robotcal export``; Markdown: the title of such a table;
+    any other text file: a first comment (after an XML declaration) carrying :data:`SIGNATURE`
+    (the URDF and UR YAML of ``robotcal export``).
     """
     path = Path(path)
     try:
@@ -176,6 +192,9 @@ def is_robotcal_file(path) -> bool:
         return {"robot", "units", "joints", "provenance"} <= set(data)
     if suffix == ".csv":
         lines = text.splitlines()
+        if lines and _TABLE_HEADER.match(lines[0].strip()):
+            rows = [line.strip() for line in lines[1:50] if line.strip()]
+            return bool(rows) and all(_TABLE_ROW.match(line) for line in rows)
         if not lines or not _CAPTURE_HEADER.match(lines[0].strip()):
             return False
         header = lines[0].strip().split(",")
@@ -186,7 +205,9 @@ def is_robotcal_file(path) -> bool:
             if len(cells) != len(header) or not all(_CAPTURE_NUMBER.match(cell) for cell in cells[numbers]):
                 return False
         return True
-    return False
+    if suffix in (".md", ".markdown"):
+        return bool(_TABLE_TITLE.match(text))
+    return bool(_COMMENT_SIGNATURE.match(text))
 
 
 def check_output_folder(

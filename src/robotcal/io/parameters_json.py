@@ -19,7 +19,15 @@ from robotcal.io._validation import _short, as_finite_float, read_json_file
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, ParameterSet, RobotModel
 
-__all__ = ["parameters_to_dict", "read_parameters", "read_targets", "refined_targets", "targets_to_dict", "write_parameters"]
+__all__ = [
+    "parameters_to_dict",
+    "read_parameters",
+    "read_targets",
+    "read_tracker_from_base",
+    "refined_targets",
+    "targets_to_dict",
+    "write_parameters",
+]
 
 def _wrap_deg(value: float, centre: float = 0.0) -> float:
     """An angle in degrees in (centre - 180, centre + 180] (a turn of 360 deg changes no transform)."""
@@ -102,6 +110,24 @@ def read_targets(path) -> dict:
             raise InputError(f"{path}: key `targets.{name}.flange_mm` must be [x, y, z]")
         out[name] = tuple(as_finite_float(v, f"{path}: key `targets.{name}.flange_mm`") for v in position)
     return out
+
+
+def read_tracker_from_base(path) -> np.ndarray | None:
+    """The base frame a fit recorded, ``provenance.tracker_from_base`` of a parameter JSON, as a (4, 4)
+    rigid transform [mm]; None when the key is absent or null (a nominal set, a distances-criterion
+    refinement). A value that is not a rigid 4x4 transform is an :class:`InputError` naming the key."""
+    from robotcal.geometry.transforms import check_rigid_transform
+
+    path = Path(path)
+    data = read_json_file(path, kind="parameter JSON")
+    provenance = data.get("provenance") if isinstance(data, dict) else None
+    matrix = provenance.get("tracker_from_base") if isinstance(provenance, dict) else None
+    if matrix is None:
+        return None
+    try:
+        return check_rigid_transform(np.asarray(matrix, dtype=float), f"{path}: provenance.tracker_from_base")
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{path}: key `provenance.tracker_from_base` must be a 4x4 rigid transform ({exc})") from None
 
 
 def read_parameters(path, robot: RobotModel) -> ParameterSet:

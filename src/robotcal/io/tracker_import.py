@@ -11,8 +11,13 @@ Three export layouts are read:
   "name": ..., "u95": ..., "target": ..., "circle": ..., "direction": ...}`` (header names, or
   1-based column numbers for a file without a header).
 
-Delimiters ``,``, ``;`` or tab and decimal ``.`` or ``,`` are detected (or given). A unit given both
-by ``units`` and by the header must agree; conversions are exact (1 m = 1000 mm, 1 in = 25.4 mm).
+Delimiters ``,``, ``;``, tab or runs of spaces and decimal ``.`` or ``,`` are detected (or given). A
+unit given both by ``units`` and by the header must agree; conversions are exact (1 m = 1000 mm,
+1 in = 25.4 mm). Every data row has as many fields as the header (or, without a header, as the first
+row; a plain export exactly four): a longer or shorter row is an :class:`InputError` naming the file
+and line, never read in part (a comma-delimited file with decimal commas splits its numbers into
+extra fields, which this check catches). Empty fields after the last column (a trailing delimiter)
+are allowed.
 
 The joint-angle log is a CSV with a header: ``name`` (needed to join by name) and ``q1..qN`` in
 degrees (``j1..jN`` or ``a1..aN`` also accepted), optionally ``circle``, ``direction`` and
@@ -140,15 +145,22 @@ class JointLog:
 # delimited text
 
 
+#: The delimiter name of runs of spaces (fields separated by one or more spaces).
+SPACES = " "
+_DELIMITER_NAMES = {"tab": "\t", "\\t": "\t", "semicolon": ";", "comma": ",", "space": SPACES, "spaces": SPACES}
+
+
 def _detect_delimiter(first_line: str, delimiter: str | None, source) -> str:
     if delimiter is not None:
-        delimiter = {"tab": "\t", "\\t": "\t", "semicolon": ";", "comma": ","}.get(delimiter, delimiter)
-        if delimiter not in (",", ";", "\t"):
-            raise InputError(f"{source}: delimiter must be ',', ';' or tab; got {delimiter!r}")
+        delimiter = _DELIMITER_NAMES.get(delimiter.lower(), delimiter) if delimiter.strip() else SPACES
+        if delimiter not in (",", ";", "\t", SPACES):
+            raise InputError(f"{source}: delimiter must be ',', ';', tab or space; got {delimiter!r}")
         return delimiter
-    for candidate in ("\t", ";"):
+    for candidate in ("\t", ";", ","):
         if candidate in first_line:
             return candidate
+    if len(first_line.split()) > 1:  # neither tab, ';' nor ',': fields separated by spaces
+        return SPACES
     return ","
 
 
@@ -179,6 +191,9 @@ def _table(path, *, kind: str, delimiter: str | None, decimal: str | None):
         for number, row in _csv_records(text, path, delimiter)
         if any(cell.strip() for cell in row)
     ]
+    header = records[0][1]
+    while header and not header[-1]:  # a trailing delimiter after the last name
+        header.pop()
     decimal = _detect_decimal([row for _, row in records[1:]] or [records[0][1]], delimiter, decimal, path)
     return records, delimiter, decimal
 
@@ -189,6 +204,8 @@ def _csv_records(text: str, path, delimiter: str):
     for number, line in enumerate(text.splitlines(), start=1):  # the line-length check of every reader
         if len(line) > MAX_LINE_CHARS:
             raise InputError(f"{path}: line {number} is {len(line):,} characters long (limit {MAX_LINE_CHARS:,})")
+    if delimiter == SPACES:  # no quoting: a field is a run of non-space characters
+        return [(number, line.split()) for number, line in enumerate(text.splitlines(), start=1)]
     reader = csv.reader(io.StringIO(text), delimiter=delimiter)
     rows = []
     try:
@@ -197,6 +214,25 @@ def _csv_records(text: str, path, delimiter: str):
     except csv.Error as exc:
         raise InputError(f"{path}: line {reader.line_num}: not valid delimited text ({exc})") from None
     return rows
+
+
+def _check_width(row: list[str], line: int, expected: int, source, *, of: str, delimiter: str) -> list[str]:
+    """``row`` with exactly ``expected`` fields (empty fields after the last one dropped), else an error.
+
+    ``of`` says where ``expected`` comes from ("in the header (line 1)", ...). A comma-delimited row
+    that is too long gets a hint: decimal commas split its numbers in two.
+    """
+    if len(row) > expected and not any(row[expected:]):
+        row = row[:expected]
+    if len(row) == expected:
+        return row
+    hint = ""
+    if delimiter == "," and len(row) > expected:
+        hint = (
+            "; a comma-delimited file with decimal commas? Each decimal comma splits a number in two: "
+            "export with ';' or tab as delimiter, or with '.' as decimal separator"
+        )
+    raise InputError(f"{source}: line {line} has {len(row)} fields; expected {expected}, as {of}{hint}")
 
 
 def _number(cell: str, decimal: str, where: str) -> float:
@@ -300,14 +336,21 @@ def _auto_columns(header: list[str]) -> tuple[dict[str, int], str]:
     return positions, "leica" if leica else "generic"
 
 
-def _mapped_columns(header: list[str] | None, mapping: dict[str, str], source) -> dict[str, int]:
+def _mapped_columns(header: list[str] | None, mapping: dict[str, str], width: int, line: int, source) -> dict[str, int]:
+    """Positions of the mapped columns; a number must be a column of the file (1..``width``, the
+    fields of its first line ``line``)."""
     positions = {}
     lowered = [cell.strip().lower() for cell in header] if header is not None else None
     for key, column in mapping.items():
         if lowered is not None and column.strip().lower() in lowered:
             positions[key] = lowered.index(column.strip().lower())
-        elif column.isdigit() and int(column) >= 1:
+        elif column.isdigit() and 1 <= int(column) <= width:
             positions[key] = int(column) - 1
+        elif column.isdigit():
+            raise InputError(
+                f"{source}: --columns {key}={column}: no column {int(column)}; line {line} has {width} fields "
+                f"(expected a column number 1..{width} or a header name)"
+            )
         else:
             known = ", ".join(repr(cell) for cell in header) if header else "(no header)"
             raise InputError(f"{source}: --columns {key}={column!r}: no such column; the header has {known}")
@@ -330,8 +373,9 @@ def read_tracker_export(
     path : path-like
     columns : dict or str, optional
         Column map (see :func:`parse_column_map`); without it the layout is recognised.
-    delimiter : {",", ";", "\\t"}, optional
-        Detected from the first line when omitted (tab, then ``;``, else ``,``).
+    delimiter : {",", ";", "\\t", " "}, optional
+        Detected from the first line when omitted (tab, then ``;``, then ``,``, else runs of spaces when
+        the line has several words); ``"tab"``, ``"space"`` name them too.
     decimal : {".", ","}, optional
         Detected from the data when omitted (``,`` only with another delimiter).
     units : {"mm", "m", "in"}, optional
@@ -359,13 +403,20 @@ def read_tracker_export(
             header, data = None, records
         else:
             header, data = first, records[1:]
-        positions, layout = _mapped_columns(header, mapping, source), "generic"
+        positions, layout = _mapped_columns(header, mapping, len(first), records[0][0], source), "generic"
+        first_line = records[0][0]
+        width, of = (
+            len(first),
+            (f"in the header (line {first_line})" if header is not None else f"on line {first_line}"),
+        )
     elif headerless:
         header, data, layout = None, records, "plain"
         positions = {"name": 0, "x": 1, "y": 2, "z": 3}
+        width, of = 4, "in a plain name;x;y;z export (map a wider file with --columns)"
     else:
         header, data = first, records[1:]
         positions, layout = _auto_columns(header)
+        width, of = len(header), f"in the header (line {records[0][0]})"
         missing = [key for key in ("x", "y", "z") if key not in positions]
         if missing:
             raise InputError(
@@ -374,7 +425,6 @@ def read_tracker_export(
             )
     if not data:
         raise InputError(f"{source}: no data rows")
-    width = len(header) if header is not None else None
 
     def column_name(key: str) -> str:
         return header[positions[key]] if header is not None else f"{key} (column {positions[key] + 1})"
@@ -403,14 +453,10 @@ def read_tracker_export(
         stated = _split_unit(header[positions["u95"]])[1]
         if stated is not None:
             u95_unit = _length_unit(stated, f"{source}: column `{header[positions['u95']]}`")
-    needed = max(positions.values()) + 1
     values = {key: [] for key in positions}
     lines = []
     for line, row in data:
-        if width is not None and len(row) != width and len(row) < needed:
-            raise InputError(f"{source}: line {line} has {len(row)} fields; the header has {width}")
-        if len(row) < needed:
-            raise InputError(f"{source}: line {line} has {len(row)} fields; expected at least {needed}")
+        row = _check_width(row, line, width, source, of=of, delimiter=delimiter)
         lines.append(line)
         for key, position in positions.items():
             cell = row[position]
@@ -486,6 +532,7 @@ def _check_pose_names(names, targets, lines, source, column: str) -> None:
             )
         seen[key] = lines[k]
 
+
 _JOINT_COLUMN = re.compile(r"^(?:q|j|a)(\d{1,3})$")
 
 
@@ -550,8 +597,9 @@ def read_joint_log(
     extra = {key: [] for key in optional}
     lines = []
     for row_index, (line, row) in enumerate(data):
-        if len(row) != len(header):
-            raise InputError(f"{source}: line {line} has {len(row)} fields; the header has {len(header)}")
+        row = _check_width(
+            row, line, len(header), source, of=f"in the header (line {records[0][0]})", delimiter=delimiter
+        )
         lines.append(line)
         for k in range(1, count + 1):
             where = f"{source}: line {line}, column `{header[joints[k]]}`"

@@ -9,8 +9,9 @@ Format::
 
 The header must name ``q1`` .. ``qN`` (N = the robot's joint count); other columns (``pose``, a
 name, a time stamp) are allowed and ignored. Readings are controller readings, mapped to model
-joint variables by the robot file's ``reading_sign`` and ``reading_offset``. Built-in trajectories
-live in ``robotcal/data/trajectories/<name>.csv``.
+joint variables by the robot file's ``reading_sign`` and ``reading_offset``. A reading beyond
+:data:`MAX_READING_DEG` is refused as no joint's reading (a unit or export error). Built-in
+trajectories live in ``robotcal/data/trajectories/<name>.csv``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,19 @@ from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.builtins import data_path
 
-__all__ = ["read_trajectory", "write_trajectory", "trajectory_to_csv", "load_trajectory", "builtin_trajectories"]
+__all__ = [
+    "MAX_READING_DEG",
+    "read_trajectory",
+    "write_trajectory",
+    "trajectory_to_csv",
+    "load_trajectory",
+    "builtin_trajectories",
+]
+
+#: Largest joint reading a pose CSV may hold [deg] (2,778 turns): far beyond any joint's travel, and
+#: the largest magnitude whose double still resolves the 1e-9 deg a pose CSV and robotcal's outputs
+#: write (its spacing is 1.2e-10 deg at 1e6 deg; at 1e308 deg it is 2e292 deg, so the pose has no meaning).
+MAX_READING_DEG = 1e6
 
 
 def builtin_trajectories() -> list[str]:
@@ -59,7 +72,8 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
 
     Every problem is an :class:`InputError` naming the file, the line (1-based, as an editor shows
     it) and the column: missing ``q`` columns, a joint count other than ``n_joints``, a row with
-    the wrong number of fields, a value that is not a finite number (NaN, empty, text).
+    the wrong number of fields, a value that is not a finite number (NaN, empty, text) or beyond
+    :data:`MAX_READING_DEG`.
     """
     path = Path(path)
     text = read_text_file(path, kind="pose CSV")
@@ -98,6 +112,11 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
         for column, position in enumerate(index):
             where = f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`"
             readings[k, column] = parse_finite(row[position], where)
+            if abs(readings[k, column]) > MAX_READING_DEG:
+                raise InputError(
+                    f"{where}: {row[position].strip()} deg is no joint reading (|q| must be <= {MAX_READING_DEG:g} deg, "
+                    f"{MAX_READING_DEG / 360.0:,.0f} turns); is the column in another unit?"
+                )
     if readings.shape[0] == 0:
         raise InputError(f"{path}: no poses after the header")
     return np.deg2rad(readings)

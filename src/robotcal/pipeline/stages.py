@@ -132,7 +132,7 @@ def simulate_stage(scenario: Scenario, seeds: dict, out: Path, step: Step = _no_
     captures = {}
     for name, capture in (
         ("capture", api.simulate(scenario, rng=seeds["capture"], true_parameters=truth)),
-        ("validation", api.simulate_validation(scenario, rng=seeds["validation"], true_parameters=truth)),
+        ("validation", api.simulate_poses(scenario, rng=seeds["validation"], true_parameters=truth)),
     ):
         text = capture_to_csv(capture)
         documents[f"{name}.csv"] = write_csv(out / f"{name}.csv", text)

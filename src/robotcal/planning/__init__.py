@@ -22,7 +22,14 @@ from robotcal.planning.optimise import (
     optimise_plan,
     workspace_readings,
 )
-from robotcal.planning.program import LANGUAGES, controller_readings, write_program
+from robotcal.planning.program import (
+    LANGUAGES,
+    NAME_LIMITS,
+    check_program_name,
+    controller_readings,
+    program_name,
+    write_program,
+)
 from robotcal.planning.scenario import (
     DEFAULT_CAPSULE_RADIUS_MM,
     cell_from_scenario,
@@ -59,6 +66,9 @@ __all__ = [
     "optimise_plan",
     "workspace_readings",
     "LANGUAGES",
+    "NAME_LIMITS",
+    "check_program_name",
+    "program_name",
     "write_program",
     "controller_readings",
     "DEFAULT_CAPSULE_RADIUS_MM",

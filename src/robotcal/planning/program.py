@@ -11,19 +11,98 @@ comment naming the circle, the direction and the point. Three controller languag
 
 The angles are controller readings: the plan's readings converted, through the model joint
 variables, to the readings of ``controller`` (a robot file with the controller's reading signs and
-offsets, e.g. ``kuka-kr5-sixx-r650-krc``), and checked against that file's limits.
+offsets, e.g. ``kuka-kr5-sixx-r650-krc``), and checked against that file's limits. Numbers that
+round to zero are written without a sign (``0.000000``, never ``-0.000000``).
+
+Program names (:func:`check_program_name`, :func:`program_name`): an identifier of the language,
+a letter then letters, digits or underscores, at most 24 characters in KRL, 32 in RAPID, and no
+keyword of KRL. A KRL program's ``DEF`` name must equal its file name (the ``.src`` file's stem), so
+:func:`program_name` takes it from the file for KRL.
 """
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 
 from robotcal.errors import InputError
 from robotcal.kinematics.model import RobotModel
 
-__all__ = ["LANGUAGES", "write_program", "controller_readings"]
+__all__ = ["LANGUAGES", "NAME_LIMITS", "check_program_name", "program_name", "write_program", "controller_readings"]
 
 LANGUAGES = ("krl", "rapid", "urscript")
+#: Longest program/module name of each language [characters] (KUKA KRL: 24; ABB RAPID identifiers: 32;
+#: URScript: none).
+NAME_LIMITS = {"krl": 24, "rapid": 32, "urscript": None}
+#: Default name of a RAPID module or URScript function (a KRL program is named after its file).
+DEFAULT_NAME = "robotcal_capture"
+#: KRL keywords, which cannot name a program.
+_KRL_KEYWORDS = frozenset(
+    """AND ANIN ANOUT B_AND B_EXOR B_NOT B_OR BOOL BRAKE CASE CAST_FROM CAST_TO CHAR CIRC CIRC_REL CONST CONTINUE
+    DECL DEF DEFAULT DEFDAT DEFFCT DELAY DISTANCE DO ELSE END ENDDAT ENDFCT ENDFOR ENDIF ENDLOOP ENDSWITCH ENDWHILE
+    ENUM EXIT EXOR EXT EXTFCT FALSE FOR GLOBAL GOTO HALT IF IMPORT INT INTERRUPT IS LIN LIN_REL LOOP MAXIMUM
+    MINIMUM NOT OR PRIO PTP PTP_REL PUBLIC REAL REPEAT RESUME RETURN SEC SIGNAL STEP STRUC SWITCH THEN TO TRIGGER
+    TRUE UNTIL WAIT WHEN WHILE""".split()
+)
+_IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def check_program_name(name: str, language: str, *, what: str = "program name") -> str:
+    """``name`` if it can name a ``language`` program, else an :class:`InputError` saying why.
+
+    A letter, then letters, digits or underscores (ASCII); at most :data:`NAME_LIMITS` characters;
+    in KRL not a keyword (``END``, ``LOOP``, ...). ``what`` names the source in the message.
+    """
+    if language not in LANGUAGES:
+        raise InputError(f"unknown language {language!r}; choose one of {', '.join(LANGUAGES)}")
+    if not isinstance(name, str) or not _IDENTIFIER.fullmatch(name):
+        raise InputError(
+            f"{what} {_short(name)} is not a valid {language.upper()} name: it must start with a letter and hold only "
+            "letters, digits and underscores"
+        )
+    limit = NAME_LIMITS[language]
+    if limit is not None and len(name) > limit:
+        raise InputError(
+            f"{what} {_short(name)} has {len(name)} characters; {language.upper()} allows at most {limit}"
+        )
+    if language == "krl" and name.upper() in _KRL_KEYWORDS:
+        raise InputError(f"{what} {name!r} is a KRL keyword; choose another name")
+    return name
+
+
+def program_name(language: str, path, name: str | None = None) -> str:
+    """The name of a ``language`` program written to ``path``, checked by :func:`check_program_name`.
+
+    KRL: the file's stem (the controller expects ``DEF name`` in ``name.src``); a ``name`` given must
+    equal it (KRL ignores case; the file's spelling is written). RAPID, URScript: ``name``, else
+    :data:`DEFAULT_NAME`.
+    """
+    from pathlib import Path
+
+    if language == "krl":
+        stem = Path(path).stem
+        if name is not None:
+            check_program_name(name, language, what="--name")
+        if name is not None and name.upper() != stem.upper():
+            raise InputError(
+                f"--name {_short(name)} differs from the file name {Path(path).name!r}: a KRL program's DEF name must "
+                f"equal its file name; give --out {name}.src, or leave out --name"
+            )
+        return check_program_name(stem, language, what=f"KRL program name (the file name of {Path(path).name!r})")
+    return check_program_name(DEFAULT_NAME if name is None else name, language)
+
+
+def _short(text) -> str:
+    """``repr`` of ``text``, cut to 40 characters."""
+    text = repr(text)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _fixed(value: float, decimals: int) -> str:
+    """``value`` with ``decimals`` decimals, never ``-0.000``: a value that rounds to zero is written ``0.000``."""
+    text = f"{value:.{decimals}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
 def controller_readings(readings, robot: RobotModel, controller: RobotModel | None = None) -> np.ndarray:
@@ -79,7 +158,8 @@ def write_program(
     dwell_s : float
         Dwell at every point [s], >= 0.
     name : str
-        Program / procedure name (letters, digits, underscore).
+        Program name (KRL ``DEF``), RAPID module or URScript function: :func:`check_program_name`. A
+        KRL program must be saved as ``name.src`` (:func:`program_name` derives it from the file).
     speed_percent : float
         Joint speed as a percentage of the maximum (KRL ``$VEL_AXIS``, URScript ``v`` of 3.14 rad/s,
         RAPID speed data ``v`` of 1000 mm/s ... as a rough equivalent).
@@ -93,9 +173,11 @@ def write_program(
         raise InputError(f"unknown language {language!r}; choose one of {', '.join(LANGUAGES)}")
     if not np.isfinite(dwell_s) or dwell_s < 0:
         raise InputError(f"--dwell must be a non-negative number of seconds; got {dwell_s}")
-    if not name.replace("_", "a").isalnum() or not name[0].isalpha():
-        raise InputError(f"program name must start with a letter and hold letters, digits, underscores; got {name!r}")
+    dwell_s = float(dwell_s) + 0.0  # -0.0 -> 0.0
+    check_program_name(name, language)
     readings = np.asarray(readings, dtype=float)
+    if readings.ndim != 2 or not np.all(np.isfinite(readings)):
+        raise InputError(f"`readings` must be finite, shape (n_points, n_joints); got shape {readings.shape}")
     n_joints = readings.shape[1]
     if language in ("rapid", "urscript") and n_joints != 6:
         raise InputError(f"{language} programs need a 6-axis robot; this robot has {n_joints} joints")
@@ -129,16 +211,16 @@ def write_program(
             lines.append(f"{indent}{comment} {labels[index]}")
         degrees = np.rad2deg(readings[index])
         if language == "krl":
-            axes = ", ".join(f"A{j + 1} {value:.6f}" for j, value in enumerate(degrees))
+            axes = ", ".join(f"A{j + 1} {_fixed(value, 6)}" for j, value in enumerate(degrees))
             lines += [f"{indent}PTP {{{axes}}}", f"{indent}WAIT SEC {dwell_s:g}"]
         elif language == "rapid":
-            axes = ",".join(f"{value:.6f}" for value in degrees)
+            axes = ",".join(_fixed(value, 6) for value in degrees)
             lines += [
                 f"{indent}MoveAbsJ [[{axes}],[9E9,9E9,9E9,9E9,9E9,9E9]]\\NoEOffs, v100, fine, tool0;",
                 f"{indent}WaitTime {dwell_s:g};",
             ]
         else:
-            axes = ", ".join(f"{value:.9f}" for value in readings[index])
+            axes = ", ".join(_fixed(value, 9) for value in readings[index])
             lines += [
                 f"{indent}movej([{axes}], a=1.0, v={3.14 * speed_percent / 100.0:.3f})",
                 f"{indent}sleep({dwell_s:g})",

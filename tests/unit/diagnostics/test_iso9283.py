@@ -340,3 +340,65 @@ def test_simulated_study_on_kr5_demo_refined_beats_nominal(kr5_models):
     # RP does not depend on the model (same points, same base frame)
     np.testing.assert_allclose(study.results["refined"].rp, study.results["nominal"].rp, rtol=0, atol=1e-12)
     assert not study.results["nominal"].has_orientation  # kr5-demo declares one flange target
+
+
+# --- cycle structure (issue 24: non-ISO cycles gave RP of 100-1000 mm without a word) -------------------
+
+
+def _iso_capture(order, *, n_cycles=3):
+    """A capture of the kr5-demo nominal robot at the rows ``order`` of 5 test poses x ``n_cycles`` cycles
+    (cycle-major: index ``cycle * 5 + pose``); 20 extra distinct poses at indices 15.. for unrepeated ones."""
+    robot = SCENARIO.robot
+    nominal = ParameterSet.nominal(robot)
+    start = np.radians([0.0, 90.0, -90.0, 0.0, 45.0, 0.0])
+    poses = start + np.radians(np.arange(25)[:, None] * np.array([2.0, 1.0, -1.0, 0.5, 1.5, 3.0]))
+    readings = np.vstack([np.tile(poses[:5], (n_cycles, 1)), poses[5:]])[order]
+    frames = forward_kinematics(nominal.values, robot.model_joint_variables(readings))
+    points = apply_transform(SCENARIO.tracker_from_base, frames[:, :3, 3])
+    n = readings.shape[0]
+    capture = Capture(circle=np.zeros(n, int), direction=np.ones(n, int), readings=readings, points=points)
+    return capture, {"nominal": IsoModel(parameters=nominal, tracker_from_base=SCENARIO.tracker_from_base)}
+
+
+def test_iso_cycles_in_order_are_accepted():
+    capture, models = _iso_capture(np.arange(15))
+    r = iso_from_capture(capture, models, point=[0.0, 0.0, 0.0])["nominal"]
+    assert r.n_cycles == 3
+    np.testing.assert_allclose([r.ap.max(), r.rp.max()], 0.0, rtol=0, atol=1e-9)  # exact robot, exact readings
+
+
+@pytest.mark.parametrize(
+    ("order", "message"),
+    [
+        # pose-major: P1 P1 P1 P2 P2 P2 ...
+        (np.arange(15).reshape(3, 5).T.reshape(-1), r"pose-major order \(data rows 1 and 2 visit the same pose\)"),
+        # 15 unrepeated poses
+        (np.r_[0:5, 15:25], r"15 pose visits hold 15 distinct poses \(0 repeated\); expected 3 cycles of the same 5"),
+        # P1 and P2 swapped in cycle 2 (rows 6, 7)
+        (np.r_[0:5, 6, 5, 7:15], r"cycle 2 \(data row 6\) visits P2 where P1 belongs \(its order: P2, P1, P3, P4, P5\)"),
+        # ... and in cycle 1: the other cycles' order is P1..P5
+        (np.r_[1, 0, 2:15], r"cycle 1 \(data row 1\) visits P2 where P1 belongs"),
+        # three distinct poses only
+        (np.r_[0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2, 0, 1, 2], r"hold only 3 distinct poses; expected 5 test poses"),
+    ],
+    ids=["pose-major", "unrepeated", "swapped-in-cycle-2", "swapped-in-cycle-1", "three-poses"],
+)
+def test_capture_that_is_not_iso_cycles_is_refused(order, message):
+    capture, models = _iso_capture(order)
+    with pytest.raises(InputError, match=r"not ISO 9283 cycles: .*" + message):
+        iso_from_capture(capture, models, point=[0.0, 0.0, 0.0])
+
+
+def test_cycle_structure_of_a_three_target_capture_names_the_data_row():
+    study = simulate_iso_study(
+        SCENARIO.robot, {"nominal": ParameterSet.nominal(SCENARIO.robot)}, cycles=3, seed=1, targets_mm=THREE_TARGETS,
+        tracker_from_base=SCENARIO.tracker_from_base,
+    )  # fmt: skip
+    capture = study.capture
+    # swap the visits P1 and P2 of cycle 3 (3 rows per visit: rows 31-33 and 34-36)
+    order = np.r_[0:30, 33:36, 30:33, 36:45]
+    swapped = capture.select(order)
+    with pytest.raises(InputError, match=r"cycle 3 \(data row 31\) visits P2 where P1 belongs"):
+        iso_from_capture(swapped, {"nominal": IsoModel(parameters=ParameterSet.nominal(SCENARIO.robot),
+                                                       tracker_from_base=SCENARIO.tracker_from_base)},
+                         targets=THREE_TARGETS)  # fmt: skip

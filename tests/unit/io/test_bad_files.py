@@ -137,3 +137,30 @@ def test_cli_identify_gives_one_line_exit_2(tmp_path, capture):
     assert result.exit_code == 2, result.output
     assert "line 2 is 200,000 characters long" in result.output
     assert len(result.output.strip().splitlines()) <= 3  # one message (Rich may wrap long paths)
+
+
+def test_pose_csv_refuses_readings_no_joint_has(tmp_path):
+    # issue 24: q = 1e308 deg was predicted without a word; 1e6 deg (2,778 turns) is still read
+    path = tmp_path / "poses.csv"
+    path.write_text("pose,q1,q2\n1,1e6,-1e6\n2,0,1e308\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"poses.csv: line 3 \(pose 2\), column `q2`: 1e308 deg is no joint reading"):
+        read_trajectory(path)
+    path.write_text("pose,q1,q2\n1,1e6,-1e6\n", encoding="utf-8")
+    np.testing.assert_allclose(read_trajectory(path), np.radians([[1e6, -1e6]]), rtol=1e-15)
+
+
+def test_recorded_base_frame_of_a_parameter_json(tmp_path):
+    from robotcal.io.parameters_json import read_tracker_from_base, write_parameters
+    from robotcal.kinematics.model import ParameterSet
+
+    nominal = ParameterSet.nominal(load_robot("kuka-kr5-sixx-r650"))
+    path = tmp_path / "p.json"
+    write_parameters(path, nominal, {"tracker_from_base": None})  # a distances-criterion refinement
+    assert read_tracker_from_base(path) is None
+    frame = np.eye(4)
+    frame[:3, 3] = [1000.0, 2.0, -3.0]
+    write_parameters(path, nominal, {"tracker_from_base": frame.tolist()})
+    np.testing.assert_array_equal(read_tracker_from_base(path), frame)
+    write_parameters(path, nominal, {"tracker_from_base": (2.0 * np.eye(4)).tolist()})
+    with pytest.raises(InputError, match=r"p.json: key `provenance.tracker_from_base` must be a 4x4 rigid transform"):
+        read_tracker_from_base(path)

@@ -262,3 +262,34 @@ def test_coupled_readings_export_the_model_variables_only(tmp_path):
     assert '<joint name="joint_3" type="continuous">' in path.read_text()
     lower, upper = np.sort(robot.reading_sign[0] * robot.limits[0] + robot.reading_offset[0])
     assert f'lower="{float(lower)!r}" upper="{float(upper)!r}"' in path.read_text()
+
+
+def test_every_export_text_is_recognised_as_robotcal_output(tmp_path):
+    # issue 24: the output policy must recognise what export wrote (io.output.is_robotcal_file), so that a
+    # second export replaces it without --force; a user's file of the same kind is not recognised
+    from robotcal.io.output import is_robotcal_file
+
+    robot = load_robot("kuka-kr5-sixx-r650")  # reading signs +1: every format holds it
+    values = robot.nominal.copy()
+    values[0, 0] += 1e-5  # a value repr writes with an exponent
+    parameters = ParameterSet(robot=robot, values=values)
+    texts = {
+        "robot.urdf": parameters_to_urdf(parameters, tool=[0.0, 0.0, 100.0]),
+        "robot.xml": parameters_to_urdf(parameters, joint_variable="model"),
+        "calibration.yaml": parameters_to_ur_yaml(parameters),
+        "dh.csv": table_to_csv(dh_table(parameters)),
+        "mdh.csv": table_to_csv(mdh_table(parameters)),
+        "dh.md": table_to_markdown(dh_table(parameters), title=f"DH table of {robot.name} [mm, deg]"),
+    }
+    for name, text in texts.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+        assert is_robotcal_file(tmp_path / name), name
+    for name, text in {
+        "user.urdf": '<?xml version="1.0"?>\n<robot name="mine"/>\n',
+        "user.yaml": "# my calibration\nkinematics: {}\n",
+        "user.csv": "joint,theta_deg,d_mm,a_mm,alpha_deg,reading_sign,reading_offset_deg\nJ1,0,1,2,3,1,0,note\n",
+        "user.md": "# DH notes\n",
+        "late.urdf": '<?xml version="1.0"?>\n<robot name="x">\n<!-- written by robotcal -->\n',
+    }.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
+        assert not is_robotcal_file(tmp_path / name), name

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from robotcal.api import perturb, simulate_validation
+from robotcal.api import perturb, simulate_poses, tcp_targets
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
 from robotcal.io.builtins import data_path, read_toml
@@ -28,7 +28,6 @@ from robotcal.io.scenario import (
 )
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline import plan_run
-from robotcal.api import tcp_targets
 
 DOCS = Path(__file__).parents[3] / "docs" / "scenario.md"
 TABLES = {"montecarlo": MonteCarloTable, "truth": TruthTable, "validation": ValidationTable, "tcp": TCPTable}
@@ -134,7 +133,7 @@ def test_a_default_changed_in_the_table_reaches_every_consumer(tmp_path, changed
     assert plan.montecarlo.iterations == 777  # pipeline.plan_run
     assert tcp_targets(scenario).workspace_poses == 13 and plan.tcp.workspace_poses == 13  # workflow, run
     assert plan.seeds["workspace"] == 5
-    assert simulate_validation(scenario, rng=3).n_points == 9  # [validation] given without `poses`
+    assert simulate_poses(scenario, rng=3).n_points == 9  # [validation] given without `poses`
     truth = perturb(scenario, rng=3)  # no [truth] table: the table defaults, zero deviations
     np.testing.assert_array_equal(truth.values, ParameterSet.nominal(scenario.robot).values)
 

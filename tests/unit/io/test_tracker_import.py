@@ -289,7 +289,63 @@ def test_explicit_delimiter_and_decimal(tmp_path):
     np.testing.assert_array_equal(read_tracker_export(path, decimal=",").points[2], [7.5, 8.0, 9.0])
     tab = _write(tmp_path, "tab.txt", text.replace(";", "\t"))
     np.testing.assert_array_equal(read_tracker_export(tab, delimiter="tab").points[1], [4.0, 5.0, 6.0])
-    with pytest.raises(InputError, match=r"delimiter must be ',', ';' or tab; got '\|'"):
+    with pytest.raises(InputError, match=r"delimiter must be ',', ';', tab or space; got '\|'"):
         read_tracker_export(tab, delimiter="|")
     with pytest.raises(InputError, match=r"decimal separator must be '.' or ','; got ':'"):
         read_tracker_export(tab, decimal=":")
+
+
+# issue 24: rows are read whole or refused; --columns numbers and space-delimited exports
+
+
+@pytest.mark.parametrize(
+    ("text", "kwargs", "message"),
+    [
+        # a comma-delimited export with decimal commas: each number splits in two, 11 fields against 7
+        (
+            "Point ID,X [mm],Y [mm],Z [mm],U(95) [mm],Time Stamp,Target\n"
+            "P1,1234,5,470,692512790,750,25,0,025,2024-05-01,T1\n",
+            {},
+            r"line 2 has 11 fields; expected 7, as in the header \(line 1\); a comma-delimited file with decimal commas",
+        ),
+        # a row longer than the header is no longer read in part
+        ("Name,X [mm],Y [mm],Z [mm]\nP1,1,2,3\nP2,4,5,6,99\n", {}, r"line 3 has 5 fields; expected 4, as in the header"),
+        # a plain export has exactly name;x;y;z
+        ("P1;1;2;3\nP2;4;5;6;7\n", {"units": "mm"}, r"line 2 has 5 fields; expected 4, as in a plain name;x;y;z export"),
+        # a headerless mapped export: every row as wide as the first
+        ("7,P1,1,2,3\n8,P2,4,5\n", {"columns": "name=2,x=3,y=4,z=5", "units": "mm"}, r"line 2 has 4 fields; expected 5, as on line 1"),
+        # a column number past the last column: was an IndexError
+        ("Name,X,Y,Z\nP1,1,2,3\n", {"columns": "x=99,y=3,z=4,name=1", "units": "mm"}, r"--columns x=99: no column 99; line 1 has 4 fields"),
+        ("P1 1 2 3\n", {"columns": "x=2,y=3,z=7,name=1", "units": "mm"}, r"--columns z=7: no column 7; line 1 has 4 fields"),
+    ],
+)
+def test_rows_of_another_width_and_missing_column_numbers_are_refused(tmp_path, text, kwargs, message):
+    path = _write(tmp_path, "bad.txt", text)
+    with pytest.raises(InputError, match=message) as info:
+        read_tracker_export(path, **kwargs)
+    assert "bad.txt" in str(info.value)
+
+
+def test_a_trailing_delimiter_is_no_extra_field(tmp_path):
+    points = read_tracker_export(_write(tmp_path, "t.txt", "Name;X [mm];Y [mm];Z [mm];\nP1;1;2;3;\nP2;4;5;6\n"))
+    np.testing.assert_array_equal(points.points, [[1, 2, 3], [4, 5, 6]])
+
+
+def test_space_delimited_exports_are_read(tmp_path):
+    # a headerless name x y z export (runs of spaces), a headed one, and a mapped one: was an IndexError
+    plain = read_tracker_export(_write(tmp_path, "p.txt", "P1  1234.5 470.6   750.2\nP2 1250 -487.5 800\n"), units="mm")
+    assert plain.layout == "plain" and plain.names == ("P1", "P2")
+    np.testing.assert_array_equal(plain.points, [[1234.5, 470.6, 750.2], [1250, -487.5, 800]])
+    headed = read_tracker_export(_write(tmp_path, "h.txt", "Name X Y Z\nP1 1 2 3\n"), units="m")
+    np.testing.assert_array_equal(headed.points, [[1000, 2000, 3000]])
+    mapped = read_tracker_export(_write(tmp_path, "m.txt", "P1 1 2 3\n"), columns="x=2,y=3,z=4,name=1", units="mm")
+    np.testing.assert_array_equal(mapped.points, [[1, 2, 3]])
+    decimal_comma = read_tracker_export(_write(tmp_path, "d.txt", "P1 1,5 2 3\n"), units="mm", delimiter="space")
+    np.testing.assert_array_equal(decimal_comma.points, [[1.5, 2, 3]])
+    log = read_joint_log(_write(tmp_path, "j.txt", "name q1 q2\nP1 10 20\n"))
+    np.testing.assert_allclose(np.rad2deg(log.readings), [[10, 20]], rtol=0, atol=1e-13)
+
+
+def test_joint_log_rows_of_another_width_are_refused(tmp_path):
+    with pytest.raises(InputError, match=r"j.csv: line 3 has 5 fields; expected 3, as in the header \(line 1\)"):
+        read_joint_log(_write(tmp_path, "j.csv", "name,q1,q2\nP1,1,2\nP2,1,5,2,5\n"))

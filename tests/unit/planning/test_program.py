@@ -97,3 +97,49 @@ def test_program_with_labels_instead_of_circles(language):
         write_program(None, None, readings, language=language, dwell_s=0.5, labels=["only one"])
     with pytest.raises(InputError, match="one-line"):
         write_program(None, None, readings, language=language, dwell_s=0.5, labels=["a", "b\nDEF x()"])
+
+
+# --- issue 24: KRL names (24 characters, DEF name = file name) and no negative zero -------------------
+
+
+@pytest.mark.parametrize("language", ["krl", "rapid", "urscript"])
+def test_no_negative_zero_in_any_language(language):
+    # KUKA's signs turn the plan's 0 deg readings into -0.0; a tiny negative reading rounds to zero too
+    readings = np.array([[0.0, -0.0, -1e-12, 0.25, -0.0, 0.0]]) * KUKA_SIGNS
+    text = write_program([1], [1], readings, language=language, dwell_s=-0.0)
+    assert not re.search(r"-0\.0+\b", text), text
+    assert not re.search(r"(SEC|WaitTime|sleep\() ?-0", text), text
+    moves, _ = _parse(text, language)
+    tolerance = 0.6e-9 if language == "urscript" else np.deg2rad(0.6e-6)  # the decimals written
+    np.testing.assert_allclose(moves, readings, rtol=0, atol=tolerance)
+    assert not np.any(np.signbit(moves[moves == 0.0]))  # parsed back as +0.0
+
+
+def test_program_names_per_language():
+    from robotcal.planning.program import check_program_name, program_name
+
+    assert program_name("krl", "out/capture_1.src") == "capture_1"  # DEF name = file name
+    assert program_name("krl", "out/Capture_1.src", "CAPTURE_1") == "Capture_1"  # KRL ignores case: the file's spelling
+    assert program_name("rapid", "out/x.mod") == "robotcal_capture"
+    assert program_name("urscript", "out/x.script", "calib") == "calib"
+    assert check_program_name("a" * 24, "krl") == "a" * 24
+    assert check_program_name("a" * 32, "rapid") == "a" * 32
+    assert check_program_name("a" * 200, "urscript") == "a" * 200
+    for name, language, message in [
+        ("a" * 25, "krl", r"has 25 characters; KRL allows at most 24"),
+        ("a" * 33, "rapid", r"has 33 characters; RAPID allows at most 32"),
+        ("9lives", "krl", r"is not a valid KRL name: it must start with a letter"),
+        ("my-prog", "urscript", r"not a valid URSCRIPT name"),
+        ("capture\nDEF x", "krl", r"not a valid KRL name"),
+        ("loop", "krl", r"'loop' is a KRL keyword"),
+    ]:
+        with pytest.raises(InputError, match=message):
+            check_program_name(name, language)
+    with pytest.raises(InputError, match=r"--name 'other' differs from the file name 'capture.src': a KRL program's DEF"):
+        program_name("krl", "capture.src", "other")
+    with pytest.raises(InputError, match=r"--name 'a{36}\.\.\. has 200 characters; KRL allows at most 24"):
+        program_name("krl", "capture.src", "a" * 200)
+    with pytest.raises(InputError, match=r"KRL program name \(the file name of 'calibration_of_the_kr5_robot.src'\)"):
+        program_name("krl", "calibration_of_the_kr5_robot.src")
+    with pytest.raises(InputError, match=r"has 200 characters; KRL allows at most 24"):
+        write_program([1], [1], np.zeros((1, 6)), language="krl", dwell_s=1.0, name="a" * 200)
