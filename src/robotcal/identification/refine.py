@@ -871,371 +871,476 @@ def refine_parameters(
     """
     with single_blas_thread():
         began = time.perf_counter()
-        robot = start.robot
-        n = robot.n_joints
-        if criterion not in CRITERIA:
-            raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
-        if method not in ("auto", "lm", "trf"):
-            raise InputError(f"`method` must be 'auto', 'lm' or 'trf'; got {method!r}")
-        if on_unidentifiable not in ("fix", "raise"):
-            raise InputError(f"`on_unidentifiable` must be 'fix' or 'raise'; got {on_unidentifiable!r}")
-        if estimate_base not in (None, True, False):
-            raise InputError(f"`estimate_base` must be None, True or False; got {estimate_base!r}")
-        if criterion == "points" and estimate_base is False and tracker_from_base is None:
-            raise InputError("`estimate_base=False` holds the base frame: give `tracker_from_base`")
-        if weights not in ("auto", "none"):
-            raise InputError(f"`weights` must be 'auto' or 'none'; got {weights!r}")
-        if capture.n_joints != n:
-            raise InputError(
-                f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints"
-            )
-        minimum = 3 if criterion == "points" else 4
-        if capture.n_points < minimum:
-            raise InputError(f"{capture.source}: {capture.n_points} points; refinement needs at least {minimum}")
-        q = robot.model_joint_variables(capture.readings)
-        measured = np.asarray(capture.points, dtype=float)
-        targets: tuple[Target, ...] = ()
-        target_index = None
-        unknown: tuple[int, ...] = ()
-        if isinstance(reflector, ReflectorMount):
-            turning = capture_turning_joints(capture, reflector)
-            pair_key = capture_target_index(capture, reflector)
-        else:
-            given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
-            targets, target_index = resolve_targets(capture, given)
-            turning = np.maximum(capture.circle - 1, 0)
-            for t, target in enumerate(targets):
-                if target.frame == "joint":
-                    if target.positions.shape[0] != n:
-                        raise InputError(
-                            f"target {target.name!r}: {target.positions.shape[0]} reflectors for {n} joints"
-                        )
-                    rows = np.flatnonzero((target_index == t) & (capture.circle == 0))
-                    if rows.size:
-                        raise InputError(
-                            f"{capture.source}: point {rows[0] + 1} is a free pose (circle = 0) on the per-joint target "
-                            f"{target.name!r}, which is defined only on circles"
-                        )
-            unknown = tuple(t for t, target in enumerate(targets) if not target.known)
-            is_joint = np.array([target.frame == "joint" for target in targets])
-            pair_key = target_index * (n + 1) + np.where(is_joint[target_index], turning + 1, 0)
-            reflector = targets[0].mount  # (unused with targets; kept for the single-target code paths)
-        offset_start = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
-        offset_names = tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz")
-        sigmas = point_sigmas(capture) if weights == "auto" else None
-        point_weight = pair_weight = None
-        if sigmas is not None:
-            reference = float(np.sqrt(np.mean(sigmas**2)))
-            point_weight = reference / sigmas  # relative weights: sigma keeps its meaning [mm] (module notes)
-        names = robot.parameter_names
-        use_base = criterion == "points" and (tracker_from_base is None if estimate_base is None else estimate_base)
-        explicit_mask = _check_free(free, robot)
-        explicit = explicit_mask is not None
-
-        base_start = None
-        if criterion == "points":
-            if tracker_from_base is None:
-                nominal_points = target_positions(start.values, q, turning, reflector)
-                base_start = register_points(nominal_points, measured).transform
-            else:
-                base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
-        pair_i = pair_j = distances = pair_keep = None
-        if criterion == "distances":
-            pair_i, pair_j, pair_keep = measurement_pairs(q, pair_key)
-            distances = pdist(measured)[pair_keep]
-            if sigmas is not None:
-                pair_weight = np.sqrt(2.0) * reference / np.hypot(sigmas[pair_i], sigmas[pair_j])
-            if np.any(distances <= 0.0):
-                k = int(np.flatnonzero(distances <= 0.0)[0])
-                raise InputError(
-                    f"{capture.source}: points {pair_i[k] + 1} and {pair_j[k] + 1} coincide at different poses or targets; "
-                    "the distances criterion needs distinct points"
-                )
-
-        spread = q.max(axis=0) - q.min(axis=0)
-        still = tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD))
-        size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
-        angle_scale = 1.0 / max(size, 1.0)
-        kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
-        all_scale = np.concatenate([np.tile(kind_scale, n), [1.0, 1.0, 1.0, angle_scale, angle_scale, angle_scale]])
-
-        # identifiability at the start: every candidate parameter and base correction at once
-        candidates = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
-        probe = _Problem(
-            start=start.values.copy(),
-            free=np.ones((n, 5), dtype=bool),
-            base_start=base_start,
-            base_free=np.full(6, use_base),
-            q=q,
-            turning=turning,
-            reflector=reflector,
-            measured=measured,
-            criterion=criterion,
-            pair_i=pair_i,
-            pair_j=pair_j,
-            pair_keep=pair_keep,
-            measured_distances=distances,
-            targets=targets,
-            target_index=target_index,
-            unknown=unknown,
-            offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(offset_start.shape[0]),
-            offset_free=np.ones(offset_start.size, dtype=bool),
-            point_weight=point_weight,
-            pair_weight=pair_weight,
-        )
-        selection = _select_free(probe, candidates, all_scale, kind_scale, rank_tolerance)
-        probe = replace(probe, offset_start=offset_start)
-        strict = explicit or on_unidentifiable == "raise"
-
-        def describe(chosen: _Selection):
-            """Names of the gauge, held and confounded quantities of a selection, and joint n's held for the flange."""
-            gauge = tuple(name for name, flag in zip(names, chosen.gauge.ravel(), strict=True) if flag)
-            held_mask = chosen.held & ~chosen.gauge
-            held = (
-                tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
-                + tuple(name for name, flag in zip(offset_names, chosen.offset_held, strict=True) if flag)
-                + tuple(BASE_NAMES[k] for k in np.flatnonzero(chosen.base_held))
-            )
-            confounded = tuple(
-                name for name, flag in zip(names + offset_names + BASE_NAMES, chosen.confounded, strict=True) if flag
-            )
-            flange_frame = _flange_frame_note(targets, unknown, held_mask, n)
-            flange_held = () if explicit or not flange_frame else tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
-            return gauge, held, confounded, flange_frame, flange_held
-
-        gauge, held, confounded, flange_frame, flange_held = describe(selection)
-        if strict and set(gauge + held) - set(flange_held):  # refused before any fit
-            _report_held(capture, criterion, use_base, gauge, held, still, True, flange_frame, flange_held, "the start")
+        setup = _set_up(
+            capture, start, reflector, criterion=criterion, tracker_from_base=tracker_from_base,
+            estimate_base=estimate_base, free=free, on_unidentifiable=on_unidentifiable, method=method,
+            max_nfev=max_nfev, tolerance=tolerance, rank_tolerance=rank_tolerance, weights=weights,
+        )  # fmt: skip
+        selection = _select_free(setup.probe, setup.candidates, setup.all_scale, setup.kind_scale, rank_tolerance)
+        verdict = _describe(setup, selection)
+        if setup.strict and set(verdict.gauge + verdict.held) - set(verdict.flange_held):  # refused before any fit
+            _report_held(setup, verdict, strict=True, where="the start")
         # (a flange frame held for unknown offsets only warns, after the fit)
-
-        # fit, then decide the free set again at the solution; refit while it changes (module notes)
-        fit_values, fit_offsets, fit_base = start.values.copy(), offset_start, np.zeros(6)
-        seen = [_selection_key(selection)]
-        nfev = njev = 0
-        history: list[float] = []
-        start_cost = None
-        unsettled = ""
-        kept = None  # the last fit accepted: what a failed refit falls back to
-        for fit_round in range(_MAX_REFITS + 1):
-            free_mask, base_free, offset_free = selection.free, selection.base_free, selection.offset_free
-            problem = replace(
-                probe,
-                start=fit_values,
-                offset_start=fit_offsets,
-                base_offset=fit_base,
-                free=free_mask,
-                base_free=base_free,
-                offset_free=offset_free,
-            )
-            x0 = problem.x0()
-            if x0.size == 0:
-                raise IdentifiabilityError(
-                    f"{capture.source}: no parameter can be refined from this capture", parameters=gauge + held
-                )
-            x_scale = np.concatenate(
-                [np.tile(kind_scale, (n, 1))[free_mask], np.ones(int(offset_free.sum())), all_scale[5 * n :][base_free]]
-            )
-
-            def jacobian(x, problem=problem):
-                residuals, jac = problem.evaluate(x)
-                history.append(0.5 * float(residuals @ residuals))
-                return jac
-
-            m = capture.n_points * 3 if criterion == "points" else pair_i.size
-            chosen_method = ("lm" if m >= x0.size else "trf") if method == "auto" else method
-            if start_cost is None:
-                start_residuals = problem.residuals(x0)
-                start_cost = 0.5 * float(start_residuals @ start_residuals)
-            evaluations = len(history)
-            solution = least_squares(
-                problem.residuals,
-                x0,
-                jac=jacobian,
-                method=chosen_method,
-                x_scale=x_scale,
-                ftol=tolerance,
-                xtol=tolerance,
-                gtol=tolerance,
-                max_nfev=max_nfev,
-            )
-            nfev += int(solution.nfev)
-            njev += int(solution.njev) if solution.njev is not None else len(history) - evaluations
-            final_cost = float(solution.cost)
-            if kept is not None and (
-                solution.status <= 0 or not np.isfinite(final_cost) or final_cost > kept["cost"] * (1 + 1e-6) + 1e-12
-            ):
-                # a refit that fails or ends worse than the fit it started from: that fit stands (its free set is
-                # the one it was fitted with; the rank test at its solution disagreed, which the warning says)
-                outcome = "did not converge" if solution.status <= 0 else "ended at a higher cost"
-                unsettled = (
-                    f"the refit with the free set decided at the solution of fit {fit_round} {outcome} "
-                    f"({final_cost:.6g} mm^2 against {kept['cost']:.6g} mm^2); fit {fit_round} is returned"
-                )
-                problem, x_final, success, message, evaluated, x_scale = (
-                    kept[key] for key in ("problem", "x", "success", "message", "evaluated", "x_scale")
-                )
-                x0 = problem.x0()
-                values, offsets, x_base = problem.unpack_all(x_final)
-                free_mask, base_free, offset_free = (
-                    kept["selection"].free,
-                    kept["selection"].base_free,
-                    kept["selection"].offset_free,
-                )
-                gauge, held, confounded, flange_frame, flange_held = describe(kept["selection"])
-                history.append(kept["cost"])
-                break
-            x_final = np.asarray(solution.x, dtype=float)
-            success = bool(solution.status > 0)
-            message = str(solution.message)
-            if not np.isfinite(final_cost) or final_cost > start_cost:
-                # never hand back something worse than what came in (module notes); the start in this round's
-                # unknowns: held quantities are at their start values in every round
-                message = (
-                    f"the solver ended at a higher cost ({final_cost:.6g} mm^2) than the start ({start_cost:.6g} mm^2); "
-                    f"the start is returned. Solver: {message}"
-                )
-                x_final, success = problem.pack(start.values, offset_start, np.zeros(6)), False
-                start_residuals = problem.residuals(x_final)
-                final_cost = 0.5 * float(start_residuals @ start_residuals)
-            if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
-                history.append(final_cost)
-            values, offsets, x_base = problem.unpack_all(x_final)
-            # the rank test again, at the solution (the offsets as estimated): its Jacobian serves the statistics too
-            at_solution = replace(probe, start=values, offset_start=offsets, base_offset=x_base)
-            evaluated = at_solution.evaluate(at_solution.x0())
-            if not success:
-                break  # the first fit did not converge (or the start came back): the decision at the start stands
-            kept = {
-                "problem": problem,
-                "x": x_final,
-                "success": success,
-                "message": message,
-                "evaluated": evaluated,
-                "selection": selection,
-                "cost": final_cost,
-                "x_scale": x_scale,
-            }
-            decided = _select_free(
-                at_solution, candidates, all_scale, kind_scale, rank_tolerance, evaluated[1], preferred=selection
-            )
-            key = _selection_key(decided)
-            if key == seen[-1]:  # confirmed: report what the solution's test says (gauge, held, confounded)
-                gauge, held, confounded, flange_frame, flange_held = describe(decided)
-                break
-            if strict:  # an explicit free set (or "raise") is not re-chosen: held at the solution is an error
-                now_gauge, now_held, _, now_flange, now_flange_held = describe(decided)
-                if set(now_gauge + now_held) - set(now_flange_held):
-                    _report_held(
-                        capture, criterion, use_base, now_gauge, now_held, still, True, now_flange, now_flange_held
-                    )
-            if key in seen or fit_round == _MAX_REFITS:
-                unsettled = (
-                    f"the free set did not settle: the rank test at the solution of fit {fit_round + 1} "
-                    f"{'returns to an earlier free set' if key in seen else 'changes it again'}; the last fit is returned"
-                )
-                break
-            seen.append(key)
-            selection = decided
-            gauge, held, confounded, flange_frame, flange_held = describe(selection)
-            # refit from the solution: what stays free keeps its value, what is now held goes back to its start value
-            fit_values = np.where(selection.free, values, start.values)
-            fit_offsets = np.where(selection.offset_free, offsets.ravel(), offset_start.ravel()).reshape(-1, 3)
-            fit_base = np.where(selection.base_free, x_base, 0.0)
-        refits = len(seen) - 1
-        if gauge or held or unsettled:
+        fit = _solve(setup, selection)
+        if fit.verdict.gauge or fit.verdict.held or fit.unsettled:
             _report_held(
-                capture,
-                criterion,
-                use_base,
-                gauge,
-                held,
-                still,
-                strict,
-                flange_frame,
-                flange_held,
-                "the solution" if success else "the start",
-                refits,
-                unsettled,
+                setup,
+                fit.verdict,
+                strict=setup.strict,
+                where="the solution" if fit.success else "the start",
+                refits=fit.refits,
+                unsettled=fit.unsettled,
             )
-        if unsettled:
-            message = f"{unsettled}. Solver: {message}"
-        free_names = (
-            tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag)
-            + tuple(name for name, flag in zip(offset_names, offset_free, strict=True) if flag)
-            + tuple(BASE_NAMES[k] for k in np.flatnonzero(base_free))
-        )
-        cost_history = np.asarray(history)
+        return _statistics(setup, fit, began)
 
-        # statistics at the solution (the per-point figures unweighted, in mm), from the rank test's Jacobian
-        residuals, jac_all = evaluated
-        columns = np.r_[free_mask.ravel(), offset_free, base_free[: 6 if use_base else 0]]
-        jac = jac_all[:, columns]
-        raw = problem.raw_residuals(x_final)
-        if criterion == "points":
-            per = np.linalg.norm(raw.reshape(-1, 3), axis=1)
-        else:
-            per = np.abs(raw)
-        scaled = jac * x_scale
-        cond = conditioning(scaled)
-        covariance, sigma, dof = _covariance(jac, x_scale, residuals, problem.noise_map(x_final))
-        standard = np.full((n, 5), np.nan)
-        offset_sd = np.full(offset_start.shape, np.nan)
-        if covariance is None:
-            message = (
-                f"no degrees of freedom left to estimate the noise ({m} residuals, {x0.size} free unknowns, "
-                f"{dof:.3g} effective degrees of freedom): sigma is NaN and there is no covariance; "
-                f"measure more points. Solver: {message}"
-            )
-        else:
-            diagonal = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-            standard[free_mask] = diagonal[: problem.n_kinematic]
-            flat = offset_sd.ravel()
-            flat[offset_free] = diagonal[problem.n_kinematic : problem.n_kinematic + problem.n_offsets]
-            offset_sd = flat.reshape(offset_start.shape)
-        refined = ParameterSet(robot=robot, values=values, identified=start.identified | free_mask)
-        refined_targets = list(targets)
-        target_sd = np.full((len(targets), 3), np.nan)
-        for slot, t in enumerate(unknown):
-            refined_targets[t] = targets[t].with_position(offsets[slot])
-            target_sd[t] = offset_sd[slot]
-        return RefinementResult(
-            parameters=refined,
-            tracker_from_base=None if base_start is None else _frozen(problem.tracker(x_base)),
-            criterion=criterion,
-            method=chosen_method,
-            success=success,
-            status=int(solution.status),
-            message=message,
-            nfev=nfev,
-            njev=njev,
-            free=_frozen(free_mask, bool),
-            base_free=_frozen(base_free, bool),
-            gauge=gauge,
-            held=held,
-            confounded=confounded,
-            still_joints=still,
-            free_names=free_names,
-            x_scale=_frozen(x_scale),
-            start_cost=start_cost,
-            cost_history=_frozen(cost_history),
-            rms_history=_frozen(np.sqrt(2.0 * cost_history / m)),
-            n_residuals=int(m),
-            residual_rms=float(np.sqrt(np.mean(per**2))),
-            residual_mean=float(per.mean()),
-            residual_max=float(per.max()),
-            singular_values=cond.singular_values,
-            condition_number=cond.condition_number,
-            sigma=sigma,
-            covariance=None if covariance is None else _frozen(covariance),
-            correlation=None if covariance is None else _frozen(correlation_from_covariance(covariance)),
-            standard_uncertainty=_frozen(standard),
-            wall_time_s=time.perf_counter() - began,
-            targets=tuple(refined_targets),
-            target_uncertainty=_frozen(target_sd) if targets else None,
-            weighted=sigmas is not None,
-            residual_rms_coordinate=float(np.sqrt(np.mean(raw**2))),
-            refits=refits,
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Setup:
+    """What a refinement fixes before its first fit: the problem with every candidate free (``probe``, the
+    unknown offsets at their start), the candidates, the scales, the names and the options."""
+
+    capture: Capture
+    start: ParameterSet
+    probe: _Problem
+    candidates: np.ndarray  # (n, 5) bool
+    all_scale: np.ndarray  # (5 n + 6,): parameters, then base corrections
+    kind_scale: np.ndarray  # (5,)
+    offset_start: np.ndarray  # (k, 3)
+    offset_names: tuple[str, ...]
+    use_base: bool
+    explicit: bool
+    strict: bool
+    still: tuple[str, ...]
+    weighted: bool
+    n_residuals: int
+    method: str
+    max_nfev: int | None
+    tolerance: float
+    rank_tolerance: float
+
+    @property
+    def criterion(self) -> str:
+        return self.probe.criterion
+
+
+def _set_up(
+    capture, start, reflector, *, criterion, tracker_from_base, estimate_base, free, on_unidentifiable, method,
+    max_nfev, tolerance, rank_tolerance, weights,
+) -> _Setup:  # fmt: skip
+    """Check the options and the capture, resolve the targets, weights, base frame and pairs, and build the
+    problem on which the free set is chosen."""
+    robot = start.robot
+    n = robot.n_joints
+    if criterion not in CRITERIA:
+        raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
+    if method not in ("auto", "lm", "trf"):
+        raise InputError(f"`method` must be 'auto', 'lm' or 'trf'; got {method!r}")
+    if on_unidentifiable not in ("fix", "raise"):
+        raise InputError(f"`on_unidentifiable` must be 'fix' or 'raise'; got {on_unidentifiable!r}")
+    if estimate_base not in (None, True, False):
+        raise InputError(f"`estimate_base` must be None, True or False; got {estimate_base!r}")
+    if criterion == "points" and estimate_base is False and tracker_from_base is None:
+        raise InputError("`estimate_base=False` holds the base frame: give `tracker_from_base`")
+    if weights not in ("auto", "none"):
+        raise InputError(f"`weights` must be 'auto' or 'none'; got {weights!r}")
+    if capture.n_joints != n:
+        raise InputError(
+            f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {n} joints"
         )
+    minimum = 3 if criterion == "points" else 4
+    if capture.n_points < minimum:
+        raise InputError(f"{capture.source}: {capture.n_points} points; refinement needs at least {minimum}")
+    q = robot.model_joint_variables(capture.readings)
+    measured = np.asarray(capture.points, dtype=float)
+    targets: tuple[Target, ...] = ()
+    target_index = None
+    unknown: tuple[int, ...] = ()
+    if isinstance(reflector, ReflectorMount):
+        turning = capture_turning_joints(capture, reflector)
+        pair_key = capture_target_index(capture, reflector)
+    else:
+        given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
+        targets, target_index = resolve_targets(capture, given)
+        turning = np.maximum(capture.circle - 1, 0)
+        for t, target in enumerate(targets):
+            if target.frame == "joint":
+                if target.positions.shape[0] != n:
+                    raise InputError(f"target {target.name!r}: {target.positions.shape[0]} reflectors for {n} joints")
+                rows = np.flatnonzero((target_index == t) & (capture.circle == 0))
+                if rows.size:
+                    raise InputError(
+                        f"{capture.source}: point {rows[0] + 1} is a free pose (circle = 0) on the per-joint target "
+                        f"{target.name!r}, which is defined only on circles"
+                    )
+        unknown = tuple(t for t, target in enumerate(targets) if not target.known)
+        is_joint = np.array([target.frame == "joint" for target in targets])
+        pair_key = target_index * (n + 1) + np.where(is_joint[target_index], turning + 1, 0)
+        reflector = targets[0].mount  # (unused with targets; kept for the single-target code paths)
+    offset_start = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
+    offset_names = tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz")
+    sigmas = point_sigmas(capture) if weights == "auto" else None
+    point_weight = pair_weight = None
+    if sigmas is not None:
+        reference = float(np.sqrt(np.mean(sigmas**2)))
+        point_weight = reference / sigmas  # relative weights: sigma keeps its meaning [mm] (module notes)
+    use_base = criterion == "points" and (tracker_from_base is None if estimate_base is None else estimate_base)
+    explicit_mask = _check_free(free, robot)
+
+    base_start = None
+    if criterion == "points":
+        if tracker_from_base is None:
+            nominal_points = target_positions(start.values, q, turning, reflector)
+            base_start = register_points(nominal_points, measured).transform
+        else:
+            base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    pair_i = pair_j = distances = pair_keep = None
+    if criterion == "distances":
+        pair_i, pair_j, pair_keep = measurement_pairs(q, pair_key)
+        distances = pdist(measured)[pair_keep]
+        if sigmas is not None:
+            pair_weight = np.sqrt(2.0) * reference / np.hypot(sigmas[pair_i], sigmas[pair_j])
+        if np.any(distances <= 0.0):
+            k = int(np.flatnonzero(distances <= 0.0)[0])
+            raise InputError(
+                f"{capture.source}: points {pair_i[k] + 1} and {pair_j[k] + 1} coincide at different poses or targets; "
+                "the distances criterion needs distinct points"
+            )
+
+    spread = q.max(axis=0) - q.min(axis=0)
+    size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
+    angle_scale = 1.0 / max(size, 1.0)
+    kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
+    probe = _Problem(
+        start=start.values.copy(),
+        free=np.ones((n, 5), dtype=bool),
+        base_start=base_start,
+        base_free=np.full(6, use_base),
+        q=q,
+        turning=turning,
+        reflector=reflector,
+        measured=measured,
+        criterion=criterion,
+        pair_i=pair_i,
+        pair_j=pair_j,
+        pair_keep=pair_keep,
+        measured_distances=distances,
+        targets=targets,
+        target_index=target_index,
+        unknown=unknown,
+        offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(offset_start.shape[0]),
+        offset_free=np.ones(offset_start.size, dtype=bool),
+        point_weight=point_weight,
+        pair_weight=pair_weight,
+    )
+    return _Setup(
+        capture=capture,
+        start=start,
+        probe=probe,
+        candidates=~robot.structurally_fixed if explicit_mask is None else explicit_mask,
+        all_scale=np.concatenate([np.tile(kind_scale, n), [1.0, 1.0, 1.0, angle_scale, angle_scale, angle_scale]]),
+        kind_scale=kind_scale,
+        offset_start=offset_start,
+        offset_names=offset_names,
+        use_base=use_base,
+        explicit=explicit_mask is not None,
+        strict=explicit_mask is not None or on_unidentifiable == "raise",
+        still=tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD)),
+        weighted=sigmas is not None,
+        n_residuals=capture.n_points * 3 if criterion == "points" else int(pair_i.size),
+        method=method,
+        max_nfev=max_nfev,
+        tolerance=tolerance,
+        rank_tolerance=rank_tolerance,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class _Verdict:
+    """The gauge, held and confounded quantities of a selection (names), and joint n's held for the flange."""
+
+    gauge: tuple[str, ...]
+    held: tuple[str, ...]
+    confounded: tuple[str, ...]
+    flange_frame: str
+    flange_held: tuple[str, ...]
+
+
+def _describe(setup: _Setup, chosen: _Selection) -> _Verdict:
+    robot = setup.start.robot
+    names, n = robot.parameter_names, robot.n_joints
+    gauge = tuple(name for name, flag in zip(names, chosen.gauge.ravel(), strict=True) if flag)
+    held_mask = chosen.held & ~chosen.gauge
+    held = (
+        tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
+        + tuple(name for name, flag in zip(setup.offset_names, chosen.offset_held, strict=True) if flag)
+        + tuple(BASE_NAMES[k] for k in np.flatnonzero(chosen.base_held))
+    )
+    confounded = tuple(
+        name for name, flag in zip(names + setup.offset_names + BASE_NAMES, chosen.confounded, strict=True) if flag
+    )
+    flange_frame = _flange_frame_note(setup.probe.targets, setup.probe.unknown, held_mask, n)
+    flange_held = () if setup.explicit or not flange_frame else tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
+    return _Verdict(gauge, held, confounded, flange_frame, flange_held)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Fit:
+    """The fit a refinement returns: its problem and solution, the Jacobian there (which the statistics use),
+    the solver's record over every round, and the free-set decision."""
+
+    problem: _Problem
+    x: np.ndarray
+    success: bool
+    status: int
+    message: str
+    method: str
+    evaluated: tuple[np.ndarray, np.ndarray]
+    selection: _Selection
+    verdict: _Verdict
+    x_scale: np.ndarray
+    nfev: int
+    njev: int
+    start_cost: float
+    history: np.ndarray
+    refits: int
+    unsettled: str
+
+
+def _solve(setup: _Setup, selection: _Selection) -> _Fit:
+    """Fit, then decide the free set again at the solution; refit from the solution while it changes (module
+    notes). A refit that fails or ends worse than the fit it started from leaves that fit standing."""
+    start, capture = setup.start, setup.capture
+    n = start.robot.n_joints
+    probe = replace(setup.probe, offset_start=setup.offset_start)
+    verdict = _describe(setup, selection)
+    fit_values, fit_offsets, fit_base = start.values.copy(), setup.offset_start, np.zeros(6)
+    seen = [_selection_key(selection)]
+    nfev = njev = 0
+    history: list[float] = []
+    start_cost = None
+    unsettled = ""
+    kept = None  # the last fit accepted: what a failed refit falls back to
+    for fit_round in range(_MAX_REFITS + 1):
+        problem = replace(
+            probe,
+            start=fit_values,
+            offset_start=fit_offsets,
+            base_offset=fit_base,
+            free=selection.free,
+            base_free=selection.base_free,
+            offset_free=selection.offset_free,
+        )
+        x0 = problem.x0()
+        if x0.size == 0:
+            raise IdentifiabilityError(
+                f"{capture.source}: no parameter can be refined from this capture",
+                parameters=verdict.gauge + verdict.held,
+            )
+        x_scale = np.concatenate(
+            [
+                np.tile(setup.kind_scale, (n, 1))[selection.free],
+                np.ones(int(selection.offset_free.sum())),
+                setup.all_scale[5 * n :][selection.base_free],
+            ]
+        )
+
+        def jacobian(x, problem=problem):
+            residuals, jac = problem.evaluate(x)
+            history.append(0.5 * float(residuals @ residuals))
+            return jac
+
+        method = ("lm" if setup.n_residuals >= x0.size else "trf") if setup.method == "auto" else setup.method
+        if start_cost is None:
+            start_residuals = problem.residuals(x0)
+            start_cost = 0.5 * float(start_residuals @ start_residuals)
+        evaluations = len(history)
+        solution = least_squares(
+            problem.residuals,
+            x0,
+            jac=jacobian,
+            method=method,
+            x_scale=x_scale,
+            ftol=setup.tolerance,
+            xtol=setup.tolerance,
+            gtol=setup.tolerance,
+            max_nfev=setup.max_nfev,
+        )
+        nfev += int(solution.nfev)
+        njev += int(solution.njev) if solution.njev is not None else len(history) - evaluations
+        final_cost = float(solution.cost)
+        status = int(solution.status)
+        if kept is not None and (
+            status <= 0 or not np.isfinite(final_cost) or final_cost > kept.cost * (1 + 1e-6) + 1e-12
+        ):
+            outcome = "did not converge" if status <= 0 else "ended at a higher cost"
+            unsettled = (
+                f"the refit with the free set decided at the solution of fit {fit_round} {outcome} "
+                f"({final_cost:.6g} mm^2 against {kept.cost:.6g} mm^2); fit {fit_round} is returned"
+            )
+            history.append(kept.cost)
+            return _finish(kept.fit, nfev, njev, start_cost, history, len(seen) - 1, unsettled, method)
+        x_final = np.asarray(solution.x, dtype=float)
+        success = status > 0
+        message = str(solution.message)
+        if not np.isfinite(final_cost) or final_cost > start_cost:
+            # never hand back something worse than what came in (module notes); the start in this round's
+            # unknowns: held quantities are at their start values in every round
+            message = (
+                f"the solver ended at a higher cost ({final_cost:.6g} mm^2) than the start ({start_cost:.6g} mm^2); "
+                f"the start is returned. Solver: {message}"
+            )
+            x_final, success = problem.pack(start.values, setup.offset_start, np.zeros(6)), False
+            start_residuals = problem.residuals(x_final)
+            final_cost = 0.5 * float(start_residuals @ start_residuals)
+        if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
+            history.append(final_cost)
+        values, offsets, x_base = problem.unpack_all(x_final)
+        # the rank test again, at the solution (the offsets as estimated): its Jacobian serves the statistics too
+        at_solution = replace(probe, start=values, offset_start=offsets, base_offset=x_base)
+        evaluated = at_solution.evaluate(at_solution.x0())
+        fit = _Fit(
+            problem=problem, x=x_final, success=success, status=status, message=message, method=method,
+            evaluated=evaluated, selection=selection, verdict=verdict, x_scale=x_scale, nfev=0, njev=0,
+            start_cost=0.0, history=np.zeros(0), refits=0, unsettled="",
+        )  # fmt: skip
+        if not success:  # the first fit did not converge (or the start came back): the decision at the start stands
+            break
+        kept = _Kept(fit=fit, cost=final_cost)
+        decided = _select_free(
+            at_solution,
+            setup.candidates,
+            setup.all_scale,
+            setup.kind_scale,
+            setup.rank_tolerance,
+            evaluated[1],
+            preferred=selection,
+        )
+        key = _selection_key(decided)
+        if key == seen[-1]:  # confirmed: report what the solution's test says (gauge, held, confounded)
+            fit = replace(fit, verdict=_describe(setup, decided))
+            break
+        if setup.strict:  # an explicit free set (or "raise") is not re-chosen: held at the solution is an error
+            now = _describe(setup, decided)
+            if set(now.gauge + now.held) - set(now.flange_held):
+                _report_held(setup, now, strict=True)
+        if key in seen or fit_round == _MAX_REFITS:
+            unsettled = (
+                f"the free set did not settle: the rank test at the solution of fit {fit_round + 1} "
+                f"{'returns to an earlier free set' if key in seen else 'changes it again'}; the last fit is returned"
+            )
+            break
+        seen.append(key)
+        selection = decided
+        verdict = _describe(setup, selection)
+        # refit from the solution: what stays free keeps its value, what is now held goes back to its start value
+        fit_values = np.where(selection.free, values, start.values)
+        fit_offsets = np.where(selection.offset_free, offsets.ravel(), setup.offset_start.ravel()).reshape(-1, 3)
+        fit_base = np.where(selection.base_free, x_base, 0.0)
+    return _finish(fit, nfev, njev, start_cost, history, len(seen) - 1, unsettled, method)
+
+
+@dataclass(frozen=True, slots=True)
+class _Kept:
+    fit: _Fit
+    cost: float
+
+
+def _finish(fit: _Fit, nfev, njev, start_cost, history, refits, unsettled, method) -> _Fit:
+    """The fit with the record of every round."""
+    message = f"{unsettled}. Solver: {fit.message}" if unsettled else fit.message
+    return replace(
+        fit,
+        nfev=nfev,
+        njev=njev,
+        start_cost=start_cost,
+        history=np.asarray(history),
+        refits=refits,
+        unsettled=unsettled,
+        message=message,
+        method=method,
+    )
+
+
+def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
+    """The result: values at the solution, residual statistics (per point, unweighted, mm), conditioning and the
+    linearised covariance from the Jacobian of the rank test at the solution."""
+    start, criterion, problem = setup.start, setup.criterion, fit.problem
+    robot = start.robot
+    names, n = robot.parameter_names, robot.n_joints
+    free_mask, offset_free = fit.selection.free, fit.selection.offset_free
+    base_free = fit.selection.base_free
+    values, offsets, x_base = problem.unpack_all(fit.x)
+    free_names = (
+        tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag)
+        + tuple(name for name, flag in zip(setup.offset_names, offset_free, strict=True) if flag)
+        + tuple(BASE_NAMES[k] for k in np.flatnonzero(base_free))
+    )
+    residuals, jac_all = fit.evaluated
+    jac = jac_all[:, np.r_[free_mask.ravel(), offset_free, base_free[: 6 if setup.use_base else 0]]]
+    raw = problem.raw_residuals(fit.x)
+    per = np.linalg.norm(raw.reshape(-1, 3), axis=1) if criterion == "points" else np.abs(raw)
+    cond = conditioning(jac * fit.x_scale)
+    covariance, sigma, dof = _covariance(jac, fit.x_scale, residuals, problem.noise_map(fit.x))
+    standard = np.full((n, 5), np.nan)
+    offset_sd = np.full(setup.offset_start.shape, np.nan)
+    message = fit.message
+    if covariance is None:
+        message = (
+            f"no degrees of freedom left to estimate the noise ({setup.n_residuals} residuals, {fit.x.size} free "
+            f"unknowns, {dof:.3g} effective degrees of freedom): sigma is NaN and there is no covariance; "
+            f"measure more points. Solver: {message}"
+        )
+    else:
+        diagonal = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        standard[free_mask] = diagonal[: problem.n_kinematic]
+        flat = offset_sd.ravel()
+        flat[offset_free] = diagonal[problem.n_kinematic : problem.n_kinematic + problem.n_offsets]
+        offset_sd = flat.reshape(setup.offset_start.shape)
+    targets, unknown = problem.targets, problem.unknown
+    refined_targets = list(targets)
+    target_sd = np.full((len(targets), 3), np.nan)
+    for slot, t in enumerate(unknown):
+        refined_targets[t] = targets[t].with_position(offsets[slot])
+        target_sd[t] = offset_sd[slot]
+    cost_history = fit.history
+    return RefinementResult(
+        parameters=ParameterSet(robot=robot, values=values, identified=start.identified | free_mask),
+        tracker_from_base=None if problem.base_start is None else _frozen(problem.tracker(x_base)),
+        criterion=criterion,
+        method=fit.method,
+        success=fit.success,
+        status=fit.status,
+        message=message,
+        nfev=fit.nfev,
+        njev=fit.njev,
+        free=_frozen(free_mask, bool),
+        base_free=_frozen(base_free, bool),
+        gauge=fit.verdict.gauge,
+        held=fit.verdict.held,
+        confounded=fit.verdict.confounded,
+        still_joints=setup.still,
+        free_names=free_names,
+        x_scale=_frozen(fit.x_scale),
+        start_cost=fit.start_cost,
+        cost_history=_frozen(cost_history),
+        rms_history=_frozen(np.sqrt(2.0 * cost_history / setup.n_residuals)),
+        n_residuals=setup.n_residuals,
+        residual_rms=float(np.sqrt(np.mean(per**2))),
+        residual_mean=float(per.mean()),
+        residual_max=float(per.max()),
+        singular_values=cond.singular_values,
+        condition_number=cond.condition_number,
+        sigma=sigma,
+        covariance=None if covariance is None else _frozen(covariance),
+        correlation=None if covariance is None else _frozen(correlation_from_covariance(covariance)),
+        standard_uncertainty=_frozen(standard),
+        wall_time_s=time.perf_counter() - began,
+        targets=tuple(refined_targets),
+        target_uncertainty=_frozen(target_sd) if targets else None,
+        weighted=setup.weighted,
+        residual_rms_coordinate=float(np.sqrt(np.mean(raw**2))),
+        refits=fit.refits,
+    )
 
 
 def _flange_frame_note(targets, unknown, held_mask, n) -> str:
@@ -1255,38 +1360,34 @@ def _flange_frame_note(targets, unknown, held_mask, n) -> str:
 
 
 def _report_held(
-    capture,
-    criterion,
-    use_base,
-    gauge,
-    held,
-    still,
-    strict,
-    flange_frame: str = "",
-    flange_held=(),
+    setup: _Setup,
+    verdict: _Verdict,
+    *,
+    strict: bool,
     where: str = "the solution",
     refits: int = 0,
     unsettled: str = "",
 ) -> None:
     """Warn about (or, ``strict``, raise for) the quantities the rank test holds.
 
-    ``flange_held``: joint n's parameters held because every flange offset is unknown (the flange frame
+    ``verdict.flange_held``: joint n's parameters held because every flange offset is unknown (the flange frame
     is then a choice, not a failure of the data): with ``strict`` they alone only warn. ``where``: the point
     of the deciding rank test ("the start", "the solution"); ``refits``: how many times the free set changed
     at a solution and the capture was refitted; ``unsettled``: why the free set did not settle, if so.
     """
+    gauge, held, still = verdict.gauge, verdict.held, setup.still
     parts = []
     if gauge:
         why = (
             "a free base frame absorbs them (tracker_from_base is estimated)"
-            if use_base
+            if setup.use_base
             else "pairwise distances do not see them"
         )
         parts.append(f"{', '.join(gauge)} move the whole point cloud rigidly, a rigid motion of the base: {why}")
     if held:
         detail = f"; joints that never move in the capture: {', '.join(still)}" if still else ""
         parts.append(
-            f"the {criterion} criterion cannot determine {', '.join(held)} from this capture "
+            f"the {setup.criterion} criterion cannot determine {', '.join(held)} from this capture "
             f"(rank-deficient column-scaled Jacobian at {where}){detail}"
         )
     if refits:
@@ -1294,12 +1395,12 @@ def _report_held(
             f"the rank test at the solution changed the free set, so the capture was refitted ({refits} refit"
             f"{'s' if refits > 1 else ''}) with the quantities it holds back at their start values"
         )
-    if flange_frame:
-        parts.append(flange_frame)
+    if verdict.flange_frame:
+        parts.append(verdict.flange_frame)
     if unsettled:
         parts.append(unsettled)
-    text = f"{capture.source}: " + "; ".join(parts)
-    if strict and set(gauge + held) - set(flange_held):
+    text = f"{setup.capture.source}: " + "; ".join(parts)
+    if strict and set(gauge + held) - set(verdict.flange_held):
         raise IdentifiabilityError(text, parameters=gauge + held)
     suffix = "; they are held at their start values" if gauge or held else ""
     warnings.warn(text + suffix, IdentifiabilityWarning, stacklevel=3)
