@@ -25,8 +25,9 @@ _CAPTIONS = {
     "√(2·cost/m) over the m residuals (mm, log scale) after each iteration.",
     "ellipsoid.png": "95 % coverage ellipsoid of the TCP position (mm).",
     "scatter.png": "Monte Carlo draws of the TCP position about their mean, with the coverage ellipsoid (mm).",
-    "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg), with the "
-    "nominal and the mean.",
+    "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg) about their "
+    "mean, with the coverage interval; the nominal is drawn where it lies among the draws, else its distance "
+    "from the mean is in the panel's title.",
     "trajectory.png": "Along the trajectory: the nominal TCP path coloured by the range of X, Y, Z over the draws, "
     "the range (max − min) per coordinate, and the standard uncertainty of the position (mm) and of the "
     "orientation A, B, C (deg) per pose.",
