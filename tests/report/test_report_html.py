@@ -428,3 +428,27 @@ def test_angle_differences_are_within_a_half_turn():
     assert _difference("J5.theta", 179.74, 180.08) == pytest.approx(-0.34, abs=1e-9)
     assert _difference("J2.alpha", -0.5, 0.25) == pytest.approx(-0.75, abs=1e-12)
     assert _difference("J1.a", 400.0, 10.0) == 390.0  # lengths are not angles
+
+
+def _sensitivity_tables(page: str) -> list[list[str]]:
+    """The headers of the tables of plan/sensitivity/sensitivity.csv in the planning section."""
+    tables = re.findall(r"<table>.*?</table>", _section(page, "planning"))
+    return [re.findall(r"<th(?: [^>]*)?>(.*?)</th>", t) for t in tables if "plan/sensitivity/sensitivity.csv" in t]
+
+
+def test_sensitivity_table_heads_each_column_with_its_own_unit(run_folder):
+    """Issue 24: the statistics take the rows' unit; the varied sweep is in degrees whatever the rows' unit, Cpk
+    is a pure number, the draws a count; the key ``capture.sweep_deg.4`` reads as the setting it is."""
+    headers = _sensitivity_tables(_render(run_folder))
+    assert headers == [
+        ["case", "J4 sweep (deg)", "name", f"nominal ({unit})", f"mean ({unit})", f"u ({unit})", "Cpk", "draws"]
+        for unit in ("mm", "deg")
+    ]
+
+
+def test_labels_of_varied_settings():
+    assert _label("capture.sweep_deg.4") == "J4 sweep (deg)"
+    assert _label("capture.start_deg.2") == "J2 start (deg)"
+    assert _label("capture.points") == "capture points" and _label("montecarlo.iterations") == "montecarlo iterations"
+    assert _label("instrument.a_um") == "instrument a (µm)"
+
