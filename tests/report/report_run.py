@@ -87,6 +87,9 @@ TCP_HEADER = [
 ]
 
 
+#: Header of plan/sensitivity/sensitivity.csv (a sweep of circle 4's sweep_deg, as `robotcal run` writes it).
+SENSITIVITY_HEADER = ["case", "capture.sweep_deg.4", "name", "unit", "nominal", "mean", "std_uncertainty", "cpk", "draws"]
+
 #: Synthetic backlash per joint [mm] and the noise floor of each circle [um]: J1, J3 above it, the others not.
 BACKLASH_MM = (0.040, 0.012, 0.035, 0.010, 0.011, 0.009)
 NOISE_FLOOR_UM = 15.0
@@ -254,8 +257,16 @@ def make_run_folder(root: Path) -> Path:
         [[1, 1, 0, 0, 0, 0, 1], [5, 1, 1, 0, 0, 0, 0]],
     )
     (plan / "plan_check.json").write_text(json.dumps({"feasible": False, "points": 2, "failing": 1}))
+    # the columns of planning.files.write_sensitivity_files: the varied key, then per parameter its unit,
+    # statistics in that unit, Cpk (a pure number) and the draws
     _write_csv(
-        plan / "sensitivity" / "sensitivity.csv", ["case", "capture.sweep_deg.4", "name", "cpk"], [[1, 15, "J4.a", 0.1]]
+        plan / "sensitivity" / "sensitivity.csv",
+        SENSITIVITY_HEADER,
+        [
+            [case, sweep, name, unit, nominal, nominal + 0.001, u, cpk, 1000]
+            for case, sweep in ((1, 15.0), (2, 50.0))
+            for name, unit, nominal, u, cpk in (("J4.a", "mm", 0.0, 0.4, 0.1), ("J4.theta", "deg", 0.0, 0.02, 0.3))
+        ],
     )
     _write_csv(
         root / "iso9283" / "iso9283.csv",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import html
 import io
 import math
 import re
@@ -428,3 +429,73 @@ def test_angle_differences_are_within_a_half_turn():
     assert _difference("J5.theta", 179.74, 180.08) == pytest.approx(-0.34, abs=1e-9)
     assert _difference("J2.alpha", -0.5, 0.25) == pytest.approx(-0.75, abs=1e-12)
     assert _difference("J1.a", 400.0, 10.0) == 390.0  # lengths are not angles
+
+
+def _sensitivity_tables(page: str) -> list[list[str]]:
+    """The headers of the tables of plan/sensitivity/sensitivity.csv in the planning section."""
+    tables = re.findall(r"<table>.*?</table>", _section(page, "planning"))
+    return [re.findall(r"<th(?: [^>]*)?>(.*?)</th>", t) for t in tables if "plan/sensitivity/sensitivity.csv" in t]
+
+
+def test_sensitivity_table_heads_each_column_with_its_own_unit(run_folder):
+    """Issue 24: the statistics take the rows' unit; the varied sweep is in degrees whatever the rows' unit, Cpk
+    is a pure number, the draws a count; the key ``capture.sweep_deg.4`` reads as the setting it is."""
+    headers = _sensitivity_tables(_render(run_folder))
+    assert headers == [
+        ["case", "J4 sweep (deg)", "name", f"nominal ({unit})", f"mean ({unit})", f"u ({unit})", "Cpk", "draws"]
+        for unit in ("mm", "deg")
+    ]
+
+
+def test_labels_of_varied_settings():
+    assert _label("capture.sweep_deg.4") == "J4 sweep (deg)"
+    assert _label("capture.start_deg.2") == "J2 start (deg)"
+    assert _label("capture.points") == "capture points" and _label("montecarlo.iterations") == "montecarlo iterations"
+    assert _label("instrument.a_um") == "instrument a (µm)"
+
+
+def _tcp_card(page: str) -> str:
+    """The text of the summary card of the TCP position uncertainty at the pose."""
+    summary = _section(page, "summary")
+    start = summary.index("TCP position uncertainty at the pose")
+    end = summary.find('<div class="rc-card', start)
+    return html.unescape(re.sub(r"<[^>]+>", " ", summary[start : end if end > 0 else None]))
+
+
+def _with_tcp_pose(folder, readings_deg, warned_deg=None):
+    """The run of ``folder`` with its TCP pose at ``readings_deg`` (the Table 5.8 pose's provenance) and the
+    TCP stage's joint-limit warning of readings ``warned_deg`` (default: the pose's own), as robotcal writes
+    them (``uncertainty.tcp.check_readings``'s message in run.json)."""
+    import json
+    import warnings
+
+    from robotcal.errors import JointLimitWarning
+    from robotcal.io import load_robot
+    from robotcal.uncertainty.tcp import check_readings
+
+    result = load_run(folder)
+    documents = dict(result.documents)
+    pose = json.loads(json.dumps(documents["tcp/pose/tcp.json"]))
+    pose["poses"][0]["readings_deg"] = list(readings_deg)
+    shown = ", ".join(f"{v:g}" for v in readings_deg)
+    pose["provenance"]["pose"] = f"thesis Table 5.8 pose, KUKA readings ... = readings {shown} deg of kuka-kr5-sixx-r650"
+    documents["tcp/pose/tcp.json"] = pose
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", JointLimitWarning)
+        check_readings(load_robot("kuka-kr5-sixx-r650"), np.deg2rad([warned_deg or readings_deg]), name="tcp.pose_deg")
+    stages = {**result.record.get("stages", {}), "tcp": {"status": "done", "warnings": [str(w.message) for w in caught]}}
+    return RunResult(record={**result.record, "stages": stages}, documents=documents)
+
+
+def test_the_tcp_headline_says_when_its_pose_is_outside_the_joint_limits(run_folder):
+    """Issue 24: the thesis's Table 5.8 pose (model readings -60, -80, 45, -200, 125, -280 deg of the KR 5) lies
+    outside the limits of J2, J4 and J5; the headline card says so."""
+    card = " ".join(_tcp_card(render_report(_with_tcp_pose(run_folder, [-60, -80, 45, -200, 125, -280])).html).split())
+    assert "at the thesis's Table 5.8 pose, outside the joint limits of J2, J4, J5" in card
+    assert "readings -60, -80, 45, -200, 125, -280 deg" in card
+    # a pose within the limits: no such words
+    inside = " ".join(_tcp_card(render_report(_with_tcp_pose(run_folder, [-60, -30, 45, -100, 60, -80])).html).split())
+    assert "outside" not in inside and "Table 5.8 pose" in inside
+    # a warning about another pose 1 (the trajectory's) does not put this pose outside the limits
+    other = _with_tcp_pose(run_folder, [-60, -30, 45, -100, 60, -80], warned_deg=[-60, -80, 45, -200, 125, -280])
+    assert "outside" not in _tcp_card(render_report(other).html)

@@ -33,9 +33,9 @@ from robotcal.limits import (  # noqa: F401  (re-exported: the commands import t
 
 if TYPE_CHECKING:  # imported where used: `robotcal --help` and main() stay light (docs/cli.md)
     from rich.console import Console
-    from rich.table import Table
     from rich.text import Text
 
+    from robotcal.cli._tables import FittedTable
     from robotcal.kinematics.model import ParameterSet
 
     console: Console
@@ -178,18 +178,22 @@ def _display(kind: str, value: float) -> float:
     return math.degrees(float(value)) if kind in ANGLE_KINDS else float(value)
 
 
-def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str) -> Table:
-    """Nominal / identified / difference per parameter, in mm and degrees."""
-    from rich.table import Table
-
+def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str) -> FittedTable:
+    """Nominal / identified / difference per parameter, in mm and degrees (a :class:`FittedTable`: numbers and
+    parameter names are never broken, whatever the console's width)."""
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.kinematics.model import KIND_UNITS, PARAMETER_KINDS
 
-    table = Table(title=title, title_justify="left")
-    table.add_column("parameter")
-    table.add_column("unit")
-    table.add_column("nominal", justify="right")
-    table.add_column("identified", justify="right")
-    table.add_column("difference", justify="right")
+    table = FittedTable(
+        title,
+        [
+            Column("parameter", "name"),
+            Column("unit", "name"),
+            Column("nominal", narrow=1),
+            Column("identified"),
+            Column("difference"),
+        ],
+    )
     difference = identified.difference(nominal)
     robot = nominal.robot
     for i in range(robot.n_joints):
@@ -208,13 +212,12 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
     return table
 
 
-def circle_table(result) -> Table:
+def circle_table(result) -> FittedTable:
     """Per-circle fit residuals of a CPA result."""
-    from rich.table import Table
+    from robotcal.cli._tables import Column, FittedTable
 
-    table = Table(title="Circle fits", title_justify="left")
-    for column in ("circle", "points", "radius (mm)", "plane RMS (mm)", "circle RMS (mm)"):
-        table.add_column(column, justify="right")
+    headers = ("circle", "points", "radius (mm)", "plane RMS (mm)", "circle RMS (mm)")
+    table = FittedTable("Circle fits", [Column(header) for header in headers])
     for joint, fit in enumerate(result.circle_fits):
         table.add_row(
             str(joint + 1),

@@ -10,22 +10,28 @@ from robotcal.cli._common import command_app, console, handle_errors
 
 app = command_app()
 
+#: Narrowest description column of the catalog tables; narrower, the descriptions follow the table.
+DESCRIPTION_WIDTH = 30
+
 
 @app.command()
 @handle_errors
 def robots() -> None:
     """List the built-in robots (usable by name in a scenario's `robot` key)."""
-    from rich.table import Table
-
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.io import list_robots
 
-    table = Table(title="Built-in robots", title_justify="left")
+    table = FittedTable(
+        "Built-in robots",
+        [
+            Column("name", "name"),
+            Column("joints", "name"),
+            Column("Hayati joints", "text"),
+            Column("reading signs", "name"),
+            Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH),
+        ],
+    )
     models = list_robots()
-    table.add_column("name", no_wrap=True, min_width=max(len(r.name) for r in models))
-    for column in ("joints", "Hayati joints"):
-        table.add_column(column)
-    table.add_column("reading signs", no_wrap=True)
-    table.add_column("description")
     for robot in models:
         hayati = ", ".join(f"J{i + 1}" for i, parallel in enumerate(robot.hayati) if parallel) or "-"
         table.add_row(robot.name, str(robot.n_joints), hayati, reading_signs(robot), robot.description)
@@ -77,15 +83,19 @@ def _coupling_term(coefficient: float, other: int) -> str:
 @handle_errors
 def instruments() -> None:
     """List the instrument presets, U(L) = A + B*L (L in m)."""
-    from rich.table import Table
-
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.io import instrument_presets
 
-    table = Table(title="Instrument presets", title_justify="left")
+    table = FittedTable(
+        "Instrument presets",
+        [
+            Column("preset", "name"),
+            Column("A (um)", justify="left"),
+            Column("B (um/m)", justify="left"),
+            Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH),
+        ],
+    )
     presets = instrument_presets()
-    table.add_column("preset", no_wrap=True, min_width=max(len(name) for name in presets))
-    for column in ("A (um)", "B (um/m)", "description"):
-        table.add_column(column)
     for name, entry in sorted(presets.items()):
         table.add_row(name, f"{entry['a_um']:g}", f"{entry['b_um_per_m']:g}", entry.get("description", ""))
     console.print(table)
@@ -95,24 +105,25 @@ def instruments() -> None:
 @handle_errors
 def scenarios() -> None:
     """List the built-in scenarios (the thesis's Tables 5.1, 5.2/5.4 and 5.5)."""
-    from rich.table import Table
-
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.io import list_scenarios
 
-    table = Table(title="Built-in scenarios", title_justify="left")
+    table = FittedTable(
+        "Built-in scenarios",
+        [
+            Column("scenario", "name"),
+            Column("robot", "name"),
+            Column("instrument (noise)", "text"),
+            Column("points", justify="left"),
+            Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH),
+        ],
+    )
     loaded = list_scenarios()
-    table.add_column("scenario", no_wrap=True, min_width=max(len(s.name) for s in loaded))
-    for column in ("robot", "instrument", "noise", "points", "description"):
-        table.add_column(column)
     for scenario in loaded:
         instrument = scenario.instrument
-        terms = f"{instrument.name} ({instrument.a_mm * 1e3:g} um + {instrument.b_mm_per_m * 1e3:g} um/m)"
-        table.add_row(
-            scenario.name,
-            scenario.robot.name,
-            terms,
-            instrument.noise,
-            str(int(scenario.plan.points.sum())),
-            scenario.description,
+        terms = (
+            f"{instrument.name} ({instrument.a_mm * 1e3:g} um + {instrument.b_mm_per_m * 1e3:g} um/m, "
+            f"{instrument.noise})"
         )
+        table.add_row(scenario.name, scenario.robot.name, terms, str(int(scenario.plan.points.sum())), scenario.description)
     console.print(table)

@@ -8,10 +8,10 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.table import Table
 
 from robotcal import api
 from robotcal.cli._common import FORCE_HELP, check_memory, command_app, console, handle_errors, pairs_bytes
+from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError
 from robotcal.io.capture_csv import read_capture
 from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
@@ -179,9 +179,11 @@ def evaluate(
             plot_convergence(convergence_of(document), folder / "convergence.png")
     for capture_name in captures:
         for view in views:
-            table = Table(title=f"{capture_name}: {view} view", title_justify="left")
-            for column in ("parameter set", "mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]"):
-                table.add_column(column, justify="right" if column != "parameter set" else "left")
+            headers = ("mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]")
+            table = FittedTable(
+                f"{capture_name}: {view} view",
+                [Column("parameter set", "name"), *(Column(header) for header in headers)],
+            )
             for row in rows:
                 if row.capture == capture_name and row.view == view:
                     table.add_row(

@@ -10,9 +10,9 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.table import Table
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.diagnostics.iso9283 import (
     ISO_CYCLES,
@@ -147,12 +147,10 @@ def iso9283(
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, iso_to_csv(results))
     first = next(iter(results.values()))
-    table = Table(title=f"ISO 9283 ({first.n_cycles} cycles) [mm, deg]")
-    columns = ["model", "max AP", "max RP", "AD", "RD"]
+    columns = [Column("model", "name"), *(Column(header) for header in ("max AP", "max RP", "AD", "RD"))]
     if first.has_orientation:
-        columns += ["max |APa,b,c|", "max RPa,b,c", "max fit RMS"]
-    for column in columns:
-        table.add_column(column)
+        columns += [Column("max |APa,b,c|"), Column("max RPa,b,c"), Column("max fit RMS", narrow=1)]
+    table = FittedTable(f"ISO 9283 ({first.n_cycles} cycles) [mm, deg]", columns, elsewhere=str(out))
     for label, r in results.items():
         row = [label, f"{r.ap.max():.4f}", f"{r.rp.max():.4f}", f"{r.ad:.4f}", f"{r.rd:.4f}"]
         if r.has_orientation:

@@ -8,10 +8,10 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.table import Table
 
 from robotcal import api
 from robotcal.cli._common import FORCE_HELP, command_app, console, error_console, handle_errors
+from robotcal.cli._tables import Column, FittedTable
 from robotcal.diagnostics import JointDiagnostics
 from robotcal.io.capture_csv import read_capture
 from robotcal.io.joints_files import write_joints_folder
@@ -21,13 +21,18 @@ from robotcal.io.scenario import load_scenario
 app = command_app()
 
 
-def _table(diagnostics: JointDiagnostics) -> Table:
-    table = Table(
-        title="Joint diagnostics (µm; backlash over matched pairs, turnarounds excluded)", title_justify="left"
+def _table(diagnostics: JointDiagnostics) -> FittedTable:
+    headers = ("axial RMS", "radial RMS", "backlash max", "min", "mean", "angle (deg)")
+    table = FittedTable(
+        "Joint diagnostics (µm; backlash over matched pairs, turnarounds excluded)",
+        [
+            Column("joint", "name", justify="right"),
+            Column("points"),
+            Column("pairs", narrow=1),
+            *(Column(header) for header in headers),
+        ],
+        elsewhere="summary.csv",
     )
-    columns = ("joint", "points", "pairs", "axial RMS", "radial RMS", "backlash max", "min", "mean", "angle (deg)")
-    for column in columns:
-        table.add_column(column, justify="right")
 
     def um(value):
         return "-" if not math.isfinite(value) else f"{value * 1000:.2f}"

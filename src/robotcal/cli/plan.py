@@ -14,8 +14,8 @@ import typer
 
 from robotcal.cli._common import command_app, console, handle_errors
 
-if TYPE_CHECKING:  # numpy, Rich tables and the planning library load in the commands: a fast --help
-    from rich.table import Table
+if TYPE_CHECKING:  # numpy and the planning library load in the commands: a fast --help
+    from robotcal.cli._tables import FittedTable
 
 app = command_app()
 
@@ -39,19 +39,21 @@ _Aim = Annotated[str, typer.Option(help="Where each circle's target faces the tr
 _Force = Annotated[bool, typer.Option("--force", help="Replace an output not written by robotcal.")]
 
 
-def check_table(check) -> Table:
-    from rich.table import Table
+def check_table(check) -> FittedTable:
+    from robotcal.cli._tables import Column, FittedTable
 
-    table = Table(title="Cell check per circle (forward sweep)", title_justify="left")
-    for column in ("circle", "points", "feasible", "planned (deg)", "usable (deg)", "first blocked", "why"):
-        table.add_column(column, justify="left" if column == "why" else "right", overflow="fold")
-    for c in check.circles:
-        usable = "none" if c.usable_deg is None else f"{c.usable_deg[0]:.1f} .. {c.usable_deg[1]:.1f}"
+    headers = ("circle", "points", "feasible", "planned (deg)", "usable (deg)", "first blocked")
+    table = FittedTable(
+        "Cell check per circle (forward sweep)",
+        [*(Column(header) for header in headers), Column("why", "text")],
+    )
+    for c in check.circles:  # ranges as one word ("15.0..60.0"): a narrow console never splits them
+        usable = "none" if c.usable_deg is None else f"{c.usable_deg[0]:.1f}..{c.usable_deg[1]:.1f}"
         table.add_row(
             str(c.circle),
             str(c.points),
             str(c.feasible_points),
-            f"{c.start_deg:.1f} .. {c.end_deg:.1f}",
+            f"{c.start_deg:.1f}..{c.end_deg:.1f}",
             usable,
             "" if c.first_failure is None else str(c.first_failure),
             ", ".join(c.first_reasons),
@@ -150,8 +152,8 @@ def optimise(
     """Search start angles, sweeps, points per circle and reflector positions for a lower uncertainty,
     within the cell check; confirm baseline and winner by Monte Carlo; write the optimised scenario."""
     import numpy as np
-    from rich.table import Table
 
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.io import load_scenario
     from robotcal.io.output import check_output_folder, existing_inputs
     from robotcal.planning.cell import check_plan
@@ -217,9 +219,12 @@ def optimise(
         "monte_carlo_p95_tcp_mm": confirmed | {"draws": confirm_draws, "improvement": ratio},
         "notes": notes,
     }
-    table = Table(title=f"Plan optimisation ({objective})", title_justify="left")
-    for column in ("plan", "feasible", "p95 TCP lin. (mm)", "p95 TCP MC (mm)", "max u", "points"):
-        table.add_column(column, justify="right")
+    headers = ("p95 TCP lin. (mm)", "p95 TCP MC (mm)", "max u", "points")
+    table = FittedTable(
+        f"Plan optimisation ({objective})",
+        [Column("plan", "name", justify="right"), Column("feasible", "name", justify="right")]
+        + [Column(header) for header in headers],
+    )
     table.add_row(
         "baseline",
         str(result.baseline_feasible),

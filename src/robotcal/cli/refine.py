@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from robotcal import api
 from robotcal.cli._common import (
@@ -19,6 +18,7 @@ from robotcal.cli._common import (
     parameter_table,
     print_health,
 )
+from robotcal.cli._tables import Column, FittedTable
 from robotcal.io.capture_csv import read_capture
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.io.parameters_json import read_parameters, refined_targets, write_parameters
@@ -115,7 +115,7 @@ def refine(
     console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
         parameter_table(_wrapped(initial), _wrapped(result.parameters), f"Refined parameters ({criterion}) vs start")
     )
-    summary = Table(title="Refinement", title_justify="left", show_header=False)
+    summary = FittedTable("Refinement", [Column("", "text"), Column("", "text")], show_header=False)
     summary.add_row("criterion", criterion)
     summary.add_row("solver", f"least_squares, method={result.method}")
     ended = "met its tolerance" if result.success else "did NOT meet its tolerance"

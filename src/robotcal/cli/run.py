@@ -23,29 +23,51 @@ __all__ = ["run", "run_and_print", "run_with_display"]
 app = command_app()
 
 
+#: Narrowest console that shows each stage's result text beside its bar (below it: in the Stages table only).
+DETAIL_MIN_WIDTH = 110
+
+
+def _progress_columns(width: int, totals: list[int]) -> tuple:
+    """The progress display's columns for a console ``width`` columns wide: the stage name and the counts
+    never shrink (a stage name cut to "uncerta…" says nothing); the bar shrinks; the stage's result text is
+    shown only where it has room (it is in the Stages table after the run anyway)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.table import Column
+
+    def whole(min_width: int | None = None) -> Column:
+        return Column(no_wrap=True, min_width=min_width)
+
+    counts = max(len(f"{total}/{total}") for total in totals)
+    columns = (
+        SpinnerColumn(finished_text="[green]✓[/green]", table_column=whole()),
+        TextColumn("{task.fields[stage]}", markup=False, table_column=whole(max(map(len, STAGES)))),
+        BarColumn(bar_width=30),
+        MofNCompleteColumn(table_column=whole(counts)),
+        TextColumn("{task.fields[unit]}", markup=False, table_column=whole()),
+        TimeElapsedColumn(table_column=whole()),
+    )
+    if width < DETAIL_MIN_WIDTH:
+        return columns
+    return (*columns, TextColumn("{task.fields[detail]}", style="dim", markup=False, table_column=Column(overflow="fold")))
+
+
 def run_with_display(plan: RunPlan):
     """:func:`robotcal.pipeline.run_calibration` under one Rich progress display (a task per stage; draws
     for the Monte Carlo); returns its :class:`~robotcal.io.run_folder.RunResult`."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import Progress
 
     from robotcal.pipeline.run import run_calibration
 
-    columns = (
-        SpinnerColumn(finished_text="[green]✓[/green]"),
-        TextColumn("{task.fields[stage]:<12}", markup=False),
-        BarColumn(bar_width=30),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[unit]}", markup=False),
-        TimeElapsedColumn(),
-        TextColumn("{task.fields[detail]}", style="dim", markup=False),
-    )
+    totals = {
+        name: plan.montecarlo.iterations + plan.refined_montecarlo.iterations if name == "uncertainty" else STEPS[name]
+        for name in STAGES
+    }
+    columns = _progress_columns(console.width, list(totals.values()))
     with Progress(*columns, console=console, transient=False) as display:
         tasks = {}
         for name in STAGES:
-            draws = name == "uncertainty"
-            total = plan.montecarlo.iterations + plan.refined_montecarlo.iterations if draws else STEPS[name]
-            unit = "draws" if draws else "steps"
-            tasks[name] = display.add_task(name, total=total, stage=name, unit=unit, detail="", start=False)
+            unit = "draws" if name == "uncertainty" else "steps"
+            tasks[name] = display.add_task(name, total=totals[name], stage=name, unit=unit, detail="", start=False)
 
         def update(stage: str, done: int, total: int | None, detail: str = "") -> None:
             task = tasks[stage]
@@ -69,11 +91,11 @@ def run_with_display(plan: RunPlan):
 
 
 def _print_summary(result) -> None:
-    from rich.table import Table
+    from robotcal.cli._tables import Column, FittedTable
 
-    stages = Table(title="Stages", title_justify="left")
-    for column in ("stage", "status", "time (s)", "result"):
-        stages.add_column(column, justify="right" if column == "time (s)" else "left")
+    stages = FittedTable(
+        "Stages", [Column("stage", "name"), Column("status", "name"), Column("time (s)"), Column("result", "text")]
+    )
     for name, entry in result.record["stages"].items():
         stages.add_row(name, entry["status"], f"{entry['seconds']:.1f}", str(entry.get("detail") or ""))
     console.print(stages)
@@ -81,6 +103,19 @@ def _print_summary(result) -> None:
         error_console.print(f"note: {message}", highlight=False)
     for line in result.summary.console_lines():
         console.print(line, highlight=False)
+
+
+def _print_heading(command: str, description: str) -> None:
+    """A rule titled ``command: description``; where that does not fit the console, the rule names the
+    command and the description follows on its own (wrapped) line, never cut short."""
+    from rich.cells import cell_len
+
+    title = f"{command}: {description}" if description else command
+    if cell_len(title) + 6 <= console.width:  # Rule: the title, a space either side, and some line
+        console.rule(title)
+        return
+    console.rule(command)
+    console.print(description, highlight=False)
 
 
 def _command_line(command: str, *arguments, **options) -> str:
@@ -95,7 +130,7 @@ def _command_line(command: str, *arguments, **options) -> str:
 def run_and_print(plan: RunPlan):
     """The ``run``/``demo`` command body: display, summary, and the report's path and total time."""
     started = time.perf_counter()
-    console.rule(f"robotcal run {plan.scenario.name}: {plan.scenario.description}")
+    _print_heading(f"robotcal run {plan.scenario.name}", plan.scenario.description)
     try:
         result = run_with_display(plan)
     except RobotcalError as exc:

@@ -6,9 +6,9 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._tables import Column, FittedTable
 
 app = command_app()
 
@@ -79,9 +79,11 @@ def sensitivity(
 
         write_sensitivity_files(folder, rows, summary)
         plot_sensitivity(rows, study.keys, folder)
-    table = Table(title="Lowest Cpk per case (eq. 5-5)", title_justify="left")
-    for column in (*study.keys, "worst parameter", "Cpk", "u"):
-        table.add_column(column, justify="right")
+    table = FittedTable(
+        "Lowest Cpk per case (eq. 5-5)",
+        [*(Column(key, "name", justify="right") for key in study.keys), Column("worst parameter", "name")]
+        + [Column("Cpk"), Column("u")],
+    )
     for number in range(1, len(study.cases) + 1):
         case_rows = [r for r in rows if r["case"] == number]
         worst = min(case_rows, key=lambda r: r["cpk"])

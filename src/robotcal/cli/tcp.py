@@ -9,7 +9,6 @@ from typing import Annotated
 
 import numpy as np
 import typer
-from rich.table import Table
 
 from robotcal import api
 from robotcal.cli._common import (
@@ -21,6 +20,7 @@ from robotcal.cli._common import (
     console,
     handle_errors,
 )
+from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.io.draws_npz import ParameterDraws, read_draws
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
@@ -70,11 +70,22 @@ def _subset(loaded: ParameterDraws, max_draws: int | None) -> np.ndarray:
     return loaded.values[:max_draws]
 
 
-def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> Table:
+def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> FittedTable:
     low, high = result.summary.interval(interval)
-    table = Table(title=f"TCP at pose {pose + 1} ({result.n_draws} draws)", title_justify="left")
-    for column in ("", "unit", "nominal", "mean", "u (MC)", "u (linear)", f"{result.coverage:.0%} low", "high"):
-        table.add_column(column, justify="right")
+    table = FittedTable(
+        f"TCP at pose {pose + 1} ({result.n_draws} draws)",
+        [
+            Column("", "name", justify="right"),
+            Column("unit", "name", justify="right"),
+            Column("nominal", narrow=2),
+            Column("mean"),
+            Column("u (MC)"),
+            Column("u (linear)", narrow=1),
+            Column(f"{result.coverage:.0%} low"),
+            Column("high"),
+        ],
+        elsewhere="tcp.csv",
+    )
     for k, name in enumerate(TCP_COORDINATES):
         f = _DEG[k]
         table.add_row(

@@ -27,8 +27,7 @@ from robotcal.cli._common import (
 from robotcal.errors import InputError
 
 if TYPE_CHECKING:
-    from rich.table import Table
-
+    from robotcal.cli._tables import FittedTable
     from robotcal.uncertainty.montecarlo import MonteCarloResult
 
 app = command_app()
@@ -40,7 +39,8 @@ MEASURED_DEFAULT_DRAWS = 300
 
 
 def _progress(title: str):
-    """A transient Rich progress bar ``title [bar] done/total draws elapsed remaining``."""
+    """A transient Rich progress bar ``title [bar] done/total draws elapsed remaining``; in a narrow console
+    only the bar shrinks (the title and the counts are never cut)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -49,14 +49,18 @@ def _progress(title: str):
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
+    from rich.table import Column
+
+    def whole() -> Column:
+        return Column(no_wrap=True)
 
     return Progress(
-        TextColumn(title),
+        TextColumn(title, markup=False, table_column=whole()),
         BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("draws"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
+        MofNCompleteColumn(table_column=whole()),
+        TextColumn("draws", table_column=whole()),
+        TimeElapsedColumn(table_column=whole()),
+        TimeRemainingColumn(table_column=whole()),
         console=console,
         transient=True,
     )
@@ -74,26 +78,34 @@ def _model_name(result: MonteCarloResult) -> str:
     return "CPA model"
 
 
-def uncertainty_table(result: MonteCarloResult) -> Table:
-    """Identified parameters: mean, u, interval, linearised u and the JCGM 101 §8 verdict."""
-    from rich.table import Table
-
+def uncertainty_table(result: MonteCarloResult) -> FittedTable:
+    """Identified parameters: mean, u, interval, linearised u and the JCGM 101 §8 verdict. In a narrow
+    console the verdict, the linearised u and then the nominal value are left out (parameters.csv has them;
+    the line under the table counts the verdicts)."""
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.io.uncertainty_files import uncertainty_rows
 
     coverage = f"{result.settings.coverage:.0%}"
-    table = Table(
-        title=f"Monte Carlo uncertainty, {_model_name(result)} ({result.n_draws:,} draws, seed {result.seed}, {result.settings.interval} {coverage} interval)",
-        title_justify="left",
+    rows = [row for row in uncertainty_rows(result) if row["identified"]]
+    linearised = any("lpu_std_uncertainty" in row for row in rows)  # none for the refined model
+    columns = [
+        Column("parameter", "name"),
+        Column("unit", "name"),
+        Column("nominal", narrow=3),
+        Column("mean"),
+        Column("u"),
+        Column(f"{coverage} low"),
+        Column(f"{coverage} high"),
+    ]
+    if linearised:
+        columns += [Column("u (GUM)", narrow=2), Column("§8", "name", narrow=1)]
+    table = FittedTable(
+        f"Monte Carlo uncertainty, {_model_name(result)} ({result.n_draws:,} draws, seed {result.seed}, {result.settings.interval} {coverage} interval)",
+        columns,
+        elsewhere="parameters.csv",
     )
-    for column in ("parameter", "unit", "nominal", "mean", "u", f"{coverage} low", f"{coverage} high", "u (GUM)", "§8"):
-        # fold rather than truncate in a narrow terminal: a number cut to "335.0…" would mislead
-        table.add_column(column, justify="left" if column in ("parameter", "unit") else "right", overflow="fold")
-    for row in uncertainty_rows(result):
-        if not row["identified"]:
-            continue
-        agrees = row.get("lpu_agrees")
-        verdict = "" if agrees is None else (styled("agrees", "green") if agrees else styled("differs", "yellow"))
-        table.add_row(
+    for row in rows:
+        cells = [
             row["name"],
             row["unit"],
             f"{row['nominal']:.4f}",
@@ -101,9 +113,12 @@ def uncertainty_table(result: MonteCarloResult) -> Table:
             f"{row['std_uncertainty']:.2e}",
             f"{row['coverage_low']:.5f}",
             f"{row['coverage_high']:.5f}",
-            f"{row['lpu_std_uncertainty']:.2e}" if "lpu_std_uncertainty" in row else "",
-            verdict,
-        )
+        ]
+        if linearised:
+            agrees = row.get("lpu_agrees")
+            verdict = "" if agrees is None else (styled("agrees", "green") if agrees else styled("differs", "yellow"))
+            cells += [f"{row['lpu_std_uncertainty']:.2e}" if "lpu_std_uncertainty" in row else "", verdict]
+        table.add_row(*cells)
     return table
 
 
@@ -320,9 +335,8 @@ def _parameter_document(path: Path) -> dict:
 def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iterations, seed, coverage, interval, workers,
               scheduler, save_draws, criterion, force) -> None:  # fmt: skip
     """``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``."""
-    from rich.table import Table
-
     from robotcal import api
+    from robotcal.cli._tables import Column, FittedTable
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.output import check_output_folder, existing_inputs, result_folder
     from robotcal.io.parameters_json import read_parameters, read_targets
@@ -387,9 +401,11 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
         write_histograms(result.parameters, folder)
     console.print(uncertainty_table(result.parameters))
     if result.target_summary is not None:
-        offsets = Table(title="Estimated target offsets [mm]", title_justify="left")
-        for column in ("target", "axis", "estimate", "mean", "u", "u (refine)"):
-            offsets.add_column(column, justify="left" if column in ("target", "axis") else "right")
+        headers = ("estimate", "mean", "u", "u (refine)")
+        offsets = FittedTable(
+            "Estimated target offsets [mm]",
+            [Column("target", "name"), Column("axis", "name"), *(Column(header) for header in headers)],
+        )
         for row in measured_target_rows(result):
             offsets.add_row(
                 row["name"], row["axis"], f"{row['estimate']:.4f}", f"{row['mean']:.4f}",

@@ -68,29 +68,48 @@ def plot_tcp_scatter(result: TCPUncertainty, path, *, pose: int = 0, max_points:
 
 
 def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: int = 60) -> Path:
-    """Histograms of X, Y, Z [mm] and A, B, C [deg] over the draws at one pose (Figs 5.17/5.18)."""
+    """Histograms of X, Y, Z [mm] and A, B, C [deg] over the draws at one pose (Figs 5.17/5.18).
+
+    Each panel shows the draws about their mean (its title gives the mean): a calibrated robot's mean can
+    sit far from the nominal (0.85 mm against a spread of a few µm), and an axis that spans both squashes
+    the histogram to a line. The nominal is drawn where it lies within the draws' range; elsewhere the
+    title gives it as ``nominal = mean + d``.
+    """
     draws = _need_draws(result, pose)
     figure, axes = new_figure(2, 3, width_in=10.0, height_in=5.6, layout=None)
-    set_margins(figure, left=0.65, right=0.15, bottom=0.6, top=0.55, wspace=0.75, hspace=0.95, cell=(3.07, 2.23))
+    set_margins(figure, left=0.65, right=0.15, bottom=0.6, top=0.7, wspace=0.75, hspace=1.0, cell=(3.07, 2.23))
     low, high = result.summary.interval("symmetric")
     for k, ax in enumerate(axes.ravel()):
         f = _DEG[k]
-        counts, edges = np.histogram(draws[:, k], bins=bins)  # one step artist, not a patch per bin
+        mean = result.summary.mean[pose, k] * f
+        values = draws[:, k] - mean
+        counts, edges = np.histogram(values, bins=bins)  # one step artist, not a patch per bin
         ax.stairs(counts, edges, fill=True, color="tab:blue", alpha=0.75, linewidth=0)
-        ax.axvline(result.nominal[pose, k] * f, color="black", linewidth=1.2, label="nominal")
-        ax.axvline(result.summary.mean[pose, k] * f, color="tab:red", linewidth=1.2, label="mean")
+        ax.axvline(0.0, color="tab:red", linewidth=1.2, label="mean")
         for bound in (low[pose, k], high[pose, k]):
-            ax.axvline(bound * f, color="tab:red", linestyle="--", linewidth=1.0)
+            ax.axvline(bound * f - mean, color="tab:red", linestyle="--", linewidth=1.0)
+        nominal = result.nominal[pose, k] * f - mean
+        unit = TCP_UNITS[k]
+        where = ""
+        if edges[0] <= nominal <= edges[-1]:
+            ax.axvline(nominal, color="black", linestyle=":", linewidth=1.5, label="nominal")
+        else:
+            where = f"\nnominal = mean {nominal:+.3g} {unit} (off the axis)"
         angle = " (KUKA, about " + "ZYX"[k - 3] + ")" if k >= 3 else ""
-        ax.set_xlabel(f"{TCP_COORDINATES[k]}{angle} [{TCP_UNITS[k]}]")
+        ax.set_xlabel(f"{TCP_COORDINATES[k]}{angle} - mean [{unit}]")
         ax.set_ylabel("draws")
-        ax.set_title(f"u = {result.summary.std_uncertainty[pose, k] * f:.4g} {TCP_UNITS[k]}", fontsize=9, y=1.0)
+        u = result.summary.std_uncertainty[pose, k] * f
+        ax.set_title(f"mean {mean:.6g} {unit}, u = {u:.4g} {unit}{where}", fontsize=8, y=1.0)
         ax.ticklabel_format(axis="x", useOffset=False)  # an offset label ("-1.65e2") would sit on the x label
-        ax.xaxis.set_major_locator(MaxNLocator(4))
+        ax.xaxis.set_major_locator(MaxNLocator(4, symmetric=True))
         ax.yaxis.set_major_locator(MaxNLocator(5))
-    axes[0, 0].legend(fontsize=7, loc="upper left")
+    handles = {}
+    for ax in axes.ravel():  # mean and interval always; the nominal where some panel draws it
+        handles.update(zip(*reversed(ax.get_legend_handles_labels()), strict=True))
+    axes[0, 0].legend(list(handles.values()), list(handles), fontsize=7, loc="upper left")
     figure.suptitle(
-        f"TCP at pose {pose + 1}: {result.n_draws} draws, {result.coverage:.0%} interval dashed", fontsize=10
+        f"TCP at pose {pose + 1}: {result.n_draws} draws about their mean, {result.coverage:.0%} interval dashed",
+        fontsize=10,
     )
     return save_figure(figure, path)
 

@@ -25,8 +25,9 @@ _CAPTIONS = {
     "√(2·cost/m) over the m residuals (mm, log scale) after each iteration.",
     "ellipsoid.png": "95 % coverage ellipsoid of the TCP position (mm).",
     "scatter.png": "Monte Carlo draws of the TCP position about their mean, with the coverage ellipsoid (mm).",
-    "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg), with the "
-    "nominal and the mean.",
+    "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg) about their "
+    "mean, with the coverage interval; the nominal is drawn where it lies among the draws, else its distance "
+    "from the mean is in the panel's title.",
     "trajectory.png": "Along the trajectory: the nominal TCP path coloured by the range of X, Y, Z over the draws, "
     "the range (max − min) per coordinate, and the standard uncertainty of the position (mm) and of the "
     "orientation A, B, C (deg) per pose.",
@@ -69,8 +70,31 @@ _UNIT_SUFFIXES = (
 _COUNT_COLUMNS = frozenset(
     ("pose", "joint", "circle", "case", "points", "pairs", "n_errors", "draws", "direction", "point", "state")
 )
+#: Columns of a table split by its ``unit`` column whose values are in each row's unit (the statistics of a
+#: parameter or TCP coordinate); every other column (a varied setting such as ``capture.sweep_deg.4``, Cpk,
+#: counts) keeps its own label and the unit its name gives, if any.
+_ROW_UNIT_COLUMNS = frozenset(
+    (
+        "nominal",
+        "mean",
+        "std_uncertainty",
+        "coverage_low",
+        "coverage_high",
+        "min",
+        "max",
+        "symmetric_low",
+        "symmetric_high",
+        "shortest_low",
+        "shortest_high",
+        "noise_free",
+        "lpu_std_uncertainty",
+        "lpu_coverage_low",
+        "lpu_coverage_high",
+    )
+)
 #: Friendly headers of the columns of the statistics CSV files (unit added after).
 _COLUMN_LABELS = {
+    "cpk": "Cpk",
     "std_uncertainty": "u",
     "coverage_low": "interval low",
     "coverage_high": "interval high",
@@ -144,8 +168,27 @@ def _bare(name: str) -> str:
     return name[: len(name) - len(suffix)].replace("_", " ")
 
 
+def _setting_label(key: str) -> str:
+    """``"capture.sweep_deg.4"`` -> ``"J4 sweep (deg)"``: a scenario setting a sensitivity study varies
+    (``--vary KEY=...``: section, field and an optional 1-based element; the elements of a capture list are
+    the circles, circle i turning joint i), its unit from the field's suffix."""
+    parts = key.split(".")
+    index = parts.pop() if len(parts) > 1 and parts[-1].isdigit() else None
+    field = parts.pop()
+    unit = _unit_of(field)
+    name = _bare(field)
+    if index is not None and parts == ["capture"]:
+        text = f"J{index} {name}"
+    else:
+        text = " ".join([*parts, name, *([index] if index is not None else [])])
+    return f"{text} ({unit})" if unit else text
+
+
 def _label(name: str) -> str:
-    """``"plane_rms_mm"`` -> ``"plane rms (mm)"``: units named by the key suffix go in brackets."""
+    """``"plane_rms_mm"`` -> ``"plane rms (mm)"``: units named by the key suffix go in brackets; a dotted
+    scenario key (``"capture.sweep_deg.4"``) reads as the setting it names (:func:`_setting_label`)."""
+    if "." in name and not _is_param(name):
+        return _setting_label(name)
     for suffix, unit in _UNIT_SUFFIXES:
         if name.endswith(suffix) and len(name) > len(suffix):
             return f"{name[: -len(suffix)].replace('_', ' ')} ({unit})"
@@ -309,7 +352,9 @@ def _figures(page: _Page, folder: str, *, names=None, first=(), captions=None) -
 
 
 def _column_label(name: str, unit: str | None) -> str:
-    if unit and name not in _COUNT_COLUMNS:
+    """The header of a column of a table whose rows are in ``unit``: the statistics take it, other columns keep
+    their own (``_ROW_UNIT_COLUMNS``)."""
+    if unit and name in _ROW_UNIT_COLUMNS:
         return f"{_COLUMN_LABELS.get(name, name.replace('_', ' '))} ({unit})"
     return _COLUMN_LABELS.get(name, _label(name))
 

@@ -2,13 +2,70 @@
 
 from __future__ import annotations
 
+import re
+
 from robotcal.io.run_folder import OUTPUTS
 from robotcal.io.run_summary import set_label
 from robotcal.report.page import _angle, _fmt, _length, _number, _Page
 
 
-def _card(question: str, label: str, value: str, detail: str = "") -> dict:
-    return {"question": question, "label": label, "value": value, "detail": detail, "na": value == "n/a"}
+def _card(question: str, label: str, value: str, detail: str = "", caution: str = "") -> dict:
+    """A headline card; ``caution``: a short warning shown above the detail (e.g. a pose outside the limits)."""
+    return {
+        "question": question,
+        "label": label,
+        "value": value,
+        "detail": detail,
+        "caution": caution,
+        "na": value == "n/a",
+    }
+
+
+#: One reading outside a joint's limits, as ``robotcal.uncertainty.tcp.check_readings`` words it in the
+#: joint-limit warning the TCP stage records in run.json ("pose 1: J2 = -80 deg outside [-45, 190] deg").
+_OUTSIDE = re.compile(r"pose \d+: J(\d+) = \S+ deg outside \[(\S+), (\S+)\] deg")
+
+
+def _tcp_pose(page: _Page) -> tuple[str, str, list[str]]:
+    """The pose of the TCP headline: where it comes from (``"the thesis's Table 5.8 pose"``), its readings
+    (``"-60, -80, 45, -200, 125, -280"`` [deg], empty if unknown) and the joints whose limits they are outside
+    (``["J2", "J4", "J5"]``).
+
+    The readings are ``tcp/pose/tcp.json``'s first pose; the limits those of the joints that the run's
+    joint-limit warnings name (a reading outside its limits always gets one). The warnings do not say which
+    TCP mode they are about (a trajectory's poses are numbered from 1 too), so each reading of this pose is
+    compared with its joint's limits here.
+    """
+    document = page.json("tcp/pose/tcp.json") or {}
+    provenance = document.get("provenance") if isinstance(document.get("provenance"), dict) else {}
+    source = provenance.get("pose") if isinstance(provenance.get("pose"), str) else ""
+    if source.startswith("thesis Table 5.8 pose"):
+        where = "the thesis's Table 5.8 pose"
+    elif source.startswith("tcp.pose_deg"):
+        where = "the scenario's tcp.pose_deg"
+    else:
+        where = "the first pose"
+    poses = document.get("poses")
+    first = poses[0] if isinstance(poses, list) and poses and isinstance(poses[0], dict) else {}
+    readings = first.get("readings_deg")
+    readings = [_number(v) for v in readings] if isinstance(readings, list) else []
+    if not readings or None in readings:
+        return where, "", []
+    limits: dict[int, tuple[float, float]] = {}
+    for note in page.summary.notes:
+        if "outside the joint limits" in note:
+            for joint, low, high in _OUTSIDE.findall(note):
+                bounds = _number(low), _number(high)
+                if None not in bounds:
+                    limits[int(joint)] = bounds
+    outside = []
+    for joint, (low, high) in sorted(limits.items()):
+        if joint <= len(readings):
+            value = readings[joint - 1]
+            slack = 1e-6 * max(1.0, abs(value))  # the warning prints the limits with %g
+            if not low - slack <= value <= high + slack:
+                outside.append(f"J{joint}")
+    return where, ", ".join(_fmt(v, ".6g", exponent=False) for v in readings), outside
 
 
 def _facts_of_run(page: _Page) -> list[dict]:
@@ -91,12 +148,23 @@ def _cards(page: _Page) -> list[dict]:
         cards.append(_card("How sure are we?", label, fmt(value), detail))
     pose = summary.tcp_pose
     if pose is not None:
-        detail = "√(u_X² + u_Y² + u_Z²) at the first pose" + (f" (of {pose.poses})" if pose.poses > 1 else "")
+        where, readings, outside = _tcp_pose(page)
+        detail = f"√(u_X² + u_Y² + u_Z²) at {where}"
+        caution = ""
+        if outside:  # the thesis's Table 5.8 pose is: say so where the number is read
+            detail += f", outside the joint limits of {', '.join(outside)}"
+            caution = f"pose outside the joint limits of {', '.join(outside)}"
+        detail += f" (readings {readings} deg)" if readings else ""
+        detail += f" (first of {pose.poses} poses)" if pose.poses > 1 else ""
         detail += f"; {pose.model}" if pose.model else ""
         if pose.ellipsoid_mm is not None:
             share = f"{_fmt(pose.coverage * 100, '.3g')} % " if pose.coverage else ""
             detail += f"; largest semi-axis of the {share}ellipsoid {_length(pose.ellipsoid_mm)}"
-        cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", _length(pose.first_mm), detail))
+        cards.append(
+            _card(
+                "How sure are we?", "TCP position uncertainty at the pose", _length(pose.first_mm), detail, caution
+            )
+        )
     else:
         cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", "n/a", "tcp pose not run"))
     workspace = summary.tcp_workspace
