@@ -2,6 +2,7 @@
 # names load on first use) and by type checkers and IDEs. The one list of robotcal's front door.
 from .api import change_plan as change_plan
 from .api import check_plan as check_plan
+from .api import compensate as compensate
 from .api import diagnose_joints as diagnose_joints
 from .api import evaluate as evaluate
 from .api import identify as identify
@@ -28,6 +29,8 @@ from .io.run_folder import RunResult as RunResult
 from .io.run_folder import read_run as read_run
 from .io.scenario import Scenario as Scenario
 from .io.scenario import load_scenario as load_scenario
+from .kinematics.joint_model import JointModel as JointModel
+from .kinematics.model import LinkMasses as LinkMasses
 from .kinematics.model import ParameterSet as ParameterSet
 from .kinematics.model import ReflectorMount as ReflectorMount
 from .kinematics.model import RobotModel as RobotModel

@@ -38,14 +38,16 @@ from robotcal.errors import InputError, JointLimitWarning
 from robotcal.identification.cpa import CPAOptions, CPAResult, identify_cpa
 from robotcal.identification.evaluation import EvaluationRow, evaluate_parameters
 from robotcal.identification.health import cpa_health, refine_health, report_health
+from robotcal.identification.model_choice import MODEL_CHOICES, MODELS, choose_model, cross_validate, joint_model_for
 from robotcal.identification.plausibility import check_capture
 from robotcal.identification.refine import RefinementResult, refine_parameters
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.robots import load_robot
-from robotcal.io.scenario import Scenario, TCPTable, TruthTable, ValidationTable
+from robotcal.io.scenario import JointModelTable, Scenario, TCPTable, TruthTable, ValidationTable
 from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
 from robotcal.kinematics.forward import check_joint_variables
+from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
 from robotcal.limits import SEED_BOUND
 from robotcal.simulation import CapturePlan, JointErrorModel, simulate_capture
@@ -55,6 +57,7 @@ from robotcal.simulation.poses import simulate_poses as simulate_poses_core
 from robotcal.uncertainty.tcp import check_readings
 
 if TYPE_CHECKING:  # the Monte Carlo, TCP and planning modules load when a function needs them
+    from robotcal.kinematics.compensation import Compensation
     from robotcal.planning.cell import CellModel, PlanCheck
     from robotcal.uncertainty.montecarlo import MonteCarloResult
     from robotcal.uncertainty.tcp import TCPUncertainty
@@ -66,9 +69,11 @@ __all__ = [
     "diagnose_joints",
     "capture_targets",
     "change_plan",
+    "compensate",
     "check_plan",
     "evaluate",
     "identify",
+    "link_masses",
     "measured_monte_carlo",
     "monte_carlo",
     "monte_carlo_problem",
@@ -92,6 +97,7 @@ __all__ = [
 
 
 Criterion = Literal["points", "distances"]
+ModelName = Literal["geometric", "compliance", "harmonic", "compliance+harmonic", "auto"]
 Health = Literal["warn", "strict", "off"]
 
 
@@ -320,12 +326,52 @@ def perturb(
     """
     robot, scenario = _split(robot)
     table = (scenario.truth if scenario is not None else None) or TruthTable()  # the table's defaults
-    return perturb_parameters(
+    truth = perturb_parameters(
         robot,
         length_sd_mm=table.length_sd_mm if length_sd_mm is None else length_sd_mm,
         angle_sd_deg=table.angle_sd_deg if angle_sd_deg is None else angle_sd_deg,
         include_base=table.include_base if include_base is None else include_base,
         rng=np.random.default_rng(seed_from(rng, table.seed)),
+    )
+    compliance = table.compliance_rad_per_nm
+    if compliance is None or not any(compliance):
+        return truth
+    masses = link_masses(robot, scenario)
+    if masses is None:
+        raise InputError(
+            f"[truth] compliance_rad_per_nm needs the link masses of robot {robot.name!r} (mass_kg, com_mm per joint "
+            "in its robot file) to compute the gravity torques"
+        )
+    joints = [j for j, k in enumerate(compliance) if k > 0]
+    structure = JointModel.build(robot, compliance_joints=joints, masses=masses)
+    return truth.replace(joint_model=structure.with_values([compliance[j] for j in joints]))
+
+
+def link_masses(robot, scenario=None):
+    """The link masses of the extended model: the robot file's, with the scenario's ``[payload]`` on the flange
+    (None when the robot file gives no masses: the compliance is then the lumped form)."""
+    robot, scenario = _split(robot) if scenario is None else (robot, scenario)
+    masses = robot.masses
+    payload = None if scenario is None else scenario.payload
+    if masses is None or payload is None:
+        return masses
+    return masses.with_payload(payload.mass_kg, payload.com_mm)
+
+
+def _joint_model(model: str, robot: RobotModel, scenario) -> JointModel | None:
+    """The (zero) joint model of ``model`` with the scenario's ``[joint_model]`` joints and order, 0-based."""
+    settings = scenario.joint_model if scenario is not None else JointModelTable()
+
+    def joints(values):
+        return None if values is None else [j - 1 for j in values]
+
+    return joint_model_for(
+        model,
+        robot,
+        masses=link_masses(robot, scenario),
+        compliance_joints=joints(settings.compliance_joints),
+        harmonic_joints=joints(settings.harmonic_joints),
+        harmonic_order=settings.harmonic_order,
     )
 
 
@@ -586,9 +632,12 @@ def refine(
     criterion: Criterion = "points",
     instrument: Instrument | None = None,
     health: Health = "warn",
+    model: ModelName | None = None,
+    folds: int | None = None,
+    progress: Callable[[int, int | None, str], None] | None = None,
     **options,
 ) -> RefinementResult:
-    """Least-squares refinement over every measured point (thesis ch. 4.5.7).
+    """Least-squares refinement over every measured point (thesis ch. 4.5.7), geometric or extended (issue 22).
 
     Parameters
     ----------
@@ -596,9 +645,10 @@ def refine(
         Circles or free poses, one or several targets (``target`` column).
     robot : RobotModel or Scenario
         A scenario supplies the targets, the base frame (held when ``[identification] base_frame = "given"``,
-        estimated when "registered") and the instrument.
+        estimated when "registered"), the instrument, the payload and the ``[joint_model]`` settings.
     start : ParameterSet, CPAResult, RefinementResult, path or None
-        Start values (usually :func:`identify`'s result; None: nominal).
+        Start values (usually :func:`identify`'s result; None: nominal). Its joint model, if any, is the start
+        of a model with the same parameters; the others start at zero.
     targets : ReflectorMount, Target or sequence of Target
         Where the points were measured; flange targets may have unknown offsets, which are estimated.
     tracker_from_base : array_like, shape (4, 4), optional
@@ -610,6 +660,14 @@ def refine(
         For the fit health (the points' U(95) when the capture has them).
     health : {"warn", "strict", "off"}
         As for :func:`identify`; ``result.health`` holds the verdict.
+    model : {"geometric", "compliance", "harmonic", "compliance+harmonic", "auto"}, optional
+        The model fitted (:mod:`robotcal.identification.model_choice`); ``auto`` fits each and keeps the one
+        cross-validation chooses. Default: the scenario's ``[joint_model] fit``, else ``geometric``.
+    folds : int, optional
+        k of the cross-validation by pose every fit reports (``result.cross_validation``); 0: none. Default: the
+        scenario's ``[joint_model] folds``, else 5.
+    progress : callable, optional
+        ``progress(done, total, what)`` after every fit.
     **options
         Passed to :func:`robotcal.identification.refine.refine_parameters` (``free``, ``estimate_base``,
         ``method``, ``max_nfev``, ``tolerance``, ``weights``, ``on_unidentifiable``...).
@@ -617,8 +675,9 @@ def refine(
     Returns
     -------
     RefinementResult
-        ``.parameters`` [mm, rad], ``success``, residual statistics [mm], convergence history,
-        linearised covariance and ``standard_uncertainty`` [mm, rad], ``health``.
+        ``.parameters`` [mm, rad] (with its joint model for an extended fit), ``success``, residual statistics
+        [mm], convergence history, linearised covariance and ``standard_uncertainty`` [mm, rad],
+        ``joint_model_uncertainty``, ``health``, ``cross_validation`` and, for ``auto``, ``model_choice``.
 
     Examples
     --------
@@ -634,6 +693,15 @@ def refine(
     """
     robot, scenario = _split(robot)
     capture = _capture(capture, robot)
+    settings = scenario.joint_model if scenario is not None else JointModelTable()
+    model = settings.fit if model is None else model
+    folds = settings.folds if folds is None else folds
+    if model not in MODEL_CHOICES:
+        raise InputError(f"unknown model {model!r}; expected one of {', '.join(MODEL_CHOICES)}")
+    if isinstance(folds, bool) or not isinstance(folds, int) or folds < 0 or folds == 1:
+        raise InputError(f"`folds` must be 0 (no cross-validation) or at least 2; got {folds!r}")
+    if model == "auto" and not folds:
+        raise InputError("model 'auto' chooses by cross-validation: give at least 2 folds")
     if scenario is not None:
         if targets is None:
             targets = capture_targets(scenario, capture)
@@ -642,18 +710,137 @@ def refine(
     if targets is None:
         raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
     instrument = _instrument(instrument, scenario)
-    result = refine_parameters(
-        capture,
-        _parameters(start, robot, "start"),
-        targets,
-        criterion=criterion,
-        tracker_from_base=tracker_from_base,
-        **options,
-    )
+    start = _parameters(start, robot, "start")
+    names = MODELS if model == "auto" else (model,)
+    total = len(names) * (1 + folds)
+    fits, validations = {}, {}
+    for name in names:
+        structure = _joint_model(name, robot, scenario)
+        if structure is not None and start.joint_model is not None and start.joint_model.names == structure.names:
+            structure = start.joint_model
+
+        def fit(part, structure=structure):
+            return refine_parameters(
+                part, start.geometric(), targets, criterion=criterion, tracker_from_base=tracker_from_base,
+                joint_model=structure, **options,
+            )  # fmt: skip
+
+        fits[name] = fit(capture)
+        done = len(fits) + len(fits) * folds - folds
+        if progress is not None:
+            progress(done, total, name)
+        if folds:
+            validations[name] = cross_validate(
+                capture, fit, fits[name], targets, model=name, folds=folds, seed=settings.seed,
+                progress=None if progress is None else lambda k, _, d=done, n=name: progress(d + k, total, f"{n} CV"),
+            )  # fmt: skip
+    choice = choose_model(tuple(validations.values())) if model == "auto" else None
+    chosen = choice.chosen if choice is not None else model
+    result = fits[chosen]
     verdict = refine_health(result, capture, instrument)
     if health != "off":
         report_health(verdict, source=capture.source, strict=health == "strict")
-    return dataclasses.replace(result, health=verdict)
+    return dataclasses.replace(result, health=verdict, cross_validation=validations.get(chosen), model_choice=choice)
+
+
+def compensate(
+    parameters,
+    robot=None,
+    *,
+    poses_deg=None,
+    cartesian=None,
+    start_deg=None,
+    tool_mm=None,
+) -> Compensation:
+    """Joint commands with which the calibrated robot reaches the poses it was taught (issue 22, thesis ch. 6.2).
+
+    Parameters
+    ----------
+    parameters : ParameterSet, a result holding one, or a parameter JSON path
+        The calibrated model (an extended one applies its joint model too); a path needs ``robot``.
+    robot : RobotModel or Scenario, optional
+        For a parameter JSON path.
+    poses_deg : array_like, shape (n_poses, n_joints), optional
+        Joint targets taught on the nominal model [deg]: the target is the nominal model's tool frame there, and
+        the iteration starts from them.
+    cartesian : array_like, shape (n_poses, 6), optional
+        Or Cartesian targets ``x, y, z`` [mm], ``A, B, C`` [deg, KUKA ``Rz(A) Ry(B) Rx(C)``] in the robot base
+        frame; the iteration starts from ``start_deg``.
+    start_deg : array_like, shape (n_joints,) or (n_poses, n_joints), optional
+        Cartesian targets: readings near the wanted solution branch [deg] (default: the middle of the joint limits).
+    tool_mm : array_like, shape (3,), optional
+        The tool point in the flange frame [mm] (default: the flange).
+
+    Returns
+    -------
+    Compensation
+        ``readings`` [rad] to command, and the remaining error of every pose.
+
+    Raises
+    ------
+    InputError
+        A pose the calibrated model cannot reach within 1 um and 1e-4 deg, or only outside the joint limits
+        (the error names the rows).
+
+    Examples
+    --------
+    >>> import numpy as np, robotcal
+    >>> robot = robotcal.load_robot("kuka-kr5-sixx-r650")
+    >>> calibrated = robotcal.perturb(robot, rng=3)
+    >>> taught = [[10.0, 40.0, 30.0, 5.0, 45.0, 0.0]]
+    >>> result = robotcal.compensate(calibrated, poses_deg=taught)
+    >>> bool(result.reached.all()), bool(np.abs(np.rad2deg(result.readings) - taught).max() > 1e-3)
+    (True, True)
+    """
+    from robotcal.geometry.euler import matrix_from_kuka_abc
+    from robotcal.kinematics.compensation import solve_commands
+    from robotcal.kinematics.forward import forward_kinematics
+
+    if robot is None:
+        held = getattr(parameters, "parameters", parameters)
+        if not isinstance(held, ParameterSet):
+            raise InputError("`parameters` must be a ParameterSet or a result holding one (a JSON path needs `robot`)")
+        robot = held.robot
+    else:
+        robot, _ = _split(robot)
+    parameters = _parameters(parameters, robot, "parameters")
+    if (poses_deg is None) == (cartesian is None):
+        raise InputError("give the targets as joint poses (`poses_deg`) or as Cartesian targets (`cartesian`), one of them")
+    tool = np.eye(4)
+    if tool_mm is not None:
+        tool[:3, 3] = np.asarray(tool_mm, dtype=float).reshape(3)
+    if poses_deg is not None:
+        taught = check_joint_variables(np.deg2rad(np.asarray(poses_deg, dtype=float)), robot.n_joints, "poses_deg")
+        targets = forward_kinematics(robot.nominal, robot.model_joint_variables(taught)) @ tool
+        start = taught
+    else:
+        values = np.atleast_2d(np.asarray(cartesian, dtype=float))
+        if values.ndim != 2 or values.shape[1] != 6 or not np.all(np.isfinite(values)):
+            raise InputError(f"`cartesian` must be finite rows of x, y, z, A, B, C; got shape {values.shape}")
+        targets = np.broadcast_to(np.eye(4), (values.shape[0], 4, 4)).copy()
+        targets[:, :3, :3] = matrix_from_kuka_abc(np.deg2rad(values[:, 3:]))
+        targets[:, :3, 3] = values[:, :3]
+        middle = np.where(np.isfinite(robot.limits), robot.limits, 0.0).mean(axis=1)
+        seed = middle if start_deg is None else np.deg2rad(np.asarray(start_deg, dtype=float))
+        start = np.broadcast_to(seed, (values.shape[0], robot.n_joints)).copy()
+    result = solve_commands(parameters, targets, start, tool=tool)
+    missed = np.flatnonzero(~result.reached)
+    if missed.size:
+        worst = missed[np.argmax(result.position_error_mm[missed])]
+        raise InputError(
+            f"the calibrated model cannot reach {missed.size} target(s) within 1 um and 1e-4 deg (pose(s) "
+            f"{', '.join(str(k + 1) for k in missed[:10])}{'...' if missed.size > 10 else ''}; pose {worst + 1} ends "
+            f"{result.position_error_mm[worst]:.3g} mm and {result.orientation_error_deg[worst]:.3g} deg away): out of "
+            "reach, at a singularity, or too far from the start for Newton's method"
+        )
+    low, high = robot.limits[:, 0], robot.limits[:, 1]
+    outside = np.flatnonzero(np.any((result.readings < low) | (result.readings > high), axis=1))
+    if outside.size:
+        raise InputError(
+            f"the compensated commands of pose(s) {', '.join(str(k + 1) for k in outside[:10])}"
+            f"{'...' if outside.size > 10 else ''} are outside the joint limits of {robot.name!r}"
+        )
+    return result
 
 
 def evaluate(
@@ -1166,7 +1353,7 @@ def validation_consistency(
         tracker_from_base = scenario.tracker_from_base
     values = _parameter_draws(draws, robot)
     estimate = _parameters(estimate, robot, "estimate")
-    q = robot.model_joint_variables(validation.readings)
+    q = estimate.model_joint_variables(validation.readings)
     measured = np.asarray(validation.points, dtype=float)
     predicted = target_positions(estimate.values, q, np.zeros(validation.n_points, dtype=int), target)
     if tracker_from_base is not None:

@@ -49,6 +49,7 @@ COMMANDS: dict[str, CommandEntry] = {
     "program": CommandEntry("program", "The capture plan as a KRL, RAPID or URScript program."),
     # using the calibrated model
     "predict": CommandEntry("predict", "Forward kinematics with the calibrated model."),
+    "compensate": CommandEntry("compensate", "Joint commands that reach the taught poses, calibrated."),
     "export": CommandEntry("export", "The calibrated model as JSON, URDF, UR YAML, DH or MDH."),
     "iso9283": CommandEntry("iso9283", "ISO 9283 pose accuracy/repeatability (AP, RP, AD, RD, APa..)."),
     "iso9283-plan": CommandEntry("iso9283", "ISO 9283 test poses P1..P5: pose CSV and robot program."),

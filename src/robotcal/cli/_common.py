@@ -212,6 +212,48 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
     return table
 
 
+def joint_model_table(joint_model, uncertainty=None) -> FittedTable:
+    """The extended model's parameters with their unit and standard uncertainty (``rad/(N m)``, ``deg``)."""
+    from robotcal.cli._tables import Column, FittedTable
+
+    table = FittedTable(
+        "Joint model (gravity compliance, harmonic errors)",
+        [Column("parameter", "name"), Column("group", "name", narrow=1), Column("unit", "name"), Column("value"), Column("u")],
+    )
+    values = joint_model.to_display(joint_model.values)
+    u = joint_model.to_display(uncertainty) if uncertainty is not None else [float("nan")] * joint_model.size
+    for name, group, unit, value, sd, flag in zip(
+        joint_model.names, joint_model.groups, joint_model.display_units, values, u, joint_model.identified, strict=True
+    ):
+        shown = f"{value:.4e}" if flag else styled("held at 0", "dim")
+        table.add_row(name, group, unit, shown, f"{sd:.2e}" if sd == sd else "-")
+    return table
+
+
+def model_table(result) -> FittedTable:
+    """Calibration and cross-validation RMS of the fitted model (of every candidate with ``--model auto``)."""
+    from robotcal.cli._tables import Column, FittedTable
+
+    choice = result.model_choice
+    candidates = choice.candidates if choice is not None else (result.cross_validation,)
+    folds = candidates[0].folds
+    title = f"Model choice ({folds}-fold cross-validation by pose)" if choice else f"{folds}-fold cross-validation by pose"
+    table = FittedTable(
+        title,
+        [Column("model", "name"), Column("unknowns"), Column("calibration RMS [mm]"), Column("CV RMS [mm]"), Column("", "name")],
+    )
+    for candidate in candidates:
+        mark = "chosen" if choice is not None and candidate.model == choice.chosen else ""
+        table.add_row(
+            candidate.model,
+            str(candidate.unknowns),
+            f"{candidate.calibration_rms_mm:.4f}",
+            f"{candidate.cv_rms_mm:.4f}",
+            mark,
+        )
+    return table
+
+
 def circle_table(result) -> FittedTable:
     """Per-circle fit residuals of a CPA result."""
     from robotcal.cli._tables import Column, FittedTable

@@ -17,11 +17,13 @@ from robotcal.io.builtins import builtin_names
 from robotcal.io.export import (
     EXPORT_FORMATS,
     dh_table,
+    joint_model_note,
     mdh_table,
     parameters_to_ur_yaml,
     parameters_to_urdf,
     table_to_csv,
     table_to_markdown,
+    with_note,
 )
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.kinematics.model import ParameterSet
@@ -137,6 +139,9 @@ def export(
         text = table_to_markdown(rows, title=title) if markdown else table_to_csv(rows)
     else:
         text = None
+    note = joint_model_note(parameters)
+    if text is not None and note is not None:
+        text = with_note(text, note, "markdown" if markdown and format in ("dh", "mdh") else format)
     with result_file(out, inputs=inputs, force=force):
         if text is None:
             if provenance is None:
@@ -146,3 +151,5 @@ def export(
             atomic_write_text(out, text)
     what = f", nominal model of {parameters.robot.name}" if nominal is not None else ""
     console.print(f"wrote {out} ({format}{what})", highlight=False)
+    if text is not None and note is not None:
+        console.print(f"note: {note}", highlight=False, soft_wrap=True)

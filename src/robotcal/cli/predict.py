@@ -35,8 +35,7 @@ def predict_frames(parameters, readings, *, target=None, world_from_base=None) -
     The tool frame is the flange frame translated to ``target`` (flange-frame offset [mm], zero for
     the flange); ``world_from_base`` (4, 4) defaults to the identity (robot base = DH frame {0}).
     """
-    q = parameters.robot.model_joint_variables(readings)
-    frames = forward_kinematics(parameters.values, q)
+    frames = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))
     if target is not None:
         tool = np.eye(4)
         tool[:3, 3] = target

@@ -42,9 +42,18 @@ def program(
             "must equal it); RAPID module / URScript function (default robotcal_capture)."
         ),
     ] = None,
+    compensate: Annotated[
+        Path | None,
+        typer.Option(
+            "--compensate",
+            help="Parameter JSON of the calibrated model: command the joints with which it reaches the poses the plan "
+            "gives on the nominal model (robotcal compensate), its joint model included.",
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a file not written by robotcal.")] = False,
 ) -> None:
-    """Write the capture plan as joint moves with a dwell and a comment per point (thesis 4.5.2)."""
+    """Write the capture plan as joint moves with a dwell and a comment per point (thesis 4.5.2), as taught on the
+    nominal model or compensated with a calibrated one."""
     import dataclasses
 
     from robotcal.io import load_robot, load_scenario
@@ -57,13 +66,27 @@ def program(
     plan = loaded.plan if bidirectional is None else dataclasses.replace(loaded.plan, bidirectional=bidirectional)
     target = None if controller is None else load_robot(controller)
     circle, direction, readings = plan.readings(loaded.robot)
+    inputs = existing_inputs(*loaded.files)
+    compensated = ""
+    if compensate is not None:
+        import numpy as np
+
+        from robotcal.api import compensate as compensate_poses
+        from robotcal.io.parameters_json import read_parameters
+
+        inputs += existing_inputs(compensate)
+        parameters = read_parameters(compensate, loaded.robot)
+        readings = compensate_poses(parameters, poses_deg=np.rad2deg(readings)).readings
+        compensated = f"\ncompensated with the calibrated model {compensate} (robotcal compensate)"
     angles = controller_readings(readings, loaded.robot, target)
     header = (
         f"robotcal capture program: scenario {loaded.name} ({loaded.source})\n"
         f"controller readings of robot {(target or loaded.robot).name}; {circle.size} points, dwell {dwell:g} s"
+        + compensated
     )
     text = write_program(circle, direction, angles, language=language, dwell_s=dwell, name=name,
                          speed_percent=speed, header=header)  # fmt: skip
-    with result_file(out, inputs=existing_inputs(*loaded.files), force=force) as path:
+    with result_file(out, inputs=inputs, force=force) as path:
         atomic_write_text(path, text)
-    console.print(f"wrote {out}: {circle.size} {language} joint moves, dwell {dwell:g} s", highlight=False)
+    what = ", compensated" if compensate is not None else ""
+    console.print(f"wrote {out}: {circle.size} {language} joint moves{what}, dwell {dwell:g} s", highlight=False)

@@ -1,4 +1,5 @@
-"""``robotcal refine CAPTURE.csv --scenario S --start PARAMS.json --criterion points|distances --out REFINED.json [--estimate-base]``."""
+"""``robotcal refine CAPTURE.csv --scenario S --start PARAMS.json --criterion points|distances --out REFINED.json
+[--estimate-base] [--model geometric|compliance|harmonic|compliance+harmonic|auto] [--folds K]``."""
 
 from __future__ import annotations
 
@@ -14,11 +15,14 @@ from robotcal.cli._common import (
     command_app,
     console,
     handle_errors,
+    joint_model_table,
+    model_table,
     pairs_bytes,
     parameter_table,
     print_health,
 )
 from robotcal.cli._tables import Column, FittedTable
+from robotcal.identification.model_choice import MODEL_CHOICES
 from robotcal.io.capture_csv import read_capture
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.io.parameters_json import read_parameters, refined_targets, write_parameters
@@ -77,15 +81,33 @@ def refine(
             'gives it (base_frame = "given" holds it by default).',
         ),
     ] = False,
+    model: Annotated[
+        str | None,
+        typer.Option(
+            "--model",
+            help="geometric (the DH/Hayati chain), compliance (+ gravity sag of the loaded joints), harmonic (+ "
+            "a sin q + b cos q per joint), compliance+harmonic, or auto (each fitted, chosen by cross-validation). "
+            "Default: the scenario's [joint_model] fit, geometric when it has none.",
+        ),
+    ] = None,
+    folds: Annotated[
+        int | None,
+        typer.Option("--folds", help="k-fold cross-validation by pose reported for the fit (0: none; default 5)."),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7)."""
+    """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7), with the geometric
+    or an extended model (gravity compliance, harmonic joint errors), each cross-validated by pose."""
     if criterion not in ("points", "distances"):
         raise typer.BadParameter(f"must be 'points' or 'distances'; got {criterion!r}", param_hint="--criterion")
     if weights not in ("auto", "none"):
         raise typer.BadParameter(f"must be 'auto' or 'none'; got {weights!r}", param_hint="--weights")
     if estimate_base and criterion != "points":
         raise typer.BadParameter("applies to the points criterion only", param_hint="--estimate-base")
+    if model is not None and model not in MODEL_CHOICES:
+        raise typer.BadParameter(f"must be one of {', '.join(MODEL_CHOICES)}; got {model!r}", param_hint="--model")
+    if folds is not None and (folds < 0 or folds == 1):
+        raise typer.BadParameter(f"must be 0 (none) or at least 2; got {folds}", param_hint="--folds")
     inputs = existing_inputs(capture, scenario, start)
     check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
@@ -106,12 +128,16 @@ def refine(
         on_unidentifiable="raise" if strict else "fix",
         health="strict" if strict else "warn",
         weights=weights,
+        model=model,
+        folds=folds,
         **({"estimate_base": True} if estimate_base else {}),
     )
     source = str(start) if start is not None else "nominal"
     provenance = refine_provenance(result, measured, source, scenario=loaded)
     with result_file(out, inputs=inputs, force=force):
-        write_parameters(out, result.parameters, provenance, refined_targets(result))
+        write_parameters(
+            out, result.parameters, provenance, refined_targets(result), joint_model_u=result.joint_model_uncertainty
+        )
     console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
         parameter_table(_wrapped(initial), _wrapped(result.parameters), f"Refined parameters ({criterion}) vs start")
     )
@@ -140,5 +166,11 @@ def refine(
             summary.add_row(f"target {target.name} offset [mm] (± u)", shown)
     summary.add_row("time [s]", f"{result.wall_time_s:.2f}")
     console.print(summary)
+    if result.parameters.joint_model is not None:
+        console.print(joint_model_table(result.parameters.joint_model, result.joint_model_uncertainty))
+    if result.cross_validation is not None:
+        console.print(model_table(result))
+        if result.model_choice is not None:
+            console.print(f"model: {result.model_choice.reason}", highlight=False, soft_wrap=True)
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
     print_health(result.health)

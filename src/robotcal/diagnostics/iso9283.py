@@ -290,7 +290,7 @@ def iso_plan_readings(
         raise InputError(f"`n_cycles` must be >= 2; got {n_cycles}")
 
     def pose(readings):
-        frame = forward_kinematics(parameters.values, robot.model_joint_variables(readings))[0]
+        frame = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))[0]
         return frame[:3, :3], frame[:3, :3] @ target + frame[:3, 3]
 
     goal_rotation, _ = pose(start)
@@ -354,8 +354,7 @@ def simulate_attained_positions(parameters, readings, *, target=(0.0, 0.0, 0.0),
     from robotcal.kinematics.model import ReflectorMount
 
     rng = np.random.default_rng(rng)
-    robot = parameters.robot
-    q = robot.model_joint_variables(np.asarray(readings, dtype=float))
+    q = parameters.model_joint_variables(np.asarray(readings, dtype=float))
     errors = None if joint_errors is None else joint_errors.transforms(q, rng=rng)
     mount = ReflectorMount(frame="flange", positions=np.asarray(target, dtype=float))
     return target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), mount, joint_errors=errors)
@@ -660,7 +659,7 @@ def iso_from_capture(
     for label, model in models.items():
         parameters = model.parameters
         base_from_tracker = invert_transform(np.asarray(model.tracker_from_base, dtype=float))
-        frames = forward_kinematics(parameters.values, parameters.robot.model_joint_variables(commands))
+        frames = forward_kinematics(parameters.values, parameters.model_joint_variables(commands))
         if multi:
             offsets = offsets_of(model, label)
             flange_point = offsets.mean(axis=0) if point is None else np.asarray(point, dtype=float)
@@ -749,7 +748,7 @@ def default_iso_start(parameters, point) -> np.ndarray:
     step = 1e-6
 
     def pose(readings):
-        frames = forward_kinematics(parameters.values, robot.model_joint_variables(readings))
+        frames = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))
         return frames[:, :3, :3], frames[:, :3, :3] @ point + frames[:, :3, 3]
 
     rotation, _ = pose(candidates)
@@ -814,7 +813,7 @@ def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, sid
     point = np.asarray(point, dtype=float)
     start = default_iso_start(parameters, point) if start_readings is None else np.asarray(start_readings, float)
     if center_mm is None:
-        frame = forward_kinematics(parameters.values, robot.model_joint_variables(start))[0]
+        frame = forward_kinematics(parameters.values, parameters.model_joint_variables(start))[0]
         center = frame[:3, :3] @ point + frame[:3, 3]
     else:
         center = np.asarray(center_mm, dtype=float)
@@ -903,7 +902,7 @@ def simulate_iso_study(
     )
     rng = np.random.default_rng(seed)
     # one unmeasured cycle first, so that every measured visit has the same motion history (backlash)
-    q = robot.model_joint_variables(np.vstack([readings[:5], readings]))
+    q = true_parameters.model_joint_variables(np.vstack([readings[:5], readings]))
     errors = None if joint_errors is None else joint_errors.transforms(q, rng=rng)[5:]
     flange = joint_frames(true_parameters.values, q[5:], joint_errors=errors)[:, -1]
     base_points = np.einsum("vij,tj->vti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]

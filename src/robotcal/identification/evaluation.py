@@ -46,6 +46,8 @@ __all__ = [
     "ALL_VIEWS",
     "EvaluationRow",
     "point_errors",
+    "predicted_points",
+    "distinct_pairs",
     "distance_errors",
     "absolute_errors",
     "evaluate_parameters",
@@ -71,14 +73,14 @@ class EvaluationRow:
     improvement_pct: float
 
 
-def _predicted(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
+def predicted_points(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
     """Predicted base-frame points; ``reflector`` a :class:`ReflectorMount` or :class:`Target` object(s)."""
     robot = parameters.robot
     if capture.n_joints != robot.n_joints:
         raise InputError(
             f"{capture.source}: {capture.n_joints} joint readings per point; robot {robot.name!r} has {robot.n_joints}"
         )
-    q = robot.model_joint_variables(capture.readings)
+    q = parameters.model_joint_variables(capture.readings)
     if isinstance(reflector, ReflectorMount):
         turning = capture_turning_joints(capture, reflector)
         return target_positions(parameters.values, q, turning, reflector)
@@ -93,8 +95,9 @@ def _predicted(capture: Capture, parameters: ParameterSet, reflector) -> np.ndar
     return points
 
 
-def _pair_keep(capture: Capture, reflector, n_joints: int) -> np.ndarray:
-    """Pairs of distinct measurements (as the refinement's distances criterion takes them)."""
+def distinct_pairs(capture: Capture, reflector, n_joints: int) -> np.ndarray:
+    """Which pairs of :func:`scipy.spatial.distance.pdist` order are distinct measurements (as the refinement's
+    distances criterion takes them), ``(n_points (n_points - 1) / 2,)`` bool."""
     if isinstance(reflector, ReflectorMount):
         key = capture_target_index(capture, reflector)
     else:
@@ -106,7 +109,7 @@ def _pair_keep(capture: Capture, reflector, n_joints: int) -> np.ndarray:
 
 def absolute_errors(capture: Capture, parameters: ParameterSet, reflector, tracker_from_base) -> np.ndarray:
     """``|T p_k - m_k|`` with the given base frame ``T`` (no registration), ``(n_points,)`` [mm]."""
-    predicted = _predicted(capture, parameters, reflector)
+    predicted = predicted_points(capture, parameters, reflector)
     transform = np.asarray(tracker_from_base, dtype=float)
     in_tracker = predicted @ transform[:3, :3].T + transform[:3, 3]
     return np.linalg.norm(in_tracker - capture.points, axis=1)
@@ -114,7 +117,7 @@ def absolute_errors(capture: Capture, parameters: ParameterSet, reflector, track
 
 def point_errors(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
     """Per-point distance after registering the predicted points onto the measured ones, ``(n_points,)`` [mm]."""
-    predicted = _predicted(capture, parameters, reflector)
+    predicted = predicted_points(capture, parameters, reflector)
     return register_points(predicted, capture.points).residuals
 
 
@@ -125,8 +128,8 @@ def distance_errors(capture: Capture, parameters: ParameterSet, reflector) -> np
     reflectors points of different circles are different targets (see
     :func:`robotcal.identification.refine.measurement_pairs`).
     """
-    predicted = _predicted(capture, parameters, reflector)
-    keep = _pair_keep(capture, reflector, parameters.robot.n_joints)
+    predicted = predicted_points(capture, parameters, reflector)
+    keep = distinct_pairs(capture, reflector, parameters.robot.n_joints)
     return np.abs(pdist(predicted) - pdist(capture.points))[keep]
 
 

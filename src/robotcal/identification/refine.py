@@ -119,7 +119,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -139,6 +139,7 @@ from robotcal.identification.observability import (
 from robotcal.identification.targets import Target, resolve_targets
 from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.jacobian import target_jacobian
+from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel
 from robotcal.kinematics.model import ANGLE_COLUMNS, LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
 __all__ = [
@@ -156,6 +157,8 @@ __all__ = [
 
 if TYPE_CHECKING:
     import scipy.sparse
+
+    from robotcal.identification.model_choice import CrossValidation, ModelChoice
 
 
 def pdist(points):
@@ -274,6 +277,16 @@ class RefinementResult:
         (module notes); 0 when the start's decision holds at the solution.
     health : FitHealth or None
         The fit-health verdict (:mod:`robotcal.identification.health`), set by :func:`robotcal.refine`.
+    joint_model_uncertainty : ndarray, shape (m,), or None
+        Standard uncertainty of every joint-model value (``parameters.joint_model``, core units: rad/(N m),
+        rad); NaN where held or without a covariance; None for the geometric model.
+    model : str
+        The model fitted: ``geometric``, or the joint model's groups (``compliance``, ``harmonic``,
+        ``compliance+harmonic``).
+    cross_validation : CrossValidation or None
+        Its k-fold cross-validation by pose, set by :func:`robotcal.refine`.
+    model_choice : ModelChoice or None
+        With ``model="auto"``: every candidate's cross-validation and why the model was chosen.
     """
 
     parameters: ParameterSet
@@ -313,6 +326,10 @@ class RefinementResult:
     residual_rms_coordinate: float = float("nan")
     refits: int = 0
     health: FitHealth | None = None
+    joint_model_uncertainty: np.ndarray | None = None
+    model: str = "geometric"
+    cross_validation: CrossValidation | None = None
+    model_choice: ModelChoice | None = None
 
 
 def wrap_angles(values, nominal=None) -> np.ndarray:
@@ -398,13 +415,24 @@ def _no_flags() -> np.ndarray:
     return np.zeros(0, dtype=bool)
 
 
+class _State(NamedTuple):
+    """The quantities a point of the search stands for: parameters ``(n, 5)``, joint-model values ``(m,)``,
+    unknown offsets ``(k, 3)`` and base corrections ``(6,)``."""
+
+    values: np.ndarray
+    extras: np.ndarray
+    offsets: np.ndarray
+    x_base: np.ndarray
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class _Problem:
     """Immutable data of one refinement; residuals and Jacobian are pure functions of x.
 
-    ``x`` holds the free parameters, then the free components of the unknown flange offsets
-    (``targets[unknown[u]]``, 3 each), then the free base corrections. Without ``targets`` every point
-    is on ``reflector`` (the historical single-target problem).
+    ``x`` holds the free parameters, then the free joint-model values (``joint_columns`` ``C(q)``: the joint
+    variables are ``q + C(q) extras``, :mod:`robotcal.kinematics.joint_model`), then the free components of the
+    unknown flange offsets (``targets[unknown[u]]``, 3 each), then the free base corrections. Without ``targets``
+    every point is on ``reflector`` (the historical single-target problem).
     """
 
     start: np.ndarray
@@ -428,39 +456,54 @@ class _Problem:
     point_weight: np.ndarray | None = None
     pair_weight: np.ndarray | None = None
     base_offset: np.ndarray = field(default_factory=lambda: np.zeros(6))  # base corrections at x0 (held: kept)
+    joint_columns: np.ndarray | None = None  # (n_points, n, m)
+    extra_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    extra_free: np.ndarray = field(default_factory=_no_flags)
 
     @property
     def n_kinematic(self) -> int:
         return int(self.free.sum())
 
     @property
+    def n_extra(self) -> int:
+        return int(self.extra_free.sum())
+
+    @property
     def n_offsets(self) -> int:
         return int(self.offset_free.sum())
 
     def x0(self) -> np.ndarray:
-        return np.concatenate(
-            [self.start[self.free], self.offset_start.ravel()[self.offset_free], self.base_offset[self.base_free]]
-        )
+        return self.pack(_State(self.start, self.extra_start, self.offset_start, self.base_offset))
 
-    def unpack_all(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Parameters ``(n, 5)``, unknown offsets ``(k, 3)`` and base corrections ``(6,)`` at x."""
+    def unpack_all(self, x) -> _State:
+        """The parameters, joint-model values, unknown offsets and base corrections at x."""
+        bounds = np.cumsum([self.n_kinematic, self.n_extra, self.n_offsets])
         values = self.start.copy()
-        values[self.free] = x[: self.n_kinematic]
+        values[self.free] = x[: bounds[0]]
+        extras = self.extra_start.copy()
+        extras[self.extra_free] = x[bounds[0] : bounds[1]]
         offsets = self.offset_start.copy().ravel()
-        offsets[self.offset_free] = x[self.n_kinematic : self.n_kinematic + self.n_offsets]
+        offsets[self.offset_free] = x[bounds[1] : bounds[2]]
         x_base = self.base_offset.copy()
-        x_base[self.base_free] = x[self.n_kinematic + self.n_offsets :]
-        return values, offsets.reshape(-1, 3), x_base
+        x_base[self.base_free] = x[bounds[2] :]
+        return _State(values, extras, offsets.reshape(-1, 3), x_base)
 
-    def pack(self, values, offsets, x_base) -> np.ndarray:
-        """The unknowns x of parameters ``(n, 5)``, unknown offsets ``(k, 3)`` and base corrections ``(6,)``."""
+    def pack(self, state: _State) -> np.ndarray:
+        """The unknowns x of a state."""
         return np.concatenate(
-            [values[self.free], np.asarray(offsets).ravel()[self.offset_free], np.asarray(x_base)[self.base_free]]
+            [
+                state.values[self.free],
+                np.asarray(state.extras)[self.extra_free],
+                np.asarray(state.offsets).ravel()[self.offset_free],
+                np.asarray(state.x_base)[self.base_free],
+            ]
         )
 
-    def unpack(self, x) -> tuple[np.ndarray, np.ndarray]:
-        values, _, x_base = self.unpack_all(x)
-        return values, x_base
+    def joint_variables(self, extras) -> np.ndarray:
+        """``q + C(q) extras`` [rad] (``q`` itself for the geometric model)."""
+        if self.joint_columns is None:
+            return self.q
+        return self.q + self.joint_columns @ np.asarray(extras, dtype=float)
 
     def _groups(self, offsets):
         """``(rows, mount, unknown slot or None)`` per target."""
@@ -472,31 +515,36 @@ class _Problem:
             mount = target.mount if slot is None else ReflectorMount(frame="flange", positions=offsets[slot])
             yield rows, mount, slot
 
-    def base_points(self, values, offsets) -> np.ndarray:
+    def base_points(self, state: _State) -> np.ndarray:
         """Target positions in the base frame ``(n_points, 3)`` [mm]."""
+        q = self.joint_variables(state.extras)
         if not self.targets:
-            return target_positions(values, self.q, self.turning, self.reflector)
-        points = np.empty((self.q.shape[0], 3))
-        for rows, mount, _ in self._groups(offsets):
-            points[rows] = target_positions(values, self.q[rows], self.turning[rows], mount)
+            return target_positions(state.values, q, self.turning, self.reflector)
+        points = np.empty((q.shape[0], 3))
+        for rows, mount, _ in self._groups(state.offsets):
+            points[rows] = target_positions(state.values, q[rows], self.turning[rows], mount)
         return points
 
-    def base_jacobian(self, values, offsets) -> tuple[np.ndarray, np.ndarray]:
-        """Base-frame points and ``d points / d (parameters, every unknown offset)`` ``(n_points, 3, 5 n + 3 k)``."""
-        if not self.targets:
-            points, jac = target_jacobian(values, self.q, self.turning, self.reflector)
-            return points, jac.reshape(jac.shape[0], 3, -1)
-        n_points, n = self.q.shape
+    def base_jacobian(self, state: _State) -> tuple[np.ndarray, np.ndarray]:
+        """Base-frame points and ``d points / d (parameters, joint-model values, every unknown offset)``
+        ``(n_points, 3, 5 n + m + 3 k)``."""
+        q = self.joint_variables(state.extras)
+        n_points, n = q.shape
+        m = self.extra_free.size
         points = np.empty((n_points, 3))
-        jac = np.zeros((n_points, 3, 5 * n + 3 * len(self.unknown)))
-        for rows, mount, slot in self._groups(offsets):
-            group_points, group_jac = target_jacobian(values, self.q[rows], self.turning[rows], mount)
+        jac = np.zeros((n_points, 3, 5 * n + m + 3 * len(self.unknown)))
+        groups = [(np.arange(n_points), self.reflector, None)] if not self.targets else self._groups(state.offsets)
+        for rows, mount, slot in groups:
+            group_points, group_jac, by_joint = target_jacobian(
+                state.values, q[rows], self.turning[rows], mount, joint_variables=True
+            )
             points[rows] = group_points
             jac[rows, :, : 5 * n] = group_jac.reshape(rows.size, 3, -1)
+            if m:  # d p / d extras = sum_i d p / d q_i C_i
+                jac[rows, :, 5 * n : 5 * n + m] = by_joint @ self.joint_columns[rows]
             if slot is not None:  # d (F_n r) / d r = the flange rotation
-                jac[rows, :, 5 * n + 3 * slot : 5 * n + 3 * slot + 3] = forward_kinematics(values, self.q[rows])[
-                    :, :3, :3
-                ]
+                column = 5 * n + m + 3 * slot
+                jac[rows, :, column : column + 3] = forward_kinematics(state.values, q[rows])[:, :3, :3]
         return points, jac
 
     def tracker(self, x_base) -> np.ndarray:
@@ -508,11 +556,11 @@ class _Problem:
 
     def raw_residuals(self, x) -> np.ndarray:
         """Unweighted residuals [mm]: ``T p - m`` per coordinate, or ``|p_i - p_j| - |m_i - m_j|``."""
-        values, offsets, x_base = self.unpack_all(x)
-        points = self.base_points(values, offsets)
+        state = self.unpack_all(x)
+        points = self.base_points(state)
         if self.criterion == "distances":
             return pdist(points)[self.pair_keep] - self.measured_distances
-        tracker = self.tracker(x_base)
+        tracker = self.tracker(state.x_base)
         return (points @ tracker[:3, :3].T + tracker[:3, 3] - self.measured).ravel()
 
     def _row_weights(self) -> np.ndarray | None:
@@ -525,15 +573,14 @@ class _Problem:
         weights = self._row_weights()
         return residuals if weights is None else residuals * weights
 
-    def point_jacobian(self, values, x_base, offsets=None) -> tuple[np.ndarray, np.ndarray]:
+    def point_jacobian(self, state: _State) -> tuple[np.ndarray, np.ndarray]:
         """Tracker-frame (points criterion) or base-frame (distances) points ``(n_points, 3)`` and
         ``d points / d x`` ``(n_points, 3, n_x)``."""
-        offsets = self.offset_start if offsets is None else offsets
-        points, jac = self.base_jacobian(values, offsets)
-        jac = jac[:, :, np.r_[self.free.ravel(), self.offset_free]]
+        points, jac = self.base_jacobian(state)
+        jac = jac[:, :, np.r_[self.free.ravel(), self.extra_free, self.offset_free]]
         if self.criterion == "distances":
             return points, jac
-        rotation, shift, derivatives = base_correction(x_base)
+        rotation, shift, derivatives = base_correction(state.x_base)
         r0 = self.base_start[:3, :3]
         total = r0 @ rotation
         columns = [np.einsum("ij,pjk->pik", total, jac)]
@@ -547,8 +594,7 @@ class _Problem:
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``(m,)`` and Jacobian ``(m, n_x)`` at x (weighted where weights are given)."""
-        values, offsets, x_base = self.unpack_all(x)
-        points, jac = self.point_jacobian(values, x_base, offsets)
+        points, jac = self.point_jacobian(self.unpack_all(x))
         if self.criterion == "points":
             residuals, jacobian = (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
         else:
@@ -561,8 +607,7 @@ class _Problem:
 
     def jacobian_sample(self, x, rows: int) -> np.ndarray:
         """Jacobian at x on about ``rows`` evenly strided residuals (every pair, or point, k-th)."""
-        values, offsets, x_base = self.unpack_all(x)
-        points, jac = self.point_jacobian(values, x_base, offsets)
+        points, jac = self.point_jacobian(self.unpack_all(x))
         if self.criterion == "points":
             return jac.reshape(-1, jac.shape[-1])
         stride = max(1, self.pair_i.size // rows)
@@ -572,8 +617,7 @@ class _Problem:
         """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
         if self.criterion == "points":
             return None
-        values, offsets, _ = self.unpack_all(x)
-        points = self.base_points(values, offsets)
+        points = self.base_points(self.unpack_all(x))
         unit = _unit(points[self.pair_i] - points[self.pair_j])
         if self.pair_weight is not None:  # G = diag(w_pair) dr/dm diag(sigma_k / sigma_ref): isotropic noise again
             unit = unit * self.pair_weight[:, None]
@@ -680,13 +724,15 @@ class _Selection:
     """Outcome of the rank test on the full candidate set (module notes)."""
 
     free: np.ndarray  # (n, 5) bool: parameters estimated
+    extra_free: np.ndarray  # (m,) bool: joint-model values estimated
     offset_free: np.ndarray  # (3 k,) bool: unknown offset components estimated
     base_free: np.ndarray  # (6,) bool: base corrections estimated
     held: np.ndarray  # (n, 5) bool: candidate parameters held, gauge ones included
+    extra_held: np.ndarray  # (m,) bool
     offset_held: np.ndarray  # (3 k,) bool
     base_held: np.ndarray  # (6,) bool: candidate base corrections held
     gauge: np.ndarray  # (n, 5) bool: held because they move the whole point cloud rigidly
-    confounded: np.ndarray  # (5 n + 3 k + 6,) bool: free quantities tied to a held one
+    confounded: np.ndarray  # (5 n + m + 3 k + 6,) bool: free quantities tied to a held one
 
 
 def _null_support(matrix: np.ndarray, dimension: int) -> np.ndarray:
@@ -699,42 +745,53 @@ def _null_support(matrix: np.ndarray, dimension: int) -> np.ndarray:
 
 def _selection_key(selection: _Selection) -> bytes:
     """What a selection estimates, comparable across rank tests."""
-    return np.r_[selection.free.ravel(), selection.offset_free, selection.base_free].tobytes()
+    return np.r_[selection.free.ravel(), selection.extra_free, selection.offset_free, selection.base_free].tobytes()
 
 
 def _select_free(
     probe: _Problem,
     candidates: np.ndarray,
     all_scale: np.ndarray,
-    kind_scale: np.ndarray,
     tolerance: float,
     jacobian: np.ndarray | None = None,
     preferred: _Selection | None = None,
 ) -> _Selection:
-    """Rank test at ``probe.x0()`` (the start, or a solution) on every candidate column (parameters, unknown
-    offsets, base corrections); ``jacobian``: ``probe``'s Jacobian there when already evaluated.
+    """Rank test at ``probe.x0()`` (the start, or a solution) on every candidate column (parameters, joint-model
+    values, unknown offsets, base corrections); ``jacobian``: ``probe``'s Jacobian there when already evaluated.
 
     Columns are taken base corrections first, then the unknown flange offsets, then the parameters of
-    joints 1..n in the order d, theta, a, alpha, beta (:func:`select_identifiable`): of a dependent group
-    the earlier ones stay free, so a parameter equivalent to a base motion is held and the base
-    correction kept, and joint n's d, theta, a, alpha, which only move the flange frame that unknown
-    offsets are expressed in, are held in favour of the offsets (the flange frame stays nominal; the
-    offsets are estimated in it); so is a parameter of joints 1..n-1 that only an offset's rough guess
-    would otherwise absorb (a target on axis n). ``preferred`` (at a solution: the free set in use) puts
-    its columns first, each part in that order, so that a free quantity is dropped only when it is not
-    determined and a held one freed only when it adds to the rank.
+    joints 1..n in the order d, theta, a, alpha, beta (:func:`select_identifiable`), then the joint-model values:
+    of a dependent group the earlier ones stay free, so a parameter equivalent to a base motion is held and the
+    base correction kept, a joint-model term that only repeats a geometric parameter's effect is held, and joint
+    n's d, theta, a, alpha, which only move the flange frame that unknown offsets are expressed in, are held in
+    favour of the offsets (the flange frame stays nominal; the offsets are estimated in it); so is a parameter of
+    joints 1..n-1 that only an offset's rough guess would otherwise absorb (a target on axis n). ``preferred``
+    (at a solution: the free set in use) puts its columns first, each part in that order, so that a free quantity
+    is dropped only when it is not determined and a held one freed only when it adds to the rank.
+
+    ``candidates`` ``(5 n + m,)``: the parameters and joint-model values that may be free; ``all_scale``
+    ``(5 n + m + 6,)``: the column scale of the parameters, the joint-model values and the base corrections.
     """
     n = probe.free.shape[0]
+    m = probe.extra_free.size
     n_off = probe.offset_free.size
     n_base = int(probe.base_free.sum())
+    own = 5 * n + m  # parameter and joint-model columns
     if preferred is not None:
-        preferred = np.r_[preferred.free.ravel(), preferred.offset_free, preferred.base_free[probe.base_free]]
-    # columns: 5 n parameters, 3 k offsets, then the candidate base ones
+        preferred = np.r_[
+            preferred.free.ravel(), preferred.extra_free, preferred.offset_free, preferred.base_free[probe.base_free]
+        ]
+    # columns: 5 n parameters, m joint-model values, 3 k offsets, then the candidate base ones
     jac_all = probe.evaluate(probe.x0())[1] if jacobian is None else jacobian
-    scale = np.concatenate([np.tile(kind_scale, n), np.ones(n_off), all_scale[5 * n :][probe.base_free]])
+    scale = np.concatenate([all_scale[:own], np.ones(n_off), all_scale[own:][probe.base_free]])
     scaled = triangular_factor(jac_all * scale)
-    chosen = np.r_[candidates.ravel(), np.ones(n_off + n_base, dtype=bool)]
-    order = np.r_[np.arange(5 * n + n_off, 5 * n + n_off + n_base), np.arange(5 * n, 5 * n + n_off), np.arange(5 * n)]
+    chosen = np.r_[candidates, np.ones(n_off + n_base, dtype=bool)]
+    order = np.r_[
+        np.arange(own + n_off, own + n_off + n_base),
+        np.arange(own, own + n_off),
+        np.arange(5 * n),
+        np.arange(5 * n, own),
+    ]
     if preferred is not None:  # the free set being checked first, each part in the documented order
         order = np.r_[order[preferred[order]], order[~preferred[order]]]
     keep = np.zeros(chosen.size, dtype=bool)
@@ -769,28 +826,31 @@ def _select_free(
     gauge = np.zeros((n, 5), dtype=bool)
     held = held_all[: 5 * n].reshape(n, 5)
     if np.any(held) and (n_base or probe.criterion == "distances"):
-        values, offsets, _ = probe.unpack_all(probe.x0())
-        points, point_jac = probe.base_jacobian(values, offsets)
-        columns = point_jac[:, :, : 5 * n].reshape(-1, 5 * n) * np.tile(kind_scale, n)
+        state = probe.unpack_all(probe.x0())
+        points, point_jac = probe.base_jacobian(state)
+        kind_scale = all_scale[:5]
+        columns = point_jac[:, :, : 5 * n].reshape(-1, 5 * n) * all_scale[: 5 * n]
         basis = _rigid_motion_fields(points, float(kind_scale[1]))
         size = np.linalg.norm(columns, axis=0)
         outside = np.linalg.norm(columns - basis @ (basis.T @ columns), axis=0)
         rigid = (size > 1e-12 * max(float(size.max()), 1e-300)) & (outside <= tolerance * size)
         gauge = held & rigid.reshape(n, 5)
     base_keep = np.zeros(6, dtype=bool)
-    base_keep[probe.base_free] = keep[5 * n + n_off :]
+    base_keep[probe.base_free] = keep[own + n_off :]
     base_held = probe.base_free & ~base_keep
     base_confounded = np.zeros(6, dtype=bool)
-    base_confounded[probe.base_free] = confounded[5 * n + n_off :]
+    base_confounded[probe.base_free] = confounded[own + n_off :]
     return _Selection(
         free=keep[: 5 * n].reshape(n, 5),
-        offset_free=keep[5 * n : 5 * n + n_off],
+        extra_free=keep[5 * n : own],
+        offset_free=keep[own : own + n_off],
         base_free=base_keep,
         held=held,
-        offset_held=held_all[5 * n : 5 * n + n_off],
+        extra_held=held_all[5 * n : own],
+        offset_held=held_all[own : own + n_off],
         base_held=base_held,
         gauge=gauge,
-        confounded=np.r_[confounded[: 5 * n + n_off], base_confounded],
+        confounded=np.r_[confounded[: own + n_off], base_confounded],
     )
 
 
@@ -809,6 +869,7 @@ def refine_parameters(
     tolerance: float = 1e-12,
     rank_tolerance: float = 1e-7,
     weights: str = "auto",
+    joint_model: JointModel | None = None,
 ) -> RefinementResult:
     """Refine kinematic parameters by least squares over all measured points (thesis ch. 4.5.7).
 
@@ -851,6 +912,11 @@ def refine_parameters(
     weights : {"auto", "none"}
         ``auto``: with a ``u95_mm`` column, weight each point by ``1 / u^2`` (u = U(95) / 2, k = 2,
         normal; module notes); ``none``: equal weights.
+    joint_model : JointModel, optional
+        The non-geometric joint-angle errors to fit with the geometry (gravity compliance, harmonic errors:
+        :mod:`robotcal.kinematics.joint_model`), starting from its values; every one of its parameters is a
+        candidate of the rank test, after the geometric ones. None: the start's joint model (none for a
+        geometric start: the geometric model).
 
     Returns
     -------
@@ -875,8 +941,9 @@ def refine_parameters(
             capture, start, reflector, criterion=criterion, tracker_from_base=tracker_from_base,
             estimate_base=estimate_base, free=free, on_unidentifiable=on_unidentifiable, method=method,
             max_nfev=max_nfev, tolerance=tolerance, rank_tolerance=rank_tolerance, weights=weights,
+            joint_model=joint_model,
         )  # fmt: skip
-        selection = _select_free(setup.probe, setup.candidates, setup.all_scale, setup.kind_scale, rank_tolerance)
+        selection = _select_free(setup.probe, setup.candidates, setup.all_scale, rank_tolerance)
         verdict = _describe(setup, selection)
         if setup.strict and set(verdict.gauge + verdict.held) - set(verdict.flange_held):  # refused before any fit
             _report_held(setup, verdict, strict=True, where="the start")
@@ -902,11 +969,11 @@ class _Setup:
     capture: Capture
     start: ParameterSet
     probe: _Problem
-    candidates: np.ndarray  # (n, 5) bool
-    all_scale: np.ndarray  # (5 n + 6,): parameters, then base corrections
-    kind_scale: np.ndarray  # (5,)
+    candidates: np.ndarray  # (5 n + m,) bool: parameters, then joint-model values
+    all_scale: np.ndarray  # (5 n + m + 6,): parameters, joint-model values, then base corrections
     offset_start: np.ndarray  # (k, 3)
     offset_names: tuple[str, ...]
+    joint_model: JointModel | None
     use_base: bool
     explicit: bool
     strict: bool
@@ -922,10 +989,14 @@ class _Setup:
     def criterion(self) -> str:
         return self.probe.criterion
 
+    @property
+    def extra_names(self) -> tuple[str, ...]:
+        return () if self.joint_model is None else self.joint_model.names
+
 
 def _set_up(
     capture, start, reflector, *, criterion, tracker_from_base, estimate_base, free, on_unidentifiable, method,
-    max_nfev, tolerance, rank_tolerance, weights,
+    max_nfev, tolerance, rank_tolerance, weights, joint_model,
 ) -> _Setup:  # fmt: skip
     """Check the options and the capture, resolve the targets, weights, base frame and pairs, and build the
     problem on which the free set is chosen."""
@@ -985,11 +1056,17 @@ def _set_up(
         point_weight = reference / sigmas  # relative weights: sigma keeps its meaning [mm] (module notes)
     use_base = criterion == "points" and (tracker_from_base is None if estimate_base is None else estimate_base)
     explicit_mask = _check_free(free, robot)
+    joint_model = start.joint_model if joint_model is None else joint_model
+    if joint_model is not None and joint_model.nominal.shape != (n, 5):
+        raise InputError(f"the joint model was built for another robot than {robot.name!r}")
+    columns = None if joint_model is None or joint_model.is_empty else joint_model.columns(q)
+    extra_start = np.zeros(0) if columns is None else np.asarray(joint_model.values, dtype=float)
 
     base_start = None
     if criterion == "points":
         if tracker_from_base is None:
-            nominal_points = target_positions(start.values, q, turning, reflector)
+            start_q = q if columns is None else q + columns @ extra_start
+            nominal_points = target_positions(start.values, start_q, turning, reflector)
             base_start = register_points(nominal_points, measured).transform
         else:
             base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
@@ -1010,6 +1087,11 @@ def _set_up(
     size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
     angle_scale = 1.0 / max(size, 1.0)
     kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
+    # a joint-model value's unit step turns the joints by C(q) rad: about 1 mm at the cloud's radius once scaled
+    extra_scale = np.zeros(0)
+    if columns is not None:
+        turn = np.sqrt(np.mean(np.sum(columns**2, axis=1), axis=0))  # RMS joint turn per unit value [rad]
+        extra_scale = angle_scale / np.where(turn > 0.0, turn, 1.0)
     probe = _Problem(
         start=start.values.copy(),
         free=np.ones((n, 5), dtype=bool),
@@ -1031,16 +1113,22 @@ def _set_up(
         offset_free=np.ones(offset_start.size, dtype=bool),
         point_weight=point_weight,
         pair_weight=pair_weight,
+        joint_columns=columns,
+        extra_start=extra_start,
+        extra_free=np.ones(extra_start.size, dtype=bool),
     )
+    parameters = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     return _Setup(
         capture=capture,
         start=start,
         probe=probe,
-        candidates=~robot.structurally_fixed if explicit_mask is None else explicit_mask,
-        all_scale=np.concatenate([np.tile(kind_scale, n), [1.0, 1.0, 1.0, angle_scale, angle_scale, angle_scale]]),
-        kind_scale=kind_scale,
+        candidates=np.r_[parameters.ravel(), np.ones(extra_start.size, dtype=bool)],
+        all_scale=np.concatenate(
+            [np.tile(kind_scale, n), extra_scale, [1.0, 1.0, 1.0, angle_scale, angle_scale, angle_scale]]
+        ),
         offset_start=offset_start,
         offset_names=offset_names,
+        joint_model=None if columns is None else joint_model,
         use_base=use_base,
         explicit=explicit_mask is not None,
         strict=explicit_mask is not None or on_unidentifiable == "raise",
@@ -1072,12 +1160,12 @@ def _describe(setup: _Setup, chosen: _Selection) -> _Verdict:
     held_mask = chosen.held & ~chosen.gauge
     held = (
         tuple(name for name, flag in zip(names, held_mask.ravel(), strict=True) if flag)
+        + tuple(name for name, flag in zip(setup.extra_names, chosen.extra_held, strict=True) if flag)
         + tuple(name for name, flag in zip(setup.offset_names, chosen.offset_held, strict=True) if flag)
         + tuple(BASE_NAMES[k] for k in np.flatnonzero(chosen.base_held))
     )
-    confounded = tuple(
-        name for name, flag in zip(names + setup.offset_names + BASE_NAMES, chosen.confounded, strict=True) if flag
-    )
+    every = names + setup.extra_names + setup.offset_names + BASE_NAMES
+    confounded = tuple(name for name, flag in zip(every, chosen.confounded, strict=True) if flag)
     flange_frame = _flange_frame_note(setup.probe.targets, setup.probe.unknown, held_mask, n)
     flange_held = () if setup.explicit or not flange_frame else tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
     return _Verdict(gauge, held, confounded, flange_frame, flange_held)
@@ -1113,7 +1201,8 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
     n = start.robot.n_joints
     probe = replace(setup.probe, offset_start=setup.offset_start)
     verdict = _describe(setup, selection)
-    fit_values, fit_offsets, fit_base = start.values.copy(), setup.offset_start, np.zeros(6)
+    start_state = _State(start.values.copy(), probe.extra_start.copy(), setup.offset_start, np.zeros(6))
+    fit_state = start_state
     seen = [_selection_key(selection)]
     nfev = njev = 0
     history: list[float] = []
@@ -1123,10 +1212,12 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
     for fit_round in range(_MAX_REFITS + 1):
         problem = replace(
             probe,
-            start=fit_values,
-            offset_start=fit_offsets,
-            base_offset=fit_base,
+            start=fit_state.values,
+            extra_start=fit_state.extras,
+            offset_start=fit_state.offsets,
+            base_offset=fit_state.x_base,
             free=selection.free,
+            extra_free=selection.extra_free,
             base_free=selection.base_free,
             offset_free=selection.offset_free,
         )
@@ -1136,11 +1227,13 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
                 f"{capture.source}: no parameter can be refined from this capture",
                 parameters=verdict.gauge + verdict.held,
             )
+        own = 5 * n + selection.extra_free.size
         x_scale = np.concatenate(
             [
-                np.tile(setup.kind_scale, (n, 1))[selection.free],
+                setup.all_scale[: 5 * n][selection.free.ravel()],
+                setup.all_scale[5 * n : own][selection.extra_free],
                 np.ones(int(selection.offset_free.sum())),
-                setup.all_scale[5 * n :][selection.base_free],
+                setup.all_scale[own:][selection.base_free],
             ]
         )
 
@@ -1189,14 +1282,20 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
                 f"the solver ended at a higher cost ({final_cost:.6g} mm^2) than the start ({start_cost:.6g} mm^2); "
                 f"the start is returned. Solver: {message}"
             )
-            x_final, success = problem.pack(start.values, setup.offset_start, np.zeros(6)), False
+            x_final, success = problem.pack(start_state), False
             start_residuals = problem.residuals(x_final)
             final_cost = 0.5 * float(start_residuals @ start_residuals)
         if not history or abs(history[-1] - final_cost) > 1e-15 * max(final_cost, 1e-300):
             history.append(final_cost)
-        values, offsets, x_base = problem.unpack_all(x_final)
+        solved = problem.unpack_all(x_final)
         # the rank test again, at the solution (the offsets as estimated): its Jacobian serves the statistics too
-        at_solution = replace(probe, start=values, offset_start=offsets, base_offset=x_base)
+        at_solution = replace(
+            probe,
+            start=solved.values,
+            extra_start=solved.extras,
+            offset_start=solved.offsets,
+            base_offset=solved.x_base,
+        )
         evaluated = at_solution.evaluate(at_solution.x0())
         fit = _Fit(
             problem=problem, x=x_final, success=success, status=status, message=message, method=method,
@@ -1210,7 +1309,6 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
             at_solution,
             setup.candidates,
             setup.all_scale,
-            setup.kind_scale,
             setup.rank_tolerance,
             evaluated[1],
             preferred=selection,
@@ -1233,9 +1331,12 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
         selection = decided
         verdict = _describe(setup, selection)
         # refit from the solution: what stays free keeps its value, what is now held goes back to its start value
-        fit_values = np.where(selection.free, values, start.values)
-        fit_offsets = np.where(selection.offset_free, offsets.ravel(), setup.offset_start.ravel()).reshape(-1, 3)
-        fit_base = np.where(selection.base_free, x_base, 0.0)
+        fit_state = _State(
+            np.where(selection.free, solved.values, start_state.values),
+            np.where(selection.extra_free, solved.extras, start_state.extras),
+            np.where(selection.offset_free, solved.offsets.ravel(), setup.offset_start.ravel()).reshape(-1, 3),
+            np.where(selection.base_free, solved.x_base, 0.0),
+        )
     return _finish(fit, nfev, njev, start_cost, history, len(seen) - 1, unsettled, method)
 
 
@@ -1268,20 +1369,22 @@ def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
     robot = start.robot
     names, n = robot.parameter_names, robot.n_joints
     free_mask, offset_free = fit.selection.free, fit.selection.offset_free
-    base_free = fit.selection.base_free
-    values, offsets, x_base = problem.unpack_all(fit.x)
+    extra_free, base_free = fit.selection.extra_free, fit.selection.base_free
+    values, extras, offsets, x_base = problem.unpack_all(fit.x)
     free_names = (
         tuple(name for name, flag in zip(names, free_mask.ravel(), strict=True) if flag)
+        + tuple(name for name, flag in zip(setup.extra_names, extra_free, strict=True) if flag)
         + tuple(name for name, flag in zip(setup.offset_names, offset_free, strict=True) if flag)
         + tuple(BASE_NAMES[k] for k in np.flatnonzero(base_free))
     )
     residuals, jac_all = fit.evaluated
-    jac = jac_all[:, np.r_[free_mask.ravel(), offset_free, base_free[: 6 if setup.use_base else 0]]]
+    jac = jac_all[:, np.r_[free_mask.ravel(), extra_free, offset_free, base_free[: 6 if setup.use_base else 0]]]
     raw = problem.raw_residuals(fit.x)
     per = np.linalg.norm(raw.reshape(-1, 3), axis=1) if criterion == "points" else np.abs(raw)
     cond = conditioning(jac * fit.x_scale)
     covariance, sigma, dof = _covariance(jac, fit.x_scale, residuals, problem.noise_map(fit.x))
     standard = np.full((n, 5), np.nan)
+    extra_sd = np.full(extra_free.size, np.nan)
     offset_sd = np.full(setup.offset_start.shape, np.nan)
     message = fit.message
     if covariance is None:
@@ -1292,9 +1395,11 @@ def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
         )
     else:
         diagonal = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-        standard[free_mask] = diagonal[: problem.n_kinematic]
+        bounds = np.cumsum([problem.n_kinematic, problem.n_extra, problem.n_offsets])
+        standard[free_mask] = diagonal[: bounds[0]]
+        extra_sd[extra_free] = diagonal[bounds[0] : bounds[1]]
         flat = offset_sd.ravel()
-        flat[offset_free] = diagonal[problem.n_kinematic : problem.n_kinematic + problem.n_offsets]
+        flat[offset_free] = diagonal[bounds[1] : bounds[2]]
         offset_sd = flat.reshape(setup.offset_start.shape)
     targets, unknown = problem.targets, problem.unknown
     refined_targets = list(targets)
@@ -1303,8 +1408,13 @@ def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
         refined_targets[t] = targets[t].with_position(offsets[slot])
         target_sd[t] = offset_sd[slot]
     cost_history = fit.history
+    joint_model = None
+    if setup.joint_model is not None:
+        joint_model = setup.joint_model.with_values(extras, identified=setup.joint_model.identified | extra_free)
     return RefinementResult(
-        parameters=ParameterSet(robot=robot, values=values, identified=start.identified | free_mask),
+        parameters=ParameterSet(
+            robot=robot, values=values, identified=start.identified | free_mask, joint_model=joint_model
+        ),
         tracker_from_base=None if problem.base_start is None else _frozen(problem.tracker(x_base)),
         criterion=criterion,
         method=fit.method,
@@ -1340,6 +1450,8 @@ def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
         weighted=setup.weighted,
         residual_rms_coordinate=float(np.sqrt(np.mean(raw**2))),
         refits=fit.refits,
+        joint_model_uncertainty=None if joint_model is None else _frozen(extra_sd),
+        model="geometric" if joint_model is None else "+".join(g for g in JOINT_MODEL_GROUPS if g in joint_model.groups),
     )
 
 

@@ -40,6 +40,7 @@ from robotcal.io.export import (
     UR_JOINT_NAMES,
     coupled_joints,
     dh_table,
+    joint_model_note,
     joint_origins,
     mdh_table,
     model_variable_limits,
@@ -49,6 +50,7 @@ from robotcal.io.export import (
     rpy_from_matrix,
     table_to_csv,
     table_to_markdown,
+    with_note,
 )
 from robotcal.io.instruments import instrument_presets, make_instrument
 from robotcal.io.iso9283_files import ISO_COLUMNS, iso_to_csv
@@ -77,6 +79,7 @@ from robotcal.io.output import (
     write_marker,
 )
 from robotcal.io.parameters_json import (
+    joint_model_to_dict,
     parameters_to_dict,
     read_parameters,
     read_targets,
@@ -115,8 +118,10 @@ from robotcal.io.run_summary import (
     summarise,
 )
 from robotcal.io.scenario import (
+    JointModelTable,
     MissingTable,
     MonteCarloTable,
+    PayloadTable,
     Scenario,
     TCPTable,
     TruthTable,
@@ -145,9 +150,11 @@ from robotcal.io.tracker_import import (
     read_tracker_export,
 )
 from robotcal.io.trajectory_csv import (
+    CARTESIAN_COLUMNS,
     MAX_READING_DEG,
     builtin_trajectories,
     load_trajectory,
+    read_pose_targets,
     read_trajectory,
     trajectory_to_csv,
     write_trajectory,
@@ -186,6 +193,8 @@ __all__ = [
     "convergence_of",
     "evaluation_headline",
     "write_evaluation_folder",
+    "joint_model_note",
+    "with_note",
     "EXPORT_FORMATS",
     "UR_JOINT_NAMES",
     "coupled_joints",
@@ -223,6 +232,7 @@ __all__ = [
     "result_file",
     "result_folder",
     "write_marker",
+    "joint_model_to_dict",
     "parameters_to_dict",
     "read_parameters",
     "read_targets",
@@ -268,6 +278,8 @@ __all__ = [
     "MonteCarloTable",
     "TruthTable",
     "ValidationTable",
+    "PayloadTable",
+    "JointModelTable",
     "TCPTable",
     "load_scenario",
     "list_scenarios",
@@ -288,6 +300,8 @@ __all__ = [
     "join_points_to_readings",
     "import_tracker_capture",
     "MAX_READING_DEG",
+    "CARTESIAN_COLUMNS",
+    "read_pose_targets",
     "read_trajectory",
     "write_trajectory",
     "trajectory_to_csv",

@@ -35,6 +35,8 @@ from robotcal.io.output import SIGNATURE  # the first comment by which robotcal 
 from robotcal.kinematics.model import ParameterSet
 
 __all__ = [
+    "joint_model_note",
+    "with_note",
     "EXPORT_FORMATS",
     "UR_JOINT_NAMES",
     "coupled_joints",
@@ -368,6 +370,32 @@ def mdh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> l
         }
     )
     return rows
+
+
+def joint_model_note(parameters: ParameterSet) -> str | None:
+    """What a geometric-only export leaves out of an extended model (issue 22), or None for a geometric one."""
+    model = parameters.joint_model
+    if model is None or model.is_empty:
+        return None
+    return (
+        f"the calibrated model also has a joint model ({', '.join(sorted(set(model.groups)))}: {', '.join(model.names)}) "
+        "that this format cannot carry: only its geometric part is written here. `robotcal compensate` applies the "
+        "whole model (joint commands that reach the taught poses); `robotcal predict` evaluates it"
+    )
+
+
+def with_note(text: str, note: str, format: str) -> str:
+    """``text`` of an export format with ``note`` added as a comment after its first line (URDF, UR YAML: after
+    the signature comment; Markdown: after the title) or, for a CSV table, as a first comment line that carries
+    :data:`SIGNATURE` (so that the file is still recognised as robotcal's)."""
+    head, _, rest = text.partition("\n")
+    if format == "urdf":
+        return f"{head}\n<!-- {note.replace('--', '-')} -->\n{rest}"
+    if format == "ur-yaml":
+        return f"{head}\n# {note}\n{rest}"
+    if format == "markdown":
+        return f"{head}\n\n> Note: {note}.\n{rest}"
+    return f"# {SIGNATURE}: {note}\n{text}"
 
 
 def table_to_csv(rows: list[dict]) -> str:

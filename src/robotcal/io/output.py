@@ -162,8 +162,9 @@ def is_robotcal_file(path) -> bool:
 
     JSON: an object with robotcal's parameter keys (``robot``, ``units``, ``joints``, ``provenance``)
     or a ``format`` key starting with ``robotcal``; HTML: robotcal's ``<meta name="generator">``;
-    CSV: the capture header and every value of the first rows with robotcal's 12 decimals, or the
-    header and rows of a DH/MDH table of ``robotcal export``; Markdown: the title of such a table;
+    CSV: the capture header and every value of the first rows with robotcal's 12 decimals, the
+    header and rows of a DH/MDH table of ``robotcal export``, or a first comment carrying :data:`SIGNATURE`
+    (a pose CSV of ``robotcal compensate``, a table with a note); Markdown: the title of such a table;
     any other text file: a first comment (after an XML declaration) carrying :data:`SIGNATURE`
     (the URDF and UR YAML of ``robotcal export``).
     """
@@ -192,6 +193,8 @@ def is_robotcal_file(path) -> bool:
         return {"robot", "units", "joints", "provenance"} <= set(data)
     if suffix == ".csv":
         lines = text.splitlines()
+        if lines and _COMMENT_SIGNATURE.match(lines[0]):  # a table or pose CSV whose first comment signs it
+            return True
         if lines and _TABLE_HEADER.match(lines[0].strip()):
             rows = [line.strip() for line in lines[1:50] if line.strip()]
             return bool(rows) and all(_TABLE_ROW.match(line) for line in rows)

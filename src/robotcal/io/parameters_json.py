@@ -3,6 +3,13 @@
 ``{"robot": ..., "units": {"length": "mm", "angle": "deg"}, "joints": [{"d", "theta", "a", "alpha",
 "beta", "hayati"}, ...], "identified": ["J1.d", ...], "provenance": {...}}``. ``identified`` and
 ``provenance`` are extensions: readers that do not know them ignore them.
+
+An extended model (:mod:`robotcal.kinematics.joint_model`) adds the key ``joint_model``: ``{"gravity_mps2": [gx,
+gy, gz], "masses": {"mass_kg": [...], "com_mm": [[x, y, z], ...], "payload_kg", "payload_com_mm", "source"} |
+null, "lumped": {"J2.g1": [4 n numbers], ...}, "parameters": [{"name": "J2.k", "group": "compliance", "value",
+"unit": "rad/(N m)", "u": number | null, "identified": bool}, ...]}``: every parameter with its unit (``rad/(N m)``
+for a compliance, ``deg`` for a lumped deflection or a harmonic amplitude). A file without the key is the
+geometric model, read exactly as before.
 """
 
 from __future__ import annotations
@@ -17,9 +24,11 @@ import numpy as np
 from robotcal.errors import InputError, RobotcalWarning
 from robotcal.io._validation import _short, as_finite_float, read_json_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, ParameterSet, RobotModel
+from robotcal.kinematics.joint_model import JointModel
+from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
 
 __all__ = [
+    "joint_model_to_dict",
     "parameters_to_dict",
     "read_parameters",
     "read_targets",
@@ -28,6 +37,7 @@ __all__ = [
     "targets_to_dict",
     "write_parameters",
 ]
+
 
 def _wrap_deg(value: float, centre: float = 0.0) -> float:
     """An angle in degrees in (centre - 180, centre + 180] (a turn of 360 deg changes no transform)."""
@@ -55,10 +65,104 @@ def targets_to_dict(targets, uncertainty=None) -> dict:
     return out
 
 
-def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None) -> dict:
+def joint_model_to_dict(joint_model: JointModel, uncertainty=None) -> dict:
+    """The ``joint_model`` key (module notes); ``uncertainty (m,)``: standard uncertainties in core units (NaN:
+    none)."""
+    values = joint_model.to_display(joint_model.values)
+    u = np.full(joint_model.size, np.nan) if uncertainty is None else joint_model.to_display(uncertainty)
+    masses = joint_model.masses
+    return {
+        "gravity_mps2": [float(v) for v in joint_model.gravity],
+        "masses": None
+        if masses is None
+        else {
+            "mass_kg": [float(v) for v in masses.mass_kg],
+            "com_mm": [[float(v) for v in row] for row in masses.com_mm],
+            "payload_kg": float(masses.payload_kg),
+            "payload_com_mm": [float(v) for v in masses.payload_com_mm],
+            "source": masses.source,
+        },
+        "lumped": {name: [float(v) for v in vector] for name, vector in joint_model.lumped.items()},
+        "parameters": [
+            {
+                "name": name,
+                "group": group,
+                "value": float(value),
+                "unit": unit,
+                "u": float(sd) if np.isfinite(sd) else None,
+                "identified": bool(flag),
+            }
+            for name, group, value, unit, sd, flag in zip(
+                joint_model.names,
+                joint_model.groups,
+                values,
+                joint_model.display_units,
+                u,
+                joint_model.identified,
+                strict=True,
+            )
+        ],
+    }
+
+
+def _read_joint_model(data, robot: RobotModel, path: Path) -> JointModel:
+    """The ``joint_model`` key back as a :class:`JointModel` (errors name the key)."""
+    where = f"{path}: key `joint_model"
+    if not isinstance(data, dict) or not isinstance(data.get("parameters"), list):
+        raise InputError(f"{where}` must be an object with a list `parameters`")
+    gravity = data.get("gravity_mps2", [0.0, 0.0, -9.81])
+    if not isinstance(gravity, list) or len(gravity) != 3:
+        raise InputError(f"{where}.gravity_mps2` must be [gx, gy, gz]")
+    gravity = [as_finite_float(v, f"{where}.gravity_mps2`") for v in gravity]
+    masses = None
+    if data.get("masses") is not None:
+        entry = data["masses"]
+        if not isinstance(entry, dict):
+            raise InputError(f"{where}.masses` must be an object or null")
+        try:
+            masses = LinkMasses(
+                mass_kg=[as_finite_float(v, f"{where}.masses.mass_kg`") for v in entry.get("mass_kg", [])],
+                com_mm=np.asarray(entry.get("com_mm", []), dtype=float),
+                payload_kg=as_finite_float(entry.get("payload_kg", 0.0), f"{where}.masses.payload_kg`"),
+                payload_com_mm=np.asarray(entry.get("payload_com_mm", [0.0, 0.0, 0.0]), dtype=float),
+                source=str(entry.get("source", "")),
+            )
+        except (TypeError, ValueError, InputError) as exc:
+            raise InputError(f"{where}.masses`: {exc}") from None
+    lumped = data.get("lumped", {})
+    if not isinstance(lumped, dict):
+        raise InputError(f"{where}.lumped` must be an object of term names")
+    names, values, flags = [], [], []
+    for k, entry in enumerate(data["parameters"]):
+        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
+            raise InputError(f"{where}.parameters[{k}]` must be an object with a `name`")
+        names.append(entry["name"])
+        values.append(as_finite_float(entry.get("value"), f"{where}.parameters[{k}].value`"))
+        flags.append(bool(entry.get("identified", False)))
+    try:
+        model = JointModel.assemble(
+            robot, names, np.zeros(len(names)), identified=flags, masses=masses,
+            lumped={name: np.asarray(vector, dtype=float) for name, vector in lumped.items()}, gravity=gravity,
+        )  # fmt: skip
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{where}`: {exc}") from None
+    except InputError as exc:
+        raise InputError(f"{where}`: {exc}") from None
+    for k, (entry, unit) in enumerate(zip(data["parameters"], model.display_units, strict=True)):
+        if entry.get("unit", unit) != unit:
+            raise InputError(
+                f"{where}.parameters[{k}].unit` of {entry['name']} must be {unit!r}; got {_short(entry['unit'])}"
+            )
+    return model.with_values(model.from_display(values))
+
+
+def parameters_to_dict(
+    parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None, joint_model_u=None
+) -> dict:
     """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
     nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
-    :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets."""
+    :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets. An extended set
+    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units)."""
     robot = parameters.robot
     joints = []
     for i in range(robot.n_joints):
@@ -79,13 +183,17 @@ def parameters_to_dict(parameters: ParameterSet, provenance: dict | None = None,
     }
     if targets:
         document["targets"] = targets
+    if parameters.joint_model is not None:
+        document["joint_model"] = joint_model_to_dict(parameters.joint_model, joint_model_u)
     document["provenance"] = provenance or {}
     return document
 
 
-def write_parameters(path, parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None) -> Path:
-    """Write a parameter JSON atomically (``targets``: see :func:`parameters_to_dict`)."""
-    text = json.dumps(parameters_to_dict(parameters, provenance, targets), indent=2, allow_nan=False)
+def write_parameters(
+    path, parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None, joint_model_u=None
+) -> Path:
+    """Write a parameter JSON atomically (``targets``, ``joint_model_u``: see :func:`parameters_to_dict`)."""
+    text = json.dumps(parameters_to_dict(parameters, provenance, targets, joint_model_u), indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
 
 
@@ -167,8 +275,9 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         raise InputError(f'{path}: key `identified` must be a list of parameter names such as "J1.d"')
     names = set(listed)
     identified = np.array([n in names for n in robot.parameter_names]).reshape(robot.n_joints, 5)
+    joint_model = None if data.get("joint_model") is None else _read_joint_model(data["joint_model"], robot, path)
     try:
-        return ParameterSet(robot=robot, values=values, identified=identified)
+        return ParameterSet(robot=robot, values=values, identified=identified, joint_model=joint_model)
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
 

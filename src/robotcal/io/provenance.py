@@ -88,6 +88,11 @@ def refine_provenance(result, capture, start_source: str, *, scenario=None) -> d
     for name, value in zip(names, result.standard_uncertainty.ravel(), strict=True):
         if np.isfinite(value):
             sd[name] = float(np.rad2deg(value)) if name.split(".")[1] in ANGLE_KINDS else float(value)
+    joint_model = result.parameters.joint_model
+    if joint_model is not None and result.joint_model_uncertainty is not None:  # k in rad/(N m), the others in deg
+        for name, value in zip(joint_model.names, joint_model.to_display(result.joint_model_uncertainty), strict=True):
+            if np.isfinite(value):
+                sd[name] = float(value)
     return {
         "method": f"least-squares refinement, {result.criterion} criterion (thesis ch. 4.5.7, "
         + ("eq. 4-101)" if result.criterion == "points" else "eq. 4-102)"),
@@ -146,5 +151,8 @@ def refine_provenance(result, capture, start_source: str, *, scenario=None) -> d
             for target in result.targets
         },
         "fit_health": _health(result),
+        "model": result.model,
+        "cross_validation": None if result.cross_validation is None else result.cross_validation.to_dict(),
+        "model_choice": None if result.model_choice is None else result.model_choice.to_dict(),
         "versions": versions(),
     }

@@ -9,6 +9,11 @@ reading also depends on those joints' model variables,
 ``reading_k = reading_sign_k (q_k - o_k) + sum_j c_kj (q_j - o_j)`` with ``o = reading_offset``
 (a Fanuc-style J3 reading that is the forearm's angle to the horizontal; see
 ``fanuc-style-coupled.toml``). The whole map must be invertible. No key: today's uncoupled map.
+
+Optional per joint ``mass_kg`` and ``com_mm = [x, y, z]``: the mass of the link the joint moves and its centre
+of mass in the joint's DH frame {i} [kg, mm], for the gravity compliance of the extended model
+(:mod:`robotcal.kinematics.joint_model`); given for every joint or for none, with ``mass_source`` saying where
+the numbers come from.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from robotcal.errors import InputError
 from robotcal.io._validation import validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
-from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel
+from robotcal.kinematics.model import ANGLE_COLUMNS, LinkMasses, RobotModel
 
 __all__ = ["robot_to_dict", "RobotFile", "JointEntry", "load_robot", "robot_from_dict", "list_robots"]
 
@@ -40,6 +45,8 @@ class JointEntry(BaseModel):
     reading_offset_deg: float = 0.0
     capsule_radius_mm: float | None = Field(default=None, ge=0)  # link i as a capsule F_{i-1}-F_i (planning.cell)
     reading_coupling: dict[int, float] = Field(default_factory=dict)  # {other joint (1-based): coefficient}
+    mass_kg: float | None = Field(default=None, ge=0)  # the link joint i moves (joint_model)
+    com_mm: tuple[float, float, float] | None = None  # its centre of mass in DH frame {i}
 
     @field_validator("reading_sign")
     @classmethod
@@ -59,6 +66,10 @@ class JointEntry(BaseModel):
             raise ValueError("beta must be 0 on a DH joint (set hayati = true to use beta)")
         if self.limits_deg[0] >= self.limits_deg[1]:
             raise ValueError("limits_deg must be [lower, upper] with lower < upper")
+        if (self.mass_kg is None) != (self.com_mm is None):
+            raise ValueError("mass_kg and com_mm go together (the link's mass and its centre of mass)")
+        if self.com_mm is not None and not all(np.isfinite(self.com_mm)):
+            raise ValueError("com_mm must be finite")
         return self
 
 
@@ -85,7 +96,20 @@ class RobotFile(BaseModel):
     name: str
     description: str = ""
     source: str = ""
+    mass_source: str = ""
     joints: list[JointEntry] = Field(min_length=1)
+
+
+def _masses(spec: RobotFile, source: str) -> LinkMasses | None:
+    given = [j.mass_kg is not None for j in spec.joints]
+    if not any(given):
+        return None
+    if not all(given):
+        missing = ", ".join(f"J{k + 1}" for k, flag in enumerate(given) if not flag)
+        raise InputError(f"{source}: `mass_kg` and `com_mm` are given for some joints but not for {missing}")
+    return LinkMasses(
+        mass_kg=[j.mass_kg for j in spec.joints], com_mm=[j.com_mm for j in spec.joints], source=spec.mass_source
+    )
 
 
 def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
@@ -101,6 +125,7 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
         limits=np.deg2rad([j.limits_deg for j in spec.joints]),
         description=spec.description,
         reading_coupling=_coupling_matrix(spec, source),
+        masses=_masses(spec, source),
     )
 
 
@@ -128,7 +153,13 @@ def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
         coupled = np.flatnonzero(robot.reading_coupling[index])
         if coupled.size:  # written only when present, so that uncoupled robots keep their exact layout
             joints[-1]["reading_coupling"] = {str(j + 1): float(robot.reading_coupling[index, j]) for j in coupled}
-    return {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
+        if robot.masses is not None:
+            joints[-1]["mass_kg"] = float(robot.masses.mass_kg[index])
+            joints[-1]["com_mm"] = [float(v) for v in robot.masses.com_mm[index]]
+    document = {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
+    if robot.masses is not None:
+        document["mass_source"] = robot.masses.source
+    return document
 
 
 def load_robot(name_or_path, *, relative_to: Path | None = None) -> RobotModel:

@@ -39,6 +39,8 @@ __all__ = [
     "MonteCarloTable",
     "TruthTable",
     "ValidationTable",
+    "PayloadTable",
+    "JointModelTable",
     "TCPTable",
     "load_scenario",
     "list_scenarios",
@@ -167,12 +169,15 @@ class TruthTable(_RunTable):
 
     In the file's units [mm, deg]. ``Scenario.truth`` is None when the file has no ``[truth]``
     table (a run then simulates the nominal robot); ``TruthTable()`` holds the defaults.
+    ``compliance_rad_per_nm``: one compliance per joint [rad/(N m)], 0 where rigid: the true robot sags under
+    gravity (link masses of the robot file, the ``[payload]``), a joint model in its truth JSON.
     """
 
     length_sd_mm: float = Field(default=0.2, ge=0)
     angle_sd_deg: float = Field(default=0.05, ge=0)
     include_base: bool = False
     seed: int | None = Field(default=None, ge=0)
+    compliance_rad_per_nm: tuple[float, ...] | None = None
 
 
 class ValidationTable(_RunTable):
@@ -207,6 +212,44 @@ class TCPTable(_RunTable):
     tool_mm: XYZ | None = None
 
 
+class PayloadTable(_RunTable):
+    """``[payload]``: a point mass on the flange, for the gravity compliance of the extended model [kg, mm].
+
+    ``com_mm`` is its centre of mass in the flange frame (DH frame {n}). ``Scenario.payload`` is None without
+    the table (no payload).
+    """
+
+    mass_kg: float = Field(ge=0)
+    com_mm: XYZ = (0.0, 0.0, 0.0)
+
+
+class JointModelTable(_RunTable):
+    """``[joint_model]``: which model ``refine`` fits (issue 22, :mod:`robotcal.identification.model_choice`).
+
+    ``fit``: ``geometric`` (default, the hybrid DH / Hayati chain alone), ``compliance``, ``harmonic``,
+    ``compliance+harmonic`` or ``auto`` (each fitted, chosen by cross-validation). Joints are 1-based; ``None``
+    takes the defaults (compliance: the joints gravity loads; harmonic: every joint). ``folds``: the
+    cross-validation by pose every fit reports (0: none); ``seed``: the deal of poses into folds.
+    """
+
+    fit: Literal["geometric", "compliance", "harmonic", "compliance+harmonic", "auto"] = "geometric"
+    compliance_joints: tuple[int, ...] | None = None
+    harmonic_joints: tuple[int, ...] | None = None
+    harmonic_order: int = Field(default=1, ge=1, le=4)
+    folds: int = Field(default=5, ge=0)
+    seed: int = Field(default=0, ge=0)
+
+    @model_validator(mode="after")
+    def _valid(self):
+        if self.folds == 1:
+            raise ValueError("folds must be 0 (no cross-validation) or at least 2")
+        for key in ("compliance_joints", "harmonic_joints"):
+            joints = getattr(self, key)
+            if joints is not None and (len(set(joints)) != len(joints) or any(j < 1 for j in joints)):
+                raise ValueError(f"{key} must list distinct 1-based joints")
+        return self
+
+
 class ScenarioFile(_Strict):
     description: str = ""
     robot: str
@@ -219,6 +262,8 @@ class ScenarioFile(_Strict):
     truth: TruthTable | None = None
     validation: ValidationTable | None = None
     tcp: TCPTable = Field(default_factory=TCPTable)
+    payload: PayloadTable | None = None
+    joint_model: JointModelTable = Field(default_factory=JointModelTable)
 
 
 #: The keys of ``[capture]`` that make a capture plan (needed to simulate, not to identify).
@@ -282,6 +327,9 @@ class Scenario:
     truth: TruthTable | None = None
     validation: ValidationTable | None = None
     tcp: TCPTable = field(default_factory=TCPTable)
+    #: ``[payload]`` (None: no payload) and ``[joint_model]``: the extended model's inputs and choice.
+    payload: PayloadTable | None = None
+    joint_model: JointModelTable = field(default_factory=JointModelTable)
     #: Files the scenario was read from (the TOML and a robot TOML it names): inputs that an output
     #: of the same command must never replace.
     files: tuple[str, ...] = ()
@@ -414,11 +462,27 @@ def scenario_from_dict(
         truth=spec.truth,
         validation=validation,
         tcp=spec.tcp,
+        payload=spec.payload,
+        joint_model=_joint_model_table(spec.joint_model, spec.truth, robot, source),
         files=(source, *_robot_file(spec.robot, base_dir)),
         targets=tuple(targets),
         reflector=reflector,
         gives_tracker_from_base="tracker_from_base" in data,
     )
+
+
+def _joint_model_table(table: JointModelTable, truth: TruthTable | None, robot: RobotModel, source: str):
+    """``[joint_model]`` checked against the robot (and ``[truth] compliance_rad_per_nm``)."""
+    n = robot.n_joints
+    for key in ("compliance_joints", "harmonic_joints"):
+        joints = getattr(table, key)
+        if joints is not None and max(joints, default=0) > n:
+            raise InputError(f"{source}: key `joint_model.{key}`: joint {max(joints)} of a {n}-joint robot")
+    if truth is not None and truth.compliance_rad_per_nm is not None:
+        values = truth.compliance_rad_per_nm
+        if len(values) != n or any(not np.isfinite(v) or v < 0 for v in values):
+            raise InputError(f"{source}: key `truth.compliance_rad_per_nm` must be {n} finite compliances >= 0")
+    return table
 
 
 def _capture_reflector(capture: CaptureTable, n: int, source: str) -> ReflectorMount | None:

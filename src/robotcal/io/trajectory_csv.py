@@ -29,6 +29,8 @@ from robotcal.io.builtins import data_path
 
 __all__ = [
     "MAX_READING_DEG",
+    "CARTESIAN_COLUMNS",
+    "read_pose_targets",
     "read_trajectory",
     "write_trajectory",
     "trajectory_to_csv",
@@ -67,16 +69,10 @@ def write_trajectory(path, readings_rad, *, comment: str = "") -> Path:
     return atomic_write_text(path, trajectory_to_csv(readings_rad, comment=comment))
 
 
-def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
-    """Read a pose CSV; returns controller readings ``(n_poses, n_joints)`` [rad].
-
-    Every problem is an :class:`InputError` naming the file, the line (1-based, as an editor shows
-    it) and the column: missing ``q`` columns, a joint count other than ``n_joints``, a row with
-    the wrong number of fields, a value that is not a finite number (NaN, empty, text) or beyond
-    :data:`MAX_READING_DEG`.
-    """
-    path = Path(path)
-    text = read_text_file(path, kind="pose CSV")
+def _rows(path: Path, kind: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+    """The header line number, the lower-cased header and the data rows ``(line, cells)`` of a CSV; comment and
+    blank lines skipped, a row with another field count than the header refused."""
+    text = read_text_file(path, kind=kind)
     lines = [
         (number, row)
         for number, row in csv_rows(text, path)
@@ -86,10 +82,27 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
         raise InputError(f"{path}: empty file; expected a header with q1..qN (joint readings in deg)")
     header_line, header_row = lines[0]
     header = [cell.strip().lower() for cell in header_row]
-    joints = sorted(
+    if len(set(header)) != len(header):
+        raise InputError(f"{path}: line {header_line}: duplicate column names in the header")
+    for k, (number, row) in enumerate(lines[1:]):
+        if len(row) != len(header):
+            raise InputError(
+                f"{path}: line {number} (pose {k + 1}) has {len(row)} fields; the header has {len(header)}"
+            )
+    if len(lines) == 1:
+        raise InputError(f"{path}: no poses after the header")
+    return header_line, header, lines[1:]
+
+
+def _joint_columns(header: list[str]) -> list[str]:
+    return sorted(
         (c for c in header if c.startswith("q") and c[1:].isascii() and c[1:].isdigit() and len(c) < 8),
         key=lambda c: int(c[1:]),
     )
+
+
+def _readings(path: Path, header_line: int, header: list[str], rows, n_joints: int | None) -> np.ndarray:
+    joints = _joint_columns(header)
     count = len(joints)
     expected = [f"q{i + 1}" for i in range(count)]
     if count == 0 or joints != expected:
@@ -98,17 +111,11 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
             f"{path}: line {header_line}: header needs joint columns q1..qN; missing {', '.join(missing)} "
             f"(got {','.join(header)})"
         )
-    if len(set(header)) != len(header):
-        raise InputError(f"{path}: line {header_line}: duplicate column names in the header")
     if n_joints is not None and count != n_joints:
         raise InputError(f"{path}: {count} joint columns (q1..q{count}) but the robot has {n_joints} joints")
     index = [header.index(c) for c in expected]
-    readings = np.empty((len(lines) - 1, count))
-    for k, (number, row) in enumerate(lines[1:]):
-        if len(row) != len(header):
-            raise InputError(
-                f"{path}: line {number} (pose {k + 1}) has {len(row)} fields; the header has {len(header)}"
-            )
+    readings = np.empty((len(rows), count))
+    for k, (number, row) in enumerate(rows):
         for column, position in enumerate(index):
             where = f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`"
             readings[k, column] = parse_finite(row[position], where)
@@ -117,9 +124,52 @@ def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
                     f"{where}: {row[position].strip()} deg is no joint reading (|q| must be <= {MAX_READING_DEG:g} deg, "
                     f"{MAX_READING_DEG / 360.0:,.0f} turns); is the column in another unit?"
                 )
-    if readings.shape[0] == 0:
-        raise InputError(f"{path}: no poses after the header")
     return np.deg2rad(readings)
+
+
+def read_trajectory(path, *, n_joints: int | None = None) -> np.ndarray:
+    """Read a pose CSV; returns controller readings ``(n_poses, n_joints)`` [rad].
+
+    Every problem is an :class:`InputError` naming the file, the line (1-based, as an editor shows
+    it) and the column: missing ``q`` columns, a joint count other than ``n_joints``, a row with
+    the wrong number of fields, a value that is not a finite number (NaN, empty, text) or beyond
+    :data:`MAX_READING_DEG`.
+    """
+    path = Path(path)
+    return _readings(path, *_rows(path, "pose CSV"), n_joints)
+
+
+#: The columns of a Cartesian target: position [mm] and KUKA angles ``R = Rz(A) Ry(B) Rx(C)`` [deg] (what
+#: ``robotcal predict`` writes).
+CARTESIAN_COLUMNS = ("x", "y", "z", "a", "b", "c")
+
+
+def read_pose_targets(path, *, n_joints: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Targets for ``robotcal compensate``: a pose CSV of joint targets (``pose,q1..qN`` [deg]) or of Cartesian
+    targets (``pose,x,y,z,A,B,C`` [mm, deg KUKA], as ``robotcal predict`` writes them, optionally with ``q1..qN``
+    seeds).
+
+    Returns ``(cartesian (n_poses, 6) [mm, rad] or None, readings (n_poses, n_joints) [rad] or None)``: joint
+    targets give only readings; Cartesian targets give both when the file has seeds. Errors name the file, the
+    line and the column.
+    """
+    path = Path(path)
+    header_line, header, rows = _rows(path, "pose CSV")
+    present = [c for c in CARTESIAN_COLUMNS if c in header]
+    has_joints = bool(_joint_columns(header))
+    if not present:
+        return None, _readings(path, header_line, header, rows, n_joints)
+    if len(present) != 6:
+        missing = [c.upper() if c in "abc" else c for c in CARTESIAN_COLUMNS if c not in header]
+        raise InputError(f"{path}: line {header_line}: a Cartesian target needs x,y,z,A,B,C; missing {','.join(missing)}")
+    cartesian = np.empty((len(rows), 6))
+    for k, (number, row) in enumerate(rows):
+        for column, name in enumerate(CARTESIAN_COLUMNS):
+            where = f"{path}: line {number} (pose {k + 1}), column `{name if column < 3 else name.upper()}`"
+            cartesian[k, column] = parse_finite(row[header.index(name)], where)
+    cartesian[:, 3:] = np.deg2rad(cartesian[:, 3:])
+    seeds = _readings(path, header_line, header, rows, n_joints) if has_joints else None
+    return cartesian, seeds
 
 
 def load_trajectory(name_or_path, *, n_joints: int | None = None) -> tuple[np.ndarray, str]:

@@ -18,6 +18,7 @@ A planar two-link arm (links of 300 and 200 mm): at q = (90, -90) deg the flange
 [200.0, 300.0, 0.0]
 """
 
+from robotcal.kinematics.compensation import Compensation, rotation_vector, solve_commands
 from robotcal.kinematics.forward import (
     check_joint_variables,
     forward_kinematics,
@@ -26,6 +27,14 @@ from robotcal.kinematics.forward import (
     target_positions,
 )
 from robotcal.kinematics.jacobian import target_jacobian
+from robotcal.kinematics.joint_model import (
+    GRAVITY_MPS2,
+    JOINT_MODEL_GROUPS,
+    JointModel,
+    gravity_regressor,
+    gravity_torques,
+    lumped_terms,
+)
 from robotcal.kinematics.model import (
     ANGLE_COLUMNS,
     ANGLE_KINDS,
@@ -34,6 +43,7 @@ from robotcal.kinematics.model import (
     LENGTH_COLUMNS,
     LENGTH_KINDS,
     PARAMETER_KINDS,
+    LinkMasses,
     ParameterSet,
     ReflectorMount,
     RobotModel,
@@ -41,12 +51,21 @@ from robotcal.kinematics.model import (
 )
 
 __all__ = [
+    "Compensation",
+    "solve_commands",
+    "rotation_vector",
     "link_transforms",
     "joint_frames",
     "forward_kinematics",
     "target_positions",
     "check_joint_variables",
     "target_jacobian",
+    "GRAVITY_MPS2",
+    "JOINT_MODEL_GROUPS",
+    "JointModel",
+    "gravity_regressor",
+    "gravity_torques",
+    "lumped_terms",
     "PARAMETER_KINDS",
     "LENGTH_KINDS",
     "ANGLE_KINDS",
@@ -54,6 +73,7 @@ __all__ = [
     "ANGLE_COLUMNS",
     "KIND_UNITS",
     "DISPLAY_UNITS",
+    "LinkMasses",
     "RobotModel",
     "ParameterSet",
     "ReflectorMount",

@@ -11,11 +11,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
+
+if TYPE_CHECKING:
+    from robotcal.kinematics.joint_model import JointModel
 
 __all__ = [
     "PARAMETER_KINDS",
@@ -25,6 +29,7 @@ __all__ = [
     "ANGLE_COLUMNS",
     "KIND_UNITS",
     "DISPLAY_UNITS",
+    "LinkMasses",
     "RobotModel",
     "ParameterSet",
     "ReflectorMount",
@@ -65,6 +70,59 @@ def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class LinkMasses:
+    """Masses and centres of mass of the links, and a payload on the flange.
+
+    Attributes
+    ----------
+    mass_kg : ndarray, shape (n_joints,)
+        Mass of the link joint i moves (everything rigidly on frame {i} up to joint i+1) [kg].
+    com_mm : ndarray, shape (n_joints, 3)
+        Its centre of mass in DH frame {i} [mm].
+    payload_kg : float
+        A point mass on the flange [kg].
+    payload_com_mm : ndarray, shape (3,)
+        Its position in the flange frame {n} [mm].
+    source : str
+        Where the numbers come from (a catalogue, a CAD model, an estimate).
+    """
+
+    mass_kg: np.ndarray
+    com_mm: np.ndarray
+    payload_kg: float = 0.0
+    payload_com_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    source: str = ""
+
+    def __post_init__(self):
+        mass = np.asarray(self.mass_kg, dtype=float)
+        com = np.asarray(self.com_mm, dtype=float)
+        payload = np.asarray(self.payload_com_mm, dtype=float)
+        if mass.ndim != 1 or com.shape != (mass.size, 3) or payload.shape != (3,):
+            raise InputError(
+                f"link masses: `mass_kg` (n,) and `com_mm` (n, 3) must agree and the payload's `com_mm` be (3,); "
+                f"got {mass.shape}, {com.shape}, {payload.shape}"
+            )
+        if not (np.all(np.isfinite(mass)) and np.all(np.isfinite(com)) and np.all(np.isfinite(payload))):
+            raise InputError("link masses: every mass and centre of mass must be finite")
+        if np.any(mass < 0) or not (np.isfinite(self.payload_kg) and self.payload_kg >= 0):
+            raise InputError("link masses: masses must be >= 0 kg")
+        object.__setattr__(self, "mass_kg", _frozen(mass))
+        object.__setattr__(self, "com_mm", _frozen(com))
+        object.__setattr__(self, "payload_com_mm", _frozen(payload))
+        object.__setattr__(self, "payload_kg", float(self.payload_kg))
+
+    @property
+    def moments(self) -> np.ndarray:
+        """``phi (n_joints, 4)``: per link ``(m, m c_x, m c_y, m c_z)`` [kg, kg mm], the payload in link n."""
+        phi = np.column_stack([self.mass_kg, self.mass_kg[:, None] * self.com_mm])
+        phi[-1] += self.payload_kg * np.r_[1.0, self.payload_com_mm]
+        return phi
+
+    def with_payload(self, mass_kg: float, com_mm) -> LinkMasses:
+        return replace(self, payload_kg=float(mass_kg), payload_com_mm=np.asarray(com_mm, dtype=float))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RobotModel:
     """A serial revolute robot: nominal parameters, joint types and the controller reading map.
 
@@ -90,6 +148,9 @@ class RobotModel:
     limits : ndarray, shape (n_joints, 2)
         Software limits of the controller readings [rad] (lower, upper).
     description : str
+    masses : LinkMasses or None
+        Catalogue-level masses and centres of mass of the links, for the gravity compliance of the extended
+        model (:mod:`robotcal.kinematics.joint_model`); None when unknown.
     """
 
     name: str
@@ -100,6 +161,7 @@ class RobotModel:
     limits: np.ndarray = field(default=None)
     description: str = ""
     reading_coupling: np.ndarray = field(default=None)
+    masses: LinkMasses | None = None
     _model_from_reading: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -130,6 +192,8 @@ class RobotModel:
         if limits.shape != (n, 2) or np.any(limits[:, 0] >= limits[:, 1]):
             raise InputError(f"robot {self.name!r}: `limits` must be {n} pairs (lower < upper)")
         coupling = self._check_coupling(n, sign)
+        if self.masses is not None and self.masses.mass_kg.size != n:
+            raise InputError(f"robot {self.name!r}: masses of {self.masses.mass_kg.size} links for {n} joints")
         object.__setattr__(self, "nominal", _frozen(nominal))
         object.__setattr__(self, "hayati", _frozen(hayati, bool))
         object.__setattr__(self, "reading_sign", _frozen(sign))
@@ -148,7 +212,9 @@ class RobotModel:
         except (TypeError, ValueError) as exc:
             raise InputError(f"robot {self.name!r}: `reading_coupling` must be numeric") from exc
         if coupling.shape != (n, n):
-            raise InputError(f"robot {self.name!r}: `reading_coupling` must have shape ({n}, {n}); got {coupling.shape}")
+            raise InputError(
+                f"robot {self.name!r}: `reading_coupling` must have shape ({n}, {n}); got {coupling.shape}"
+            )
         if not np.all(np.isfinite(coupling)):
             raise InputError(f"robot {self.name!r}: `reading_coupling` contains NaN or infinite values")
         if np.any(np.diag(coupling) != 0.0):
@@ -225,14 +291,20 @@ class ParameterSet:
         ``d, theta, a, alpha, beta`` [mm, rad].
     identified : ndarray of bool, shape (n_joints, 5)
         True where the value was determined by data; False where it is nominal or fixed.
+    joint_model : JointModel or None
+        The non-geometric joint-angle errors (gravity compliance, harmonic errors) of the extended model,
+        :mod:`robotcal.kinematics.joint_model`; None: the purely geometric model.
     """
 
     robot: RobotModel
     values: np.ndarray
     identified: np.ndarray = field(default=None)
+    joint_model: JointModel | None = None
 
     def __post_init__(self):
         values = check_parameter_array(self.values, self.robot.n_joints)
+        if self.joint_model is not None and self.joint_model.nominal.shape != (self.robot.n_joints, 5):
+            raise InputError(f"the joint model was built for another robot than {self.robot.name!r}")
         if values.ndim != 2:
             raise InputError(f"a ParameterSet holds one set of shape ({self.robot.n_joints}, 5); got {values.shape}")
         fixed = self.robot.structurally_fixed
@@ -255,6 +327,29 @@ class ParameterSet:
     def nominal(cls, robot: RobotModel) -> ParameterSet:
         """The robot's nominal parameters, none identified."""
         return cls(robot=robot, values=robot.nominal)
+
+    @property
+    def is_extended(self) -> bool:
+        """True when the set carries non-geometric parameters (a :class:`JointModel` with any parameter)."""
+        return self.joint_model is not None and not self.joint_model.is_empty
+
+    def joint_variables(self, q) -> np.ndarray:
+        """The joint variables the geometric chain is evaluated at: ``q + delta(q)`` of the joint model (``q`` itself
+        for the geometric model) [rad], for commanded model joint variables ``q (n_poses, n_joints)``."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if not self.is_extended:
+            return q
+        return q + self.joint_model.deflection(q)
+
+    def model_joint_variables(self, readings) -> np.ndarray:
+        """The joint variables this robot's chain turns by at controller ``readings (n_poses, n_joints)`` [rad]:
+        :meth:`RobotModel.model_joint_variables` plus the joint model's deflection (:meth:`joint_variables`).
+        Every evaluation of a parameter set at readings goes through here."""
+        return self.joint_variables(self.robot.model_joint_variables(readings))
+
+    def geometric(self) -> ParameterSet:
+        """The same set without its joint model (what a geometric-only format such as a URDF carries)."""
+        return replace(self, joint_model=None)
 
     def difference(self, other: ParameterSet) -> np.ndarray:
         """``self.values - other.values`` with angles wrapped to (-pi, pi] [mm, rad]."""

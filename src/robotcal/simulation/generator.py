@@ -237,7 +237,7 @@ def simulate_capture(
         )
     circle, direction, readings = plan.readings(robot)
     _check_limits(robot, readings, circle, joint_limits)
-    q = robot.model_joint_variables(readings)
+    q = parameters.model_joint_variables(readings)
     errors = None
     if joint_errors is not None:
         if joint_errors.n_joints != robot.n_joints:
@@ -307,7 +307,7 @@ def simulate_target_poses(
     )
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    flange = forward_kinematics(parameters.values, robot.model_joint_variables(readings))  # (n_poses, 4, 4)
+    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))  # (n_poses, 4, 4)
     base_points = np.einsum("pij,tj->pti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]
     exact = apply_transform(tracker_from_base, base_points.reshape(-1, 3))
     noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()

@@ -168,7 +168,7 @@ def simulate_poses(
         raise InputError(f"`readings` must have shape (n_points, {robot.n_joints}); got {readings.shape}")
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    q = robot.model_joint_variables(readings)
+    q = parameters.model_joint_variables(readings)
     base_points = target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), reflector)
     exact = apply_transform(tracker_from_base, base_points)
     noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()

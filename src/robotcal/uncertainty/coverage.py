@@ -216,7 +216,7 @@ def coverage_study(
         if tcp_readings is None and any(m.endswith("-mc") for m in methods):
             raise InputError("the coverage study checks the TCP ellipsoid at a pose: give `tcp_readings`")
         if tcp_readings is not None:
-            q_tcp = robot.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
+            q_tcp = truth.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
             true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
         z = NormalDist().inv_cdf(0.5 + coverage / 2.0)
         settings = MonteCarloSettings(

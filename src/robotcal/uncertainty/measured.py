@@ -206,7 +206,7 @@ def _with_offsets(reflector, offsets: Mapping[str, object] | None):
 
 def _base_points(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
     """Every point of ``capture`` put through ``parameters``: its pose, its target, base frame [mm]."""
-    q = parameters.robot.model_joint_variables(capture.readings)
+    q = parameters.model_joint_variables(capture.readings)
     if isinstance(reflector, ReflectorMount):
         return target_positions(parameters.values, q, capture_turning_joints(capture, reflector), reflector)
     targets, index = resolve_targets(capture, (reflector,) if isinstance(reflector, Target) else tuple(reflector))

@@ -409,7 +409,7 @@ def _block_generators(seed: int, block: int) -> tuple[np.random.Generator, np.ra
 
 def _noisy_exact_points(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -> np.ndarray:
     """Exact points ``(n_draws, n_points, 3)`` with a fresh draw of the joint errors' random part."""
-    q = problem.robot.model_joint_variables(problem.capture.readings)
+    q = problem.true_parameters.model_joint_variables(problem.capture.readings)
     errors = np.stack([problem.joint_errors.transforms(q, rng=rng) for _ in range(n_draws)])
     base = target_positions(
         problem.true_parameters.values,

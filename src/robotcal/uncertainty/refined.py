@@ -57,7 +57,8 @@ Thesis ch. 4.5.7 (eqs 4-101, 4-102); JCGM 101:2008 §5.9, §7; Marquardt (1963).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -74,6 +75,8 @@ from robotcal.identification.refine import (
     measurement_pairs,
     refine_parameters,
 )
+from robotcal.identification.targets import Target, resolve_targets
+from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
 __all__ = ["RefinedModel", "RefinedBatch", "prepare_refined_model", "refine_batch", "refined_covariance"]
@@ -98,8 +101,11 @@ class RefinedModel:
         Scale of each unknown [mm | rad], kinematic first, then base corrections.
     q : ndarray, shape (n_points, n_joints)
         Model joint variables of the capture [rad].
-    turning : ndarray of int, shape (n_points,)
-    reflector : ReflectorMount
+    carrier : ndarray of int, shape (n_points,)
+        The frame that carries each point's target: ``t`` for a per-joint target of circle t + 1 (``F_t Rz(q_t)
+        r``, eq. 5-1), ``n`` for a flange target (``F_n r``).
+    vectors : ndarray, shape (n_points, 3)
+        Each point's target vector ``r`` in its carrier frame [mm].
     pair_i, pair_j : ndarray of int, shape (n_pairs,) or None
         Distances criterion: the pairs of distinct measurements.
     groups : dict
@@ -116,6 +122,12 @@ class RefinedModel:
     free_names : tuple of str
     max_iterations : int
     xtol : float
+    joint_model : JointModel or None
+        The extended model's joint model (its values: the noise-free refinement's); None: geometric.
+    joint_columns : ndarray, shape (n_points, n_joints, m), or None
+        ``C(q)`` of the joint model at the capture (:meth:`JointModel.columns`).
+    extra_free : ndarray of bool, shape (m,)
+        Joint-model values estimated.
     """
 
     criterion: str
@@ -123,8 +135,8 @@ class RefinedModel:
     base_free: np.ndarray
     x_scale: np.ndarray
     q: np.ndarray
-    turning: np.ndarray
-    reflector: ReflectorMount
+    carrier: np.ndarray
+    vectors: np.ndarray
     pair_i: np.ndarray | None
     pair_j: np.ndarray | None
     reference_values: np.ndarray
@@ -136,6 +148,9 @@ class RefinedModel:
     sorted_j: np.ndarray | None
     max_iterations: int = 50
     xtol: float = 1e-10
+    joint_model: JointModel | None = None
+    joint_columns: np.ndarray | None = None
+    extra_free: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     @property
     def n_free(self) -> int:
@@ -144,6 +159,15 @@ class RefinedModel:
     @property
     def n_kinematic(self) -> int:
         return int(self.free.sum())
+
+    @property
+    def n_extra(self) -> int:
+        return int(self.extra_free.sum())
+
+    @property
+    def reference_extras(self) -> np.ndarray:
+        """The joint-model values of the noise-free refinement (empty for the geometric model)."""
+        return np.zeros(0) if self.joint_model is None else self.joint_model.values
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -161,6 +185,8 @@ class RefinedBatch:
     cost : ndarray, shape (n_draws,)
         ``0.5 sum r^2`` [mm^2] at the last evaluated iterate (the final, negligible step below the
         convergence threshold is taken without another evaluation).
+    extras : ndarray, shape (n_draws, m)
+        Joint-model values of every draw (NaN rows where it failed; ``m = 0`` for the geometric model).
     """
 
     values: np.ndarray
@@ -168,16 +194,18 @@ class RefinedBatch:
     converged: np.ndarray
     iterations: np.ndarray
     cost: np.ndarray
+    extras: np.ndarray
 
 
 def prepare_refined_model(
     capture: Capture,
     start: ParameterSet,
-    reflector: ReflectorMount,
+    reflector: ReflectorMount | Target | Sequence[Target],
     *,
     criterion: str = "points",
     tracker_from_base=None,
     estimate_base: bool = True,
+    joint_model: JointModel | None = None,
     max_iterations: int = 50,
     xtol: float = 1e-10,
 ) -> RefinedModel:
@@ -189,12 +217,15 @@ def prepare_refined_model(
         The noise-free capture [mm].
     start : ParameterSet
         Start values (the noise-free CPA result) [mm, rad].
-    reflector : ReflectorMount
+    reflector : ReflectorMount, Target or sequence of Target
+        Where the points were measured (targets of known offsets: a draw estimates no offset).
     criterion : {"points", "distances"}
     tracker_from_base : array_like, shape (4, 4), optional
         Points criterion: the given base frame (held unless ``estimate_base``).
     estimate_base : bool
         Points criterion: estimate the 6 base-frame corrections.
+    joint_model : JointModel, optional
+        The extended model's joint model, fitted from zero in every draw (as from a CPA start); None: geometric.
     max_iterations : int
         Jacobian evaluations per draw before a draw is declared not converged.
     xtol : float
@@ -202,25 +233,28 @@ def prepare_refined_model(
     """
     if criterion not in CRITERIA:
         raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
+    robot = start.robot
+    carrier, vectors, pair_key = _carriers(capture, reflector, robot.n_joints)
     with warnings.catch_warnings():
         # the parameters the data cannot determine are recorded in `held` and stay at the CPA value
         warnings.simplefilter("ignore", IdentifiabilityWarning)
         result = refine_parameters(
             capture,
-            start,
+            start.geometric(),
             reflector,
             criterion=criterion,
             tracker_from_base=tracker_from_base if criterion == "points" else None,
             estimate_base=estimate_base,
+            joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
         )
-    turning = capture_turning_joints(capture, reflector)
     q = start.robot.model_joint_variables(capture.readings)
-    groups = _group_points(q, turning, reflector, start.robot.n_joints)
+    fitted = result.parameters.joint_model
+    groups = _group_points(q, carrier, vectors, robot.n_joints)
     for value in groups.values():
         value.setflags(write=False)
     pair_i = pair_j = sorted_i = sorted_j = None
     if criterion == "distances":
-        pair_i, pair_j, _ = measurement_pairs(capture.readings, capture_target_index(capture, reflector))
+        pair_i, pair_j, _ = measurement_pairs(capture.readings, pair_key)
         position = np.empty_like(groups["order"])
         position[groups["order"]] = np.arange(position.size)
         sorted_i, sorted_j = position[pair_i], position[pair_j]
@@ -229,14 +263,15 @@ def prepare_refined_model(
         pair_order = np.argsort(block, kind="stable")
         pair_i, pair_j = pair_i[pair_order], pair_j[pair_order]
         sorted_i, sorted_j = _frozen(sorted_i[pair_order], int), _frozen(sorted_j[pair_order], int)
+    extra_free = np.zeros(0, dtype=bool) if fitted is None else np.array(fitted.identified, dtype=bool)
     return RefinedModel(
         criterion=criterion,
         free=_frozen(result.free, bool),
         base_free=_frozen(result.base_free, bool),
         x_scale=_frozen(result.x_scale),
         q=_frozen(q),
-        turning=_frozen(turning, int),
-        reflector=reflector,
+        carrier=_frozen(carrier, int),
+        vectors=_frozen(vectors),
         pair_i=None if pair_i is None else _frozen(pair_i, int),
         pair_j=None if pair_j is None else _frozen(pair_j, int),
         reference_values=_frozen(result.parameters.values),
@@ -248,13 +283,45 @@ def prepare_refined_model(
         sorted_j=sorted_j,
         max_iterations=int(max_iterations),
         xtol=float(xtol),
+        joint_model=fitted,
+        joint_columns=None if fitted is None else _frozen(fitted.columns(q)),
+        extra_free=_frozen(extra_free, bool),
     )
+
+
+def _carriers(capture: Capture, reflector, n_joints: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Per point: the frame that carries its target (``t`` for a per-joint target of circle t + 1, ``n`` for a
+    flange target), its target vector in that frame [mm], and the key of :func:`measurement_pairs`."""
+    if isinstance(reflector, ReflectorMount):
+        turning = capture_turning_joints(capture, reflector)
+        if reflector.frame == "joint":
+            return turning, reflector.positions[turning], capture_target_index(capture, reflector)
+        return np.full(capture.n_points, n_joints), np.repeat(reflector.positions, capture.n_points, axis=0), None
+    given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
+    targets, index = resolve_targets(capture, given)
+    unknown = [target.name for target in targets if not target.known]
+    if unknown:
+        raise InputError(
+            f"the refined Monte Carlo needs targets of known offset; {', '.join(unknown)} is estimated: declare its "
+            "offset as measured (or from the refinement's estimate)"
+        )
+    turning = np.maximum(capture.circle - 1, 0)
+    carrier = np.empty(capture.n_points, dtype=int)
+    vectors = np.empty((capture.n_points, 3))
+    for t, target in enumerate(targets):
+        rows = np.flatnonzero(index == t)
+        if target.frame == "joint":
+            carrier[rows], vectors[rows] = turning[rows], target.positions[turning[rows]]
+        else:
+            carrier[rows], vectors[rows] = n_joints, target.positions
+    is_joint = np.array([target.frame == "joint" for target in targets])
+    return carrier, vectors, index * (n_joints + 1) + np.where(is_joint[index], turning + 1, 0)
 
 
 # ------------------------------------------------------------------------------ model and Jacobian
 
 
-def _group_points(q: np.ndarray, turning: np.ndarray, reflector: ReflectorMount, n_joints: int) -> dict:
+def _group_points(q: np.ndarray, carrier: np.ndarray, vectors: np.ndarray, n_joints: int) -> dict:
     """Group the points by the configuration of the frame that carries their target.
 
     A per-joint target of circle t sits at ``F_t Rz(q_t) r_t``: ``F_t`` depends only on joints
@@ -262,13 +329,9 @@ def _group_points(q: np.ndarray, turning: np.ndarray, reflector: ReflectorMount,
     only the local vector ``s_k = Rz(q_t) r_t`` changes (a flange target: ``F_n r``, one group per
     distinct pose). The chain of link transforms is then evaluated per group, not per point.
     """
-    n_points = q.shape[0]
-    if reflector.frame == "flange":
-        carrier = np.full(n_points, n_joints)
-        local = np.broadcast_to(reflector.positions[0], (n_points, 3)).copy()
-    else:
-        carrier = turning.copy()
-        local = (rot_z(q[np.arange(n_points), turning])[:, :3, :3] @ reflector.positions[turning][..., None])[..., 0]
+    on_joint = np.flatnonzero(carrier < n_joints)
+    local = np.array(vectors, dtype=float)
+    local[on_joint] = (rot_z(q[on_joint, carrier[on_joint]])[:, :3, :3] @ local[on_joint][..., None])[..., 0]
     key = np.where(np.arange(n_joints)[None, :] < carrier[:, None], q, 0.0)
     key = np.concatenate([carrier[:, None].astype(float), key], axis=1)
     unique, group = np.unique(key, axis=0, return_inverse=True)
@@ -296,26 +359,38 @@ def _group_points(q: np.ndarray, turning: np.ndarray, reflector: ReflectorMount,
 
 
 def _kinematics(
-    model: RefinedModel, values: np.ndarray, scale: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    config_q: np.ndarray,
+    carrier: np.ndarray,
+    free: np.ndarray,
+    values: np.ndarray,
+    scale: np.ndarray | None = None,
+    *,
+    joint_twists: bool = False,
+    component_major: bool = False,
+):
     """Carrier frames and the twists of the free kinematic parameters, per group of points.
 
+    ``config_q`` ``(U, n)``: the joint variables of every group, shared by the draws, or ``(B, U, n)``: per draw
+    (an extended model's deflected joints); ``carrier (U,)``: the frame that carries each group's target.
     Returns ``rotation (B, U, 3, 3)``, ``origin (B, U, 3)`` of each group's carrier frame and
     ``twists (B, U, 6, n_kin)``: column ``(omega, v)`` such that ``dp/dx = v + omega x p`` for every
     point p of the group (base frame), times ``scale`` (one factor per column) when given. These are the
     screw axes of :func:`robotcal.kinematics.jacobian.target_jacobian`: d ``(0, z_B)``; theta
     ``(z_B, o_B x z_B)``; a ``(0, x')``; alpha ``(x', o_F x x')``; beta ``(y_F, o_F x y_F)``; zero for
-    joints at or after the one that turns the target.
+    joints at or after the one that turns the target. With ``joint_twists`` also ``(B, U, 6, n)``: the twist of
+    every joint variable, ``d p / d q_j`` (theta's axis), for every joint that moves the target (for a
+    per-joint target the one that turns it too). ``component_major``: the arrays as composed, components first:
+    ``frame (4, 3, B, U)`` (columns x, y, z and the origin), ``twists (6, n_kin, B, U)``, ``turns (6, n, B, U)``.
 
     The chain ``F_{j+1} = F_j Rz(theta_j + q_j) Tz(d_j) Tx(a_j) Rx(alpha_j) Ry(beta_j)`` (the link of
     :func:`robotcal.kinematics.forward.link_transforms`) is composed column by column on ``(3, B, U)``
     arrays, draws and groups in the last axes: a few dozen element-wise operations per joint instead of
     ``B U`` stacked 4x4 products, the same products and sums up to rounding.
     """
-    config_q, carrier = model.groups["config_q"], model.groups["carrier"]
-    batch, units, n_joints = values.shape[0], config_q.shape[0], values.shape[1]
+    batch, n_joints = values.shape[0], values.shape[1]
+    units = config_q.shape[-2]
     # per-joint link terms, joint-major: (n, B, U) for the turning angle, (n, 1, B, 1) for the others
-    angle = np.moveaxis(values[:, None, :, 1] + config_q[None], -1, 0)
+    angle = np.moveaxis(values[:, None, :, 1] + (config_q[None] if config_q.ndim == 2 else config_q), -1, 0)
     cos_t, sin_t = np.cos(angle), np.sin(angle)
     link = values.T[:, :, None, :, None]  # (5, n, 1, B, 1)
     d, a = link[0], link[2]
@@ -324,8 +399,9 @@ def _kinematics(
     x_axis, y_axis, z_axis, origin = (np.zeros((3, batch, units)) for _ in range(4))
     x_axis[0], y_axis[1], z_axis[2] = 1.0, 1.0, 1.0
     carried = np.empty((4, 3, batch, units))  # the frame F_carrier of each group
-    twists = np.empty((6, model.n_kinematic, batch, units))
-    free_joint, free_kind = np.nonzero(model.free)
+    twists = np.empty((6, int(free.sum()), batch, units))
+    turns = np.zeros((6, n_joints, batch, units)) if joint_twists else None
+    free_joint, free_kind = np.nonzero(free)
     factor = np.ones(free_joint.size) if scale is None else np.asarray(scale, dtype=float)[: free_joint.size]
     for joint in range(n_joints + 1):
         here = carrier == joint
@@ -334,6 +410,10 @@ def _kinematics(
                 carried[slot][..., here] = vector[..., here]
         if joint == n_joints:
             break
+        if turns is not None:  # d p / d q_j: a turn about z_B through o_B, for the targets joint j moves
+            moved = (joint < carrier) | ((joint == carrier) & (carrier < n_joints))
+            turns[:3, joint] = np.where(moved, z_axis, 0.0)
+            turns[3:, joint] = np.where(moved, _cross3(origin, z_axis), 0.0)
         x_c = cos_t[joint] * x_axis + sin_t[joint] * y_axis  # x axis of F_j Rz(theta_j + q_j): the common normal
         y_c = cos_t[joint] * y_axis - sin_t[joint] * x_axis
         o_after = origin + d[joint] * z_axis + a[joint] * x_c
@@ -360,9 +440,14 @@ def _kinematics(
         x_axis = cos_b[joint] * x_c - sin_b[joint] * z_alpha
         z_axis = sin_b[joint] * x_c + cos_b[joint] * z_alpha
         y_axis, origin = y_after, o_after
+    if component_major:
+        return carried, twists, turns
     rotation = np.ascontiguousarray(carried[:3].transpose(2, 3, 1, 0))  # (B, U, 3 rows, 3 columns)
     origin = np.ascontiguousarray(carried[3].transpose(1, 2, 0))
-    return rotation, origin, np.ascontiguousarray(twists.transpose(2, 3, 0, 1))
+    twists = np.ascontiguousarray(twists.transpose(2, 3, 0, 1))
+    if turns is None:
+        return rotation, origin, twists
+    return rotation, origin, twists, np.ascontiguousarray(turns.transpose(2, 3, 0, 1))
 
 
 def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -475,19 +560,15 @@ class _Batch:
         shift = (r0 @ x_base[:, :3, None])[..., 0] + self.base_start[index, :3, 3]
         return np.swapaxes(total, 1, 2) @ (_rows(self.measured_columns, index) - shift[:, :, None])
 
-    def unpack(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def unpack(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         values = self.start[index].copy()
         values[:, self.model.free] = x[:, : self.model.n_kinematic]
         x_base = np.zeros((x.shape[0], 6))
         x_base[:, self.model.base_free] = x[:, self.model.n_kinematic :]
-        return values, x_base
+        return values, np.zeros((x.shape[0], 0)), x_base
 
     def tracker(self, x_base: np.ndarray, index: np.ndarray) -> np.ndarray:
-        rotation, _, _ = base_correction(x_base)
-        delta = np.broadcast_to(np.eye(4), (x_base.shape[0], 4, 4)).copy()
-        delta[:, :3, :3] = rotation
-        delta[:, :3, 3] = x_base[:, :3]
-        return self.base_start[index] @ delta
+        return _tracker(self.base_start, x_base, index)
 
     def normal_equations(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cost ``(B,)``, ``J_s^T J_s`` ``(B, p, p)`` and ``J_s^T r`` ``(B, p)`` (scaled columns).
@@ -497,8 +578,9 @@ class _Batch:
         work) and ``J^T r = sum_groups Xi^T sum_k (p_k x e_k, e_k)``.
         """
         model = self.model
-        values, x_base = self.unpack(x, index)
-        rotation, origin, twists = _kinematics(model, values, model.x_scale)
+        values, _, x_base = self.unpack(x, index)
+        groups = model.groups
+        rotation, origin, twists = _kinematics(groups["config_q"], groups["carrier"], model.free, values, model.x_scale)
         if model.criterion == "distances":
             return self._distance_equations(_points(model, rotation, origin), twists, index)
         batch, units = rotation.shape[:2]
@@ -604,6 +686,115 @@ class _Batch:
         return cost, normal, gradient
 
 
+class _PointBatch:
+    """Residuals and normal equations of a stack of draws of an extended model, point by point.
+
+    The joint model turns every joint by ``C(q) e`` (:mod:`robotcal.kinematics.joint_model`), different in every
+    draw and at every point, so no two points share a carrier frame: the chain is composed per point (the groups
+    of :class:`_Batch` become single points, with configurations per draw), a per-joint target turned by its own
+    deflected joint. The Jacobian of the joint-model values is ``sum_j (d p / d q_j) C_j``, the twists of the
+    joint variables weighted by the columns of C. The per-point Jacobian ``(B, N, 3, p)`` is formed explicitly
+    (points criterion: ``J^T J`` one stacked product; distances: the pair rows in chunks of pairs).
+    """
+
+    def __init__(self, model: RefinedModel, measured: np.ndarray, start: np.ndarray, base_start: np.ndarray | None):
+        self.model, self.start, self.base_start = model, start, base_start
+        self.measured = measured
+        self.columns = model.joint_columns[:, :, model.extra_free]  # (N, n, m_free)
+        if model.criterion == "distances":
+            diff = measured[:, model.pair_i] - measured[:, model.pair_j]
+            self.distances = np.sqrt(np.einsum("bpc,bpc->bp", diff, diff))
+        elif not model.base_free.any():  # the measurements in the robot base frame, once
+            self.in_base = self._in_base(np.arange(measured.shape[0]), np.zeros((measured.shape[0], 6)))
+
+    def _in_base(self, index: np.ndarray, x_base: np.ndarray) -> np.ndarray:
+        """``R_tot^T (m - t_tot)`` ``(B, N, 3)`` for ``T_tot = T_0 T(x_b)``."""
+        r0 = self.base_start[index, :3, :3]
+        total = r0 @ base_correction(x_base)[0] if self.model.base_free.any() else r0
+        shift = (r0 @ x_base[:, :3, None])[..., 0] + self.base_start[index, :3, 3]
+        return (self.measured[index] - shift[:, None, :]) @ total
+
+    def unpack(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        model = self.model
+        values = self.start[index].copy()
+        values[:, model.free] = x[:, : model.n_kinematic]
+        extras = x[:, model.n_kinematic : model.n_kinematic + model.n_extra]
+        x_base = np.zeros((x.shape[0], 6))
+        x_base[:, model.base_free] = x[:, model.n_kinematic + model.n_extra :]
+        return values, extras, x_base
+
+    def tracker(self, x_base: np.ndarray, index: np.ndarray) -> np.ndarray:
+        return _tracker(self.base_start, x_base, index)
+
+    def point_jacobian(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Base-frame points ``(3, B, N)`` and ``d p / d z`` ``(3, p, B, N)`` in the scaled unknowns, components
+        first (the layout :func:`_kinematics` composes in: element-wise operations on contiguous planes)."""
+        model = self.model
+        values, extras, x_base = self.unpack(x, index)
+        q = model.q + np.einsum("pjm,bm->bpj", self.columns, extras)  # (B, N, n): the deflected joints
+        carrier = model.carrier
+        frame, twists, turns = _kinematics(
+            q, carrier, model.free, values, model.x_scale, joint_twists=True, component_major=True
+        )  # fmt: skip
+        local = np.broadcast_to(model.vectors.T[:, None, :], (3,) + q.shape[:2]).copy()  # (3, B, N)
+        on_joint = np.flatnonzero(carrier < model.free.shape[0])
+        if on_joint.size:  # a per-joint target turned by its own (deflected) joint, eq. 5-1
+            angle = q[:, on_joint, carrier[on_joint]]
+            cos, sin = np.cos(angle), np.sin(angle)
+            x_part, y_part = local[0][:, on_joint], local[1][:, on_joint]
+            local[0][:, on_joint], local[1][:, on_joint] = cos * x_part - sin * y_part, sin * x_part + cos * y_part
+        points = frame[0] * local[0] + frame[1] * local[1] + frame[2] * local[2] + frame[3]  # (3, B, N)
+        beside = points[:, None]
+        parts = [twists[3:] + _cross3(twists[:3], beside)]
+        if model.n_extra:  # d p / d e = sum_j (d p / d q_j) C_j
+            moved = turns[3:] + _cross3(turns[:3], beside)  # (3, n, B, N)
+            scale = model.x_scale[model.n_kinematic : model.n_kinematic + model.n_extra]
+            parts.append(np.einsum("cjbp,pjm->cmbp", moved, self.columns * scale))
+        if model.base_free.any():
+            base = _base_twists(model, x_base) * model.x_scale[model.n_kinematic + model.n_extra :]  # (B, 6, nb)
+            base = np.moveaxis(base, 0, -1)[..., None]  # (6, nb, B, 1)
+            parts.append(base[3:] + _cross3(base[:3], beside))
+        return points, np.concatenate(parts, axis=1)
+
+    def normal_equations(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cost ``(B,)``, ``J_s^T J_s`` ``(B, p, p)`` and ``J_s^T r`` ``(B, p)`` (scaled columns)."""
+        model = self.model
+        points, jacobian = self.point_jacobian(x, index)
+        width, batch = jacobian.shape[1], jacobian.shape[2]
+        if model.criterion == "points":
+            if model.base_free.any():
+                target = self._in_base(index, self.unpack(x, index)[2])
+            else:
+                target = _rows(self.in_base, index)
+            error = np.ascontiguousarray((points - np.moveaxis(target, -1, 0)).transpose(1, 0, 2)).reshape(batch, -1)
+            flat = np.ascontiguousarray(jacobian.transpose(2, 1, 0, 3)).reshape(batch, width, -1)  # (B, p, 3N)
+            gradient = (flat @ error[..., None])[..., 0]
+            return 0.5 * np.einsum("bk,bk->b", error, error), flat @ np.swapaxes(flat, 1, 2), gradient
+        points = np.moveaxis(points, 0, -1)  # (B, N, 3)
+        jacobian = jacobian.transpose(2, 3, 0, 1)  # (B, N, 3, p)
+        cost, normal, gradient = np.zeros(batch), np.zeros((batch, width, width)), np.zeros((batch, width))
+        for begin in range(0, model.pair_i.size, _PAIR_CHUNK):
+            i = model.pair_i[begin : begin + _PAIR_CHUNK]
+            j = model.pair_j[begin : begin + _PAIR_CHUNK]
+            diff = points[:, i] - points[:, j]
+            distance = np.sqrt(np.einsum("bpc,bpc->bp", diff, diff))
+            residuals = distance - _rows(self.distances, index)[:, begin : begin + _PAIR_CHUNK]
+            rows = np.einsum("bpc,bpck->bpk", diff / distance[..., None], jacobian[:, i] - jacobian[:, j])
+            cost += 0.5 * np.einsum("bp,bp->b", residuals, residuals)
+            normal += np.swapaxes(rows, 1, 2) @ rows
+            gradient += (residuals[:, None] @ rows)[:, 0]
+        return cost, normal, gradient
+
+
+def _tracker(base_start: np.ndarray, x_base: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``T_0 T(x_b)`` per draw ``(B, 4, 4)``."""
+    rotation, _, _ = base_correction(x_base)
+    delta = np.broadcast_to(np.eye(4), (x_base.shape[0], 4, 4)).copy()
+    delta[:, :3, :3] = rotation
+    delta[:, :3, 3] = x_base[:, :3]
+    return base_start[index] @ delta
+
+
 def _rows(array: np.ndarray, index: np.ndarray, axis: int = 0) -> np.ndarray:
     """``array`` at ``index`` along ``axis``, without a copy when ``index`` is every row in order (the first
     evaluation of a batch)."""
@@ -652,9 +843,13 @@ def refine_batch(model: RefinedModel, measured, start_values, base_start=None) -
         if base_start is None:
             raise InputError("the points criterion needs `base_start` (the given or CPA tracker_from_base)")
         base_start = np.broadcast_to(np.asarray(base_start, dtype=float), (n_draws, 4, 4))
-    problem = _Batch(model, measured, start, base_start)
+    problem = (_Batch if model.joint_model is None else _PointBatch)(model, measured, start, base_start)
     scale = model.x_scale
-    x = np.concatenate([start[:, model.free], np.zeros((n_draws, int(model.base_free.sum())))], axis=1)
+    # every draw starts from its own CPA estimate, the joint model from zero, as a user's refinement does
+    x = np.concatenate(
+        [start[:, model.free], np.zeros((n_draws, model.n_extra)), np.zeros((n_draws, int(model.base_free.sum())))],
+        axis=1,
+    )
     everyone = np.arange(n_draws)
     if n_draws == 1:
         cost, normal, gradient = (item[:1] for item in problem.normal_equations(np.r_[x, x], np.r_[0, 0]))
@@ -696,13 +891,18 @@ def refine_batch(model: RefinedModel, measured, start_values, base_start=None) -
         rejected = active[~better]
         damping[rejected] = np.where(damping[rejected] > 0.0, damping[rejected] * 10.0, 1e-3)
         failed[active] |= ~np.isfinite(x[active]).all(axis=1) | (damping[active] > 1e16)
-    values, x_base = problem.unpack(x, everyone)
+    values, free_extras, x_base = problem.unpack(x, everyone)
     tracker = problem.tracker(x_base, everyone) if model.criterion == "points" else None
     ok = converged & ~failed
     values[~ok] = np.nan
+    extras = np.zeros((n_draws, model.extra_free.size))  # the joint-model values the data cannot determine stay 0
+    extras[:, model.extra_free] = free_extras
+    extras[~ok] = np.nan
     if tracker is not None:
         tracker[~ok] = np.nan
-    return RefinedBatch(values=values, tracker_from_base=tracker, converged=ok, iterations=iterations, cost=cost)
+    return RefinedBatch(
+        values=values, tracker_from_base=tracker, converged=ok, iterations=iterations, cost=cost, extras=extras
+    )
 
 
 def _pad_one(active: np.ndarray, compute):
@@ -759,30 +959,41 @@ def refined_covariance(model: RefinedModel, measured, variance) -> np.ndarray:
         In the order of ``model.free_names`` [mm^2, mm rad, rad^2].
     """
     measured = np.asarray(measured, dtype=float)[None]
-    variance = np.asarray(variance, dtype=float)[model.groups["order"]]
     start = model.reference_values[None]
     base = None if model.reference_tracker is None else model.reference_tracker[None]
-    problem = _Batch(model, measured, start, base)
-    x = np.concatenate([start[:, model.free], np.zeros((1, int(model.base_free.sum())))], axis=1)
-    values, x_base = problem.unpack(x, np.arange(1))
-    rotation, origin, twists = _kinematics(model, values)
-    points = _points(model, rotation, origin)
-    jac = _point_jacobian(model, points, twists)[0]  # (N, 3, n_kin), base frame, grouped order
-    n_points = points.shape[1]
+    x = np.concatenate(
+        [start[:, model.free], model.reference_extras[model.extra_free][None], np.zeros((1, int(model.base_free.sum())))],
+        axis=1,
+    )
+    if model.joint_model is not None:  # point by point, in the capture's order
+        variance = np.asarray(variance, dtype=float)
+        problem = _PointBatch(model, measured, start, base)
+        points, full = problem.point_jacobian(x, np.arange(1))
+        points, full = points[:, 0].T, full[:, :, 0].transpose(2, 0, 1) / model.x_scale  # (N, 3), unscaled columns
+        i, j = model.pair_i, model.pair_j
+    else:  # per group, in the grouped order
+        variance = np.asarray(variance, dtype=float)[model.groups["order"]]
+        problem = _Batch(model, measured, start, base)
+        values, _, x_base = problem.unpack(x, np.arange(1))
+        rotation, origin, twists = _kinematics(model.groups["config_q"], model.groups["carrier"], model.free, values)
+        points = _points(model, rotation, origin)[0]
+        full = _point_jacobian(model, points[None], twists)[0]  # (N, 3, n_kin), base frame, grouped order
+        if model.criterion == "points":
+            base = _base_twists(model, x_base)[0]  # (6, n_base)
+            base_columns = base[3:][None] + np.cross(base[:3].T[None], points[:, None, :]).transpose(0, 2, 1)
+            full = np.concatenate([full, base_columns], axis=-1)
+        i, j = model.sorted_i, model.sorted_j
+    n_points = points.shape[0]
     if model.criterion == "points":
-        base = _base_twists(model, x_base)[0]  # (6, n_base)
-        base_columns = base[3:][None] + np.cross(base[:3].T[None], points[0][:, None, :]).transpose(0, 2, 1)
-        full = np.concatenate([jac, base_columns], axis=-1)
         # the tracker-frame Jacobian is R_tot J; with V = diag(var) isotropic per point the rotation
         # cancels in J^T V J only when the three variances of a point are equal (they are: U(L) per point)
         full = full.reshape(-1, model.n_free)
         middle = full.T @ (full * variance.reshape(-1)[:, None])
         normal = full.T @ full
     else:
-        i, j = model.sorted_i, model.sorted_j
-        diff = points[0, i] - points[0, j]
+        diff = points[i] - points[j]
         unit = diff / np.linalg.norm(diff, axis=1, keepdims=True)
-        rows = np.einsum("pc,pck->pk", unit, jac[i] - jac[j])  # (n_pairs, p)
+        rows = np.einsum("pc,pck->pk", unit, full[i] - full[j])  # (n_pairs, p)
         normal = rows.T @ rows
         # J^T G: (p, 3N); column block of point i collects + rows (x) unit, of point j - rows (x) unit
         jtg = np.zeros((n_points, 3, rows.shape[1]))

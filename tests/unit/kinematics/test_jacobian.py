@@ -46,6 +46,38 @@ def test_jacobian_matches_central_differences(reflector):
     np.testing.assert_allclose(jacobian, _finite_differences(parameters, q, turning, reflector), atol=2e-6)
 
 
+@pytest.mark.parametrize(
+    "reflector",
+    [
+        ReflectorMount(frame="flange", positions=[60.0, 40.0, 30.0]),
+        ReflectorMount(frame="joint", positions=OFF_AXIS_REFLECTORS_MM),
+    ],
+    ids=["flange", "per-joint"],
+)
+def test_joint_variable_derivatives_and_stacks(reflector):
+    """``d p / d q`` against central differences in q (the turning joint of a per-joint target included), and a
+    stack of parameter sets with their own joint variables against one set at a time (the Monte Carlo's use)."""
+    rng = np.random.default_rng(8)
+    robot = kr5_robot()
+    stack = robot.nominal + rng.normal(0.0, 0.02, (3,) + robot.nominal.shape)
+    q = rng.uniform(-np.pi, np.pi, (3, 7, 6))
+    turning = rng.integers(0, 6, 7)
+    points, jacobian, joint_jacobian = target_jacobian(stack, q, turning, reflector, joint_variables=True)
+    assert joint_jacobian.shape == (3, 7, 3, 6)
+    step = 1e-6
+    for b in range(3):
+        one_points, one_jacobian = target_jacobian(stack[b], q[b], turning, reflector)
+        np.testing.assert_allclose(points[b], one_points, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(jacobian[b], one_jacobian, rtol=0, atol=1e-12)
+        for j in range(6):
+            up, down = q[b].copy(), q[b].copy()
+            up[:, j] += step
+            down[:, j] -= step
+            numeric = (target_positions(stack[b], up, turning, reflector) - target_positions(stack[b], down, turning, reflector)) / (2 * step)
+            # the same bound as above: rounding ~eps |p| / h ~ 2e-7 mm
+            np.testing.assert_allclose(joint_jacobian[b, :, :, j], numeric, atol=2e-6)
+
+
 def test_per_joint_target_does_not_depend_on_its_own_or_later_joints():
     robot = kr5_robot()
     reflector = ReflectorMount(frame="joint", positions=OFF_AXIS_REFLECTORS_MM)
@@ -59,7 +91,9 @@ def test_per_joint_target_does_not_depend_on_its_own_or_later_joints():
 def test_jacobian_rejects_bad_inputs():
     robot = kr5_robot()
     reflector = ReflectorMount(frame="joint", positions=OFF_AXIS_REFLECTORS_MM)
-    with pytest.raises(InputError, match="one set of shape"):
-        target_jacobian(np.zeros((2, 6, 5)), np.zeros((1, 6)), [0], reflector)
+    with pytest.raises(InputError, match="a set of shape"):
+        target_jacobian(np.zeros(5), np.zeros((1, 6)), [0], reflector)
+    with pytest.raises(InputError, match="joint variables"):
+        target_jacobian(np.zeros((2, 6, 5)), np.full((2, 1, 6), np.nan), [0], reflector)
     with pytest.raises(InputError, match="turning_joint"):
         target_jacobian(robot.nominal, np.zeros((2, 6)), [0, 6], reflector)
