@@ -25,7 +25,7 @@ from pathlib import Path
 
 from robotcal.errors import InputError, RobotcalError, Terminated
 from robotcal.execution import process_pool
-from robotcal.io.atomic import atomic_write_text
+from robotcal.io.atomic import atomic_write_text, describe_os_error
 from robotcal.io.output import check_output_folder, output_lock, write_marker
 from robotcal.io.provenance import versions
 from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES, Document, RunResult, json_text
@@ -195,7 +195,7 @@ class _Run:
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise InputError(f"--out {out}: cannot create the folder: {exc.strerror or exc}") from None
+            raise InputError(f"--out {out}: cannot create the folder: {describe_os_error(exc)}") from None
         write_marker(out, command=self.plan.command, files=[RUN_RECORD, *(n for names in OUTPUTS.values() for n in names)])
         _clear_previous(out)
         self.record = json_copy(run_record(self.plan))  # plain JSON types: the record is run.json as read back
