@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from robotcal.errors import InputError, RobotcalError, Terminated
+from robotcal.errors import InputError, RobotcalError, Terminated, interrupt_behind
 from robotcal.limits import (  # noqa: F401  (re-exported: the commands import them from here)
     BYTES_PER_POSE,
     FALLBACK_MEMORY,
@@ -131,18 +131,6 @@ def install_signal_handlers() -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-def _interrupt_behind(exc: BaseException | None) -> KeyboardInterrupt | None:
-    """The interrupt (Ctrl-C, SIGTERM, SIGHUP) ``exc`` was raised while handling, if any: an error of the cleanup
-    after an interrupt (a write to the terminal that a SIGHUP closed, a full disk) is reported as that interrupt."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__context__
-    return None
-
-
 def _say(message) -> None:
     """Print ``message`` on stderr; a terminal that is gone (closed window or ssh session: EIO, a closed pipe:
     EPIPE) is not an error of the command."""
@@ -185,7 +173,7 @@ def handle_errors(function):
     """Run a command: robotcal errors, an out-of-memory and an :class:`OSError` (a full disk: the path named, with
     what to do) become a one-line message and exit status 2, never a traceback; an interrupt exits 130 (Ctrl-C),
     129 (SIGHUP) or 143 (SIGTERM) after the cleanup has run, also when the cleanup itself failed (a terminal
-    closed by the SIGHUP)."""
+    closed by the SIGHUP) or the interrupt surfaced as another error (:func:`robotcal.errors.interrupt_behind`)."""
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
@@ -193,8 +181,10 @@ def handle_errors(function):
         warnings.showwarning = _show_warning
         try:
             return function(*args, **kwargs)
-        except (RobotcalError, MemoryError, OSError, KeyboardInterrupt) as exc:
-            interrupt = _interrupt_behind(exc)
+        except (SystemExit, typer.Exit, typer.Abort):
+            raise
+        except BaseException as exc:
+            interrupt = interrupt_behind(exc)
             if interrupt is not None:
                 if isinstance(interrupt, Terminated):
                     _say(styled(f"terminated ({interrupt.signal_name})", "red"))
@@ -204,6 +194,8 @@ def handle_errors(function):
                     status = EXIT_INTERRUPTED
                 _silence_broken_streams()
                 sys.exit(status)
+            if not isinstance(exc, (RobotcalError, MemoryError, OSError)):
+                raise  # a bug: its traceback is wanted
             _say(_line("error:", "red", _message(exc)))
             _silence_broken_streams()
             raise typer.Exit(code=2) from None

@@ -23,7 +23,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from robotcal.errors import InputError, RobotcalError, Terminated
+from robotcal.errors import InputError, RobotcalError, Terminated, interrupt_behind
 from robotcal.execution import process_pool
 from robotcal.io.atomic import atomic_write_text, describe_os_error
 from robotcal.io.output import check_output_folder, output_lock, write_marker
@@ -146,10 +146,11 @@ def run_record(plan: RunPlan) -> dict:
 
 
 def _status(exc: BaseException) -> str:
-    return "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+    return "interrupted" if interrupt_behind(exc) is not None else "failed"
 
 
 def _message(exc: BaseException) -> str:
+    exc = interrupt_behind(exc) or exc  # e.g. an import the interrupt broke: the interrupt is the reason
     if isinstance(exc, Terminated):  # SIGTERM or SIGHUP (robotcal.cli installs the handlers)
         return f"terminated ({exc.signal_name})"
     if isinstance(exc, KeyboardInterrupt):
