@@ -111,7 +111,9 @@ def previous(tmp_path_factory) -> Path:
         ["simulate", "thesis-noise-free", "--out", folder / "capture.csv"],
         ["identify", folder / "capture.csv", "-s", "thesis-noise-free", "--out", folder / "params.json"],
         ["export", "--nominal", "kuka-kr5-sixx-r650", "-f", "urdf", "--out", folder / "robot.urdf"],
-        ["uncertainty", "thesis-noise-free", "-n", "200", "--out", folder / "mc"],
+        ["uncertainty", "thesis-noise-free", "-n", "200", "--save-draws", "--out", folder / "mc"],
+        ["iso9283-plan", "-s", "kr5-demo", "--cycles", "2", "--out", folder / "iso_poses.csv"],
+        ["simulate", "kr5-demo", "--poses", folder / "iso_poses.csv", "--out", folder / "iso_capture.csv"],
     ):
         result = runner.invoke(app, list(map(str, arguments)))
         assert result.exit_code == 0, result.output
@@ -119,6 +121,18 @@ def previous(tmp_path_factory) -> Path:
     run.mkdir()
     (run / "run.json").write_text(json.dumps({"status": "done"}))
     write_marker(run, command="robotcal run", files=["run.json"])
+    (folder / "report_run").mkdir()  # a run folder with its capture only: `report` renders what there is
+    shutil.copy2(folder / "capture.csv", folder / "report_run" / "capture.csv")
+    (folder / "poses.csv").write_text("q1,q2,q3,q4,q5,q6\n0,10,20,0,30,0\n")
+    (folder / "export.csv").write_text("Point ID,X [mm],Y [mm],Z [mm]\nP1,1234.5,470.6,750.2\nP2,1250,-487.5,800\n")
+    (folder / "log.csv").write_text("name,q1,q2,q3,q4,q5,q6\nP1,10,-20,30,0,45,0\nP2,11.5,-20,30,0,45,0\n")
+    scenario = (Path(__file__).parents[2] / "src/robotcal/data/scenarios/thesis-noise-free.toml").read_text()
+    # its plan within the joint limits (J5 swept 100 deg instead of 200), as `program` needs
+    feasible = scenario.replace(
+        "sweep_deg = [45.0, 80.0, 100.0, 50.0, 200.0, 300.0]", "sweep_deg = [45.0, 80.0, 100.0, 50.0, 100.0, 300.0]"
+    )
+    assert feasible != scenario
+    (folder / "feasible.toml").write_text(feasible)
     return folder
 
 
@@ -217,3 +231,78 @@ def test_a_real_full_file_system(tiny_tmpfs, previous, command):
     result = runner.invoke(app, [a.format(disk=tiny_tmpfs, inputs=previous) for a in arguments])
     _one_error_line(result, tiny_tmpfs)
     assert sorted(p.name for p in tiny_tmpfs.iterdir()) == ["filler"]  # no lock (not even empty), nothing else
+
+
+#: The other commands that write, each into the disk (``{disk}``) from inputs outside it (``{inputs}``).
+OTHER_COMMANDS = {
+    "refine": ["refine", "{inputs}/capture.csv", "-s", "thesis-noise-free", "--out", "{disk}/refined.json"],
+    "evaluate": [
+        "evaluate",
+        "-s",
+        "thesis-noise-free",
+        "-p",
+        "{inputs}/params.json",
+        "-c",
+        "{inputs}/capture.csv",
+        "--out",
+        "{disk}/evaluation",
+    ],
+    "joints": ["joints", "{inputs}/capture.csv", "-s", "thesis-noise-free", "--no-backlash", "--out", "{disk}/joints"],
+    "uncertainty --capture": [
+        "uncertainty",
+        "thesis-noise-free",
+        "--capture",
+        "{inputs}/capture.csv",
+        "--params",
+        "{inputs}/params.json",
+        "-n",
+        "100",
+        "--out",
+        "{disk}/mc",
+    ],
+    "tcp": ["tcp", "--run", "{inputs}/mc", "--pose", "0,10,20,0,30,0", "--out", "{disk}/tcp"],
+    "report": ["report", "{inputs}/report_run", "--out", "{disk}/report.html"],
+    "import": ["import", "{inputs}/export.csv", "--joints", "{inputs}/log.csv", "--out", "{disk}/imported.csv"],
+    "iso9283": ["iso9283", "{inputs}/iso_capture.csv", "-s", "kr5-demo", "--out", "{disk}/iso.csv"],
+    "iso9283-plan": [
+        "iso9283-plan",
+        "-s",
+        "kr5-demo",
+        "--cycles",
+        "2",
+        "--program",
+        "krl",
+        "--out",
+        "{disk}/poses.csv",
+    ],
+    "predict": ["predict", "{inputs}/params.json", "--poses", "{inputs}/poses.csv", "--out", "{disk}/predicted.csv"],
+    "program": ["program", "{inputs}/feasible.toml", "--out", "{disk}/prog.src"],
+    "plan check": ["plan", "check", "kr5-demo", "--out", "{disk}/check"],
+    "sensitivity": [
+        "sensitivity",
+        "thesis-noise-free",
+        "--vary",
+        "capture.points=10,20",
+        "-n",
+        "50",
+        "--out",
+        "{disk}/s",
+    ],
+    "export json": ["export", "{inputs}/params.json", "--out", "{disk}/params.json"],
+}
+
+
+@pytest.mark.filterwarnings("ignore::robotcal.errors.RobotcalWarning")  # e.g. J6 held: the inputs' own, expected
+@pytest.mark.parametrize("point", ["full", "write"])
+@pytest.mark.parametrize("command", list(OTHER_COMMANDS))
+def test_every_command_that_writes_fails_on_a_full_disk_in_one_line(tmp_path, monkeypatch, previous, command, point):
+    # "full": nothing fits (the lock is the first write); "write": the lock fits, the results do not
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    full = FullDisk(disk, monkeypatch)
+    full.fill(point)
+    result = runner.invoke(app, [a.format(disk=disk, inputs=previous) for a in OTHER_COMMANDS[command]])
+    full.empty()
+    assert full.hits, (result.exit_code, repr(result.exception), result.output)
+    _one_error_line(result, disk)
+    assert _tree(disk) == {} and _leftovers(tmp_path) == []
