@@ -340,3 +340,24 @@ def test_an_error_while_cleaning_up_after_an_interrupt_keeps_the_interrupts_stat
         bug()
     with pytest.raises(typer.Exit):
         handle_errors(lambda: (_ for _ in ()).throw(typer.Exit(code=1)))()
+
+
+@pytest.mark.parametrize("stage", ["refine", pytest.param("report", marks=pytest.mark.slow)])  # report: a whole run
+def test_an_interrupt_right_after_run_json_says_running_is_that_stages(tmp_path, stage):
+    # the moment the signal tests send their signal: run.json has just said "running"; the stage was left "running"
+    # and the record had no failed_stage when the interrupt came before the stage's own error handling began
+    from robotcal.errors import Terminated
+    from robotcal.pipeline import plan_run, run_calibration
+
+    def progress(name, done, total, detail=""):
+        if name == stage and done == 0 and detail == "running":
+            raise Terminated("SIGHUP")
+
+    out = tmp_path / "r"
+    plan = plan_run("kr5-demo", out, draws=200, workspace=5, workers=1, refined_draws=100)
+    with pytest.raises(Terminated):
+        run_calibration(plan, progress=progress, figure_workers=0)
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "interrupted" and record["failed_stage"] == stage
+    assert record["stages"][stage]["status"] == "interrupted" and record["error"] == "terminated (SIGHUP)"
+    assert _leftovers(tmp_path) == []

@@ -227,13 +227,13 @@ class _Run:
                 pass
 
     def _stage(self, name: str, function) -> None:
-        self.record["stages"][name]["status"] = "running"
-        self.write_record()
-        self.progress(name, 0, None, "running")
         started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            try:
+            try:  # an interrupt as soon as run.json says "running" is this stage's
+                self.record["stages"][name]["status"] = "running"
+                self.write_record()
+                self.progress(name, 0, None, "running")
                 output: stages.StageOutput = function()
             except BaseException as exc:
                 self._fail(name, exc, started)
@@ -357,11 +357,11 @@ class _Run:
         """The last stage: every figure waited for, the final record, the summary and the report, rendered once
         from memory. A figure that failed fails the report stage, its message naming the figure."""
         name = "report"
-        self.record["stages"][name]["status"] = "running"
-        self.write_record()
-        self.progress(name, 0, None, "running")
         started = time.perf_counter()
-        try:
+        try:  # an interrupt as soon as run.json says "running" is this stage's
+            self.record["stages"][name]["status"] = "running"
+            self.write_record()
+            self.progress(name, 0, None, "running")
             for path in self.figures.paths():
                 self.documents[path.relative_to(self.out).as_posix()] = path
             now = time.perf_counter()
