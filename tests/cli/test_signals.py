@@ -4,13 +4,11 @@ lock and no half result, and mark ``run.json`` "interrupted"; what a SIGKILL lea
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
 import signal
 import subprocess
 import sys
-import termios
 import time
 from pathlib import Path
 
@@ -70,6 +68,9 @@ def _start(tmp_path: Path, *args, terminal: int | None = None, stderr_on_termina
 
 def _own_terminal() -> None:
     """In the child: a new session whose controlling terminal is stdin's (closing its other end hangs it up)."""
+    import fcntl
+    import termios
+
     os.setsid()
     fcntl.ioctl(0, termios.TIOCSCTTY, 0)
 

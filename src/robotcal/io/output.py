@@ -426,7 +426,6 @@ def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
     """
     resolved = _resolve(out)
     lock = _lock_path(resolved)
-    existed = resolved.exists() or resolved.is_symlink()
     created = [folder for folder in (lock.parent, *lock.parent.parents) if not folder.exists()]
     try:
         lock.parent.mkdir(parents=True, exist_ok=True)
@@ -435,16 +434,20 @@ def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
         raise InputError(f"{option} {out}: cannot create folder {lock.parent}: {describe_os_error(exc)}") from None
     try:
         _acquire(lock, out, option)
+        existed = True
         try:
             remove_stale_temporaries(resolved.parent, names=(resolved.name, lock.name))
             if resolved.is_dir() and not resolved.is_symlink() and is_robotcal_folder(resolved):
                 remove_stale_temporaries(resolved, recursive=True)
+            existed = resolved.exists() or resolved.is_symlink()
             yield lock
         finally:
+            if not existed:
+                _remove_empty([resolved])  # a folder made for the output, left empty (still under the lock)
             with contextlib.suppress(OSError):
                 lock.unlink()
     finally:
-        _remove_empty(([] if existed else [resolved]) + created)  # folders made for an output that was not written
+        _remove_empty(created)  # folders made for the lock, left empty
 
 
 def _remove_empty(folders: list[Path]) -> None:

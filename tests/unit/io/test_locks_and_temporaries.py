@@ -272,3 +272,30 @@ def test_os_errors_say_what_to_do():
     )
     assert describe_os_error(OSError(errno.EROFS, "Read-only file system")).endswith("writable file system")
     assert describe_os_error(OSError(errno.ENOENT, "No such file or directory")) == "No such file or directory"
+
+
+def test_a_refused_writer_leaves_the_holders_new_folder(tmp_path, monkeypatch, live_pid):
+    # the holder made the (still empty) output folder while the refused process waited for the lock: the refused
+    # process must not remove it as "a folder made for an output that was not written"
+    import robotcal.io.output as output
+
+    out = tmp_path / "run"
+    (tmp_path / f".run{LOCK_SUFFIX}").write_text(f"{live_pid}\n{socket.gethostname()}\nabc\n")
+    real = output._acquire
+
+    def acquire(lock, out_, option):
+        out.mkdir()  # meanwhile, the holder creates its run folder
+        return real(lock, out_, option)
+
+    monkeypatch.setattr(output, "_acquire", acquire)
+    with pytest.raises(InputError, match="in use"), output_lock(out):
+        pass
+    assert out.is_dir()
+
+
+def test_a_folder_made_for_an_output_not_written_is_removed(tmp_path):
+    out = tmp_path / "a" / "b" / "run"
+    with pytest.raises(KeyboardInterrupt), output_lock(out):
+        out.mkdir()  # as `run` makes its folder, then is interrupted before writing anything
+        raise KeyboardInterrupt
+    assert _names(tmp_path) == []
