@@ -17,6 +17,7 @@ __all__ = [
     "FitHealthWarning",
     "FitHealthError",
     "Terminated",
+    "interrupt_behind",
 ]
 
 
@@ -53,6 +54,27 @@ class Terminated(KeyboardInterrupt):
     def __init__(self, signal_name: str = "SIGTERM"):
         super().__init__(signal_name)
         self.signal_name = signal_name
+
+
+def interrupt_behind(exc: BaseException | None) -> KeyboardInterrupt | None:
+    """The interrupt (Ctrl-C, or :class:`Terminated`) behind ``exc``: ``exc`` itself, or one that ``exc`` was raised
+    from or while handling (its ``__cause__`` / ``__context__`` chain); None if there is none.
+
+    An error of the cleanup after an interrupt (a write to the terminal a SIGHUP closed, a full disk) and an error
+    the interrupt caused (a C extension whose import it broke: "ImportError: initialization failed") are that
+    interrupt, for the record and the exit status.
+    """
+    seen = set()
+    pending = [exc]
+    while pending:
+        exc = pending.pop()
+        if exc is None or id(exc) in seen:
+            continue
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        pending += [exc.__cause__, exc.__context__]
+    return None
 
 
 class RobotcalWarning(UserWarning):

@@ -159,7 +159,7 @@ def test_robotcal_files_are_recognised_and_others_are_not(tmp_path):
 def test_lock_refuses_a_second_writer_and_takes_over_a_stale_lock(tmp_path):
     out = tmp_path / "res"
     with output_lock(out) as lock:
-        assert lock.read_text().strip() == str(os.getpid())
+        assert lock.read_text().splitlines()[0] == str(os.getpid())
         with pytest.raises(InputError, match=rf"another robotcal process \(pid {os.getpid()}\)"):
             with output_lock(out):
                 pass
@@ -168,7 +168,7 @@ def test_lock_refuses_a_second_writer_and_takes_over_a_stale_lock(tmp_path):
     child = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
     lock.write_text(child.stdout)
     with output_lock(out):
-        assert lock.read_text().strip() == str(os.getpid())
+        assert lock.read_text().splitlines()[0] == str(os.getpid())
     assert not lock.exists()
 
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from robotcal.errors import InputError, RobotcalError, Terminated
+from robotcal.errors import InputError, RobotcalError, Terminated, interrupt_behind
 from robotcal.limits import (  # noqa: F401  (re-exported: the commands import them from here)
     BYTES_PER_POSE,
     FALLBACK_MEMORY,
@@ -131,9 +131,49 @@ def install_signal_handlers() -> None:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def _say(message) -> None:
+    """Print ``message`` on stderr; a terminal that is gone (closed window or ssh session: EIO, a closed pipe:
+    EPIPE) is not an error of the command."""
+    try:
+        _error_console().print(message, highlight=False)
+    except (OSError, ValueError):  # ValueError: a closed stream
+        pass
+
+
+def _silence_broken_streams() -> None:
+    """Point stdout and stderr at the null device where they can no longer be written (the terminal closed), so
+    that Python's final flush at exit neither prints a traceback nor turns the exit status into 120."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            try:
+                null = os.open(os.devnull, os.O_WRONLY)
+                try:
+                    os.dup2(null, stream.fileno())
+                finally:
+                    os.close(null)
+            except (OSError, ValueError):  # no file descriptor (a test's captured stream): nothing to protect
+                pass
+
+
+def _message(exc: BaseException) -> str:
+    """The one-line message of an error ``handle_errors`` reports."""
+    if isinstance(exc, MemoryError):
+        return "out of memory; use fewer draws, poses or points (or --batch-size)"
+    if isinstance(exc, OSError):  # a full disk, a folder that cannot be written: the file named, no traceback
+        from robotcal.io.atomic import describe_os_error, final_path
+
+        where = f"{final_path(exc.filename)}: " if exc.filename else ""
+        return f"{where}{describe_os_error(exc)}"
+    return str(exc)
+
+
 def handle_errors(function):
-    """Run a command: robotcal errors become a one-line message and exit status 2, never a traceback;
-    an interrupt exits 130 (Ctrl-C) or 143 (SIGTERM) after the cleanup has run."""
+    """Run a command: robotcal errors, an out-of-memory and an :class:`OSError` (a full disk: the path named, with
+    what to do) become a one-line message and exit status 2, never a traceback; an interrupt exits 130 (Ctrl-C),
+    129 (SIGHUP) or 143 (SIGTERM) after the cleanup has run, also when the cleanup itself failed (a terminal
+    closed by the SIGHUP) or the interrupt surfaced as another error (:func:`robotcal.errors.interrupt_behind`)."""
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
@@ -141,25 +181,24 @@ def handle_errors(function):
         warnings.showwarning = _show_warning
         try:
             return function(*args, **kwargs)
-        except RobotcalError as exc:
-            _error_console().print(_line("error:", "red", exc), highlight=False)
+        except (SystemExit, typer.Exit, typer.Abort):
+            raise
+        except BaseException as exc:
+            interrupt = interrupt_behind(exc)
+            if interrupt is not None:
+                if isinstance(interrupt, Terminated):
+                    _say(styled(f"terminated ({interrupt.signal_name})", "red"))
+                    status = EXIT_STATUS.get(interrupt.signal_name, 143)
+                else:
+                    _say(styled("interrupted", "red"))
+                    status = EXIT_INTERRUPTED
+                _silence_broken_streams()
+                sys.exit(status)
+            if not isinstance(exc, (RobotcalError, MemoryError, OSError)):
+                raise  # a bug: its traceback is wanted
+            _say(_line("error:", "red", _message(exc)))
+            _silence_broken_streams()
             raise typer.Exit(code=2) from None
-        except MemoryError:
-            _error_console().print(
-                _line("error:", "red", "out of memory; use fewer draws, poses or points (or --batch-size)"),
-                highlight=False,
-            )
-            raise typer.Exit(code=2) from None
-        except OSError as exc:  # a full disk, a folder that cannot be written: the file named, no traceback
-            where = f"{exc.filename}: " if exc.filename else ""
-            _error_console().print(_line("error:", "red", f"{where}{exc.strerror or exc}"), highlight=False)
-            raise typer.Exit(code=2) from None
-        except KeyboardInterrupt as exc:
-            if isinstance(exc, Terminated):
-                _error_console().print(styled(f"terminated ({exc.signal_name})", "red"))
-                sys.exit(EXIT_STATUS.get(exc.signal_name, 143))
-            _error_console().print(styled("interrupted", "red"))
-            sys.exit(EXIT_INTERRUPTED)
         finally:
             warnings.showwarning = previous
 

@@ -23,7 +23,16 @@ A capture written to CSV (readings in degrees, 12 decimals) reads back the same:
 True
 """
 
-from robotcal.io.atomic import atomic_directory, atomic_write_bytes, atomic_write_text
+from robotcal.io.atomic import (
+    atomic_directory,
+    atomic_write_bytes,
+    atomic_write_text,
+    describe_os_error,
+    final_path,
+    is_process_running,
+    remove_stale_temporaries,
+    temporary_prefix,
+)
 from robotcal.io.builtins import builtin_names, data_path, read_toml
 from robotcal.io.capture_csv import capture_to_csv, read_capture, read_capture_text, write_capture
 from robotcal.io.draws_npz import FORMAT, ParameterDraws, parameter_units, read_draws, write_draws
@@ -175,6 +184,11 @@ __all__ = [
     "atomic_write_text",
     "atomic_write_bytes",
     "atomic_directory",
+    "describe_os_error",
+    "final_path",
+    "is_process_running",
+    "remove_stale_temporaries",
+    "temporary_prefix",
     "data_path",
     "builtin_names",
     "read_toml",

@@ -16,9 +16,11 @@ One policy, used by ``simulate``, ``identify``, ``refine``, ``evaluate``, ``join
 * **Never**, even with ``--force``: the file system root, the home folder, the current folder or one
   of its parents, an output that *is* an input of the same command, a folder output that *contains*
   an input.
-* A **lock file** (``.NAME.robotcal-lock`` beside the output, created with ``O_EXCL`` and holding the
-  writer's pid) stops two processes writing one output; a lock whose pid is no longer alive is stale
-  and taken over.
+* A **lock file** (``.NAME.robotcal-lock`` beside the output, created whole and atomically, holding the
+  writer's pid and host) stops two processes writing one output; a lock whose process no longer runs is
+  stale and taken over, and the temporaries a killed robotcal left for that output (``.partial``
+  folders, ``.tmp`` files: :mod:`robotcal.io.atomic`) are removed then. A failure, a full disk
+  included, leaves no lock and no temporary behind.
 
 Every refusal is an :class:`robotcal.errors.InputError` (one line, exit status 2 in the CLI).
 """
@@ -30,12 +32,23 @@ import errno
 import json
 import os
 import re
+import secrets
+import socket
+import tempfile
+import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from robotcal.errors import InputError
-from robotcal.io.atomic import atomic_directory, atomic_write_text
+from robotcal.io.atomic import (
+    atomic_directory,
+    atomic_write_text,
+    describe_os_error,
+    is_process_running,
+    remove_stale_temporaries,
+    temporary_prefix,
+)
 
 __all__ = [
     "MARKER",
@@ -276,27 +289,143 @@ def _lock_path(resolved: Path) -> Path:
     return resolved.parent / f".{resolved.name}{LOCK_SUFFIX}"
 
 
-def _alive(pid: int) -> bool:
-    if pid <= 0:
-        return False
+#: Seconds an empty lock file may be young and still being written (on a file system without hard links a
+#: lock is created empty and then written; an older empty lock was left by a process killed in between).
+_LOCK_BEING_WRITTEN_S = 2.0
+#: Errors of :func:`os.link` on file systems without hard links (FAT, exFAT, some network shares).
+_NO_HARD_LINKS = frozenset({errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK, errno.ENOSYS})
+
+
+def _lock_text() -> bytes:
+    """The lock's content: this process's pid, its host, and a token that tells this lock from any other."""
+    return f"{os.getpid()}\n{socket.gethostname()}\n{secrets.token_hex(8)}\n".encode("ascii", "replace")
+
+
+def _create_lock(lock: Path) -> None:
+    """Create ``lock`` holding :func:`_lock_text`, whole or not at all; :class:`FileExistsError` if it exists.
+
+    The content is written to a temporary file first and hard-linked to the lock's name (``link`` fails if the
+    name exists, atomically): no other process ever sees the lock empty or half written, and a full disk leaves
+    nothing. Where the file system has no hard links, the lock is created with ``O_EXCL`` and then written; a
+    failed write removes it.
+    """
+    data = _lock_text()
+    handle, temp = tempfile.mkstemp(prefix=temporary_prefix(lock.name), suffix=".tmp", dir=lock.parent)
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    except OSError:
-        return False
-    return True
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(data)
+        os.chmod(temp, 0o644)  # other users' robotcal must be able to read the holder's pid
+        try:
+            os.link(temp, lock)
+        except OSError as exc:
+            if exc.errno not in _NO_HARD_LINKS:
+                raise
+            _create_lock_in_place(lock, data)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(temp)
+
+
+def _create_lock_in_place(lock: Path, data: bytes) -> None:
+    handle = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    try:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(handle, view) :]
+        finally:
+            os.close(handle)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            lock.unlink()
+        raise
+
+
+def _holder(content: bytes) -> tuple[int, str | None]:
+    """The pid (0 when unreadable) and host (None: not recorded, as by an older robotcal: this host) of a lock."""
+    lines = content.decode("ascii", "replace").split("\n")
+    try:
+        pid = int(lines[0].strip())
+    except ValueError:
+        pid = 0
+    host = lines[1].strip() if len(lines) > 1 and lines[1].strip() else None
+    return pid, host
+
+
+def _take_over(lock: Path, seen: bytes) -> None:
+    """Remove the stale lock ``lock`` whose content was ``seen``, unless another process replaced it meanwhile.
+
+    The lock is renamed aside first and its content compared: when two processes find one stale lock at once,
+    the second never removes the lock the first has just taken (it finds it changed and puts it back).
+    """
+    aside = lock.parent / f"{temporary_prefix(lock.name)}{secrets.token_hex(4)}.tmp"
+    try:
+        os.rename(lock, aside)
+    except FileNotFoundError:
+        return  # released by its owner or taken over by another process: look again
+    try:
+        if aside.read_bytes() != seen:  # a live lock taken since the stale one was read: put it back
+            with contextlib.suppress(OSError):
+                os.link(aside, lock)
+    finally:
+        with contextlib.suppress(OSError):
+            aside.unlink()
+
+
+def _acquire(lock: Path, out, option: str) -> None:
+    """Take the lock file ``lock`` of the output ``out`` for this process, or raise :class:`InputError`."""
+    for _ in range(100):  # each turn takes the lock, refuses, or follows another process's move
+        try:
+            _create_lock(lock)
+            return
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise InputError(f"{option} {out}: cannot create the lock file {lock}: {describe_os_error(exc)}") from None
+        try:
+            content = lock.read_bytes()
+        except FileNotFoundError:
+            continue  # released meanwhile
+        except OSError as exc:
+            raise InputError(
+                f"{option} {out}: cannot read the lock file {lock} ({describe_os_error(exc)}); remove it if no "
+                "robotcal process writes this output"
+            ) from None
+        pid, host = _holder(content)
+        here = socket.gethostname()
+        if pid <= 0:  # empty: being written where there are no hard links, or left by a process killed then
+            with contextlib.suppress(OSError):
+                if time.time() - lock.stat().st_mtime < _LOCK_BEING_WRITTEN_S:
+                    time.sleep(0.05)
+                    continue
+        elif (host is not None and host != here) or pid == os.getpid() or is_process_running(pid):
+            where = "" if host is None or host == here else f" on host {host}"
+            raise InputError(
+                f"{option} {out}: in use by another robotcal process (pid {pid}){where}, lock {lock}; wait for it to "
+                "finish or choose another output (remove the lock only if no robotcal process writes this output)"
+            )
+        try:
+            _take_over(lock, content)  # stale: its process is gone
+        except OSError as exc:
+            raise InputError(
+                f"{option} {out}: cannot remove the stale lock file {lock}: {describe_os_error(exc)}"
+            ) from None
+    raise InputError(
+        f"{option} {out}: cannot take the lock {lock}; remove it if no robotcal process writes this output"
+    )
 
 
 @contextmanager
 def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
     """Hold the lock file of the output ``out`` for the duration of the block.
 
-    The lock is ``.NAME.robotcal-lock`` beside ``out``, created with ``O_CREAT | O_EXCL`` and holding
-    this process's pid. A second writer gets an :class:`InputError` naming the holder's pid; a lock
-    left by a process that no longer exists is stale and taken over.
+    The lock is ``.NAME.robotcal-lock`` beside ``out``, created whole (never empty, nothing left when its
+    creation fails, e.g. on a full disk) and holding this process's pid and host. A second writer gets an
+    :class:`InputError` naming the holder's pid; a lock left by a process that no longer runs on this host is
+    stale and taken over. Once the lock is held, the temporaries a killed robotcal process left for ``out``
+    (beside it, and inside it when it is a robotcal folder) are removed
+    (:func:`~robotcal.io.atomic.remove_stale_temporaries`). The lock is removed when the block ends, however it
+    ends, and so are the folders made for ``out`` (``out`` included) that the block left empty.
     """
     resolved = _resolve(out)
     lock = _lock_path(resolved)
@@ -305,52 +434,29 @@ def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
         lock.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         _remove_empty(created)
-        raise InputError(f"{option} {out}: cannot create folder {lock.parent}: {exc.strerror or exc}") from None
+        raise InputError(f"{option} {out}: cannot create folder {lock.parent}: {describe_os_error(exc)}") from None
     try:
-        with _held(lock, out, option):
+        _acquire(lock, out, option)
+        existed = True
+        try:
+            remove_stale_temporaries(resolved.parent, names=(resolved.name, lock.name))
+            if resolved.is_dir() and not resolved.is_symlink() and is_robotcal_folder(resolved):
+                remove_stale_temporaries(resolved, recursive=True)
+            existed = resolved.exists() or resolved.is_symlink()
             yield lock
+        finally:
+            if not existed:
+                _remove_empty([resolved])  # a folder made for the output, left empty (still under the lock)
+            with contextlib.suppress(OSError):
+                lock.unlink()
     finally:
-        _remove_empty(created)  # folders made for an output that was not written
+        _remove_empty(created)  # folders made for the lock, left empty
 
 
 def _remove_empty(folders: list[Path]) -> None:
     for folder in folders:  # deepest first
         with contextlib.suppress(OSError):
             folder.rmdir()
-
-
-@contextmanager
-def _held(lock: Path, out, option: str) -> Iterator[Path]:
-    for _ in range(3):
-        try:
-            handle = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text(encoding="ascii").strip() or "0")
-            except (OSError, ValueError):
-                pid = 0
-            if pid == os.getpid() or _alive(pid):
-                raise InputError(
-                    f"{option} {out}: another robotcal process (pid {pid}) is writing this output (lock {lock}); "
-                    "wait for it to finish or choose another output"
-                ) from None
-            with contextlib.suppress(FileNotFoundError):
-                lock.unlink()  # stale: its process is gone
-            continue
-        except OSError as exc:
-            if exc.errno in (errno.EACCES, errno.EROFS, errno.EPERM):
-                raise InputError(f"{option} {out}: cannot write in {lock.parent} ({exc.strerror})") from None
-            raise InputError(f"{option} {out}: cannot create lock file {lock}: {exc.strerror or exc}") from None
-        with os.fdopen(handle, "w", encoding="ascii") as stream:
-            stream.write(f"{os.getpid()}\n")
-        break
-    else:
-        raise InputError(f"{option} {out}: cannot take the lock {lock}; remove it if no robotcal process runs")
-    try:
-        yield lock
-    finally:
-        with contextlib.suppress(OSError):
-            lock.unlink()
 
 
 def write_marker(folder, *, command: str, files: Iterable[str] | None = None) -> Path:

@@ -23,9 +23,9 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from robotcal.errors import InputError, RobotcalError, Terminated
+from robotcal.errors import InputError, RobotcalError, Terminated, interrupt_behind
 from robotcal.execution import process_pool
-from robotcal.io.atomic import atomic_write_text
+from robotcal.io.atomic import atomic_write_text, describe_os_error
 from robotcal.io.output import check_output_folder, output_lock, write_marker
 from robotcal.io.provenance import versions
 from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES, Document, RunResult, json_text
@@ -146,10 +146,11 @@ def run_record(plan: RunPlan) -> dict:
 
 
 def _status(exc: BaseException) -> str:
-    return "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+    return "interrupted" if interrupt_behind(exc) is not None else "failed"
 
 
 def _message(exc: BaseException) -> str:
+    exc = interrupt_behind(exc) or exc  # e.g. an import the interrupt broke: the interrupt is the reason
     if isinstance(exc, Terminated):  # SIGTERM or SIGHUP (robotcal.cli installs the handlers)
         return f"terminated ({exc.signal_name})"
     if isinstance(exc, KeyboardInterrupt):
@@ -195,7 +196,7 @@ class _Run:
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise InputError(f"--out {out}: cannot create the folder: {exc.strerror or exc}") from None
+            raise InputError(f"--out {out}: cannot create the folder: {describe_os_error(exc)}") from None
         write_marker(out, command=self.plan.command, files=[RUN_RECORD, *(n for names in OUTPUTS.values() for n in names)])
         _clear_previous(out)
         self.record = json_copy(run_record(self.plan))  # plain JSON types: the record is run.json as read back
@@ -226,13 +227,13 @@ class _Run:
                 pass
 
     def _stage(self, name: str, function) -> None:
-        self.record["stages"][name]["status"] = "running"
-        self.write_record()
-        self.progress(name, 0, None, "running")
         started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            try:
+            try:  # an interrupt as soon as run.json says "running" is this stage's
+                self.record["stages"][name]["status"] = "running"
+                self.write_record()
+                self.progress(name, 0, None, "running")
                 output: stages.StageOutput = function()
             except BaseException as exc:
                 self._fail(name, exc, started)
@@ -356,11 +357,11 @@ class _Run:
         """The last stage: every figure waited for, the final record, the summary and the report, rendered once
         from memory. A figure that failed fails the report stage, its message naming the figure."""
         name = "report"
-        self.record["stages"][name]["status"] = "running"
-        self.write_record()
-        self.progress(name, 0, None, "running")
         started = time.perf_counter()
-        try:
+        try:  # an interrupt as soon as run.json says "running" is this stage's
+            self.record["stages"][name]["status"] = "running"
+            self.write_record()
+            self.progress(name, 0, None, "running")
             for path in self.figures.paths():
                 self.documents[path.relative_to(self.out).as_posix()] = path
             now = time.perf_counter()
