@@ -170,7 +170,7 @@ def _coverage_hits(n_captures: int, draws: int) -> tuple[np.ndarray, int]:
         free = estimate.free
         true_values = truth.values + 2 * np.pi * np.round((estimate.parameters.values - truth.values) / (2 * np.pi))
         inside = (low[free] <= true_values[free]) & (true_values[free] <= high[free])
-        t_low, t_high = result.target_summary.interval("symmetric")
+        t_low, t_high = result.target_interval()  # the offsets' draws' interval moved by twice their bias
         inside_targets = (t_low <= OFFSETS) & (OFFSETS <= t_high)
         hits.append(int(inside.sum() + inside_targets.sum()))
         trials = int(inside.size + inside_targets.size)
