@@ -20,7 +20,6 @@ from robotcal.uncertainty.montecarlo import MonteCarloResult
 __all__ = [
     "FORMAT",
     "CSV_COLUMNS",
-    "INTERVAL_METHOD",
     "uncertainty_rows",
     "write_uncertainty_csv",
     "write_uncertainty_json",
