@@ -41,7 +41,7 @@ def table(scenario, published: dict, result, extra=None) -> list[str]:
     names = np.array(scenario.robot.parameter_names).reshape(scenario.robot.n_joints, 5)
     mean, std = to_file_units(result.summary.mean), to_file_units(result.summary.std_uncertainty)
     low, high = (to_file_units(v) for v in result.summary.interval("symmetric"))
-    header = "| parameter | unit | thesis mean | robotcal mean | thesis u | robotcal u | u ratio | thesis 95 % interval | robotcal 95 % interval |"
+    header = "| parameter | unit | thesis mean | robotcal mean | thesis u | robotcal u | u ratio | thesis 95 % interval | robotcal draws' 95 % interval |"
     rule = "| --- | --- | ---: | ---: | ---: | ---: | ---: | --- | --- |"
     if extra is not None:
         header += f" {extra[0]} u | ratio |"
@@ -88,7 +88,7 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=100_000)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--tables", default=str(ROOT / "tests" / "data" / "thesis_tables.json"))
-    parser.add_argument("--out", default=str(ROOT / "docs" / "validation.md"))
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "validation.md")
     args = parser.parse_args()
     tables = json.loads(Path(args.tables).read_text())
     began = time.perf_counter()
@@ -110,8 +110,11 @@ def main() -> None:
         f"Generated with robotcal {robotcal.__version__}: {args.draws:,} draws per scenario (the thesis's 10^5,",
         f"ch. 5.2.3), seed {args.seed}, workers 2, {elapsed:.0f} s for the three runs. Published values from",
         "`tests/data/thesis_tables.json` (Tables 5.6 and 5.7 of the thesis as printed). Mean, standard uncertainty u and",
-        "the probabilistically symmetric 95 % interval per identified parameter; lengths in mm, angles in",
-        "degrees. J6's d, theta, a, alpha cannot be identified by CPA and are not listed (docs/conventions.md).",
+        "the probabilistically symmetric 95 % interval of the draws per identified parameter (`draws_low/high` of",
+        "`parameters.csv`: the thesis's 95 % limits are those of its draws; the interval robotcal states for the",
+        "measurand, `coverage_low/high`, is this one moved by twice the bias, docs/uncertainty.md); lengths in mm,",
+        "angles in degrees. J6's d, theta, a, alpha cannot be identified by CPA and are not listed",
+        "(docs/conventions.md).",
         "",
         "Settings common to both scenarios (the built-in scenario files): the Table 5.1 capture plan",
         "(135 points, per-circle reflectors of eq. 5-1), `tracker_from_base` of Table 5.4 (nearest",

@@ -56,7 +56,9 @@ def test_cli_numbers_equal_the_library(run_folder):
         rows = {row["name"]: row for row in csv.DictReader(stream)}
     row = rows["J4.d"]
     assert float(row["std_uncertainty"]) == pytest.approx(library.summary.std_uncertainty[3, 0], rel=1e-10)
-    assert float(row["coverage_low"]) == pytest.approx(library.summary.shortest_low[3, 0], rel=1e-10)
+    # coverage_low is the interval for the measurand: the draws' (shortest) interval moved by twice the bias
+    assert float(row["coverage_low"]) == pytest.approx(library.interval()[0][3, 0], rel=1e-10)
+    assert float(row["draws_low"]) == pytest.approx(library.summary.shortest_low[3, 0], rel=1e-10)
     theta = rows["J3.theta"]
     assert theta["unit"] == "deg"
     assert float(theta["mean"]) == pytest.approx(np.rad2deg(library.summary.mean[2, 1]), rel=1e-10)

@@ -53,6 +53,17 @@ CSV_COLUMNS = (
     "lpu_coverage_high",
     "lpu_agrees",
     "model",
+    "centre",
+    "bias",
+    "draws_low",
+    "draws_high",
+)
+#: How ``coverage_low/high`` are made from the draws (``parameters.json``'s ``interval_method``).
+INTERVAL_METHOD = (
+    "coverage_low/high: the draws' coverage interval [draws_low, draws_high] moved by twice the Monte Carlo's bias "
+    "(bias = mean - centre, centre = the simulated robot, the estimate in a calibration): [draws_low - 2 bias, "
+    "draws_high - 2 bias]. Draws simulated at an estimate are centred on estimate + bias, i.e. on truth + 2 bias; "
+    "moved, the interval is centred on the bias-corrected estimate and keeps the draws' shape (docs/uncertainty.md)"
 )
 #: Text (not numeric) columns of ``parameters.csv``.
 _TEXT_COLUMNS = ("name", "unit", "model")
@@ -72,7 +83,8 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
     """One dict per parameter (``J1.d`` ... ``Jn.beta``) in mm / deg."""
     scale = _scale(result)
     summary = result.summary
-    low, high = result.interval()
+    low, high = result.interval()  # for the measurand: the draws' interval moved by twice the bias
+    draws_low, draws_high = result.draws_interval()
 
     def flat(array):
         return np.asarray(array, dtype=float).reshape(-1) * scale
@@ -91,6 +103,10 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
         "shortest_high": flat(summary.shortest_high),
         "noise_free": flat(result.noise_free_values),
         "true": flat(result.true_values),
+        "centre": flat(result.centre),
+        "bias": flat(result.bias),
+        "draws_low": flat(draws_low),
+        "draws_high": flat(draws_high),
     }
     linear = result.linearised
     if linear is not None:
@@ -198,6 +214,7 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
         "draws": result.n_draws,
         "coverage": settings.coverage,
         "interval": settings.interval,
+        "interval_method": INTERVAL_METHOD,
         "settings": {
             "iterations": settings.iterations,
             "adaptive": settings.adaptive,
@@ -257,7 +274,7 @@ def write_uncertainty_folder(folder: Path, result: MonteCarloResult, *, scenario
 #: Columns of ``targets.csv`` (estimated flange offsets, mm).
 MEASURED_TARGET_COLUMNS = (
     "name", "axis", "unit", "estimate", "mean", "std_uncertainty", "coverage_low", "coverage_high", "min", "max",
-    "lpu_std_uncertainty",
+    "lpu_std_uncertainty", "bias", "draws_low", "draws_high",
 )  # fmt: skip
 
 
@@ -267,7 +284,9 @@ def measured_target_rows(result) -> list[dict]:
     summary = result.target_summary
     if summary is None:
         return rows
-    low, high = summary.interval(result.parameters.settings.interval)
+    low, high = result.target_interval()
+    draws_low, draws_high = result.target_draws_interval()
+    bias = summary.mean - result.target_estimate
     for t, name in enumerate(result.target_names):
         for a, axis in enumerate("xyz"):
             lpu = result.target_linearised_u[t, a]
@@ -284,6 +303,9 @@ def measured_target_rows(result) -> list[dict]:
                     "min": float(summary.minimum[t, a]),
                     "max": float(summary.maximum[t, a]),
                     "lpu_std_uncertainty": float(lpu) if np.isfinite(lpu) else None,
+                    "bias": float(bias[t, a]),
+                    "draws_low": float(draws_low[t, a]),
+                    "draws_high": float(draws_high[t, a]),
                 }
             )
     return rows

@@ -22,14 +22,17 @@ def _bins(n_draws: int) -> int:
 def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]:
     """One PNG per joint, ``hist_J<i>.png``, a panel per identified parameter; returns the paths in joint order.
 
-    Each panel shows the draws as a density histogram, the mean (solid), the coverage interval
-    chosen in the settings (dashed), the linearised (GUM) normal density when available, and the
-    value CPA gives for the noise-free capture (dotted). Angles in degrees, lengths in mm.
+    Each panel shows the draws as a density histogram, the mean (solid), the coverage interval for the
+    measurand (dashed: the draws' interval of the kind chosen in the settings moved by twice the bias,
+    :meth:`~robotcal.uncertainty.montecarlo.MonteCarloResult.interval`), the draws' own
+    interval (dash-dot, thin), the linearised (GUM) normal density when available, and the value CPA
+    gives for the noise-free capture (dotted). Angles in degrees, lengths in mm.
     """
     if result.draws is None:
         raise ValueError("the result holds no draws (run with keep_draws=True)")
     folder = Path(folder)
     low, high = result.interval()
+    draws_low, draws_high = result.draws_interval()
     written = []
     for joint in range(result.robot.n_joints):
         columns = np.flatnonzero(result.identified[joint])
@@ -53,6 +56,8 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             interval = f"{result.settings.coverage:.0%} interval"
             axis.axvline(low[joint, column] * scale, color="#c0392b", ls="--", lw=1.2, label=interval)
             axis.axvline(high[joint, column] * scale, color="#c0392b", ls="--", lw=1.2)
+            for end, label in ((draws_low, f"draws' {interval}"), (draws_high, None)):
+                axis.axvline(end[joint, column] * scale, color="#7f8c8d", ls="-.", lw=0.9, label=label)
             axis.axvline(
                 result.noise_free_values[joint, column] * scale, color="#444444", ls=":", lw=1.2, label="noise-free CPA"
             )
@@ -71,6 +76,6 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             axis.set_ylabel(f"density [1/{unit}]")
         figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
         handles, labels = axes[0, 0].get_legend_handles_labels()
-        figure.legend(handles, labels, loc="lower center", ncols=4, fontsize="small", frameon=False)
+        figure.legend(handles, labels, loc="lower center", ncols=5, fontsize="small", frameon=False)
         written.append(save_figure(figure, folder / f"hist_J{joint + 1}.png"))
     return written

@@ -54,6 +54,7 @@ from robotcal.uncertainty.refined import (
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
     SampleSummary,
+    bias_corrected_interval,
     check_coverage,
     coverage_interval,
     numerical_tolerance,
@@ -105,6 +106,7 @@ __all__ = [
     "SampleSummary",
     "summarize_draws",
     "coverage_interval",
+    "bias_corrected_interval",
     "numerical_tolerance",
     "check_coverage",
     "TCP_COORDINATES",

@@ -86,7 +86,12 @@ from robotcal.uncertainty.montecarlo import (
     ProgressCallback,
     draw_covariance,
 )
-from robotcal.uncertainty.statistics import SampleSummary, numerical_tolerance, summarize_draws
+from robotcal.uncertainty.statistics import (
+    SampleSummary,
+    bias_corrected_interval,
+    numerical_tolerance,
+    summarize_draws,
+)
 
 __all__ = [
     "DRAWS_PER_BLOCK",
@@ -189,6 +194,21 @@ class MeasuredMonteCarloResult:
     reference: RefinementResult
     stated_u_mm: float = float("nan")
     residual_sigma_mm: float = float("nan")
+
+    def target_draws_interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """The offsets' draws' own coverage interval (the kind of the settings), ``(n_targets, 3)`` each [mm]."""
+        if self.target_summary is None:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return self.target_summary.interval(self.parameters.settings.interval)
+
+    def target_interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """The offsets' interval for the measurand: the draws' interval moved by twice their bias against the
+        estimated offsets, as the parameters' (:meth:`MonteCarloResult.interval`; the draws are simulated at the
+        estimate) [mm]."""
+        low, high = self.target_draws_interval()
+        if not low.size:
+            return low, high
+        return bias_corrected_interval(low, high, self.target_summary.mean, self.target_estimate)
 
 
 def _with_offsets(reflector, offsets: Mapping[str, object] | None):

@@ -42,12 +42,13 @@ from robotcal.geometry.transforms import apply_transform, check_rigid_transform
 from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import target_positions
-from robotcal.kinematics.model import ParameterSet, RobotModel
+from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
 from robotcal.simulation.generator import JointErrorModel, simulate_capture
 from robotcal.simulation.plan import CapturePlan
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
     SampleSummary,
+    bias_corrected_interval,
     check_coverage,
     coverage_interval,
     numerical_tolerance,
@@ -351,14 +352,19 @@ class MonteCarloResult:
     seed : int
     n_draws : int
     summary : SampleSummary
-        Per parameter (arrays of shape (n_joints, 5)): mean, u, both intervals, min, max.
+        Per parameter (arrays of shape (n_joints, 5)): mean, u, both intervals of the draws, min, max.
+        The interval for the measurand is :meth:`interval` (the draws' interval moved by twice the bias
+        against :attr:`centre`); :meth:`draws_interval` and :attr:`bias` beside it.
     identified : ndarray of bool, shape (n_joints, 5)
         Parameters CPA determines; the others are nominal in every draw (u = 0).
     covariance, correlation : ndarray, shape (n_params, n_params)
         Over every parameter, joint-major (zeros / NaN-free identity rows for fixed ones).
     draws : ndarray, shape (n_draws, n_joints, 5) or None
     noise_free_values : ndarray, shape (n_joints, 5)
+        The model value ``f(x)``: CPA (or its refinement) of the noise-free capture [mm, rad].
     true_values : ndarray, shape (n_joints, 5)
+        The robot the capture was simulated from [mm, rad]: the estimate when the Monte Carlo states the
+        uncertainty of a calibration (see :attr:`centre`).
     adaptive : AdaptiveRecord or None
     linearised : LinearisedResult or None
     timings_s : dict
@@ -393,9 +399,45 @@ class MonteCarloResult:
     criterion: str | None = None
     n_failed: int = 0
 
-    def interval(self) -> tuple[np.ndarray, np.ndarray]:
-        """The coverage interval chosen in the settings, ``(low, high)`` of shape (n_joints, 5)."""
+    @property
+    def centre(self) -> np.ndarray:
+        """The parameters the capture was simulated at [mm, rad], shape (n_joints, 5): ``true_values``.
+
+        In a calibration this is the estimate (``robotcal run`` and ``--true-params ESTIMATE`` simulate at
+        the CPA or refined estimate); in a planning study the nominal robot or an assumed truth. Angles are
+        taken within +-180 deg of the draws' mean, so that the bias of :meth:`interval` never straddles a
+        turn.
+        """
+        mean = self.summary.mean
+        offset = self.true_values - mean
+        angles = list(ANGLE_COLUMNS)
+        offset[:, angles] = np.remainder(offset[:, angles] + math.pi, 2.0 * math.pi) - math.pi
+        return mean + offset
+
+    def draws_interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """The coverage interval of the draws themselves (the one chosen in the settings, JCGM 101 §7.7),
+        ``(low, high)`` of shape (n_joints, 5): where the estimate falls when the robot is :attr:`centre`
+        (the thesis's "95 % limits", Tables 5.6/5.7)."""
         return self.summary.interval(self.settings.interval)
+
+    def interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """The coverage interval for the measurand, ``(low, high)`` of shape (n_joints, 5) [mm, rad].
+
+        The draws' interval moved by twice the bias, ``[low - 2 b, high - 2 b]`` with ``b`` = :attr:`bias`
+        (:func:`robotcal.uncertainty.statistics.bias_corrected_interval`): draws simulated at an estimate
+        are centred on estimate + bias, i.e. on truth + 2 bias; moved, the interval is centred on the
+        bias-corrected estimate and keeps the draws' shape. Parameters the model does not determine
+        (``identified`` False) keep the value they have in every draw.
+        """
+        low, high = self.draws_interval()
+        corrected_low, corrected_high = bias_corrected_interval(low, high, self.summary.mean, self.centre)
+        return np.where(self.identified, corrected_low, low), np.where(self.identified, corrected_high, high)
+
+    @property
+    def bias(self) -> np.ndarray:
+        """The estimator's bias at :attr:`centre`, ``mean - centre`` [mm, rad], shape (n_joints, 5); 0 where
+        a parameter is not determined by the model."""
+        return np.where(self.identified, self.summary.mean - self.centre, 0.0)
 
 
 # ----------------------------------------------------------------------------------------- draws

@@ -1,6 +1,7 @@
 """Histograms of the Monte Carlo draws (robotcal.plots.montecarlo): a figure per joint with identified parameters,
-each panel carrying that parameter's histogram (checked against numpy's), the result's mean and interval, the
-noise-free value and the linearised normal density (checked against scipy's)."""
+each panel carrying that parameter's histogram (checked against numpy's), the result's mean, its interval for the
+measurand and the draws' own interval, the noise-free value and the linearised normal density (checked against
+scipy's)."""
 
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
     histograms.write_histograms(result, tmp_path)
     joints = [j for j in range(result.robot.n_joints) if result.identified[j].any()]
     low, high = result.interval()
+    draws_low, draws_high = result.draws_interval()
     for joint, figure in zip(joints, figures, strict=True):
         columns = np.flatnonzero(result.identified[joint])
         axes = [axis for axis in figure.axes if axis.get_visible() and axis.axison]
@@ -53,10 +55,13 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
                 ("mean", result.summary.mean[joint, column]),
                 ("95% interval", low[joint, column]),
                 ("noise-free CPA", result.noise_free_values[joint, column]),
+                ("draws' 95% interval", draws_low[joint, column]),
             ):
                 np.testing.assert_allclose(lines[label].get_xdata(), [value * scale] * 2, rtol=1e-14)
             upper = [line for line in axis.lines if line.get_linestyle() == "--"][-1]
             np.testing.assert_allclose(upper.get_xdata(), [high[joint, column] * scale] * 2, rtol=1e-14)
+            draws_upper = [line for line in axis.lines if line.get_linestyle() == "-."][-1]
+            np.testing.assert_allclose(draws_upper.get_xdata(), [draws_high[joint, column] * scale] * 2, rtol=1e-14)
             x, y = lines["linearised (GUM)"].get_data()
             sigma = result.linearised.std_uncertainty[joint, column] * scale
             centre = result.linearised.estimate[joint, column] * scale
@@ -66,4 +71,4 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
             assert axis.get_ylabel() == f"density [1/{unit}]"
         assert figure.get_suptitle() == f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws"
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
-        assert labels == ["mean", "95% interval", "noise-free CPA", "linearised (GUM)"]
+        assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free CPA", "linearised (GUM)"]

@@ -171,7 +171,8 @@ def _montecarlo(page: _Page) -> dict:
         blocks += _csv(
             page,
             f"{folder}/parameters.csv",
-            caption="parameter statistics of the draws (the file has more columns: min, max, shortest interval, "
+            caption="parameter statistics; the interval is the one for the measurand, the draws' interval moved by "
+            "twice their bias (the file has more columns: bias, the draws' own interval, min, max, shortest interval, "
             "linearised interval)",
             columns=_MC_COLUMNS,
             rows_limit=200,
