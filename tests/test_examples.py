@@ -33,6 +33,7 @@ def test_every_example_has_a_docstring_and_a_test():
     scripts = sorted(path.name for path in EXAMPLES.glob("*.py"))
     assert scripts == [
         "calibrate_from_capture.py",
+        "notebook_calibration.py",
         "run_and_report.py",
         "study_a_plan.py",
         "trajectory_uncertainty.py",
@@ -58,6 +59,20 @@ def test_calibrate_from_capture(tmp_path):
     nominal_um, refined_um = (float(value) for value in match.groups())
     # the demo's truth deviates by ~0.5 mm; the refined model is within its joint errors (< 0.1 mm)
     assert refined_um < 0.25 * nominal_um
+
+
+def test_notebook_calibration_without_any_toml(tmp_path):
+    """The notebook example: explicit objects only (robot, capture CSV, target, instrument, base frame)."""
+    stdout = run_example("notebook_calibration.py", "--quick", "--out", str(tmp_path / "nb"), cwd=tmp_path)
+    assert not list(tmp_path.rglob("*.toml"))
+    assert "Capture(" in stdout and "135 points" in stdout and "CPAResult(6 circles" in stdout
+    # the refinement recovers the perturbed truth to the noise: a few micrometres, thousandths of a degree
+    error = float(re.search(r"largest error against the truth: ([\d.e+-]+)", stdout).group(1))
+    assert error < 0.05
+    cross = re.search(r"calibration RMS ([\d.]+) um, cross-validated ([\d.]+) um", stdout)
+    assert cross and float(cross.group(2)) < 1.5 * float(cross.group(1))  # no over-fit of the 270 points
+    robot = robotcal.load_robot("kuka-kr5-sixx-r650")
+    assert robotcal.read_parameters(tmp_path / "nb" / "refined.json", robot).identified.sum() == 20
 
 
 def test_calibrate_from_given_capture_files(tmp_path):
