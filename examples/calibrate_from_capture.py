@@ -4,18 +4,20 @@ What it shows
     The Python API (docs/api.md) on the layout of a real calibration: a Circle Point capture CSV
     (``circle,direction,q1..q6,x,y,z``: joint readings in degrees, tracker coordinates in mm) and a
     validation capture at other poses are read from files; the capture is identified by Circle Point
-    Analysis (thesis ch. 4.4-4.5) and refined by least squares with both criteria (ch. 4.5.7); every
-    parameter set is evaluated on the validation poses (Tables 4.10/4.11); the deployed parameters
-    are written as a parameter JSON (mm, deg).
+    Analysis (thesis ch. 4.4-4.5) and refined by least squares with both criteria (ch. 4.5.7), together
+    with calibration poses on a flange target when there are any, fitting the scenario's model (the demo's:
+    ``auto``, the geometric chain or with gravity compliance and harmonic joint errors, chosen by
+    cross-validation, docs/joint-model.md); every parameter set is evaluated on the validation poses
+    (Tables 4.10/4.11); the deployed parameters are written as a parameter JSON (mm, deg).
 
-    Without ``--capture``, the two captures are first simulated from the scenario on a perturbed "true"
-    robot (standing in for the tracker's export), so that the before/after errors can be compared
-    with the truth as well.
+    Without ``--capture``, the captures are first simulated from the scenario on a perturbed "true"
+    robot (standing in for the tracker's export; the demo's truth sags under gravity), so that the
+    before/after errors can be compared with the truth as well.
 
 Run
     python examples/calibrate_from_capture.py --out calibration-example
     python examples/calibrate_from_capture.py --scenario my-scenario.toml --capture capture.csv \\
-        --validation validation.csv --out calibration-example
+        --validation validation.csv [--poses poses.csv] --out calibration-example
 
     ``--quick`` changes nothing here (the example takes a few seconds); it is accepted for symmetry
     with the other examples, which the test suite runs with it.
@@ -34,6 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scenario", default="kr5-demo", help="built-in scenario name or scenario TOML")
     parser.add_argument("--capture", type=Path, help="capture CSV (default: simulate one into --out)")
     parser.add_argument("--validation", type=Path, help="validation capture CSV (free poses, flange target)")
+    parser.add_argument("--poses", type=Path, help="calibration poses CSV (free poses refined with the capture)")
     parser.add_argument("--out", type=Path, default=Path("calibration-example"), help="output folder")
     parser.add_argument("--seed", type=int, default=1, help="seed of the simulated captures")
     parser.add_argument("--quick", action="store_true", help="accepted for symmetry with the other examples")
@@ -51,6 +54,10 @@ def main(argv: list[str] | None = None) -> int:
         args.capture = robotcal.write_capture(args.out / "capture.csv", capture)
         args.validation = robotcal.write_capture(args.out / "validation.csv", validation)
         print(f"simulated {capture.n_points} capture points and {validation.n_points} validation poses into {args.out}")
+        if scenario.calibration_poses is not None:
+            poses = robotcal.simulate_poses(scenario, kind="calibration", rng=args.seed + 3, true_parameters=truth)
+            args.poses = robotcal.write_capture(args.out / "poses.csv", poses)
+            print(f"simulated {poses.n_points} calibration poses")
 
     # 1. read the captures (deg, mm -> the core's rad, mm; every problem names the file, line and column)
     capture = robotcal.read_capture(args.capture, n_joints=scenario.robot.n_joints)
@@ -58,17 +65,24 @@ def main(argv: list[str] | None = None) -> int:
     if args.validation is not None:
         captures["validation"] = robotcal.read_capture(args.validation, n_joints=scenario.robot.n_joints)
 
-    # 2. Circle Point Analysis, then 3. the least-squares refinement from it, both criteria
+    # 2. Circle Point Analysis (the circles), then 3. the least-squares refinement from it, both criteria, over the
+    # circles and the calibration poses, the backlash the joint diagnostics measure corrected (docs/joint-model.md)
     cpa = robotcal.identify(capture, scenario)
     print(f"CPA: {cpa.message}; circle fits RMS {max(fit.circle_rms for fit in cpa.circle_fits) * 1000:.1f} um at most")
+    poses = None if args.poses is None else robotcal.read_capture(args.poses, n_joints=scenario.robot.n_joints)
+    fitted = robotcal.calibration_capture(scenario, capture, poses)
+    joints = robotcal.diagnose_joints(capture, scenario) if scenario.has_plan and scenario.plan.bidirectional else None
     refined = {}
     for criterion in ("points", "distances"):
-        refined[criterion] = robotcal.refine(capture, scenario, cpa, criterion=criterion)
+        model = None if criterion == "points" else refined["points"].model  # the model the points criterion chose
+        refined[criterion] = robotcal.refine(fitted, scenario, cpa, criterion=criterion, model=model, backlash_deg=joints)
         result = refined[criterion]
         print(
-            f"refined ({criterion}): success {result.success}, {result.nfev} evaluations, "
+            f"refined ({criterion}): success {result.success}, model {result.model}, {result.nfev} evaluations, "
             f"residual RMS {result.residual_rms * 1000:.1f} um"
         )
+    if refined["points"].model_choice is not None:
+        print(f"model: {refined['points'].model_choice.reason}")
 
     # 4. before/after errors on every capture (the validation poses are the honest test). On the
     # kr5-demo plan, CPA alone can be worse than nominal away from the capture: its 20 mm target arm
@@ -93,7 +107,9 @@ def main(argv: list[str] | None = None) -> int:
 
     # 5. the deployed parameters, as a parameter JSON (mm, deg) other tools and `robotcal export` read
     robotcal.write_parameters(args.out / "cpa.json", cpa.parameters)
-    path = robotcal.write_parameters(args.out / "refined.json", refined["points"].parameters)
+    path = robotcal.write_parameters(
+        args.out / "refined.json", refined["points"].parameters, joint_model_u=refined["points"].joint_model_uncertainty
+    )
     print(f"wrote {path}")
     return 0
 

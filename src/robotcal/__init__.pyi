@@ -1,5 +1,6 @@
 # The public names of robotcal and the module that defines each: read at run time by lazy_loader (the
 # names load on first use) and by type checkers and IDEs. The one list of robotcal's front door.
+from .api import calibration_capture as calibration_capture
 from .api import change_plan as change_plan
 from .api import check_plan as check_plan
 from .api import compensate as compensate

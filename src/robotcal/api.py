@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robotcal.capture import Capture
+from robotcal.capture import Capture, join_captures
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.identification.cpa import CPAOptions, CPAResult, identify_cpa
@@ -67,6 +67,7 @@ __all__ = [
     "SEED_BOUND",
     "JointAnalysis",
     "diagnose_joints",
+    "calibration_capture",
     "capture_targets",
     "change_plan",
     "compensate",
@@ -255,6 +256,33 @@ def capture_targets(scenario: Scenario, capture: Capture) -> ReflectorMount | Ta
     )
 
 
+def calibration_capture(scenario: Scenario, capture, poses=None) -> Capture:
+    """The capture a refinement fits: the circles (or any capture) and, when given, the free calibration poses
+    (:func:`simulate_poses` with ``kind="calibration"``, or measured), one after the other with a ``target``
+    column. A part without its own column takes the name of the scenario target it was measured on."""
+    parts = [capture] if poses is None else [capture, poses]
+    named = []
+    for part in parts:
+        part = _capture(part, scenario.robot)
+        named.append((part, None if part.target is not None else _target_name(scenario, part)))
+    if len(named) == 1 and named[0][1] is None:
+        return named[0][0]
+    return join_captures(named, source=" + ".join(part.source for part, _ in named))
+
+
+def _target_name(scenario: Scenario, capture: Capture) -> str:
+    """The name, among the scenario's targets, of the one target of a capture without a ``target`` column."""
+    target = capture_targets(scenario, capture)
+    if isinstance(target, Target):
+        return target.name
+    for declared in scenario.targets:
+        if declared.frame == target.frame and np.array_equal(
+            np.reshape(declared.positions, (-1, 3)), np.reshape(target.positions, (-1, 3))
+        ):
+            return declared.name
+    raise InputError(f"{capture.source}: its target is none of the scenario's named targets; give it a target column")
+
+
 def _cpa_rows(capture: Capture, target) -> tuple[Capture, ReflectorMount]:
     """The rows CPA uses and their (known) target: all rows, or with a ``target`` column those of ``target``
     (a Target or a name; None: the capture's first target)."""
@@ -358,6 +386,22 @@ def link_masses(robot, scenario=None):
     return masses.with_payload(payload.mass_kg, payload.com_mm)
 
 
+def _backlash(backlash, robot: RobotModel) -> tuple[np.ndarray | None, str]:
+    """The lash correction [rad] and its source from ``backlash_deg`` (array [deg] or a JointAnalysis)."""
+    if backlash is None:
+        return None, ""
+    if isinstance(backlash, JointAnalysis):
+        lash = np.zeros(robot.n_joints)
+        for joint in backlash.diagnostics.summary():
+            if joint.backlash_exceeds_noise:
+                lash[joint.joint - 1] = joint.backlash_angle_mean
+        return lash, "the joints stage (angular backlash of the joints whose backlash exceeds the noise)"
+    values = np.asarray(backlash, dtype=float)
+    if values.shape != (robot.n_joints,) or not np.all(np.isfinite(values)):
+        raise InputError(f"`backlash_deg` must be {robot.n_joints} finite angles [deg]; got shape {values.shape}")
+    return np.deg2rad(values), "given"
+
+
 def _joint_model(model: str, robot: RobotModel, scenario) -> JointModel | None:
     """The (zero) joint model of ``model`` with the scenario's ``[joint_model]`` joints and order, 0-based."""
     settings = scenario.joint_model if scenario is not None else JointModelTable()
@@ -456,6 +500,7 @@ def simulate_poses(
     instrument: Instrument | None = None,
     tracker_from_base=None,
     true_parameters=None,
+    kind: Literal["validation", "calibration"] = "validation",
     rng=None,
 ) -> Capture:
     """A capture at free poses (``circle = 0``): given readings, or random reachable poses within the joint
@@ -466,7 +511,9 @@ def simulate_poses(
     ----------
     robot : RobotModel or Scenario
         A scenario supplies its ``[validation]`` table (poses, margin, minimum height, seed, flange target), the
-        instrument and the base frame: ``simulate_poses(scenario)`` is the scenario's validation capture.
+        instrument and the base frame: ``simulate_poses(scenario)`` is the scenario's validation capture;
+        ``kind="calibration"``: its ``[calibration_poses]`` table and target (``flange``, in a ``target`` column),
+        the free poses measured for the refinement.
     poses_deg : array_like, shape (n_poses, n_joints), optional
         Joint readings [deg]; default: ``n_poses`` random poses.
     n_poses : int, optional
@@ -492,7 +539,15 @@ def simulate_poses(
     from robotcal.simulation.generator import simulate_target_poses
 
     robot, scenario = _split(robot)
-    table = ValidationTable() if scenario is None or scenario.validation is None else scenario.validation
+    if kind == "calibration":
+        if scenario is None or scenario.calibration_poses is None:
+            raise InputError("calibration poses are a scenario's [calibration_poses] table: give a scenario with one")
+        table = scenario.calibration_poses
+        targets = (scenario.target(scenario.poses_target),) if targets is None else targets
+    elif kind == "validation":
+        table = ValidationTable() if scenario is None or scenario.validation is None else scenario.validation
+    else:
+        raise InputError(f"`kind` must be 'validation' or 'calibration'; got {kind!r}")
     targets = _needed(targets, "targets", scenario, validation_target)
     instrument = _needed(instrument, "instrument", scenario, lambda s: s.instrument)
     if tracker_from_base is None:
@@ -532,7 +587,9 @@ def simulate_poses(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, true_offsets=offsets,
             rng=generator,
         )  # fmt: skip
-    what = "validation capture" if single else f"capture of {len(targets)} targets at free poses"
+    what = "validation capture" if single else f"capture of {len(targets)} target(s) at free poses"
+    if kind == "calibration":
+        what = "calibration poses"
     source = f"{what} simulated" + (f" from {scenario.name}" if scenario is not None else "")
     return dataclasses.replace(capture, source=source, seed=seed)
 
@@ -634,6 +691,7 @@ def refine(
     health: Health = "warn",
     model: ModelName | None = None,
     folds: int | None = None,
+    backlash_deg=None,
     progress: Callable[[int, int | None, str], None] | None = None,
     **options,
 ) -> RefinementResult:
@@ -666,6 +724,9 @@ def refine(
     folds : int, optional
         k of the cross-validation by pose every fit reports (``result.cross_validation``); 0: none. Default: the
         scenario's ``[joint_model] folds``, else 5.
+    backlash_deg : array_like, shape (n_joints,), or JointAnalysis, optional
+        The angular lash of every joint [deg] (or :func:`diagnose_joints`' analysis: the joints whose backlash
+        exceeds the noise), a fixed correction of the circle points by their direction, whatever the model.
     progress : callable, optional
         ``progress(done, total, what)`` after every fit.
     **options
@@ -711,13 +772,16 @@ def refine(
         raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
     instrument = _instrument(instrument, scenario)
     start = _parameters(start, robot, "start")
+    lash, lash_source = _backlash(backlash_deg, robot)
     names = MODELS if model == "auto" else (model,)
     total = len(names) * (1 + folds)
-    fits, validations = {}, {}
+    fits, validations, caught = {}, {}, {}
     for name in names:
         structure = _joint_model(name, robot, scenario)
         if structure is not None and start.joint_model is not None and start.joint_model.names == structure.names:
             structure = start.joint_model
+        if lash is not None:
+            structure = (structure or JointModel.build(robot)).with_backlash(lash, lash_source)
 
         def fit(part, structure=structure):
             return refine_parameters(
@@ -725,7 +789,9 @@ def refine(
                 joint_model=structure, **options,
             )  # fmt: skip
 
-        fits[name] = fit(capture)
+        with warnings.catch_warnings(record=True) as caught[name]:  # only the chosen model's warnings are shown
+            warnings.simplefilter("always")
+            fits[name] = fit(capture)
         done = len(fits) + len(fits) * folds - folds
         if progress is not None:
             progress(done, total, name)
@@ -737,6 +803,8 @@ def refine(
     choice = choose_model(tuple(validations.values())) if model == "auto" else None
     chosen = choice.chosen if choice is not None else model
     result = fits[chosen]
+    for found in caught[chosen]:
+        warnings.warn_explicit(found.message, found.category, found.filename, found.lineno)
     verdict = refine_health(result, capture, instrument)
     if health != "off":
         report_health(verdict, source=capture.source, strict=health == "strict")
@@ -978,12 +1046,30 @@ def monte_carlo_problem(
     joint_limits: str | None = None,
     model: Literal["cpa", "refined"] = "cpa",
     criterion: Criterion = "points",
+    poses=None,
+    joint_model: JointModel | None = None,
 ):
     """The Monte Carlo problem (:func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`) of a capture plan:
     every input check happens here, before any draw. Arguments as for :func:`monte_carlo`."""
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo
 
     robot, scenario = _split(robot)
+    truth = _parameters(parameters, robot, "parameters")
+    pose_readings = pose_target = None
+    if model == "refined":
+        if joint_model is None and truth.joint_model is not None:  # the deployed model's own (and its lash)
+            joint_model = truth.joint_model
+        if poses is None and scenario is not None and scenario.calibration_poses is not None:
+            poses = simulate_poses(scenario, kind="calibration", true_parameters=truth)
+        if poses is not None:
+            poses = _capture(poses, robot, "poses")
+            if scenario is None:
+                raise InputError("calibration poses need the scenario that names their target")
+            pose_readings = poses.readings
+            names = set(poses.point_targets or (_target_name(scenario, poses),))
+            if len(names) != 1:
+                raise InputError(f"{poses.source}: calibration poses on one flange target; got {', '.join(sorted(names))}")
+            pose_target = scenario.target(names.pop())
     if scenario is not None:
         plan = scenario.plan if plan is None else plan
         instrument = scenario.instrument if instrument is None else instrument
@@ -999,11 +1085,14 @@ def monte_carlo_problem(
         instrument,
         np.eye(4) if tracker_from_base is None else tracker_from_base,
         options=options,
-        true_parameters=_parameters(parameters, robot, "parameters"),
+        true_parameters=truth,
         joint_errors=joint_errors,
         joint_limits=joint_limits or "warn",
         model=model,
         criterion=criterion,
+        poses=pose_readings,
+        poses_target=pose_target,
+        joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
     )
 
 
@@ -1030,6 +1119,8 @@ def monte_carlo(
     linearised: bool | None = None,
     batch_size: int | None = None,
     progress: Callable[[int, int | None], None] | None = None,
+    poses=None,
+    joint_model: JointModel | None = None,
 ) -> MonteCarloResult:
     """GUM Supplement 1 Monte Carlo of a calibration by Circle Point Analysis (thesis ch. 5.2.3).
 
@@ -1071,12 +1162,19 @@ def monte_carlo(
         Draws per vectorised call (bounds memory).
     progress : callable, optional
         ``progress(draws_done, draws_total)`` after every block.
+    poses : Capture or path, optional
+        ``model="refined"``: the calibration poses refined with the circles (their readings and target; the
+        points are simulated); default the scenario's ``[calibration_poses]`` (the poses of its seed), if any.
+    joint_model : JointModel, optional
+        ``model="refined"``: the extended model every draw fits (from zero); default the joint model of
+        ``parameters`` when it has one (the deployed extended model), else the geometric model.
 
     Returns
     -------
     MonteCarloResult
         ``summary`` (mean, ``std_uncertainty``, intervals, min, max per parameter, shape
-        (n_joints, 5) [mm, rad]), covariance, ``draws`` (n_draws, n_joints, 5), ``seed``.
+        (n_joints, 5) [mm, rad]), covariance, ``draws`` (n_draws, n_joints, 5), ``seed``; for an extended model
+        also ``joint_model``, ``extra_draws`` and ``extra_summary``.
 
     Examples
     --------
@@ -1113,6 +1211,8 @@ def monte_carlo(
         joint_limits=joint_limits,
         model=model,
         criterion=criterion,
+        poses=poses,
+        joint_model=joint_model,
     )
     seed = seed_from(rng, table.seed if table else None)
     if linearised is None:
@@ -1202,22 +1302,27 @@ def measured_monte_carlo(
     )
 
 
-def _parameter_draws(draws, robot: RobotModel) -> np.ndarray:
-    """Parameter draws (n_draws, n_joints, 5) [mm, rad] from a result, a draws file or an array.
+def _parameter_draws(draws, robot: RobotModel, limit: int | None = None):
+    """Parameter draws (n_draws, n_joints, 5) [mm, rad] from a result, a draws file or an array, with an extended
+    model's joint model and its values in every draw ``(n_draws, m)`` (None, None for the geometric model);
+    ``limit``: the first draws only.
 
     Draws that name their robot (a Monte Carlo result, a draws file) must be of ``robot``'s model (same
     joint types and nominal parameters; its reading map may differ, e.g. controller readings).
     """
     source = getattr(draws, "robot", None)
+    joint_model = extras = None
     if isinstance(draws, str | os.PathLike):
         from robotcal.io.draws_npz import read_draws
 
         read = read_draws(draws)
-        values, source = read.values, read.robot
+        values, source, joint_model, extras = read.values, read.robot, read.joint_model, read.extras
     elif hasattr(draws, "draws") and hasattr(draws, "summary"):  # a MonteCarloResult
         if draws.draws is None:
             raise InputError("`draws`: this Monte Carlo result kept no draws; run monte_carlo(..., keep_draws=True)")
         values = draws.draws
+        if draws.is_extended:
+            joint_model, extras = draws.joint_model, draws.extra_draws
     else:
         values = getattr(draws, "values", draws)  # a ParameterDraws, or an array
     values = np.asarray(values, dtype=float)
@@ -1232,7 +1337,12 @@ def _parameter_draws(draws, robot: RobotModel) -> np.ndarray:
         raise InputError(
             f"`draws` are parameters of robot {source.name!r}, whose model differs from robot {robot.name!r}'s"
         )
-    return values
+    if extras is not None and extras.shape[0] != values.shape[0]:
+        raise InputError(f"`draws`: {extras.shape[0]} joint-model draws for {values.shape[0]} parameter draws")
+    if limit is not None:
+        values = values[:limit]
+        extras = None if extras is None else extras[:limit]
+    return values, joint_model, extras
 
 
 def tcp_uncertainty(
@@ -1279,22 +1389,29 @@ def tcp_uncertainty(
     from robotcal.uncertainty.tcp import propagate_to_tcp
 
     robot, _ = _split(robot)
-    values = _parameter_draws(draws, robot)
+    values, joint_model, extras = _parameter_draws(draws, robot)
     poses = np.deg2rad(np.asarray(poses_deg, dtype=float))
     tool = None if tool_mm is None else np.asarray(tool_mm, dtype=float)
-    return propagate_to_tcp(robot, values, poses, tool=tool, coverage=coverage, keep_draws=keep_draws)
+    return propagate_to_tcp(
+        robot, values, poses, tool=tool, coverage=coverage, keep_draws=keep_draws, joint_model=joint_model,
+        extra_draws=extras,
+    )  # fmt: skip
 
 
 def workspace_uncertainty(
-    robot, draws, n_poses: int = 1000, *, tool_mm=None, coverage: float = 0.95, rng=0
+    robot, draws, n_poses: int = 1000, *, tool_mm=None, coverage: float = 0.95, rng=0, draws_used: int | None = None
 ) -> WorkspaceUncertainty:
     """TCP position uncertainty over ``n_poses`` random poses within the joint limits (thesis ch. 5.3, Fig. 5.21):
-    the map of where the calibration can be trusted. Arguments as for :func:`tcp_uncertainty`."""
+    the map of where the calibration can be trusted. Arguments as for :func:`tcp_uncertainty`; ``draws_used``: the
+    first draws only (the map's cost is draws x poses)."""
     from robotcal.uncertainty.workspace import workspace_uncertainty as workspace
 
     robot, _ = _split(robot)
     tool = None if tool_mm is None else np.asarray(tool_mm, dtype=float)
-    return workspace(robot, _parameter_draws(draws, robot), n_poses, rng=rng, tool=tool, coverage=coverage)
+    values, joint_model, extras = _parameter_draws(draws, robot, draws_used)
+    return workspace(
+        robot, values, n_poses, rng=rng, tool=tool, coverage=coverage, joint_model=joint_model, extra_draws=extras
+    )
 
 
 def validation_consistency(
@@ -1351,7 +1468,7 @@ def validation_consistency(
     instrument = _needed(instrument, "instrument", scenario, lambda s: s.instrument)
     if tracker_from_base is None and scenario is not None and scenario.identification.base_frame == "given":
         tracker_from_base = scenario.tracker_from_base
-    values = _parameter_draws(draws, robot)
+    values, joint_model, extras = _parameter_draws(draws, robot)
     estimate = _parameters(estimate, robot, "estimate")
     q = estimate.model_joint_variables(validation.readings)
     measured = np.asarray(validation.points, dtype=float)
@@ -1363,7 +1480,11 @@ def validation_consistency(
     observed = np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - measured, axis=1)
     # the Monte Carlo covariance of the target position at every validation pose (positions only)
     traces = np.trace(
-        position_covariance(robot, values, validation.readings, tool=target.positions[0]), axis1=1, axis2=2
+        position_covariance(
+            robot, values, validation.readings, tool=target.positions[0], joint_model=joint_model, extra_draws=extras
+        ),
+        axis1=1,
+        axis2=2,
     )
     noise = 3.0 * instrument.standard_uncertainty(measured) ** 2
     expected = float(np.sqrt(np.mean(traces + noise)))

@@ -19,7 +19,7 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 
-__all__ = ["Capture"]
+__all__ = ["Capture", "join_captures"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -116,6 +116,20 @@ class Capture:
     def n_points(self) -> int:
         return self.points.shape[0]
 
+    def __repr__(self) -> str:
+        circles = sorted({int(c) for c in self.circle if c > 0})
+        free = int(np.sum(self.circle == 0))
+        parts = [f"{self.n_points} points", f"{self.n_joints} joints"]
+        if circles:
+            parts.append(f"circles {','.join(map(str, circles))}")
+        if free:
+            parts.append(f"{free} at free poses")
+        if self.target_names:
+            parts.append(f"targets {', '.join(self.target_names)}")
+        if self.u95 is not None:
+            parts.append("u95_mm")
+        return f"Capture({self.source!r}: {', '.join(parts)})"
+
     @property
     def n_joints(self) -> int:
         return self.readings.shape[1]
@@ -155,3 +169,41 @@ class Capture:
             target_names=self.target_names,
             u95=None if self.u95 is None else self.u95[rows],
         )
+
+
+def join_captures(parts, *, source: str) -> Capture:
+    """Captures one after the other as one capture with a ``target`` column.
+
+    ``parts``: ``(capture, name)`` pairs; a capture with a ``target`` column keeps its own names (``name`` None),
+    one without takes ``name`` for every point. ``u95_mm`` is kept only when every part has it; seeds are dropped
+    (a joined capture is no one simulation's).
+    """
+    parts = list(parts)
+    if not parts:
+        raise InputError("no capture to join")
+    names: list[str] = []
+    index = []
+    for capture, name in parts:
+        own = capture.point_targets if capture.target is not None else None
+        if own is None:
+            if not name:
+                raise InputError(f"{capture.source}: no `target` column: name the target its points were measured on")
+            own = (name,) * capture.n_points
+        for target in own:
+            if target not in names:
+                names.append(target)
+        index.append(np.array([names.index(target) for target in own], dtype=int))
+    joints = {capture.n_joints for capture, _ in parts}
+    if len(joints) != 1:
+        raise InputError(f"captures of different joint counts cannot be joined: {sorted(joints)}")
+    every_u95 = all(capture.u95 is not None for capture, _ in parts)
+    return Capture(
+        circle=np.concatenate([capture.circle for capture, _ in parts]),
+        direction=np.concatenate([capture.direction for capture, _ in parts]),
+        readings=np.concatenate([capture.readings for capture, _ in parts]),
+        points=np.concatenate([capture.points for capture, _ in parts]),
+        source=source,
+        target=np.concatenate(index),
+        target_names=tuple(names),
+        u95=np.concatenate([capture.u95 for capture, _ in parts]) if every_u95 else None,
+    )

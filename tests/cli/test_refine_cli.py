@@ -10,8 +10,9 @@ import pytest
 from typer.testing import CliRunner
 
 from robotcal.api import refine
+from robotcal.capture import Capture
 from robotcal.cli import app
-from robotcal.io import load_scenario, read_capture, read_parameters
+from robotcal.io import load_scenario, read_capture, read_parameters, write_capture
 
 runner = CliRunner()
 
@@ -98,9 +99,21 @@ def test_refine_errors_are_one_line_exit_2(tmp_path):
     invoke("simulate", scenario, "--out", cal)
     result = invoke("refine", cal, "-s", scenario, "--criterion", "rms", "--out", tmp_path / "r.json")
     assert result.exit_code == 2
+    # --strict refuses what this capture fails to determine, not what the layout holds anyway: behind one flange
+    # target J6.alpha is never determined (issue 24), so it is reported and the fit written
     result = invoke("refine", cal, "-s", scenario, "--strict", "--out", tmp_path / "r.json")
-    assert result.exit_code == 2 and "J6.alpha" in result.output
-    assert not (tmp_path / "r.json").exists()
+    assert result.exit_code == 0 and "J6.alpha" in result.output, result.output
+    assert (tmp_path / "r.json").exists()
+    # ... but a joint that never moves holds what only it would separate: refused, nothing written
+    still = read_capture(cal, n_joints=6)
+    readings = still.readings.copy()
+    readings[:, 4] = readings[0, 4]  # J5 never moves
+    frozen = tmp_path / "frozen.csv"
+    write_capture(frozen, Capture(circle=still.circle, direction=still.direction, readings=readings,
+                                  points=still.points, source="frozen"))  # fmt: skip
+    result = invoke("refine", frozen, "-s", scenario, "--strict", "--out", tmp_path / "r2.json")
+    assert result.exit_code == 2 and "J5" in result.output, result.output
+    assert not (tmp_path / "r2.json").exists()
     result = invoke("evaluate", "-s", scenario, "-p", tmp_path / "missing.json", "-c", cal, "--out", tmp_path / "e")
     assert result.exit_code == 2 and "file not found" in result.output
     assert not (tmp_path / "e").exists()
@@ -213,3 +226,17 @@ def test_planless_scenario_with_three_unknown_targets_refines_and_evaluates_abso
     notes = json.loads((out / "evaluation.json").read_text())["settings"]["target_offsets"]
     assert notes == dict.fromkeys(("nominal", "bare"), "unknown target offsets at their guess (guess_mm)")
     assert "nominal: unknown target offsets at their guess (guess_mm)" in result.output
+
+
+def test_absolute_view_without_any_base_frame_is_refused(tmp_path):
+    """A scenario that gives no tracker_from_base (the identity is only a placeholder) and a parameter set that
+    recorded none: the absolute error cannot be computed (issue 24: it reported 4059 mm and 99.99 %)."""
+    scenario = tmp_path / "cell.toml"
+    scenario.write_text("\n".join(line for line in CELL.splitlines() if not line.startswith("tracker_from_base")))
+    capture = tmp_path / "held.csv"
+    _cell_capture(capture, poses=12, seed=8)
+    nominal = tmp_path / "nominal.json"
+    assert invoke("export", "--nominal", "kuka-kr5-sixx-r650", "-o", nominal).exit_code == 0
+    result = invoke("evaluate", "-s", scenario, "-c", capture, "--absolute", "--params", nominal, "--out", tmp_path / "e")
+    assert result.exit_code == 2 and "gives no `tracker_from_base`" in result.output.replace("\n", " ")
+    assert not (tmp_path / "e").exists()

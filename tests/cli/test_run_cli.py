@@ -81,7 +81,9 @@ def test_run_writes_every_stage_and_the_report(run_folder):
     instrument = record["scenario"]["instrument"]
     assert instrument["name"] == "thesis-laser-tracker" and instrument["noise"] == "uniform"
     assert instrument["a_um"] == pytest.approx(10.0) and instrument["b_um_per_m"] == pytest.approx(2.5)
-    assert record["seeds"] == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6}
+    assert record["seeds"] == {
+        "capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6, "poses": 3
+    }  # fmt: skip
     assert set(record["versions"]) >= {"robotcal", "numpy", "scipy"}
     assert "report.html" in output and "how good" in output
     # no hidden temporary folders of atomic_directory are left behind
@@ -234,10 +236,11 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
     assert result.exit_code == 2
     text = result.output.replace("\n", " ")
     assert "stage 'joints' failed: joint diagnostics exploded" in text
-    for name in ("capture.csv", "validation.csv", "truth.json", "cpa/parameters.json", "refine/points.json"):
+    for name in ("capture.csv", "validation.csv", "poses.csv", "truth.json", "cpa/parameters.json"):
         assert (out / name).is_file(), name
-    # the stages run in the method's order: joints after refine and evaluate, before the Monte Carlo
-    for name in ("joints", "uncertainty", "tcp", "report.html"):
+    # the stages run in the method's order: the joints after CPA, before the refinement (which corrects their
+    # backlash) and the Monte Carlo
+    for name in ("joints", "refine", "evaluation", "uncertainty", "tcp", "report.html"):
         assert not (out / name).exists(), name
     record = json.loads((out / "run.json").read_text())
     assert record["scenario"]["name"] == "kr5-demo"
@@ -247,9 +250,9 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
     assert list(statuses.items()) == [
         ("simulate", "done"),
         ("identify", "done"),
-        ("refine", "done"),
-        ("evaluate", "done"),
         ("joints", "failed"),
+        ("refine", "pending"),
+        ("evaluate", "pending"),
         ("uncertainty", "pending"),
         ("tcp", "pending"),
         ("plan", "pending"),
@@ -257,7 +260,9 @@ def test_demo_stage_failure_keeps_earlier_stages_and_records_it(tmp_path, monkey
         ("report", "pending"),
     ]
     # --seed N seeds every random part separately
-    assert record["seeds"] == {"capture": 5, "truth": 6, "validation": 7, "montecarlo": 8, "workspace": 9, "iso9283": 10}
+    assert record["seeds"] == {
+        "capture": 5, "truth": 6, "validation": 7, "montecarlo": 8, "workspace": 9, "iso9283": 10, "poses": 11
+    }  # fmt: skip
 
 
 def test_kr5_demo_scenario_keeps_the_monte_carlo_fast_path():

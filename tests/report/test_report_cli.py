@@ -20,7 +20,7 @@ def _strip_time(text: str) -> str:
 def test_report_command_writes_the_library_page(run_folder):
     result = runner.invoke(app, ["report", str(run_folder)])
     assert result.exit_code == 0, result.output
-    assert "wrote" in result.output and "11 of 11 sections" in result.output
+    assert "wrote" in result.output and "12 of 12 sections" in result.output
     written = (run_folder / "report.html").read_text(encoding="utf-8")
     assert _strip_time(written) == _strip_time(render_report(read_run(run_folder)).html)
 

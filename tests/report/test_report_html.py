@@ -42,6 +42,7 @@ from robotcal.report.page import _CAPTIONS, _fmt, _label, _length
 SECTION_IDS = [
     "summary",
     "parameters",
+    "model",
     "evaluation",
     "joints",
     "montecarlo",
@@ -364,6 +365,7 @@ def test_missing_stages_give_notes_not_errors(run_folder):
     assert present == {
         "summary": True,
         "parameters": True,
+        "model": False,
         "evaluation": False,
         "joints": False,
         "montecarlo": False,

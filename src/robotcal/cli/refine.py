@@ -24,6 +24,7 @@ from robotcal.cli._common import (
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.identification.model_choice import MODEL_CHOICES
 from robotcal.io.capture_csv import read_capture
+from robotcal.io.joints_files import read_backlash
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 from robotcal.io.parameters_json import read_parameters, refined_targets, write_parameters
 from robotcal.io.provenance import refine_provenance
@@ -94,6 +95,22 @@ def refine(
         int | None,
         typer.Option("--folds", help="k-fold cross-validation by pose reported for the fit (0: none; default 5)."),
     ] = None,
+    poses: Annotated[
+        Path | None,
+        typer.Option(
+            "--poses",
+            help="Calibration poses (capture CSV at free poses on a flange target) refined with CAPTURE: what an "
+            "extended model learns the gravity sag from.",
+        ),
+    ] = None,
+    backlash: Annotated[
+        Path | None,
+        typer.Option(
+            "--backlash",
+            help="The joints stage's summary.csv (robotcal joints): the angular backlash of the joints whose backlash "
+            "exceeds the noise corrects the circle points by their order of motion.",
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7), with the geometric
@@ -108,11 +125,14 @@ def refine(
         raise typer.BadParameter(f"must be one of {', '.join(MODEL_CHOICES)}; got {model!r}", param_hint="--model")
     if folds is not None and (folds < 0 or folds == 1):
         raise typer.BadParameter(f"must be 0 (none) or at least 2; got {folds}", param_hint="--folds")
-    inputs = existing_inputs(capture, scenario, start)
+    inputs = existing_inputs(capture, scenario, start, poses, backlash)
     check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
     inputs += existing_inputs(*loaded.files)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    if poses is not None:
+        measured = api.calibration_capture(loaded, measured, read_capture(poses, n_joints=loaded.robot.n_joints))
+    lash = None if backlash is None else read_backlash(backlash, loaded.robot.n_joints)
     if criterion == "distances":
         check_memory(
             f"the distances criterion on {measured.n_points} points",
@@ -130,6 +150,7 @@ def refine(
         weights=weights,
         model=model,
         folds=folds,
+        backlash_deg=lash,
         **({"estimate_base": True} if estimate_base else {}),
     )
     source = str(start) if start is not None else "nominal"

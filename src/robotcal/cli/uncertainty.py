@@ -210,6 +210,14 @@ def uncertainty(
         Path | None,
         typer.Option("--params", help="With --capture: the parameter JSON `robotcal refine` wrote for that capture."),
     ] = None,
+    poses: Annotated[
+        Path | None,
+        typer.Option(
+            "--poses",
+            help="--model refined: the calibration poses (capture CSV on one flange target) refined with the circles "
+            "(default: the scenario's [calibration_poses], if any).",
+        ),
+    ] = None,
 ) -> None:
     """Monte Carlo (GUM Supplement 1) uncertainty of the CPA or refined parameters, with the linearised comparison;
     with --capture and --params, of the refinement of a measured capture."""
@@ -228,8 +236,8 @@ def uncertainty(
     if capture is not None or params is not None:
         if capture is None or params is None:
             raise InputError("--capture and --params go together: the measured capture and its refined parameter JSON")
-        if model != "cpa" or adaptive or true_params is not None:
-            raise InputError("--capture does not combine with --model, --adaptive or --true-params")
+        if model != "cpa" or adaptive or true_params is not None or poses is not None:
+            raise InputError("--capture does not combine with --model, --adaptive, --true-params or --poses")
         _measured(
             scenario, capture, params, out, iterations=iterations, seed=seed, coverage=coverage, interval=interval,
             workers=workers, scheduler=scheduler, save_draws=save_draws, criterion=criterion, force=force,
@@ -239,11 +247,12 @@ def uncertainty(
         scenario, out, iterations=iterations, adaptive=adaptive, ndig=ndig, max_draws=max_draws, seed=seed,
         coverage=coverage, interval=interval, batch_size=batch_size, workers=workers, save_draws=save_draws,
         true_params=true_params, force=force, model=model, criterion=criterion or "points", scheduler=scheduler,
+        poses=poses,
     )  # fmt: skip
 
 
 def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draws, seed, coverage, interval, batch_size,
-               workers, save_draws, true_params, force, model, criterion, scheduler) -> None:  # fmt: skip
+               workers, save_draws, true_params, force, model, criterion, scheduler, poses) -> None:  # fmt: skip
     """``robotcal uncertainty SCENARIO --out DIR``: the scenario's Monte Carlo, its folder and its summary."""
     import numpy as np
 
@@ -255,7 +264,9 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
     from robotcal.plots.montecarlo import write_histograms
     from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 
-    inputs = existing_inputs(scenario, true_params)
+    if poses is not None and model != "refined":
+        raise InputError("--poses are refined with the circles: give --model refined")
+    inputs = existing_inputs(scenario, true_params, poses)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
     inputs += existing_inputs(*loaded.files)
@@ -286,7 +297,7 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     run_seed = api.seed_from(seed, table.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")  # checked before any draw
-    problem = api.monte_carlo_problem(loaded, parameters=truth, model=model, criterion=criterion)
+    problem = api.monte_carlo_problem(loaded, parameters=truth, model=model, criterion=criterion, poses=poses)
     with _progress("Monte Carlo") as display:
         task = display.add_task("draws", total=None if settings.adaptive else settings.iterations)
         result = run_monte_carlo(

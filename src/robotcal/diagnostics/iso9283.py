@@ -902,8 +902,10 @@ def simulate_iso_study(
     )
     rng = np.random.default_rng(seed)
     # one unmeasured cycle first, so that every measured visit has the same motion history (backlash)
-    q = true_parameters.model_joint_variables(np.vstack([readings[:5], readings]))
-    errors = None if joint_errors is None else joint_errors.transforms(q, rng=rng)[5:]
+    visits = np.vstack([readings[:5], readings])
+    q = true_parameters.model_joint_variables(visits)
+    # the joint errors and lash states follow the commanded motion (see simulate_capture)
+    errors = None if joint_errors is None else joint_errors.transforms(robot.model_joint_variables(visits), rng=rng)[5:]
     flange = joint_frames(true_parameters.values, q[5:], joint_errors=errors)[:, -1]
     base_points = np.einsum("vij,tj->vti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]
     tracker_points = apply_transform(tracker_from_base, base_points.reshape(-1, 3))

@@ -1,7 +1,7 @@
 """Row-wise vector helpers over the last axis, shared by the geometry and identification code.
 
-Written out by components: for ``(..., 3)`` stacks this is several times faster than ``np.cross``
-and ``np.sum(a * b, axis=-1)``, which matters in the Monte Carlo loop (one call per draw batch).
+Written out by components: for ``(..., 3)`` stacks this avoids ``np.cross``'s axis handling and the product
+array of ``np.sum(a * b, axis=-1)``, in the Monte Carlo loop (one call per draw batch).
 """
 
 from __future__ import annotations

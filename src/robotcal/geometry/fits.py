@@ -138,18 +138,18 @@ def _smallest_eigenpair(xx, yy, zz, xy, xz, yz):
 
 
 def _row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``sum(a * b, axis=-1)`` in one pass, without the product array (~3x faster on a batch)."""
+    """``sum(a * b, axis=-1)`` in one pass, without the product array."""
     return np.einsum("...i,...i->...", a, b)
 
 
 def _row_sum(a: np.ndarray) -> np.ndarray:
-    """``sum(a, axis=-1)`` (einsum: ~2x faster than ``ndarray.sum`` over short rows)."""
+    """``sum(a, axis=-1)`` (einsum: one pass over short rows, where ``ndarray.sum`` loops per row)."""
     return np.einsum("...i->...", a)
 
 
 def _project(centred: np.ndarray, direction: np.ndarray) -> np.ndarray:
     """``centred (..., 3, n_points)`` projected on ``direction (..., 3)``: ``(..., n_points)`` in one pass
-    (~3.5x faster than three broadcast products and two sums on a Monte Carlo batch)."""
+    (rather than three broadcast products and two sums)."""
     return np.einsum("...jn,...j->...n", centred, direction)
 
 
@@ -396,7 +396,7 @@ class _CircleIteration:
 
     def rows(self, rows: np.ndarray) -> _CircleIteration:
         """The iterate of the items ``rows`` only (copies)."""
-        # np.take rather than fancy indexing (~2x faster on rows) and without `out=` (which it buffers: ~30x slower)
+        # np.take rather than fancy indexing, and without `out=` (which np.take buffers through a temporary)
         state = _CircleState(None)
         for name in ("du", "dv", "dist", "res"):
             setattr(state, name, np.take(getattr(self.state, name), rows, axis=0))

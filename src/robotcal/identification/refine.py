@@ -139,7 +139,7 @@ from robotcal.identification.observability import (
 from robotcal.identification.targets import Target, resolve_targets
 from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.jacobian import target_jacobian
-from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel
+from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel, lash_turns
 from robotcal.kinematics.model import ANGLE_COLUMNS, LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
 __all__ = [
@@ -162,7 +162,7 @@ if TYPE_CHECKING:
 
 
 def pdist(points):
-    """:func:`scipy.spatial.distance.pdist`, imported on first use (scipy's import costs ~0.7 s: a command
+    """:func:`scipy.spatial.distance.pdist`, imported on first use (scipy is slow to import: a command
     that never refines must not pay it)."""
     from scipy.spatial.distance import pdist as condensed_distances
 
@@ -283,6 +283,10 @@ class RefinementResult:
     model : str
         The model fitted: ``geometric``, or the joint model's groups (``compliance``, ``harmonic``,
         ``compliance+harmonic``).
+    effect : ndarray, shape (n_free,)
+        RMS displacement of the points (points criterion) or change of the distances (distances) per unit of each
+        free quantity, at the solution [mm per mm, rad, ...]: ``u * effect`` is what one standard uncertainty
+        of the quantity alone does to the data (:func:`robotcal.identification.health.refine_health`).
     cross_validation : CrossValidation or None
         Its k-fold cross-validation by pose, set by :func:`robotcal.refine`.
     model_choice : ModelChoice or None
@@ -328,8 +332,17 @@ class RefinementResult:
     health: FitHealth | None = None
     joint_model_uncertainty: np.ndarray | None = None
     model: str = "geometric"
+    effect: np.ndarray | None = None
     cross_validation: CrossValidation | None = None
     model_choice: ModelChoice | None = None
+
+    def __repr__(self) -> str:
+        health = f", {self.health.verdict}" if self.health is not None else ""
+        cv = "" if self.cross_validation is None else f", CV {self.cross_validation.cv_rms_mm * 1e3:.3g} um"
+        return (
+            f"RefinementResult({self.criterion} criterion, {self.model} model, {len(self.free_names)} free, residual "
+            f"RMS {self.residual_rms * 1e3:.3g} um{cv}{health}, success={self.success})"
+        )
 
 
 def wrap_angles(values, nominal=None) -> np.ndarray:
@@ -945,9 +958,9 @@ def refine_parameters(
         )  # fmt: skip
         selection = _select_free(setup.probe, setup.candidates, setup.all_scale, rank_tolerance)
         verdict = _describe(setup, selection)
-        if setup.strict and set(verdict.gauge + verdict.held) - set(verdict.flange_held):  # refused before any fit
+        if setup.strict and set(verdict.gauge + verdict.held) - set(verdict.accepted):  # refused before any fit
             _report_held(setup, verdict, strict=True, where="the start")
-        # (a flange frame held for unknown offsets only warns, after the fit)
+        # (what the layout holds anyway only warns, after the fit)
         fit = _solve(setup, selection)
         if fit.verdict.gauge or fit.verdict.held or fit.unsettled:
             _report_held(
@@ -1059,7 +1072,10 @@ def _set_up(
     joint_model = start.joint_model if joint_model is None else joint_model
     if joint_model is not None and joint_model.nominal.shape != (n, 5):
         raise InputError(f"the joint model was built for another robot than {robot.name!r}")
-    columns = None if joint_model is None or joint_model.is_empty else joint_model.columns(q)
+    commanded = q
+    if joint_model is not None and joint_model.has_backlash:  # the circles' lash, a fixed correction
+        q = q + lash_turns(joint_model.backlash, q, capture.circle)
+    columns = None if joint_model is None or joint_model.is_empty else joint_model.columns(commanded)
     extra_start = np.zeros(0) if columns is None else np.asarray(joint_model.values, dtype=float)
 
     base_start = None
@@ -1072,7 +1088,7 @@ def _set_up(
             base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
     pair_i = pair_j = distances = pair_keep = None
     if criterion == "distances":
-        pair_i, pair_j, pair_keep = measurement_pairs(q, pair_key)
+        pair_i, pair_j, pair_keep = measurement_pairs(commanded, pair_key)
         distances = pdist(measured)[pair_keep]
         if sigmas is not None:
             pair_weight = np.sqrt(2.0) * reference / np.hypot(sigmas[pair_i], sigmas[pair_j])
@@ -1083,7 +1099,7 @@ def _set_up(
                 "the distances criterion needs distinct points"
             )
 
-    spread = q.max(axis=0) - q.min(axis=0)
+    spread = commanded.max(axis=0) - commanded.min(axis=0)
     size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
     angle_scale = 1.0 / max(size, 1.0)
     kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
@@ -1128,7 +1144,7 @@ def _set_up(
         ),
         offset_start=offset_start,
         offset_names=offset_names,
-        joint_model=None if columns is None else joint_model,
+        joint_model=joint_model,
         use_base=use_base,
         explicit=explicit_mask is not None,
         strict=explicit_mask is not None or on_unidentifiable == "raise",
@@ -1144,13 +1160,14 @@ def _set_up(
 
 @dataclass(frozen=True, slots=True)
 class _Verdict:
-    """The gauge, held and confounded quantities of a selection (names), and joint n's held for the flange."""
+    """The gauge, held and confounded quantities of a selection (names), and those the layout holds anyway
+    (``accepted``: ``strict`` only reports them)."""
 
     gauge: tuple[str, ...]
     held: tuple[str, ...]
     confounded: tuple[str, ...]
     flange_frame: str
-    flange_held: tuple[str, ...]
+    accepted: tuple[str, ...]
 
 
 def _describe(setup: _Setup, chosen: _Selection) -> _Verdict:
@@ -1167,8 +1184,12 @@ def _describe(setup: _Setup, chosen: _Selection) -> _Verdict:
     every = names + setup.extra_names + setup.offset_names + BASE_NAMES
     confounded = tuple(name for name, flag in zip(every, chosen.confounded, strict=True) if flag)
     flange_frame = _flange_frame_note(setup.probe.targets, setup.probe.unknown, held_mask, n)
-    flange_held = () if setup.explicit or not flange_frame else tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
-    return _Verdict(gauge, held, confounded, flange_frame, flange_held)
+    # what any capture of the layout holds: a gauge (a free base frame or distances cannot see a rigid motion),
+    # and joint n's parameters, never all determined (behind its own reflector, none of d, theta, a, alpha; behind
+    # flange targets, alpha_n, or all four when every offset is unknown): --strict reports them, refusing only
+    # what this capture fails to determine (an explicit free set is refused whatever it holds)
+    accepted = () if setup.explicit else gauge + tuple(f"J{n}.{kind}" for kind in PARAMETER_KINDS)
+    return _Verdict(gauge, held, confounded, flange_frame, accepted)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -1319,7 +1340,7 @@ def _solve(setup: _Setup, selection: _Selection) -> _Fit:
             break
         if setup.strict:  # an explicit free set (or "raise") is not re-chosen: held at the solution is an error
             now = _describe(setup, decided)
-            if set(now.gauge + now.held) - set(now.flange_held):
+            if set(now.gauge + now.held) - set(now.accepted):
                 _report_held(setup, now, strict=True)
         if key in seen or fit_round == _MAX_REFITS:
             unsettled = (
@@ -1381,6 +1402,8 @@ def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
     jac = jac_all[:, np.r_[free_mask.ravel(), extra_free, offset_free, base_free[: 6 if setup.use_base else 0]]]
     raw = problem.raw_residuals(fit.x)
     per = np.linalg.norm(raw.reshape(-1, 3), axis=1) if criterion == "points" else np.abs(raw)
+    # RMS displacement of a point (points) or change of a distance (distances) per unit of each free quantity
+    effect = np.linalg.norm(jac, axis=0) / np.sqrt(jac.shape[0] / 3.0 if criterion == "points" else jac.shape[0])
     cond = conditioning(jac * fit.x_scale)
     covariance, sigma, dof = _covariance(jac, fit.x_scale, residuals, problem.noise_map(fit.x))
     standard = np.full((n, 5), np.nan)
@@ -1451,7 +1474,10 @@ def _statistics(setup: _Setup, fit: _Fit, began: float) -> RefinementResult:
         residual_rms_coordinate=float(np.sqrt(np.mean(raw**2))),
         refits=fit.refits,
         joint_model_uncertainty=None if joint_model is None else _frozen(extra_sd),
-        model="geometric" if joint_model is None else "+".join(g for g in JOINT_MODEL_GROUPS if g in joint_model.groups),
+        effect=_frozen(effect),
+        model="geometric"
+        if joint_model is None or joint_model.is_empty
+        else "+".join(g for g in JOINT_MODEL_GROUPS if g in joint_model.groups),
     )
 
 
@@ -1482,8 +1508,8 @@ def _report_held(
 ) -> None:
     """Warn about (or, ``strict``, raise for) the quantities the rank test holds.
 
-    ``verdict.flange_held``: joint n's parameters held because every flange offset is unknown (the flange frame
-    is then a choice, not a failure of the data): with ``strict`` they alone only warn. ``where``: the point
+    ``verdict.accepted``: what the layout holds whatever the capture (a gauge; joint n's parameters): with
+    ``strict`` they alone only warn. ``where``: the point
     of the deciding rank test ("the start", "the solution"); ``refits``: how many times the free set changed
     at a solution and the capture was refitted; ``unsettled``: why the free set did not settle, if so.
     """
@@ -1512,7 +1538,7 @@ def _report_held(
     if unsettled:
         parts.append(unsettled)
     text = f"{setup.capture.source}: " + "; ".join(parts)
-    if strict and set(gauge + held) - set(verdict.flange_held):
+    if strict and set(gauge + held) - set(verdict.accepted):
         raise IdentifiabilityError(text, parameters=gauge + held)
     suffix = "; they are held at their start values" if gauge or held else ""
     warnings.warn(text + suffix, IdentifiabilityWarning, stacklevel=3)

@@ -69,6 +69,7 @@ from robotcal.io.joints_files import (
     harmonics_document,
     joints_files,
     points_csv,
+    read_backlash,
     summary_csv,
     write_joints_folder,
 )
@@ -90,6 +91,7 @@ from robotcal.io.output import (
 from robotcal.io.parameters_json import (
     joint_model_to_dict,
     parameters_to_dict,
+    read_joint_model,
     read_parameters,
     read_targets,
     read_tracker_from_base,
@@ -127,6 +129,8 @@ from robotcal.io.run_summary import (
     summarise,
 )
 from robotcal.io.scenario import (
+    POSES_TARGET,
+    CalibrationPosesTable,
     JointModelTable,
     MissingTable,
     MonteCarloTable,
@@ -231,6 +235,7 @@ __all__ = [
     "harmonics_document",
     "joints_files",
     "points_csv",
+    "read_backlash",
     "summary_csv",
     "write_joints_folder",
     "MARKER",
@@ -248,6 +253,7 @@ __all__ = [
     "write_marker",
     "joint_model_to_dict",
     "parameters_to_dict",
+    "read_joint_model",
     "read_parameters",
     "read_targets",
     "read_tracker_from_base",
@@ -293,6 +299,8 @@ __all__ = [
     "TruthTable",
     "ValidationTable",
     "PayloadTable",
+    "CalibrationPosesTable",
+    "POSES_TARGET",
     "JointModelTable",
     "TCPTable",
     "load_scenario",

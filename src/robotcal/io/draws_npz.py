@@ -11,11 +11,14 @@ Keys (format ``robotcal-draws/1``):
 ``seed``         0-d int64, the Monte Carlo seed
 ``model``        0-d str, ``"cpa"`` or ``"refined"``: the model the draws belong to (optional; absent = cpa)
 ``format``       0-d str
+``joint_model_values``  (n_draws, m) float64, an extended refined model's joint-model values (``J2.k``
+                 [rad/(N m)], ``J4.a1`` [deg], issue 22), with ``joint_model_json`` (0-d str) its joint model as
+                 the parameter JSON's ``joint_model`` key; both absent for a geometric model
 
 The archive is written uncompressed (``np.savez``): 8 bytes per parameter and draw, 24 MB per 10^5
-draws of a 6-joint robot. ``np.savez_compressed`` saved only about a third (the random digits of the
-draws do not compress; the constant columns of parameters CPA does not identify do) at ~1.2 s per
-10^5 draws, most of what ``robotcal uncertainty -n 100000 --save-draws`` spent outside its draws.
+draws of a 6-joint robot. ``np.savez_compressed`` saves only about a third (the random digits of the
+draws do not compress; the constant columns of parameters CPA does not identify do) and takes longer than
+the rest of ``robotcal uncertainty --save-draws`` outside its draws (benchmarks/bench_uncertainty_command.py).
 Files written compressed by earlier versions read the same.
 """
 
@@ -33,6 +36,7 @@ from robotcal.errors import InputError
 from robotcal.io._validation import parse_json_text
 from robotcal.io.atomic import atomic_write_bytes
 from robotcal.io.robots import robot_from_dict, robot_to_dict
+from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ANGLE_COLUMNS, KIND_UNITS, PARAMETER_KINDS, RobotModel
 
 __all__ = ["FORMAT", "ParameterDraws", "write_draws", "read_draws", "parameter_units"]
@@ -70,6 +74,8 @@ class ParameterDraws:
     identified : ndarray of bool, shape (n_joints, 5)
     seed : int
     source : str
+    joint_model : JointModel or None
+        An extended model's joint model; with ``extras (n_draws, m)`` its values in every draw [core units].
     """
 
     robot: RobotModel
@@ -77,18 +83,34 @@ class ParameterDraws:
     identified: np.ndarray
     seed: int
     source: str = field(default="")
+    joint_model: JointModel | None = None
+    extras: np.ndarray | None = None
 
     @property
     def n_draws(self) -> int:
         return self.values.shape[0]
 
 
-def write_draws(path, robot: RobotModel, values, identified, *, seed: int, model: str = "cpa") -> Path:
-    """Write draws ``values (n_draws, n_joints, 5)`` [mm, rad] of ``model`` to ``path`` atomically."""
+def write_draws(
+    path, robot: RobotModel, values, identified, *, seed: int, model: str = "cpa", joint_model=None, extras=None
+) -> Path:
+    """Write draws ``values (n_draws, n_joints, 5)`` [mm, rad] of ``model`` to ``path`` atomically; an extended
+    model's ``joint_model`` and its values ``extras (n_draws, m)`` [core units] with them."""
     values = np.asarray(values, dtype=float)
     n = robot.n_joints
     if values.ndim != 3 or values.shape[1:] != (n, 5):
         raise InputError(f"draws must have shape (n_draws, {n}, 5); got {values.shape}")
+    more = {}
+    if joint_model is not None and extras is not None:
+        from robotcal.io.parameters_json import joint_model_to_dict
+
+        extras = np.asarray(extras, dtype=float)
+        if extras.shape != (values.shape[0], joint_model.size):
+            raise InputError(f"joint-model draws must have shape ({values.shape[0]}, {joint_model.size}); got {extras.shape}")
+        more = {
+            "joint_model_values": joint_model.to_display(extras),
+            "joint_model_json": np.array(json.dumps(joint_model_to_dict(joint_model))),
+        }
     buffer = io.BytesIO()
     np.savez(  # uncompressed: see the module docstring
         buffer,
@@ -101,6 +123,7 @@ def write_draws(path, robot: RobotModel, values, identified, *, seed: int, model
         seed=np.array(int(seed), dtype=np.int64),
         model=np.array(str(model)),
         format=np.array(FORMAT),
+        **more,
     )
     return atomic_write_bytes(path, buffer.getvalue())
 
@@ -149,4 +172,20 @@ def read_draws(path) -> ParameterDraws:
     if identified.dtype != bool or identified.size != robot.n_joints * 5:
         raise InputError(f"{path}: `identified` must hold {robot.n_joints * 5} booleans; got {identified.shape}")
     identified = identified.reshape(robot.n_joints, 5)
-    return ParameterDraws(robot=robot, values=values, identified=identified, seed=seed, source=str(path))
+    joint_model = extras = None
+    if "joint_model_json" in contents:
+        from robotcal.io.parameters_json import read_joint_model
+
+        text = str(contents["joint_model_json"].item())
+        joint_model = read_joint_model(parse_json_text(text, f"{path}: key `joint_model_json`"), robot, path)
+        shown = np.asarray(contents.get("joint_model_values", np.zeros((0, 0))), dtype=float)
+        if shown.shape != (values.shape[0], joint_model.size) or not np.all(np.isfinite(shown)):
+            raise InputError(
+                f"{path}: `joint_model_values` must be finite, shape ({values.shape[0]}, {joint_model.size}); "
+                f"got {shown.shape}"
+            )
+        extras = joint_model.from_display(shown)
+    return ParameterDraws(
+        robot=robot, values=values, identified=identified, seed=seed, source=str(path), joint_model=joint_model,
+        extras=extras,
+    )  # fmt: skip

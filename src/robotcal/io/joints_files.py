@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics
+from robotcal.errors import InputError
 from robotcal.io.provenance import scenario_echo, versions
 from robotcal.io.run_folder import Document, write_csv, write_json
 
@@ -24,6 +25,7 @@ __all__ = [
     "harmonics_document",
     "joints_files",
     "points_csv",
+    "read_backlash",
     "summary_csv",
     "write_joints_folder",
 ]
@@ -144,3 +146,29 @@ def write_joints_folder(
         else:
             documents[name] = write_csv(folder / name, content)
     return documents
+
+
+def read_backlash(path, n_joints: int) -> np.ndarray:
+    """The angular backlash [deg] per joint from a joints stage's ``summary.csv``: ``backlash_angle_mean_deg`` of the
+    joints whose backlash exceeds the noise (``backlash_exceeds_noise`` 1), 0 for the others and for joints the
+    capture has no circle of. Errors name the file, the line and the column."""
+    from robotcal.io._validation import csv_rows, parse_finite, read_text_file
+
+    path = Path(path)
+    rows = [row for _, row in csv_rows(read_text_file(path, kind="joints summary CSV"), path) if any(row)]
+    if not rows:
+        raise InputError(f"{path}: empty file; expected the joints stage's summary.csv")
+    header = [cell.strip() for cell in rows[0]]
+    needed = ("joint", "backlash_angle_mean_deg", "backlash_exceeds_noise")
+    missing = [name for name in needed if name not in header]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)}; is this a joints stage's summary.csv?")
+    out = np.zeros(n_joints)
+    for line, row in enumerate(rows[1:], start=2):
+        cells = dict(zip(header, row, strict=False))
+        joint = int(parse_finite(cells["joint"], f"{path}: line {line}, column `joint`"))
+        if not 1 <= joint <= n_joints:
+            raise InputError(f"{path}: line {line}: joint {joint} of a {n_joints}-joint robot")
+        if cells["backlash_exceeds_noise"].strip() in ("1", "true", "True"):
+            out[joint - 1] = parse_finite(cells["backlash_angle_mean_deg"], f"{path}: line {line}, column `backlash_angle_mean_deg`")
+    return out

@@ -30,6 +30,7 @@ from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KIND
 __all__ = [
     "joint_model_to_dict",
     "parameters_to_dict",
+    "read_joint_model",
     "read_parameters",
     "read_targets",
     "read_tracker_from_base",
@@ -83,6 +84,8 @@ def joint_model_to_dict(joint_model: JointModel, uncertainty=None) -> dict:
             "source": masses.source,
         },
         "lumped": {name: [float(v) for v in vector] for name, vector in joint_model.lumped.items()},
+        "backlash_deg": [float(v) for v in np.degrees(joint_model.backlash)],
+        "backlash_source": joint_model.backlash_source,
         "parameters": [
             {
                 "name": name,
@@ -105,8 +108,9 @@ def joint_model_to_dict(joint_model: JointModel, uncertainty=None) -> dict:
     }
 
 
-def _read_joint_model(data, robot: RobotModel, path: Path) -> JointModel:
-    """The ``joint_model`` key back as a :class:`JointModel` (errors name the key)."""
+def read_joint_model(data, robot: RobotModel, path) -> JointModel:
+    """A ``joint_model`` document (the parameter JSON's key) back as a :class:`JointModel` (errors name ``path`` and
+    the key)."""
     where = f"{path}: key `joint_model"
     if not isinstance(data, dict) or not isinstance(data.get("parameters"), list):
         raise InputError(f"{where}` must be an object with a list `parameters`")
@@ -153,7 +157,11 @@ def _read_joint_model(data, robot: RobotModel, path: Path) -> JointModel:
             raise InputError(
                 f"{where}.parameters[{k}].unit` of {entry['name']} must be {unit!r}; got {_short(entry['unit'])}"
             )
-    return model.with_values(model.from_display(values))
+    lash = data.get("backlash_deg", [0.0] * robot.n_joints)
+    if not isinstance(lash, list) or len(lash) != robot.n_joints:
+        raise InputError(f"{where}.backlash_deg` must be {robot.n_joints} angles [deg]")
+    lash = np.radians([as_finite_float(v, f"{where}.backlash_deg`") for v in lash])
+    return model.with_values(model.from_display(values)).with_backlash(lash, str(data.get("backlash_source", "")))
 
 
 def parameters_to_dict(
@@ -275,7 +283,7 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         raise InputError(f'{path}: key `identified` must be a list of parameter names such as "J1.d"')
     names = set(listed)
     identified = np.array([n in names for n in robot.parameter_names]).reshape(robot.n_joints, 5)
-    joint_model = None if data.get("joint_model") is None else _read_joint_model(data["joint_model"], robot, path)
+    joint_model = None if data.get("joint_model") is None else read_joint_model(data["joint_model"], robot, path)
     try:
         return ParameterSet(robot=robot, values=values, identified=identified, joint_model=joint_model)
     except InputError as exc:

@@ -56,14 +56,14 @@ __all__ = [
 ]
 
 #: Stages in order (the names of ``run.json`` ``stages`` and of the report's stage table).
-STAGES = ("simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "iso9283", "report")
+STAGES = ("simulate", "identify", "joints", "refine", "evaluate", "uncertainty", "tcp", "plan", "iso9283", "report")
 #: What each stage writes under the run folder (docs/results.md).
 OUTPUTS = {
-    "simulate": ("truth.json", "capture.csv", "validation.csv"),
+    "simulate": ("truth.json", "capture.csv", "validation.csv", "poses.csv"),
     "identify": ("cpa",),
+    "joints": ("joints",),
     "refine": ("refine",),
     "evaluate": ("evaluation",),
-    "joints": ("joints",),
     "uncertainty": ("uncertainty", "uncertainty-refined"),
     "tcp": ("tcp",),
     "plan": ("plan",),
@@ -167,6 +167,37 @@ class RunResult:
         """Sorted document names under ``folder`` (relative, no trailing slash) ending with ``suffix``."""
         prefix = f"{folder.rstrip('/')}/" if folder else ""
         return sorted(name for name in self.documents if name.startswith(prefix) and name.endswith(suffix))
+
+    @property
+    def status(self) -> str:
+        """``run.json``'s status: ``done``, ``failed``, ``interrupted``, ``running`` (``unknown`` without a record)."""
+        return str(self.record.get("status", "unknown"))
+
+    @property
+    def deployed(self):
+        """The deployed refinement (points criterion) of a run computed in this process, a ``RefinementResult``
+        (``.parameters``, ``.model``, ``.health``...); None otherwise."""
+        return (self.results.get("refined") or {}).get("points")
+
+    @property
+    def montecarlo(self) -> Mapping[str, Any]:
+        """``{"cpa": MonteCarloResult, "refined": MonteCarloResult}`` of a run computed in this process ({})."""
+        return self.results.get("montecarlo") or {}
+
+    def __repr__(self) -> str:
+        """One line for notebooks: where, how it ended, what was deployed and how good it is."""
+        stages = self.record.get("stages") if isinstance(self.record.get("stages"), dict) else {}
+        done = sum(1 for entry in stages.values() if isinstance(entry, dict) and entry.get("status") == "done")
+        parts = [f"folder={str(self.folder)!r}" if self.folder is not None else "in memory", f"status={self.status!r}"]
+        if stages:
+            parts.append(f"stages {done}/{len(stages)} done")
+        if self.deployed is not None:
+            parts.append(f"deployed model {self.deployed.model!r}")
+        headline = (self.json("evaluation/evaluation.json") or {}).get("headline") or {}
+        if "before_mean_mm" in headline and "after_mean_mm" in headline:
+            parts.append(f"validation mean {headline['before_mean_mm']:.3g} -> {headline['after_mean_mm']:.3g} mm")
+        parts.append(f"{len(self.documents)} files")
+        return f"RunResult({', '.join(parts)})"
 
 
 #: The top-level names a run writes: ``run.json`` then every stage's outputs, in stage order.

@@ -40,6 +40,8 @@ __all__ = [
     "TruthTable",
     "ValidationTable",
     "PayloadTable",
+    "CalibrationPosesTable",
+    "POSES_TARGET",
     "JointModelTable",
     "TCPTable",
     "load_scenario",
@@ -195,6 +197,17 @@ class ValidationTable(_RunTable):
     min_height_mm: float | None = None
 
 
+class CalibrationPosesTable(ValidationTable):
+    """``[calibration_poses]``: free poses measured on a flange target after the circles, refined together with
+    them (issue 22): where the joints are loaded in other ways than along the circles, so that gravity compliance
+    and joint errors become observable. Keys as ``[validation]``; the target is a declared flange target at the
+    same offset (``Scenario.poses_target``, e.g. ``validation``), else a new one named ``flange``.
+    ``Scenario.calibration_poses`` is None without the table.
+    """
+
+    poses: int = Field(default=30, ge=4)
+
+
 class TCPTable(_RunTable):
     """``[tcp]``, the TCP stage of ``robotcal run``: where the TCP uncertainty is stated (always present:
     defaults when absent).
@@ -261,11 +274,14 @@ class ScenarioFile(_Strict):
     montecarlo: MonteCarloTable = Field(default_factory=MonteCarloTable)
     truth: TruthTable | None = None
     validation: ValidationTable | None = None
+    calibration_poses: CalibrationPosesTable | None = None
     tcp: TCPTable = Field(default_factory=TCPTable)
     payload: PayloadTable | None = None
     joint_model: JointModelTable = Field(default_factory=JointModelTable)
 
 
+#: The name of the ``[calibration_poses]`` flange target in a capture's ``target`` column.
+POSES_TARGET = "flange"
 #: The keys of ``[capture]`` that make a capture plan (needed to simulate, not to identify).
 PLAN_KEYS = ("start_deg", "sweep_deg", "points")
 #: Commands that need the capture plan / the instrument (for the error of a scenario without them).
@@ -326,15 +342,20 @@ class Scenario:
     settings: dict = field(default_factory=dict)
     truth: TruthTable | None = None
     validation: ValidationTable | None = None
+    calibration_poses: CalibrationPosesTable | None = None
     tcp: TCPTable = field(default_factory=TCPTable)
+    #: The target the ``[calibration_poses]`` are measured on: a declared flange target at their offset (e.g.
+    #: ``validation``), else ``flange``; None without the table.
+    poses_target: str | None = None
     #: ``[payload]`` (None: no payload) and ``[joint_model]``: the extended model's inputs and choice.
     payload: PayloadTable | None = None
     joint_model: JointModelTable = field(default_factory=JointModelTable)
     #: Files the scenario was read from (the TOML and a robot TOML it names): inputs that an output
     #: of the same command must never replace.
     files: tuple[str, ...] = ()
-    #: Declared targets: ``[[targets]]``, then (under the names ``capture`` and ``validation``, where
-    #: those names are free) the ``[capture]`` reflector and the ``[validation]`` flange target.
+    #: Declared targets: ``[[targets]]``, then (under the names ``capture``, ``validation`` and ``flange``, where
+    #: those names are free) the ``[capture]`` reflector, the ``[validation]`` and ``[calibration_poses]`` flange
+    #: targets.
     targets: tuple[Target, ...] = ()
     #: The ``[capture]`` reflector (``reflector_mm`` / ``flange_reflector_mm``), plan or not; None if absent.
     reflector: ReflectorMount | None = None
@@ -444,6 +465,20 @@ def scenario_from_dict(
         targets.append(Target.from_mount(reflector, "capture"))
     if validation is not None and "validation" not in taken:
         targets.append(Target(name="validation", frame="flange", positions=validation.flange_reflector_mm))
+    poses_target = None
+    if spec.calibration_poses is not None:  # measured on an existing flange target at that offset, else on "flange"
+        offset = np.asarray(spec.calibration_poses.flange_reflector_mm, dtype=float)
+        same = [t.name for t in targets if t.frame == "flange" and t.known and np.array_equal(t.positions, offset)]
+        if same:
+            poses_target = same[0]
+        elif POSES_TARGET not in {t.name for t in targets}:
+            targets.append(Target(name=POSES_TARGET, frame="flange", positions=offset))
+            poses_target = POSES_TARGET
+        else:
+            raise InputError(
+                f"{source}: key `calibration_poses.flange_reflector_mm`: the target {POSES_TARGET!r} is declared at "
+                "another offset; give the calibration poses the offset of a declared flange target"
+            )
     ident = spec.identification
     return Scenario(
         name=name,
@@ -461,6 +496,8 @@ def scenario_from_dict(
         settings=spec.model_dump(),
         truth=spec.truth,
         validation=validation,
+        calibration_poses=spec.calibration_poses,
+        poses_target=poses_target,
         tcp=spec.tcp,
         payload=spec.payload,
         joint_model=_joint_model_table(spec.joint_model, spec.truth, robot, source),

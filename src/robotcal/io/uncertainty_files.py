@@ -14,6 +14,7 @@ import numpy as np
 from robotcal.errors import InputError
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.draws_npz import parameter_units
+from robotcal.io.parameters_json import joint_model_to_dict
 from robotcal.kinematics.model import DISPLAY_UNITS
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
@@ -124,7 +125,47 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
         if linear is not None:
             row["lpu_agrees"] = bool(linear.agrees.reshape(-1)[index])
         rows.append(row)
-    return rows
+    return rows + _joint_model_rows(result)
+
+
+def _joint_model_rows(result: MonteCarloResult) -> list[dict]:
+    """One row per joint-model value of an extended refined model (``J2.k`` [rad/(N m)], ``J4.a1`` [deg]), after
+    the parameters: the same columns (no nominal, no linearised comparison)."""
+    if not result.is_extended:
+        return []
+    model, summary = result.joint_model, result.extra_summary
+    low, high = result.extra_interval()
+    draws_low, draws_high = summary.interval(result.settings.interval)
+    columns = {
+        "nominal": np.zeros(model.size),
+        "mean": summary.mean,
+        "std_uncertainty": summary.std_uncertainty,
+        "coverage_low": low,
+        "coverage_high": high,
+        "min": summary.minimum,
+        "max": summary.maximum,
+        "symmetric_low": summary.symmetric_low,
+        "symmetric_high": summary.symmetric_high,
+        "shortest_low": summary.shortest_low,
+        "shortest_high": summary.shortest_high,
+        "noise_free": model.values,
+        "true": result.extra_true,
+        "centre": result.extra_true,
+        "bias": np.where(result.extra_identified, summary.mean - result.extra_true, 0.0),
+        "draws_low": draws_low,
+        "draws_high": draws_high,
+    }
+    shown = {key: model.to_display(value) for key, value in columns.items()}
+    return [
+        {
+            "name": name,
+            "unit": unit,
+            "identified": bool(result.extra_identified[k]),
+            "model": result.model,
+            **{key: float(values[k]) for key, values in shown.items()},
+        }
+        for k, (name, unit) in enumerate(zip(model.names, model.display_units, strict=True))
+    ]
 
 
 def _format(value) -> str:
@@ -193,6 +234,8 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
     if result.adaptive is not None:
         record = result.adaptive
         scale = _scale(result)[result.identified.reshape(-1)]
+        if result.is_extended:  # the joint-model values follow the parameters in the adaptive record
+            scale = np.r_[scale, result.joint_model.to_display(np.ones(result.joint_model.size))[result.extra_identified]]
         adaptive = {
             "blocks": record.blocks,
             "block_size": settings.block_size,
@@ -227,6 +270,7 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
         "success": result.success,
         "message": result.message,
         "adaptive": adaptive,
+        "joint_model": None if not result.is_extended else joint_model_to_dict(result.joint_model),
         "parameters": uncertainty_rows(result),
         "covariance": _matrix_in_file_units(result, result.covariance, scaled=True),
         "correlation": _matrix_in_file_units(result, result.correlation, scaled=False),
@@ -265,8 +309,9 @@ def write_uncertainty_folder(folder: Path, result: MonteCarloResult, *, scenario
     documents = {name: read_document(folder, name) for name in ("parameters.csv", "parameters.json")}
     if save_draws:
         write_draws(
-            folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed, model=result.model
-        )
+            folder / "draws.npz", result.robot, result.draws, result.identified, seed=result.seed, model=result.model,
+            joint_model=result.joint_model, extras=result.extra_draws,
+        )  # fmt: skip
         documents["draws.npz"] = folder / "draws.npz"
     return documents
 

@@ -18,7 +18,7 @@ A planar two-link arm (links of 300 and 200 mm): at q = (90, -90) deg the flange
 [200.0, 300.0, 0.0]
 """
 
-from robotcal.kinematics.compensation import Compensation, rotation_vector, solve_commands
+from robotcal.kinematics.compensation import Compensation, rotation_vector, solve_commands, tool_frames
 from robotcal.kinematics.forward import (
     check_joint_variables,
     forward_kinematics,
@@ -33,7 +33,9 @@ from robotcal.kinematics.joint_model import (
     JointModel,
     gravity_regressor,
     gravity_torques,
+    lash_turns,
     lumped_terms,
+    motion_direction,
 )
 from robotcal.kinematics.model import (
     ANGLE_COLUMNS,
@@ -52,8 +54,9 @@ from robotcal.kinematics.model import (
 
 __all__ = [
     "Compensation",
-    "solve_commands",
     "rotation_vector",
+    "solve_commands",
+    "tool_frames",
     "link_transforms",
     "joint_frames",
     "forward_kinematics",
@@ -66,6 +69,8 @@ __all__ = [
     "gravity_regressor",
     "gravity_torques",
     "lumped_terms",
+    "lash_turns",
+    "motion_direction",
     "PARAMETER_KINDS",
     "LENGTH_KINDS",
     "ANGLE_KINDS",

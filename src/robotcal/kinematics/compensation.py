@@ -29,7 +29,7 @@ from robotcal.errors import InputError
 from robotcal.kinematics.forward import joint_frames
 from robotcal.kinematics.model import ParameterSet
 
-__all__ = ["Compensation", "solve_commands", "rotation_vector"]
+__all__ = ["Compensation", "rotation_vector", "solve_commands", "tool_frames"]
 
 #: What a compensated pose must meet: the issue's 1 um and 1e-4 deg.
 POSITION_TOLERANCE_MM = 1e-3
@@ -57,6 +57,14 @@ class Compensation:
     orientation_error_deg: np.ndarray
     iterations: int
     reached: np.ndarray
+
+    def __repr__(self) -> str:
+        """One line: how many poses, how many reached, the worst remaining error."""
+        n_poses = len(self.reached)
+        worst = (
+            f", worst {self.position_error_mm.max() * 1e3:.2g} um / {self.orientation_error_deg.max():.2g} deg" if n_poses else ""
+        )
+        return f"Compensation({n_poses} poses, {int(self.reached.sum())} reached{worst}, {self.iterations} Newton steps)"
 
 
 def rotation_vector(rotation: np.ndarray) -> np.ndarray:
@@ -87,8 +95,12 @@ def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     return out
 
 
-def _tool_frames(parameters: ParameterSet, readings: np.ndarray, tool: np.ndarray):
-    """Tool frames ``(P, 4, 4)`` of the calibrated model and the Jacobian ``(P, 6, n)`` in the readings."""
+def tool_frames(parameters: ParameterSet, readings: np.ndarray, tool: np.ndarray):
+    """Tool frames ``(P, 4, 4)`` of the calibrated model (its joint model included) at ``readings`` ``(P, n)``
+    [rad], and their Jacobian ``(P, 6, n)`` in the readings: rows translation [mm/rad] then rotation [rad/rad]. The
+    Jacobian is the chain's at the deflected joints; the deflection's own derivative (the gravity torque's change
+    with q times a compliance, ~1e-4 of a joint's turn) is left out, which slows Newton's convergence by nothing
+    measurable."""
     robot = parameters.robot
     q = parameters.model_joint_variables(readings)
     frames = joint_frames(parameters.values, q)  # (P, n + 1, 4, 4)
@@ -154,7 +166,7 @@ def solve_commands(
 
     every = np.arange(targets.shape[0])
     weight = np.r_[np.ones(3), np.full(3, size)][:, None]
-    frames, jacobian = _tool_frames(parameters, readings, tool_frame)
+    frames, jacobian = tool_frames(parameters, readings, tool_frame)
     residual = error(frames, every)
     cost = np.einsum("pk,pk->p", residual, residual)
     damping = np.zeros(targets.shape[0])
@@ -171,7 +183,7 @@ def solve_commands(
         system = normal + damping[active, None, None] * (diagonal[:, :, None] * np.eye(normal.shape[-1]))
         step = (np.linalg.pinv(system) @ gradient[..., None])[..., 0]
         trial = readings[active] + step
-        trial_frames, trial_jacobian = _tool_frames(parameters, trial, tool_frame)
+        trial_frames, trial_jacobian = tool_frames(parameters, trial, tool_frame)
         trial_residual = error(trial_frames, active)
         trial_cost = np.einsum("pk,pk->p", trial_residual, trial_residual)
         better = trial_cost < cost[active]
@@ -182,7 +194,7 @@ def solve_commands(
         damping[kept] = np.where(damping[kept] > 1e-9, damping[kept] / 10.0, 0.0)
         worse = active[~better]
         damping[worse] = np.where(damping[worse] > 0.0, damping[worse] * 10.0, 1e-3)
-    frames = _tool_frames(parameters, readings, tool_frame)[0]
+    frames = tool_frames(parameters, readings, tool_frame)[0]
     position = np.linalg.norm(targets[:, :3, 3] - frames[:, :3, 3], axis=1)
     angle = np.degrees(np.linalg.norm(rotation_vector(targets[:, :3, :3] @ np.swapaxes(frames[:, :3, :3], 1, 2)), axis=1))
     return Compensation(

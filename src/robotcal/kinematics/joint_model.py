@@ -34,6 +34,13 @@ The torque is linear in the masses and first moments ``phi_j = (m_j, m_j c_j)``:
 **Harmonic** (group ``harmonic``): the thesis's joint error model (eqs 5-2..5-4) read as angle errors periodic
 in the joint's own variable, orders 1..K.
 
+**Backlash** (thesis ch. 4.6): a joint lags its command by half its lash, ``-s b_i / 2`` with ``s`` the direction
+of its last motion. Along the circles of a capture, in the order they were measured, every joint's last motion is
+known (the turning joint's is the ``direction`` column; the others rest where the previous circles left them), so
+the lash is a fixed correction of the circle points, with the angular lash measured by the joints stage from the
+bidirectional circles (:func:`lash_turns`); it is not fitted, and it is not applied at free poses or by
+``compensate`` (whose approach direction a pose does not say).
+
 The deflection is linear in the model's parameters ``e``: ``delta(q) = C(q) e`` (:meth:`JointModel.columns`);
 the refinement's Jacobian is ``dp/de = sum_i dp/dq_i C_i``, ``dp/dq_i`` that of theta_i
 (:func:`robotcal.kinematics.jacobian.target_jacobian` with ``joint_variables=True``).
@@ -57,6 +64,8 @@ __all__ = [
     "gravity_regressor",
     "gravity_torques",
     "lumped_terms",
+    "lash_turns",
+    "motion_direction",
 ]
 
 #: Gravity in the base frame of a floor-mounted robot (base z up) [m/s^2].
@@ -143,6 +152,10 @@ class JointModel:
         The masses of the known-mass compliance form (None: lumped form, or no compliance).
     gravity : ndarray, shape (3,)
         Gravity in the base frame [m/s^2].
+    backlash : ndarray, shape (n_joints,)
+        Angular lash of every joint [rad] used to correct the circle points (module notes; zeros: none).
+    backlash_source : str
+        Where the lash values come from (the joints stage's file).
     """
 
     names: tuple[str, ...]
@@ -154,6 +167,8 @@ class JointModel:
     lumped: dict = field(default_factory=dict)
     masses: LinkMasses | None = None
     gravity: np.ndarray = field(default_factory=lambda: np.array(GRAVITY_MPS2))
+    backlash: np.ndarray = field(default=None)
+    backlash_source: str = ""
 
     def __post_init__(self):
         values = np.asarray(self.values, dtype=float)
@@ -167,6 +182,11 @@ class JointModel:
         object.__setattr__(self, "identified", _frozen(identified, bool))
         for name in ("nominal", "compliance_map", "harmonic_map", "gravity"):
             object.__setattr__(self, name, _frozen(np.asarray(getattr(self, name), dtype=float)))
+        n = self.nominal.shape[0]
+        backlash = np.zeros(n) if self.backlash is None else np.asarray(self.backlash, dtype=float)
+        if backlash.shape != (n,) or not np.all(np.isfinite(backlash)):
+            raise InputError(f"joint model: `backlash` must be {n} finite angles [rad]; got {backlash.shape}")
+        object.__setattr__(self, "backlash", _frozen(backlash))
 
     @classmethod
     def build(
@@ -291,6 +311,14 @@ class JointModel:
     def with_values(self, values, identified=None) -> JointModel:
         return replace(self, values=values, identified=self.identified if identified is None else identified)
 
+    def with_backlash(self, backlash, source: str = "") -> JointModel:
+        """The same model correcting the circle points for the angular lash ``backlash (n,)`` [rad]."""
+        return replace(self, backlash=backlash, backlash_source=source)
+
+    @property
+    def has_backlash(self) -> bool:
+        return bool(np.any(self.backlash != 0.0))
+
     def columns(self, q) -> np.ndarray:
         """``C(q)`` with ``delta = C(q) @ values``, shape ``(n_poses, n_joints, m)`` [rad per unit of each value]."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -320,6 +348,45 @@ class JointModel:
             if kind == "k":
                 k[int(joint[1:]) - 1] = value
         return k
+
+
+def motion_direction(q) -> np.ndarray:
+    """Direction of each joint's last motion along a sequence of configurations.
+
+    Parameters
+    ----------
+    q : array_like, shape (n_points, n_joints)
+        Joint variables in the order the robot visits them [rad].
+
+    Returns
+    -------
+    ndarray of int, shape (n_points, n_joints)
+        ``+1`` if the joint last moved towards larger values before (or on reaching) the row,
+        ``-1`` towards smaller ones. A row equal to the previous one keeps its state; a joint that
+        has not moved yet is taken to have approached its first value from below (``+1``).
+    """
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2:
+        raise InputError(f"`q` must have shape (n_points, n_joints); got {q.shape}")
+    step = np.sign(np.diff(q, axis=0))
+    step = np.concatenate([np.ones((1, q.shape[1])), step], axis=0)  # first row: approached from below
+    rows = np.arange(q.shape[0])[:, None]
+    last_moved = np.maximum.accumulate(np.where(step != 0.0, rows, 0), axis=0)
+    return step[last_moved, np.arange(q.shape[1])].astype(int)
+
+
+def lash_turns(backlash, q, circle) -> np.ndarray:
+    """The backlash correction of a capture's joint variables ``(n_points, n_joints)`` [rad] (module notes):
+    ``-s_i b_i / 2`` on every joint of every circle point, ``s_i`` the direction of joint i's last motion along the
+    circle points in capture order (the order the robot visited them: :func:`motion_direction` of the commanded model variables ``q``); 0 at free poses (``circle = 0``), whose approach
+    the capture does not record."""
+    backlash = np.asarray(backlash, dtype=float)
+    q = np.asarray(q, dtype=float)
+    out = np.zeros(q.shape)
+    rows = np.flatnonzero(np.asarray(circle) > 0)
+    if rows.size and np.any(backlash):
+        out[rows] = -0.5 * motion_direction(q[rows]) * backlash
+    return out
 
 
 def _parse_name(name: str, n_joints: int) -> tuple[int, str, int]:

@@ -351,6 +351,10 @@ class ParameterSet:
         """The same set without its joint model (what a geometric-only format such as a URDF carries)."""
         return replace(self, joint_model=None)
 
+    def __repr__(self) -> str:
+        extended = "" if not self.is_extended else f", joint model {', '.join(self.joint_model.names)}"
+        return f"ParameterSet({self.robot.name}, {int(self.identified.sum())} identified{extended})"
+
     def difference(self, other: ParameterSet) -> np.ndarray:
         """``self.values - other.values`` with angles wrapped to (-pi, pi] [mm, rad]."""
         diff = self.values - other.values

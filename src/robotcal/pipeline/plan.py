@@ -40,7 +40,7 @@ __all__ = [
 ]
 
 #: Steps per stage for a progress display (the Monte Carlo counts draws instead).
-STEPS = {"simulate": 3, "identify": 1, "refine": 2, "evaluate": 1, "joints": 1, "tcp": 3, "plan": 2, "iso9283": 1, "report": 1}
+STEPS = {"simulate": 4, "identify": 1, "joints": 1, "refine": 2, "evaluate": 1, "tcp": 3, "plan": 2, "iso9283": 1, "report": 1}
 #: The plan stage's sensitivity study (thesis Fig. 5.15): the angle joint 4 covers, Monte Carlo draws per case.
 PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
 PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)
@@ -49,7 +49,7 @@ PLAN_SENSITIVITY_DRAWS = 2_000
 #: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
 REFINED_DRAWS = 20_000
 #: Offsets of the seeds derived from ``seed=N``: every random part of the run gets its own.
-SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4, "iso9283": 5}
+SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4, "iso9283": 5, "poses": 6}
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -177,10 +177,13 @@ def plan_run(
             "workspace": None,
             # the ISO 9283 study (joint errors and noise of its visits): derived from the capture seed
             "iso9283": None,
+            "poses": None if loaded.calibration_poses is None else seed_from(loaded.calibration_poses.seed),
         }
         seeds["iso9283"] = (seeds["capture"] + SEED_OFFSETS["iso9283"]) % SEED_BOUND
     if loaded.truth is None:
         seeds["truth"] = None
+    if loaded.calibration_poses is None:
+        seeds["poses"] = None
     for name, value in seeds.items():
         if value is not None and not 0 <= value < SEED_BOUND:
             raise InputError(f"{loaded.source}: the {name} seed {value} is outside [0, 2^63)")

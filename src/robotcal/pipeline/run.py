@@ -259,6 +259,7 @@ class _Run:
             nominal=ParameterSet.nominal(self.plan.scenario.robot),
             capture=output.value.capture,
             validation=output.value.validation,
+            poses=output.value.poses,
         )
         return output
 
@@ -269,8 +270,9 @@ class _Run:
 
     def _refine(self) -> stages.StageOutput:
         output = stages.refine_stage(
-            self.plan.scenario, self.results["capture"], self.results["cpa"], self.out, self.step("refine")
-        )
+            self.plan.scenario, self.results["capture"], self.results["cpa"], self.out, self.step("refine"),
+            poses=self.results["poses"], joints=self.results["joints"] if self.plan.backlash else None,
+        )  # fmt: skip
         self.results["refined"] = output.value
         return output
 
@@ -305,6 +307,7 @@ class _Run:
             out=self.out,
             figures=self.figures,
             step=self.step("uncertainty"),
+            poses=self.results["poses"],
         )
         self.results["montecarlo"] = output.value
         return output

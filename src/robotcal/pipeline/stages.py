@@ -63,6 +63,8 @@ __all__ = [
 CRITERIA_RUN = ("points", "distances")
 #: The deployed model's criterion: its Monte Carlo, TCP figures and consistency check.
 DEPLOYED = "points"
+#: The geometric fit of the deployed criterion, written beside an extended deployed model for the comparison.
+GEOMETRIC_FILE = f"{DEPLOYED}-geometric.json"
 #: Three flange targets (a typical adapter plate) measured at each ISO 9283 test pose, so that the orientation
 #: characteristics are measured too [mm].
 ISO_TARGETS_MM = {"A": (60.0, 40.0, 30.0), "B": (-50.0, 30.0, 20.0), "C": (0.0, -60.0, 40.0)}
@@ -90,6 +92,7 @@ class Simulated:
     truth: ParameterSet
     capture: Capture
     validation: Capture
+    poses: Capture | None = None  # the [calibration_poses], refined with the circles
 
 
 def _in(prefix: str, documents: dict[str, Document], final: Path) -> dict[str, Document]:
@@ -111,7 +114,8 @@ def _read_back(folder: Path, final: Path) -> dict[str, Document]:
 
 
 def simulate_stage(scenario: Scenario, seeds: dict, out: Path, step: Step = _no_step) -> StageOutput:
-    """``truth.json``, ``capture.csv``, ``validation.csv``: the "true" robot and its two simulated captures.
+    """``truth.json``, ``capture.csv``, ``validation.csv`` and, with ``[calibration_poses]``, ``poses.csv``: the "true"
+    robot and its simulated captures.
 
     The captures the later stages use are those of the CSV files (12 decimals), read back from the text
     written: a stand-alone command reading ``capture.csv`` sees the same numbers bit for bit.
@@ -130,16 +134,24 @@ def simulate_stage(scenario: Scenario, seeds: dict, out: Path, step: Step = _no_
     documents: dict[str, Document] = {"truth.json": write_json(out / "truth.json", parameters_to_dict(truth, provenance))}
     step(1, None, "truth")
     captures = {}
-    for name, capture in (
+    simulated = [
         ("capture", api.simulate(scenario, rng=seeds["capture"], true_parameters=truth)),
         ("validation", api.simulate_poses(scenario, rng=seeds["validation"], true_parameters=truth)),
-    ):
+    ]
+    if scenario.calibration_poses is not None:
+        poses = api.simulate_poses(scenario, kind="calibration", rng=seeds.get("poses"), true_parameters=truth)
+        simulated.append(("poses", poses))
+    for name, capture in simulated:
         text = capture_to_csv(capture)
         documents[f"{name}.csv"] = write_csv(out / f"{name}.csv", text)
         captures[name] = read_capture_text(text, source=f"{name}.csv", n_joints=scenario.robot.n_joints, seed=capture.seed)
         step(len(documents), None, f"{capture.n_points} points")
-    value = Simulated(truth=truth, capture=captures["capture"], validation=captures["validation"])
-    return StageOutput(value, documents, f"{value.capture.n_points} + {value.validation.n_points} points")
+    value = Simulated(
+        truth=truth, capture=captures["capture"], validation=captures["validation"], poses=captures.get("poses")
+    )
+    counts = [value.capture.n_points] + ([value.poses.n_points] if value.poses is not None else [])
+    detail = f"{' + '.join(map(str, counts))} + {value.validation.n_points} points"
+    return StageOutput(value, documents, detail)
 
 
 def identify_stage(scenario: Scenario, capture: Capture, out: Path) -> StageOutput:
@@ -152,20 +164,48 @@ def identify_stage(scenario: Scenario, capture: Capture, out: Path) -> StageOutp
     return StageOutput(result, _in("cpa", documents, out / "cpa"), detail)
 
 
-def refine_stage(scenario: Scenario, capture: Capture, start: ParameterSet, out: Path, step: Step = _no_step) -> StageOutput:
-    """``refine/points.json``, ``refine/distances.json``: Levenberg-Marquardt refinement from the CPA result."""
-    results = {}
-    for k, criterion in enumerate(CRITERIA_RUN):
-        results[criterion] = api.refine(capture, scenario, start, criterion=criterion)
-        step(k + 1, None, criterion)
+def refine_stage(
+    scenario: Scenario,
+    capture: Capture,
+    start: ParameterSet,
+    out: Path,
+    step: Step = _no_step,
+    poses: Capture | None = None,
+    joints: api.JointAnalysis | None = None,
+) -> StageOutput:
+    """``refine/points.json``, ``refine/distances.json``: Levenberg-Marquardt refinement from the CPA result, over the
+    circles and the calibration poses. The deployed criterion fits the scenario's ``[joint_model]`` (``auto``: each
+    model, chosen by cross-validation); the other criterion fits the model it chose. When that is an extended model,
+    ``refine/points-geometric.json`` holds the geometric fit of the same data, for the comparison. ``joints``: the
+    joints stage's analysis of a bidirectional capture, whose angular backlash corrects the circle points."""
+    fitted = api.calibration_capture(scenario, capture, poses)
+    lash = {} if joints is None or not joints.diagnostics.backlash else {"backlash_deg": joints}
+    results = {DEPLOYED: api.refine(fitted, scenario, start, criterion=DEPLOYED, **lash)}
+    step(1, None, DEPLOYED)
+    chosen = results[DEPLOYED].model
+    for criterion in CRITERIA_RUN:
+        if criterion != DEPLOYED:
+            results[criterion] = api.refine(fitted, scenario, start, criterion=criterion, model=chosen, **lash)
+            step(len(results), None, criterion)
+    geometric = None
+    if chosen != "geometric":
+        geometric = api.refine(fitted, scenario, start, criterion=DEPLOYED, model="geometric", health="off", **lash)
     documents = {}
     with atomic_directory(out / "refine") as folder:
-        for criterion, result in results.items():
-            provenance = refine_provenance(result, capture, "cpa/parameters.json", scenario=scenario)
-            document = parameters_to_dict(result.parameters, provenance, refined_targets(result))
-            documents[f"{criterion}.json"] = write_json(folder / f"{criterion}.json", document)
-    detail = ", ".join(f"{c} RMS {r.rms_history[-1] * 1e3:.1f} um" for c, r in results.items())
-    return StageOutput(results, _in("refine", documents, out / "refine"), detail)
+        named = [(f"{criterion}.json", result) for criterion, result in results.items()]
+        if geometric is not None:
+            named.append((GEOMETRIC_FILE, geometric))
+        for name, result in named:
+            provenance = refine_provenance(result, fitted, "cpa/parameters.json", scenario=scenario)
+            document = parameters_to_dict(
+                result.parameters, provenance, refined_targets(result), result.joint_model_uncertainty
+            )
+            documents[name] = write_json(folder / name, document)
+    detail = ", ".join(f"{c} RMS {r.rms_history[-1] * 1e3:.1f} um" for c, r in results.items()) + f", model {chosen}"
+    value = dict(results)
+    if geometric is not None:
+        value["geometric"] = geometric
+    return StageOutput(value, _in("refine", documents, out / "refine"), detail)
 
 
 def evaluate_stage(
@@ -182,12 +222,16 @@ def evaluate_stage(
     sets = {"nominal": ParameterSet.nominal(scenario.robot), "cpa": cpa, **{c: r.parameters for c, r in refined.items()}}
     rows = api.evaluate({"validation": validation, "capture": capture}, sets, scenario)
     histories = {
-        c: {"criterion": c, "cost_mm2": r.cost_history.tolist(), "rms_mm": r.rms_history.tolist()} for c, r in refined.items()
+        c: {"criterion": r.criterion, "cost_mm2": r.cost_history.tolist(), "rms_mm": r.rms_history.tolist()}
+        for c, r in refined.items()
     }
     document = evaluation_document(
         rows,
         scenario,
-        parameter_files={"cpa": "cpa/parameters.json", **{c: f"refine/{c}.json" for c in refined}},
+        parameter_files={
+            "cpa": "cpa/parameters.json",
+            **{c: f"refine/{GEOMETRIC_FILE if c == 'geometric' else c + '.json'}" for c in refined},
+        },
         capture_files={"validation": "validation.csv", "capture": "capture.csv"},
         reference="nominal",
         histories=histories,
@@ -226,8 +270,10 @@ def uncertainty_stage(
     out: Path,
     figures: FigureJobs,
     step: Step = _no_step,
+    poses: Capture | None = None,
 ) -> StageOutput:
-    """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model).
+    """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model: its joint
+    model, if extended, fitted in every draw, and the calibration ``poses`` refined with the circles).
 
     Both Monte Carlos use the same seed, so they see the same instrument noise draw for draw; both folders
     are written only once both are computed (a failure or an interrupt while computing leaves neither).
@@ -249,6 +295,7 @@ def uncertainty_stage(
             workers=settings.workers,
             rng=seed,
             progress=lambda count, expected, done=done: step(done + count, total, "draws"),
+            **({"poses": poses} if model == "refined" and poses is not None else {}),
         )
     documents: dict[str, Document] = {}
     for name, result in (("uncertainty", results["cpa"]), ("uncertainty-refined", results["refined"])):
@@ -262,6 +309,15 @@ def uncertainty_stage(
         f"refined {results['refined'].n_draws:,} draws ({rates[1]:,.0f}/s)"
     )
     return StageOutput(results, documents, detail)
+
+
+def _deployed_label(draws: MonteCarloResult) -> str:
+    """``refined (CPA + points refinement)``, with the extended model's name when the draws carry one."""
+    extended = ""
+    if draws.is_extended:
+        groups = draws.joint_model.groups
+        extended = ", " + "+".join(group for group in ("compliance", "harmonic") if group in groups) + " model"
+    return f"refined (CPA + {DEPLOYED} refinement{extended})"
 
 
 def tcp_stage(
@@ -282,7 +338,7 @@ def tcp_stage(
     Result: ``{mode: TCPUncertainty}`` plus ``"workspace_map"`` (WorkspaceUncertainty) and ``"consistency"``.
     """
     base = {
-        "model": "refined (CPA + points refinement), Monte Carlo",
+        "model": f"{_deployed_label(draws)}, Monte Carlo",
         "draws_file": "uncertainty-refined/draws.npz",
         "draws_seed": draws.seed,
         "draws_in_file": draws.n_draws,
@@ -313,14 +369,16 @@ def tcp_stage(
         result = api.tcp_uncertainty(scenario, draws, np.rad2deg(readings), tool_mm=tool, keep_draws=mode == "pose")
         commit(mode, result, {**base, mode: source, "mode": mode, "seconds": round(time.perf_counter() - started, 3)})
     started = time.perf_counter()
-    values = draws.draws if targets.workspace_draws is None else draws.draws[: targets.workspace_draws]
-    workspace = api.workspace_uncertainty(scenario, values, targets.workspace_poses, tool_mm=tool, rng=workspace_seed)
+    used = draws.n_draws if targets.workspace_draws is None else min(targets.workspace_draws, draws.n_draws)
+    workspace = api.workspace_uncertainty(
+        scenario, draws, targets.workspace_poses, tool_mm=tool, rng=workspace_seed, draws_used=used
+    )
     provenance = {**base, "mode": "workspace", "seconds": round(time.perf_counter() - started, 3)}
-    if values.shape[0] < draws.n_draws:
-        provenance["draws_used"] = int(values.shape[0])
+    if used < draws.n_draws:
+        provenance["draws_used"] = int(used)
     commit("workspace", workspace.tcp, provenance, workspace=workspace)
     consistency = api.validation_consistency(
-        validation, deployed, draws, scenario, model="refined (CPA + points refinement)"
+        validation, deployed, draws, scenario, model=_deployed_label(draws)
     )
     consistency.update(draws_file="uncertainty-refined/draws.npz", validation_file="validation.csv")
     written["consistency.json"] = write_json(folder / "consistency.json", consistency)

@@ -48,7 +48,7 @@ def plot_convergence(histories: Mapping[str, Mapping[str, np.ndarray]], path) ->
     criteria = sorted({str(entry["criterion"]) for entry in histories.values()}, key=["points", "distances"].index)
     n_panels = max(len(criteria), 1)
     figure, axes = new_figure(1, n_panels, width_in=4.2 * n_panels, height_in=3.6, squeeze=False, layout=None)
-    # fixed margins [in] (constrained layout took ~60 % of this figure's time): room for the log axis'
+    # fixed margins [in] (constrained layout would dominate this figure's time): room for the log axis'
     # labels ("4x10^-2"), the two-line titles and the x label
     set_margins(
         figure, left=0.72, right=0.1, bottom=0.48, top=0.42, wspace=0.9, cell=(4.2 + (0.9 - 0.72 - 0.1) / n_panels, 3.6)

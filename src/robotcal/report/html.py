@@ -31,6 +31,7 @@ from robotcal.io.atomic import atomic_write_text
 from robotcal.io.run_folder import REPORT_NAME, RunResult, read_run
 from robotcal.report import template_environment
 from robotcal.report.page import _Page
+from robotcal.report.sections.model import _model
 from robotcal.report.sections.parameters import _parameters
 from robotcal.report.sections.provenance import _provenance
 from robotcal.report.sections.stages import _evaluation, _iso9283, _joints, _montecarlo, _planning, _tcp, _workspace
@@ -87,6 +88,7 @@ class Report:
 _SECTIONS = (
     ("summary", "Summary", _summary),
     ("parameters", "Parameters", _parameters),
+    ("model", "Model choice", _model),
     ("evaluation", "Evaluation and convergence", _evaluation),
     ("joints", "Joint diagnostics", _joints),
     ("montecarlo", "Monte Carlo uncertainty", _montecarlo),

@@ -20,6 +20,7 @@ from robotcal.errors import InputError, JointLimitWarning
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rot_x, rot_y, rot_z, translation
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import forward_kinematics, target_positions
+from robotcal.kinematics.joint_model import motion_direction
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.plan import CapturePlan
 
@@ -137,31 +138,6 @@ class JointErrorModel:
         return translation(shift) @ rot_x(values[..., 3]) @ rot_y(values[..., 4]) @ turn
 
 
-def motion_direction(q) -> np.ndarray:
-    """Direction of each joint's last motion along a sequence of configurations.
-
-    Parameters
-    ----------
-    q : array_like, shape (n_points, n_joints)
-        Joint variables in the order the robot visits them [rad].
-
-    Returns
-    -------
-    ndarray of int, shape (n_points, n_joints)
-        ``+1`` if the joint last moved towards larger values before (or on reaching) the row,
-        ``-1`` towards smaller ones. A row equal to the previous one keeps its state; a joint that
-        has not moved yet is taken to have approached its first value from below (``+1``).
-    """
-    q = np.asarray(q, dtype=float)
-    if q.ndim != 2:
-        raise InputError(f"`q` must have shape (n_points, n_joints); got {q.shape}")
-    step = np.sign(np.diff(q, axis=0))
-    step = np.concatenate([np.ones((1, q.shape[1])), step], axis=0)  # first row: approached from below
-    rows = np.arange(q.shape[0])[:, None]
-    last_moved = np.maximum.accumulate(np.where(step != 0.0, rows, 0), axis=0)
-    return step[last_moved, np.arange(q.shape[1])].astype(int)
-
-
 def _check_limits(robot: RobotModel, readings: np.ndarray, circle: np.ndarray, policy: str) -> None:
     if policy == "ignore":
         return
@@ -242,7 +218,9 @@ def simulate_capture(
     if joint_errors is not None:
         if joint_errors.n_joints != robot.n_joints:
             raise InputError(f"joint error model has {joint_errors.n_joints} joints; robot has {robot.n_joints}")
-        errors = joint_errors.transforms(q, rng=rng)
+        # the joint errors (and each joint's lash state) follow the commanded motion, not the gravity sag of an
+        # extended truth: a joint that rests keeps its lash while its deflection changes with the others
+        errors = joint_errors.transforms(robot.model_joint_variables(readings), rng=rng)
     base_points = target_positions(parameters.values, q, circle - 1, plan.reflector, joint_errors=errors)
     exact = apply_transform(tracker_from_base, base_points)
     noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()

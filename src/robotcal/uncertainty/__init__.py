@@ -23,7 +23,14 @@ u(Y) = 0.05 mm, and u(X) is of second order:
 (True, True)
 """
 
-from robotcal.uncertainty.coverage import COVERAGE_METHODS, CoverageStudy, binomial_band, coverage_study
+from robotcal.uncertainty.coverage import (
+    COVERAGE_METHODS,
+    CoverageStudy,
+    ExtendedCoverage,
+    binomial_band,
+    coverage_study,
+    extended_coverage_study,
+)
 from robotcal.uncertainty.measured import (
     DRAWS_PER_BLOCK,
     MODEL,
@@ -79,7 +86,9 @@ from robotcal.uncertainty.workspace import PERCENTILES, WorkspaceUncertainty, sa
 __all__ = [
     "COVERAGE_METHODS",
     "CoverageStudy",
+    "ExtendedCoverage",
     "coverage_study",
+    "extended_coverage_study",
     "binomial_band",
     "DRAWS_PER_BLOCK",
     "MODEL",

@@ -58,7 +58,14 @@ from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.generator import JointErrorModel
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["COVERAGE_METHODS", "CoverageStudy", "coverage_study", "binomial_band"]
+__all__ = [
+    "COVERAGE_METHODS",
+    "CoverageStudy",
+    "ExtendedCoverage",
+    "coverage_study",
+    "extended_coverage_study",
+    "binomial_band",
+]
 
 #: The intervals checked, in table order.
 COVERAGE_METHODS = ("cpa-mc", "refined-mc", "refined-linearised")
@@ -66,7 +73,7 @@ COVERAGE_METHODS = ("cpa-mc", "refined-mc", "refined-linearised")
 
 def binomial_band(captures: int, coverage: float = 0.95, confidence: float = 0.99) -> tuple[float, float]:
     """The ``confidence`` band of the empirical coverage of ``captures`` trials of probability ``coverage``."""
-    from scipy.stats import binom  # scipy.stats costs ~1 s to import: only when a study runs
+    from scipy.stats import binom  # scipy.stats is slow to import: only when a study runs
 
     low, high = binom.interval(confidence, captures, coverage)
     return float(low) / captures, float(high) / captures
@@ -360,6 +367,156 @@ def coverage_study(
             draws_low={m: np.array(v) for m, v in draws_low.items()},
             draws_high={m: np.array(v) for m, v in draws_high.items()},
             error={m: np.array(v) for m, v in error.items()},
+            seed=seed,
+            seconds=time.perf_counter() - began,
+        )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ExtendedCoverage:
+    """Outcome of :func:`extended_coverage_study`: the deployed extended model's Monte Carlo intervals.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameters and joint-model values checked (those every capture's refinement estimates).
+    contained : ndarray of bool, shape (captures, n_names)
+        Whether the interval for the measurand (:meth:`MonteCarloResult.interval`, :meth:`~MonteCarloResult.
+        extra_interval`) contained the truth.
+    contained_draws : ndarray of bool, shape (captures, n_names)
+        The same for the draws' own interval.
+    std_uncertainty, error : ndarray, shape (captures, n_names)
+        The Monte Carlo's u and the refined estimate minus the truth [mm, rad, rad/(N m)].
+    band : tuple of float
+        The 99 % binomial band at K captures.
+    """
+
+    names: tuple[str, ...]
+    captures: int
+    draws: int
+    coverage: float
+    band: tuple[float, float]
+    contained: np.ndarray
+    contained_draws: np.ndarray
+    std_uncertainty: np.ndarray
+    error: np.ndarray
+    seed: int
+    seconds: float
+
+    def empirical(self, *, draws: bool = False) -> np.ndarray:
+        return (self.contained_draws if draws else self.contained).mean(axis=0)
+
+    def in_band(self, *, draws: bool = False) -> np.ndarray:
+        value = self.empirical(draws=draws)
+        return (value >= self.band[0] - 1e-12) & (value <= self.band[1] + 1e-12)
+
+
+def extended_coverage_study(
+    robot: RobotModel,
+    plan: CapturePlan,
+    instrument: Instrument,
+    truth: ParameterSet,
+    *,
+    poses,
+    poses_target,
+    captures: int,
+    draws: int,
+    tracker_from_base=None,
+    options: CPAOptions | None = None,
+    joint_limits: str = "warn",
+    coverage: float = 0.95,
+    rng: np.random.Generator | int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> ExtendedCoverage:
+    """Coverage of the deployed extended model's Monte Carlo (issue 22).
+
+    ``captures`` independent captures of the plan's circles and of the calibration ``poses`` (readings [rad] on
+    the flange ``poses_target``; the same poses, fresh noise) on an extended ``truth``; each is identified by
+    CPA, refined over circles and poses with the truth's joint model (its values fitted from zero), and the
+    refined Monte Carlo (``draws`` draws, the same model, circles and poses) simulated at that refined estimate
+    states the intervals checked: those of the parameters and of the joint-model values. No joint errors: the
+    fitted model must be the truth's for a coverage proof. Other arguments as :func:`coverage_study`.
+    """
+    with single_blas_thread():
+        from robotcal.capture import join_captures
+        from robotcal.identification.cpa import identify_cpa
+        from robotcal.identification.refine import refine_parameters
+        from robotcal.identification.targets import Target
+        from robotcal.simulation.generator import simulate_capture, simulate_target_poses
+        from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+
+        if truth.joint_model is None or truth.joint_model.is_empty:
+            raise InputError("the extended coverage study needs a truth with a joint model")
+        if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
+            raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
+        if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
+            raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
+        began = time.perf_counter()
+        options = CPAOptions() if options is None else options
+        tracker_from_base = np.eye(4) if tracker_from_base is None else np.asarray(tracker_from_base, dtype=float)
+        held = tracker_from_base if options.base_frame == "given" else None
+        if isinstance(rng, np.random.Generator):
+            seed = int(rng.integers(2**63 - 1))
+        else:
+            seed = int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
+        children = np.random.SeedSequence(seed).spawn(captures)
+        structure = truth.joint_model.with_values(np.zeros(truth.joint_model.size))
+        circles = Target.from_mount(plan.reflector, "capture")
+        targets = (circles, poses_target)
+        settings = MonteCarloSettings(iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000))
+        everything = truth.robot.parameter_names + truth.joint_model.names
+        true_all = np.r_[truth.values.ravel(), truth.joint_model.values]
+        rows: dict[str, list] = {"contained": [], "draws": [], "u": [], "error": []}
+        checked = None
+        for k, child in enumerate(children):
+            capture_seed, pose_seed, mc_seed = (int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(3))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                capture, _ = simulate_capture(
+                    robot, plan, instrument, tracker_from_base, true_parameters=truth, joint_limits=joint_limits,
+                    rng=np.random.default_rng(capture_seed),
+                )  # fmt: skip
+                measured, _ = simulate_target_poses(
+                    robot, poses, (poses_target,), instrument, tracker_from_base, true_parameters=truth,
+                    rng=np.random.default_rng(pose_seed),
+                )  # fmt: skip
+                cpa = identify_cpa(capture, robot, plan.reflector, tracker_from_base=held, options=options).parameters
+                fitted = join_captures([(capture, circles.name), (measured, None)], source="coverage capture")
+                refined = refine_parameters(fitted, cpa, targets, tracker_from_base=held, joint_model=structure)
+                problem = prepare_monte_carlo(
+                    robot, plan, instrument, tracker_from_base, options=options, true_parameters=refined.parameters,
+                    joint_limits=joint_limits, model="refined", poses=poses, poses_target=poses_target,
+                    joint_model=structure,
+                )  # fmt: skip
+                result = run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
+            mask = np.r_[(result.identified & refined.free).ravel(), result.extra_identified]
+            if checked is None:
+                checked = mask
+            elif not np.array_equal(mask, checked):
+                raise InputError(f"capture {k + 1} of the study determines another set of parameters than the first")
+            true_values = true_all[checked]
+            intervals = {
+                "contained": (result.interval(), result.extra_interval()),
+                "draws": (result.draws_interval(), result.extra_summary.interval(settings.interval)),
+            }
+            for key, ((low, high), (extra_low, extra_high)) in intervals.items():
+                low, high = np.r_[low.ravel(), extra_low][checked], np.r_[high.ravel(), extra_high][checked]
+                rows[key].append((low <= true_values) & (true_values <= high))
+            rows["u"].append(np.r_[result.summary.std_uncertainty.ravel(), result.extra_summary.std_uncertainty][checked])
+            estimate = np.r_[refined.parameters.values.ravel(), refined.parameters.joint_model.values][checked]
+            rows["error"].append(estimate - true_values)
+            if progress is not None:
+                progress(k + 1, captures)
+        return ExtendedCoverage(
+            names=tuple(name for name, flag in zip(everything, checked, strict=True) if flag),
+            captures=captures,
+            draws=draws,
+            coverage=coverage,
+            band=binomial_band(captures, coverage),
+            contained=np.array(rows["contained"], dtype=bool),
+            contained_draws=np.array(rows["draws"], dtype=bool),
+            std_uncertainty=np.array(rows["u"]),
+            error=np.array(rows["error"]),
             seed=seed,
             seconds=time.perf_counter() - began,
         )

@@ -36,9 +36,8 @@ The JCGM 101
 §8.2 verdict is taken with :data:`COMPARISON_NDIG` = 1 significant digit of u, what a few hundred
 draws resolve.
 
-Cost: the draws are not vectorised; each is one ``refine_parameters`` call, rank test included
-(about 0.1-0.3 s for 40 poses x 3 targets and 31 unknowns, measured under load): fine for a few
-hundred draws, which give u to about 5 % (relative standard error ``1 / sqrt(2 (M - 1))``).
+Cost: the draws are not vectorised; each is one ``refine_parameters`` call, rank test included: fine for a
+few hundred draws, which give u to about 5 % (relative standard error ``1 / sqrt(2 (M - 1))``).
 
 Reproducibility: draws come in blocks of :data:`DRAWS_PER_BLOCK`; block ``b`` draws its noise from
 ``SeedSequence(seed, spawn_key=(b,))`` (as :mod:`robotcal.uncertainty.montecarlo`), draw by draw, so

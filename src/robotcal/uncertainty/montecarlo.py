@@ -35,15 +35,16 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robotcal.capture import Capture
+from robotcal.capture import Capture, join_captures
 from robotcal.errors import InputError, RobotcalError
 from robotcal.execution import check_stop, open_executor, single_blas_thread
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform
 from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
+from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
-from robotcal.simulation.generator import JointErrorModel, simulate_capture
+from robotcal.simulation.generator import JointErrorModel, simulate_capture, simulate_target_poses
 from robotcal.simulation.plan import CapturePlan
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
@@ -56,6 +57,7 @@ from robotcal.uncertainty.statistics import (
 )
 
 if TYPE_CHECKING:  # the refinement (and SciPy's optimizer behind it) is imported only for model="refined"
+    from robotcal.kinematics.joint_model import JointModel
     from robotcal.uncertainty.refined import RefinedModel
 
 __all__ = [
@@ -74,6 +76,8 @@ __all__ = [
 MODELS = ("cpa", "refined")
 #: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
 REFINE_BATCH = 500
+#: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined._PointBatch`).
+EXTENDED_REFINE_BATCH = 100
 
 #: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.
 DEFAULT_BLOCK_SIZE = 10_000
@@ -113,6 +117,12 @@ class MonteCarloProblem:
         What every draw computes: capture -> CPA, or capture -> CPA -> refinement (the deployed model).
     refined : RefinedModel or None
         The refinement's structure (free set, base handling, scale), ``model="refined"`` only.
+    n_circle : int
+        The capture's first ``n_circle`` points are the plan's circles, which CPA identifies; the others are
+        calibration poses on a flange target (``[calibration_poses]``), which only the refinement uses.
+    extra_true : ndarray, shape (m,)
+        The joint-model values of the robot the capture was simulated from, on the refined model's joint model
+        (0 for a term it does not have; empty for the geometric model).
     """
 
     robot: RobotModel
@@ -129,10 +139,28 @@ class MonteCarloProblem:
     identified: np.ndarray
     model: str = "cpa"
     refined: RefinedModel | None = None
+    n_circle: int = -1
+    extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self):
+        if self.n_circle < 0:
+            object.__setattr__(self, "n_circle", self.exact_points.shape[0])
 
     @property
     def n_points(self) -> int:
         return self.exact_points.shape[0]
+
+    @property
+    def n_extra(self) -> int:
+        """Joint-model values every draw estimates besides the parameters (0 for the geometric model)."""
+        return 0 if self.refined is None or self.refined.joint_model is None else self.refined.joint_model.size
+
+    @property
+    def identified_all(self) -> np.ndarray:
+        """The flat mask of a draw's outputs ``(5 n + m,)``: the identified parameters, then the joint-model
+        values the refinement estimates."""
+        extra = np.zeros(0, dtype=bool) if self.n_extra == 0 else np.asarray(self.refined.extra_free, dtype=bool)
+        return np.r_[self.identified.ravel(), extra]
 
 
 def prepare_monte_carlo(
@@ -147,6 +175,9 @@ def prepare_monte_carlo(
     joint_limits: str = "warn",
     model: str = "cpa",
     criterion: str = "points",
+    poses=None,
+    poses_target: Target | None = None,
+    joint_model: JointModel | None = None,
 ) -> MonteCarloProblem:
     """Simulate the noise-free capture once and check that CPA can identify it.
 
@@ -166,6 +197,12 @@ def prepare_monte_carlo(
         ``"given"``, else its 6 corrections are estimated).
     criterion : {"points", "distances"}
         Refinement objective (eq. 4-101 or 4-102), ``model="refined"`` only.
+    poses : array_like, shape (n_poses, n_joints), optional
+        ``model="refined"``: readings [rad] of calibration poses measured on ``poses_target`` (a flange target of
+        known offset) after the circles, refined with them (issue 22); CPA sees only the circles.
+    poses_target : Target, optional
+    joint_model : JointModel, optional
+        ``model="refined"``: the extended model's joint model, fitted from zero in every draw (issue 22).
     """
     if model not in MODELS:
         raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
@@ -197,19 +234,38 @@ def prepare_monte_carlo(
     structure = prepare_cpa(capture, robot, plan.reflector, options)
     reference = identify_cpa_batch(exact, structure, tracker_from_base)
     values, identified, refined = reference.values, reference.identified, None
+    n_circle, extra_true = capture.n_points, np.zeros(0)
+    if model != "refined" and (poses is not None or joint_model is not None):
+        raise InputError("calibration poses and a joint model are the refined model's: give model='refined'")
     if model == "refined":
         from robotcal.uncertainty.refined import prepare_refined_model
 
+        targets = plan.reflector
+        if poses is not None:  # the circles, then the calibration poses on their flange target
+            if poses_target is None or poses_target.frame != "flange" or not poses_target.known:
+                raise InputError("calibration poses need their flange target, of known offset (`poses_target`)")
+            pose_capture, pose_exact = simulate_target_poses(
+                robot, poses, (poses_target,), noise_free, tracker_from_base, true_parameters=true_parameters, rng=0
+            )
+            circles = Target.from_mount(plan.reflector, "capture" if poses_target.name != "capture" else "circles")
+            capture = join_captures([(capture, circles.name), (pose_capture, None)], source=capture.source)
+            exact = np.concatenate([exact, pose_exact])
+            targets = (circles, poses_target)
         start = ParameterSet(robot=robot, values=reference.values, identified=reference.identified)
         refined = prepare_refined_model(
             capture,
             start,
-            plan.reflector,
+            targets,
             criterion=criterion,
             tracker_from_base=reference.tracker_from_base,
             estimate_base=options.base_frame != "given",
+            joint_model=joint_model,
         )
         values, identified = refined.reference_values, reference.identified | refined.free
+        if refined.joint_model is not None:
+            truth = true_parameters.joint_model
+            known = {} if truth is None else dict(zip(truth.names, truth.values, strict=True))
+            extra_true = np.array([known.get(name, 0.0) for name in refined.joint_model.names])
     return MonteCarloProblem(
         robot=robot,
         true_parameters=true_parameters,
@@ -225,6 +281,8 @@ def prepare_monte_carlo(
         identified=identified,
         model=model,
         refined=refined,
+        n_circle=n_circle,
+        extra_true=extra_true,
     )
 
 
@@ -377,6 +435,16 @@ class MonteCarloResult:
         The refinement objective (``model="refined"``).
     n_failed : int
         Draws whose refinement did not converge: counted here, left out of every statistic.
+    joint_model : JointModel or None
+        An extended refined model's joint model (values: the noise-free refinement's); None otherwise.
+    extra_draws : ndarray, shape (n_draws, m), or None
+        Its values in every draw [rad/(N m), rad] (kept with ``keep_draws``).
+    extra_summary : SampleSummary or None
+        Their statistics (mean, u, intervals of the draws), arrays of shape (m,).
+    extra_identified : ndarray of bool, shape (m,)
+        Joint-model values the refinement estimates (the others stay 0 in every draw).
+    extra_true : ndarray, shape (m,)
+        The values of the robot the capture was simulated from (the centre of :meth:`extra_interval`).
     """
 
     robot: RobotModel
@@ -398,6 +466,31 @@ class MonteCarloResult:
     model: str = "cpa"
     criterion: str | None = None
     n_failed: int = 0
+    joint_model: JointModel | None = None
+    extra_draws: np.ndarray | None = None
+    extra_summary: SampleSummary | None = None
+    extra_identified: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def is_extended(self) -> bool:
+        """Whether the draws carry an extended model's joint-model values (:attr:`extra_draws`)."""
+        return self.joint_model is not None
+
+    def __repr__(self) -> str:
+        u = self.summary.std_uncertainty[self.identified]
+        extended = f", joint model {', '.join(self.joint_model.names)}" if self.is_extended else ""
+        return (
+            f"MonteCarloResult({self.model} model{extended}, {self.n_draws:,} draws, seed {self.seed}, "
+            f"{int(self.identified.sum())} parameters, largest u {u.max() if u.size else 0.0:.3g} (mm or rad))"
+        )
+
+    def extra_interval(self) -> tuple[np.ndarray, np.ndarray]:
+        """The coverage interval for the measurand of every joint-model value ``(m,)`` [rad/(N m), rad]: the
+        draws' interval moved by twice the bias against :attr:`extra_true`, as :meth:`interval`."""
+        low, high = self.extra_summary.interval(self.settings.interval)
+        moved_low, moved_high = bias_corrected_interval(low, high, self.extra_summary.mean, self.extra_true)
+        return np.where(self.extra_identified, moved_low, low), np.where(self.extra_identified, moved_high, high)
 
     @property
     def centre(self) -> np.ndarray:
@@ -450,17 +543,23 @@ def _block_generators(seed: int, block: int) -> tuple[np.random.Generator, np.ra
 
 
 def _noisy_exact_points(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -> np.ndarray:
-    """Exact points ``(n_draws, n_points, 3)`` with a fresh draw of the joint errors' random part."""
-    q = problem.true_parameters.model_joint_variables(problem.capture.readings)
-    errors = np.stack([problem.joint_errors.transforms(q, rng=rng) for _ in range(n_draws)])
+    """Exact points ``(n_draws, n_points, 3)`` with a fresh draw of the joint errors' random part (on the circles:
+    the calibration poses, if any, are simulated without joint errors)."""
+    circles = slice(0, problem.n_circle)
+    readings = problem.capture.readings[circles]
+    q = problem.true_parameters.model_joint_variables(readings)
+    commanded = problem.robot.model_joint_variables(readings)  # the joint errors follow the commanded motion
+    errors = np.stack([problem.joint_errors.transforms(commanded, rng=rng) for _ in range(n_draws)])
     base = target_positions(
         problem.true_parameters.values,
         q,
-        problem.capture.circle - 1,
+        problem.capture.circle[circles] - 1,
         problem.structure.reflector,
         joint_errors=errors,
     )
-    return apply_transform(problem.tracker_from_base, base)
+    out = np.broadcast_to(problem.exact_points, (n_draws,) + problem.exact_points.shape).copy()
+    out[:, circles] = apply_transform(problem.tracker_from_base, base)
+    return out
 
 
 def _noise(
@@ -470,7 +569,7 @@ def _noise(
 
     Uniform noise is ``rng.random`` mapped to ``2 u - 1`` in place: the very numbers (and the same
     generator state) as ``rng.uniform(-1, 1)``, which computes ``-1 + 2 u`` element by element (``2 u`` is
-    exact), ~1.5x faster and into a buffer that the caller reuses batch after batch (a fresh array of
+    exact), in fewer passes and into a buffer that the caller reuses batch after batch (a fresh array of
     millions of numbers costs its page faults every time).
     """
     shape = (n_draws, problem.n_points, 3)
@@ -479,7 +578,7 @@ def _noise(
         noise[...] = 0.0
         return noise
     # The bound of every coordinate as one row of 3 n_points numbers: the in-place product then runs
-    # along whole draws rather than 3 numbers at a time (~3.5x faster, the same products).
+    # along whole draws rather than 3 numbers at a time (the same products, in long inner loops).
     bound = np.repeat(problem.error_bound, 3)
     if problem.instrument.noise == "uniform":
         rng.random(out=noise)
@@ -494,7 +593,9 @@ def _noise(
 
 
 def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, batch_size: int) -> np.ndarray:
-    """Parameters of the ``n_draws`` draws of block ``block``, shape ``(n_draws, n_joints, 5)`` [mm, rad].
+    """The outputs of the ``n_draws`` draws of block ``block``, one row per draw, shape ``(n_draws, 5 n + m)``:
+    the parameters ``d, theta, a, alpha, beta`` joint by joint [mm, rad], then the joint model's ``m`` values of
+    an extended refined model (``m = 0`` otherwise; ``.reshape(-1, n, 5)`` gives the parameters).
 
     A draw whose refinement did not converge (``model="refined"``) is a row of NaN: the driver
     counts and drops it. The noise is drawn draw by draw from the block's generators, and every
@@ -503,7 +604,7 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
     other loops than a larger stack (last-bit differences).
     """
     instrument_rng, joint_rng = _block_generators(seed, block)
-    values = np.empty((n_draws, problem.robot.n_joints, 5))
+    values = np.empty((n_draws, 5 * problem.robot.n_joints + problem.n_extra))
     chunks = _chunks(n_draws, batch_size)
     buffer = np.empty((max((count for _, count in chunks), default=0), problem.n_points, 3))  # every batch's points
     for start, count in chunks:
@@ -517,8 +618,9 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
         if count == 1:
             points = np.concatenate([points, points])
         try:
-            batch = identify_cpa_batch(points, problem.structure, problem.tracker_from_base, residuals=False)
-            result = batch.values
+            circles = points[:, : problem.n_circle]
+            batch = identify_cpa_batch(circles, problem.structure, problem.tracker_from_base, residuals=False)
+            result = batch.values.reshape(batch.values.shape[0], -1)
             if problem.refined is not None:
                 result = _refine_draws(problem.refined, points, batch)
         except RobotcalError as exc:
@@ -528,13 +630,18 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
 
 
 def _refine_draws(model: RefinedModel, points: np.ndarray, batch) -> np.ndarray:
-    """Refine every CPA draw of ``batch`` from its own estimate, ``REFINE_BATCH`` draws at a time."""
+    """Refine every CPA draw of ``batch`` from its own estimate, ``REFINE_BATCH`` draws at a time (fewer for an
+    extended model, whose per-point Jacobian takes ~30 times the memory): the rows of :func:`draw_block`."""
     from robotcal.uncertainty.refined import refine_batch
 
-    out = np.empty(batch.values.shape)
-    for start, count in _chunks(points.shape[0], REFINE_BATCH):
+    n_draws = batch.values.shape[0]
+    m = 0 if model.joint_model is None else model.joint_model.size
+    out = np.empty((n_draws, batch.values[0].size + m))
+    size = REFINE_BATCH if model.joint_model is None else EXTENDED_REFINE_BATCH
+    for start, count in _chunks(points.shape[0], size):
         part = slice(start, start + count)
-        out[part] = refine_batch(model, points[part], batch.values[part], batch.tracker_from_base[part]).values
+        refined = refine_batch(model, points[part], batch.values[part], batch.tracker_from_base[part])
+        out[part] = np.concatenate([refined.values.reshape(count, -1), refined.extras], axis=1)
     return out
 
 
@@ -634,8 +741,8 @@ def draw_covariance(values: np.ndarray, identified: np.ndarray) -> tuple[np.ndar
     covariance = np.zeros((n_params, n_params))
     correlation = np.eye(n_params)
     if mask.sum() >= 1:
-        # np.cov(free, rowvar=False) without BLAS: on a busy 2-core machine multi-threaded OpenBLAS spent
-        # ~0.65 s on this (22 x 20,000) product, einsum ~7 ms (1 ms with OPENBLAS_NUM_THREADS=1)
+        # np.cov(free, rowvar=False) without BLAS: a multi-threaded BLAS on a busy machine spends its threads
+        # waiting on this thin (p x M) product, which einsum does in one pass
         centred = np.ascontiguousarray(flat[:, mask].T)
         centred -= centred.mean(axis=1, keepdims=True)
         sub = np.atleast_2d(np.einsum("ik,jk->ij", centred, centred) / (flat.shape[0] - 1))
@@ -685,9 +792,10 @@ def run_monte_carlo(
         seed = int(seed)
         started = time.perf_counter()
         identified = problem.identified
+        n = problem.robot.n_joints
         capacity = settings.max_draws if settings.adaptive else settings.iterations
         # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
-        store = _Store(np.empty((capacity, problem.robot.n_joints, 5)))
+        store = _Store(np.empty((capacity, 5 * n + problem.n_extra)))
         adaptive_record = None
         with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
             runner = _BlockRunner(problem, seed, settings, executor)
@@ -698,15 +806,17 @@ def run_monte_carlo(
                     if progress is not None:
                         progress(store.computed, settings.iterations)
             else:
-                adaptive_record = _run_adaptive(runner, settings, identified, store, progress)
+                adaptive_record = _run_adaptive(runner, settings, problem.identified_all, store, progress)
         done = store.done
-        draws = store.values[:done]
+        draws = store.values[:done, : 5 * n].reshape(done, n, 5)
+        extras = store.values[:done, 5 * n :]
         if done < 2:
             raise RobotcalError(f"only {done} of {store.computed} draws converged: no statistics can be made")
         draw_time = time.perf_counter() - started
         summary_start = time.perf_counter()
         summary = summarize_draws(draws, settings.coverage)
         covariance, correlation = draw_covariance(draws, identified)
+        extra_summary = summarize_draws(extras, settings.coverage) if problem.n_extra else None
         timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
         linear = None
         if linearised:
@@ -745,6 +855,11 @@ def run_monte_carlo(
             model=problem.model,
             criterion=None if problem.refined is None else problem.refined.criterion,
             n_failed=store.failed,
+            joint_model=None if not problem.n_extra else problem.refined.joint_model,
+            extra_draws=extras if problem.n_extra and settings.keep_draws else None,
+            extra_summary=extra_summary,
+            extra_identified=problem.identified_all[5 * n :],
+            extra_true=problem.extra_true,
         )
 
 
@@ -755,7 +870,7 @@ class _Store:
         self.values, self.done, self.computed, self.failed = values, 0, 0, 0
 
     def add(self, values: np.ndarray) -> np.ndarray:
-        good = np.isfinite(values).all(axis=(1, 2))
+        good = np.isfinite(values).all(axis=1)
         kept = values if good.all() else values[good]
         self.values[self.done : self.done + kept.shape[0]] = kept
         self.done += kept.shape[0]
@@ -837,7 +952,7 @@ def linearised_uncertainty(
         covariance = _refined_full_covariance(problem, covariance)
     n_joints = problem.robot.n_joints
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n_joints, 5)
-    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)  # statistics, not scipy.stats: ~0.5 s of import
+    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)  # statistics, not scipy.stats: no slow import
     estimate = problem.noise_free_values
     low, high = estimate - k * std, estimate + k * std
     tolerance = numerical_tolerance(std, settings.ndig)

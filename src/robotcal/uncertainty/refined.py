@@ -1,9 +1,9 @@
 """Batched least-squares refinement of many captures at once: the refined (deployed) model's Monte Carlo.
 
 A user deploys CPA followed by refinement (thesis ch. 4.5.7, eqs 4-101/4-102). The Monte Carlo of
-that model repeats capture -> CPA -> refinement for every draw. Refining draw after draw with
-``scipy.optimize.least_squares`` costs ~0.1 s per draw; here all draws of a batch are refined
-together by one vectorised Levenberg-Marquardt iteration over the batch:
+that model repeats capture -> CPA -> refinement for every draw. Rather than one
+``scipy.optimize.least_squares`` call per draw, all draws of a batch are refined together by one vectorised
+Levenberg-Marquardt iteration over the batch:
 
 * the free set (kinematic parameters and base-frame corrections) and the column scale ``x_scale``
   are those :func:`robotcal.identification.refine.refine_parameters` chooses on the noise-free
@@ -33,8 +33,8 @@ Points criterion (eq. 4-101): residuals ``T(x_b) p_k(x) - m_k`` with ``T = T_0 [
 frame (``base_frame = "registered"``), else ``T_0`` is the given ``tracker_from_base`` and is held.
 Distances criterion (eq. 4-102): residuals ``|p_i - p_j| - |m_i - m_j|`` over every pair of distinct
 measurements; a pair's row is ``w_i^T Xi_a - w_j^T Xi_b`` with ``w = (p x u, u)``, accumulated in
-fixed chunks of pairs so that memory stays bounded by ``batch x chunk`` (about 250x slower than the
-points criterion for the 270-point demo capture: 36,180 pairs against 810 coordinates).
+fixed chunks of pairs so that memory stays bounded by ``batch x chunk`` (the pairs outnumber the coordinates
+by about n_points / 6: 36,180 against 810 for the 270-point demo capture, so this criterion costs far more).
 
 Every per-draw quantity is computed by element-wise operations, stacked matrix products and stacked
 LAPACK solves, whose per-item results do not depend on the size of the stack: a draw's result is the
@@ -43,11 +43,12 @@ same whatever batch it is refined in (a batch of one is padded to two, see
 draws small enough for OpenBLAS to keep them on one thread (``_PRODUCT_SIZE``), where a row of the
 result does not depend on its position in the matrix.
 
-Cost (kr5-demo, 500-draw batches, 1 core, measured under load): ~150-190 us of CPU a draw, 2.6 Jacobian
-evaluations after the start's; 2.0-2.3x less than the per-point version this replaced (~300-390 us), which
-converges to the same Gauss-Newton fixed points (2e-10 of the standard uncertainties apart; a draw's
-result moves by at most ~1.6e-5 u, the stopping rule's own tolerance: see
-tests/unit/uncertainty/test_refined_solver.py and benchmarks/bench_refined_montecarlo.py).
+The grouped form converges to the same Gauss-Newton fixed points as a per-point Jacobian (a draw's result moves
+by at most the stopping rule's own tolerance: tests/unit/uncertainty/test_refined_solver.py); its cost is
+recorded by benchmarks/bench_refined_montecarlo.py. An extended model (gravity compliance, harmonic joint errors)
+deflects every point's joints by its own amount, so no two points share a carrier frame: its draws go through
+the per-point :class:`_PointBatch`, each equal to scipy's refinement of the same capture
+(benchmarks/bench_extended.py).
 
 References
 ----------
@@ -76,7 +77,7 @@ from robotcal.identification.refine import (
     refine_parameters,
 )
 from robotcal.identification.targets import Target, resolve_targets
-from robotcal.kinematics.joint_model import JointModel
+from robotcal.kinematics.joint_model import JointModel, lash_turns
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
 __all__ = ["RefinedModel", "RefinedBatch", "prepare_refined_model", "refine_batch", "refined_covariance"]
@@ -247,8 +248,13 @@ def prepare_refined_model(
             estimate_base=estimate_base,
             joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
         )
-    q = start.robot.model_joint_variables(capture.readings)
+    commanded = start.robot.model_joint_variables(capture.readings)
     fitted = result.parameters.joint_model
+    q = commanded
+    if fitted is not None and fitted.has_backlash:  # the circles' lash, corrected in every draw as in the fit
+        q = commanded + lash_turns(fitted.backlash, commanded, capture.circle)
+    if fitted is not None and fitted.is_empty:
+        fitted = None
     groups = _group_points(q, carrier, vectors, robot.n_joints)
     for value in groups.values():
         value.setflags(write=False)
@@ -284,7 +290,7 @@ def prepare_refined_model(
         max_iterations=int(max_iterations),
         xtol=float(xtol),
         joint_model=fitted,
-        joint_columns=None if fitted is None else _frozen(fitted.columns(q)),
+        joint_columns=None if fitted is None else _frozen(fitted.columns(commanded)),
         extra_free=_frozen(extra_free, bool),
     )
 

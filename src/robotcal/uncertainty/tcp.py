@@ -91,8 +91,8 @@ _THREADS = min(2, os.cpu_count() or 1)
 # ----------------------------------------------------------------------------------------------- checks
 def chi2_quantile(probability: float, degrees: int) -> float:
     """``chi2.ppf(probability, degrees)``: the chi-squared quantile, from ``scipy.special.chdtri`` (its upper
-    tail inverse), since importing ``scipy.stats`` costs about a second of the command's start-up. Imported
-    here: the figure worker imports this module for its types and never needs scipy (~0.2 s of its start)."""
+    tail inverse): ``scipy.stats`` is slow to import for a command's start-up. Imported here, where it is used:
+    the figure worker imports this module for its types and never needs scipy."""
     from scipy.special import chdtri
 
     return float(chdtri(degrees, 1.0 - probability))
@@ -240,14 +240,17 @@ def _chain_columns(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray) -> n
     ``p``. Right-multiplying by ``Rz(q)`` turns the first two columns: with the columns adjacent in
     memory, ``column_0 + i column_1`` is a complex number that is multiplied by ``exp(-i q)`` in place
     (one pass, the other columns untouched); right-multiplying by ``B_i`` is one ``(3 P, 4) @ (4, 4)``
-    product per set. ``links (m, n, 4, 4)`` holds ``B_i`` of every set.
+    product per set. ``links (m, n, 4, 4)`` holds ``B_i`` of every set; ``cos_q``, ``sin_q`` are ``(P, n)``, or
+    ``(m, P, n)`` when every set turns its joints by its own angles (an extended model's deflection).
     """
     m, n = links.shape[0], links.shape[1]
-    n_poses = cos_q.shape[0]
+    n_poses = cos_q.shape[-2]
     block = np.empty((m, 3 * n_poses, 4))
     other = np.empty_like(block)
     for joint in range(1, n):
-        phase = cos_q[:, joint] - 1j * sin_q[:, joint]  # exp(-i q): (c0 + i c1) exp(-i q) = c0' + i c1'
+        phase = cos_q[..., joint] - 1j * sin_q[..., joint]  # exp(-i q): (c0 + i c1) exp(-i q) = c0' + i c1'
+        if phase.ndim == 2:  # per set and pose (an extended model's deflected joints): (m, 1, P)
+            phase = phase[:, None, :]
         pairs = block.view(complex).reshape(m, 3, n_poses, 2)  # [..., 0]: c0 + i c1, [..., 1]: c2 + i c3
         if joint == 1:  # B_1 Rz(q_2) written at once: the turned first two columns and B_1's last two
             first = np.ascontiguousarray(links[:, 0, :3]).view(complex)  # (m, 3, 2)
@@ -269,15 +272,15 @@ def _chain_points(links: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray, point
     tool end: ``B_n [point; 1]`` is the same at every pose, then each joint turns the point about its z axis
     (``Rz(q_i)``) and moves it by ``B_{i-1}`` (``R_{i-1} v + t_{i-1}``, one ``(3, 3) @ (3, P)`` product per
     set). One point instead of a 3x4 block: about a third of the work of :func:`_chain_columns`.
-    ``links (m, n, 4, 4)`` holds ``B_i`` of every set.
+    ``links (m, n, 4, 4)`` holds ``B_i`` of every set; ``cos_q``, ``sin_q`` ``(P, n)`` or ``(m, P, n)``.
     """
     m, n = links.shape[0], links.shape[1]
-    n_poses = cos_q.shape[0]
+    n_poses = cos_q.shape[-2]
     end = links[:, n - 1, :3, :3] @ point + links[:, n - 1, :3, 3]  # (m, 3), pose-independent
     x, y, z = end[:, 0, None], end[:, 1, None], end[:, 2, None]
     turned = np.empty((m, 3, n_poses))
     for joint in range(n - 1, 0, -1):
-        c, s = cos_q[:, joint], sin_q[:, joint]
+        c, s = cos_q[..., joint], sin_q[..., joint]
         np.multiply(x, c, out=turned[:, 0])
         turned[:, 0] -= y * s
         np.multiply(x, s, out=turned[:, 1])
@@ -305,8 +308,8 @@ def _angle_from(x: np.ndarray, y: np.ndarray, cos_ref: np.ndarray, sin_ref: np.n
 def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """KUKA ``A, B, C`` ``(3, m, P)`` [rad] of ``Rz(q_1)`` times ``(m, 4, 3, P)`` blocks, within pi of ``reference (P, 3)``.
 
-    ``Rz(q_1) Rz(A') Ry(B) Rx(C) = Rz(A' + q_1) Ry(B) Rx(C)``: the first joint ``first_joint (P,)``
-    [rad] only adds to A.
+    ``Rz(q_1) Rz(A') Ry(B) Rx(C) = Rz(A' + q_1) Ry(B) Rx(C)``: the first joint ``first_joint (P,)``, or ``(m, P)``
+    per set, [rad] only adds to A.
 
     The formulas of :func:`~robotcal.geometry.euler.kuka_abc_from_matrix`, ``A' = atan2(r10, r00)``,
     ``B = atan2(-r20, cos B)`` with ``cos B = sqrt(r00^2 + r10^2)``, ``C = atan2(r21, r22)``, each taken as
@@ -318,6 +321,8 @@ def _abc_near(block: np.ndarray, first_joint: np.ndarray, reference: np.ndarray)
     r21, r22 = block[:, 1, 2], block[:, 2, 2]
     out = np.empty((3,) + r00.shape)
     local = np.array(reference.T, dtype=float)  # (3, P): A's reference before Rz(q_1)
+    if np.ndim(first_joint) == 2:  # per set: (3, m, P)
+        local = np.repeat(local[:, None, :], r00.shape[0], axis=1)
     local[0] -= first_joint
     cos_ref, sin_ref = np.cos(local), np.sin(local)
     cos_b = np.sqrt(r00 * r00 + r10 * r10)
@@ -628,8 +633,8 @@ def _summarize_rows(
         "std_uncertainty": values.std(axis=-1, ddof=1) if std is None else std,
     }
     # only the M - q smallest and the M - q largest draws need their order (every order statistic used
-    # below lies there when q > M / 2): two single-index partitions and two sorts of the ~5 % tails take
-    # half the time of a full sort (a partition at two indices at once is slower than numpy's SIMD sort)
+    # below lies there when q > M / 2): two single-index partitions and two sorts of the ~5 % tails instead
+    # of a full sort
     tail = n_draws - q
     if tail < q:
         values.partition(q, axis=-1)
@@ -734,31 +739,44 @@ def _chunk_statistics(coords: np.ndarray, centred: np.ndarray, coverage: float):
     return SampleSummary(n_draws=n_draws, coverage=coverage, **stats), ellipsoid, covariance
 
 
-def _linearised(draws: np.ndarray, nominal: np.ndarray, q: np.ndarray, tool: np.ndarray):
-    """Mean parameters and ``J U_p J^T`` with ``U_p`` the draws' sample covariance."""
+def _linearised(draws: np.ndarray, nominal: np.ndarray, q: np.ndarray, tool: np.ndarray, joint_model=None, extras=None):
+    """Mean parameters and ``J U_p J^T`` with ``U_p`` the draws' sample covariance (the joint-model values
+    included for an extended model: their columns are ``sum_i (d TCP / d q_i) C_i``, ``d/dq_i = d/dtheta_i``, at
+    the mean deflection)."""
     n_draws, n = draws.shape[0], draws.shape[1]
     deviation = draws - nominal
     angles = deviation[..., _ANGLE_KINDS]
     deviation[..., _ANGLE_KINDS] = angles - (2.0 * np.pi) * np.rint(angles / (2.0 * np.pi))  # into [-pi, pi]
     flat = deviation.reshape(n_draws, n * 5)
+    if extras is not None:
+        flat = np.concatenate([flat, extras], axis=1)
     mean_deviation = flat.mean(axis=0)
     centred = flat - mean_deviation
-    # einsum, not `centred.T @ centred`: the BLAS call on the transposed view took 0.03-1.3 s
-    # (threads contending on a loaded machine); einsum is a steady ~0.05 s at 10^5 draws
+    # einsum, not `centred.T @ centred`: a multi-threaded BLAS call on the transposed view is at the mercy of
+    # threads contending on a loaded machine; einsum takes a steady time
     parameter_covariance = np.einsum("mi,mj->ij", centred, centred) / (n_draws - 1)
-    mean = nominal + mean_deviation.reshape(n, 5)
-    free = (np.diagonal(parameter_covariance) > 0.0).reshape(n, 5)
-    if not np.any(free):
+    mean = nominal + mean_deviation[: n * 5].reshape(n, 5)
+    varies = np.diagonal(parameter_covariance) > 0.0
+    free = varies[: n * 5].reshape(n, 5)
+    if not np.any(varies):
         return mean, np.zeros((q.shape[0], 6, 6))
-    jacobian = tcp_jacobian(mean, q, tool=tool, free=free)
-    index = np.flatnonzero(free.reshape(-1))
+    turned = q if extras is None else q + joint_model.deflection(q, mean_deviation[n * 5 :])
+    jacobian = tcp_jacobian(mean, turned, tool=tool, free=free) if np.any(free) else np.zeros((q.shape[0], 6, 0))
+    if extras is not None:
+        theta = np.zeros((n, 5), dtype=bool)
+        theta[:, 1] = True
+        by_joint = tcp_jacobian(mean, turned, tool=tool, free=theta)  # (P, 6, n): d TCP / d q_i
+        columns = np.einsum("pki,pim->pkm", by_joint, joint_model.columns(q))
+        jacobian = np.concatenate([jacobian, columns[..., varies[n * 5 :]]], axis=-1)
+    index = np.flatnonzero(varies)
     covariance = jacobian @ parameter_covariance[np.ix_(index, index)] @ np.swapaxes(jacobian, -1, -2)
     return mean, 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
 
 
-def _propagation_inputs(robot: RobotModel, parameter_draws, readings, tool, batch_size):
+def _propagation_inputs(robot: RobotModel, parameter_draws, readings, tool, batch_size, joint_model=None, extras=None):
     """The checked draws and readings (2-D), the model joint variables of the readings and the tool, for
-    :func:`propagate_to_tcp` and :func:`position_covariance` (readings outside the limits warn at their caller)."""
+    :func:`propagate_to_tcp` and :func:`position_covariance` (readings outside the limits warn at their caller),
+    and the joint-model draws ``(n_draws, m)`` of an extended model (None for the geometric one)."""
     draws = _check_draws(robot, parameter_draws)
     readings = _check_readings(robot, readings, name="readings", source="", stacklevel=4)
     tool = check_tool(tool)
@@ -766,7 +784,21 @@ def _propagation_inputs(robot: RobotModel, parameter_draws, readings, tool, batc
         raise InputError(f"`batch_size` must be a positive integer; got {batch_size!r}")
     if draws.shape[0] < 2:
         raise InputError(f"`parameter_draws` must hold at least 2 draws; got {draws.shape[0]}")
-    return draws, readings, robot.model_joint_variables(readings), tool
+    if (joint_model is None) != (extras is None):
+        raise InputError("an extended model's draws need both `joint_model` and `extra_draws`")
+    if extras is not None:
+        extras = np.asarray(extras, dtype=float)
+        if extras.shape != (draws.shape[0], joint_model.size) or not np.all(np.isfinite(extras)):
+            raise InputError(
+                f"`extra_draws` must be finite, shape ({draws.shape[0]}, {joint_model.size}) for "
+                f"{', '.join(joint_model.names)}; got {extras.shape}"
+            )
+    return draws, readings, robot.model_joint_variables(readings), tool, extras
+
+
+def _turns(joint_model, extras, q: np.ndarray) -> np.ndarray | None:
+    """The joints' deflection ``(n_draws, P, n)`` [rad] of every draw at the poses ``q (P, n)``; None when geometric."""
+    return None if extras is None else joint_model.deflection(q, extras)
 
 
 def position_covariance(
@@ -777,6 +809,8 @@ def position_covariance(
     tool=None,
     batch_size: int | None = None,
     max_bytes: int = 64 * 2**20,
+    joint_model=None,
+    extra_draws=None,
 ) -> np.ndarray:
     """Monte Carlo covariance ``(n_poses, 3, 3)`` [mm^2] of the TCP position at poses.
 
@@ -787,19 +821,26 @@ def position_covariance(
     Arguments and checks as :func:`propagate_to_tcp` (readings outside the limits warn).
     """
     with single_blas_thread():
-        draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
+        draws, readings, q, tool, extras = _propagation_inputs(
+            robot, parameter_draws, readings, tool, batch_size, joint_model, extra_draws
+        )
         n_draws, n_poses = draws.shape[0], q.shape[0]
-        pose_chunk = max(1, min(n_poses, int(max_bytes) // (24 * n_draws)))
+        pose_chunk = max(1, min(n_poses, int(max_bytes) // ((24 if extras is None else 96) * n_draws)))
         cos_q, sin_q = np.cos(q), np.sin(q)
         batch_size = int(batch_size) if batch_size is not None else max(1, 3 * _BLOCK_FRAMES // pose_chunk)
         covariances = []
         for start in range(0, n_poses, pose_chunk):
             poses = slice(start, min(start + pose_chunk, n_poses))
             points = np.empty((poses.stop - poses.start, 3, n_draws))  # draws last, as in propagate_to_tcp
+            turns = _turns(joint_model, extras, q[poses])
 
-            def fill(first: int, poses=poses, points=points) -> None:
+            def fill(first: int, poses=poses, points=points, turns=turns) -> None:
                 rows = slice(first, min(first + batch_size, n_draws))
-                local = _chain_points(_pose_independent_links(draws[rows]), cos_q[poses], sin_q[poses], tool)
+                if turns is None:
+                    cq, sq = cos_q[poses], sin_q[poses]
+                else:  # every draw turns the joints by its own deflection
+                    cq, sq = np.cos(q[poses] + turns[rows]), np.sin(q[poses] + turns[rows])
+                local = _chain_points(_pose_independent_links(draws[rows]), cq, sq, tool)
                 points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
 
             batches = range(0, n_draws, batch_size)
@@ -811,7 +852,8 @@ def position_covariance(
                     fill(first)
             if not np.all(np.isfinite(points)):
                 raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
-            _turn_first_joint(points, cos_q[poses, 0, None], sin_q[poses, 0, None])
+            first = q[poses, 0, None] if turns is None else q[poses, 0, None] + turns[:, :, 0].T  # (P, 1) or (P, M)
+            _turn_first_joint(points, np.cos(first), np.sin(first))
             centred = points - points.mean(axis=-1)[..., None]
             covariance = np.empty((poses.stop - poses.start, 3, 3))
             for i in range(3):  # the upper triangle row by row, as in _chunk_statistics
@@ -831,6 +873,8 @@ def propagate_to_tcp(
     batch_size: int | None = None,
     max_bytes: int = 64 * 2**20,
     keep_draws: bool = False,
+    joint_model=None,
+    extra_draws=None,
 ) -> TCPUncertainty:
     """TCP position and orientation uncertainty at poses from Monte Carlo parameter draws.
 
@@ -857,6 +901,9 @@ def propagate_to_tcp(
     keep_draws : bool
         Keep the ``(n_draws, n_poses, 6)`` coordinates in the result (for histograms and scatter
         plots of a few poses; ignores ``max_bytes``).
+    joint_model : JointModel, optional
+        An extended model's joint model (:mod:`robotcal.kinematics.joint_model`), with ``extra_draws``
+        ``(n_draws, m)`` its values in every draw: each draw then turns the joints by ``q + C(q) e`` of its own.
 
     Returns
     -------
@@ -876,7 +923,9 @@ def propagate_to_tcp(
     """
     with single_blas_thread():
         coverage = check_coverage(coverage)
-        draws, readings, q, tool = _propagation_inputs(robot, parameter_draws, readings, tool, batch_size)
+        draws, readings, q, tool, extras = _propagation_inputs(
+            robot, parameter_draws, readings, tool, batch_size, joint_model, extra_draws
+        )
         n_draws, n_poses = draws.shape[0], q.shape[0]
         nominal = _coordinates(robot.nominal[None], q, tool)[0]
         cos_q, sin_q = np.cos(q), np.sin(q)
@@ -884,7 +933,8 @@ def propagate_to_tcp(
         # evened out, one at a time: its batches of draws fill the coordinates in the threads, then its poses are
         # split between the threads for the statistics (as many poses as possible per chunk: the per-draw
         # products of the chain cost less per pose the more poses they hold, ~15 % from 63 to 139 poses)
-        largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (48 * n_draws)))
+        per_pose = 48 if extras is None else 96  # bytes per draw and pose: coordinates (and the deflections)
+        largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (per_pose * n_draws)))
         n_chunks = -(-n_poses // largest)
         pose_chunk = -(-n_poses // n_chunks)
         starts = range(0, n_poses, pose_chunk)
@@ -899,28 +949,37 @@ def propagate_to_tcp(
         # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
         coords_buffer, centred_buffer = np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))
 
-        def fill(first: int, poses: slice, coords: np.ndarray) -> None:
+        def fill(first: int, poses: slice, coords: np.ndarray, turns: np.ndarray | None) -> None:
             rows = slice(first, min(first + batch_size, n_draws))
             links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
-            frames = _chain_columns(links, cos_q[poses], sin_q[poses])
+            if turns is None:
+                cq, sq, first_joint = cos_q[poses], sin_q[poses], q[poses, 0]
+            else:  # every draw turns the joints by its own deflection
+                turned = q[poses] + turns[rows]
+                cq, sq, first_joint = np.cos(turned), np.sin(turned), turned[..., 0]
+            frames = _chain_columns(links, cq, sq)
             # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
             local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
             block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
             target = coords[:, :, rows]  # a view: the draws of this batch
             target[:, :3] = np.transpose(local, (2, 1, 0))  # before Rz(q_1): turned per chunk, in _turn_first_joint
-            target[:, 3:] = np.transpose(_abc_near(block, q[poses, 0], nominal[poses, 3:]), (2, 0, 1))
+            target[:, 3:] = np.transpose(_abc_near(block, first_joint, nominal[poses, 3:]), (2, 0, 1))
 
         def chunk(start: int, pool: ThreadPoolExecutor | None) -> list:
             poses = slice(start, min(start + pose_chunk, n_poses))
             size = poses.stop - poses.start
             coords, centred = coords_buffer[:size], centred_buffer[:size]
+            turns = _turns(joint_model, extras, q[poses])
             batches = range(0, n_draws, batch_size)
             if pool is not None and len(batches) > 1:  # the batches fill disjoint draws in the threads
-                list(pool.map(lambda first: fill(first, poses, coords), batches))
+                list(pool.map(lambda first: fill(first, poses, coords, turns), batches))
             else:
                 for first in batches:
-                    fill(first, poses, coords)
-            c1, s1 = cos_q[poses, 0, None], sin_q[poses, 0, None]
+                    fill(first, poses, coords, turns)
+            if turns is None:
+                c1, s1 = cos_q[poses, 0, None], sin_q[poses, 0, None]
+            else:  # (P, M): the first joint of every draw
+                c1, s1 = np.cos(q[poses, 0, None] + turns[:, :, 0].T), np.sin(q[poses, 0, None] + turns[:, :, 0].T)
             if keep_draws:
                 _turn_first_joint(coords, c1, s1)
                 kept[:, poses] = np.moveaxis(coords, -1, 0)
@@ -946,7 +1005,7 @@ def propagate_to_tcp(
         ellipsoids = [part[1] for part in parts]
         covariances = [part[2] for part in parts]
 
-        parameter_mean, lpu_covariance = _linearised(draws, robot.nominal, q, tool)
+        parameter_mean, lpu_covariance = _linearised(draws, robot.nominal, q, tool, joint_model, extras)
         return TCPUncertainty(
             robot_name=robot.name,
             readings=readings,

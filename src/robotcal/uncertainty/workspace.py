@@ -90,6 +90,8 @@ def workspace_uncertainty(
     coverage: float = 0.95,
     batch_size: int | None = None,
     max_bytes: int = 64 * 2**20,
+    joint_model=None,
+    extra_draws=None,
 ) -> WorkspaceUncertainty:
     """TCP uncertainty at ``n_poses`` random poses within the limits (or at given ``readings``).
 
@@ -104,7 +106,7 @@ def workspace_uncertainty(
         Use these controller readings [rad] instead of a random sample.
     rng : numpy.random.Generator or int or None
         Seed or generator of the pose sample.
-    tool, coverage, batch_size, max_bytes
+    tool, coverage, batch_size, max_bytes, joint_model, extra_draws
         As in :func:`~robotcal.uncertainty.tcp.propagate_to_tcp`.
     """
     with single_blas_thread():
@@ -114,8 +116,9 @@ def workspace_uncertainty(
         if readings is None:
             readings = sample_workspace(robot, n_poses, rng=rng)
         result = propagate_to_tcp(
-            robot, parameter_draws, readings, tool=tool, coverage=coverage, batch_size=batch_size, max_bytes=max_bytes
-        )
+            robot, parameter_draws, readings, tool=tool, coverage=coverage, batch_size=batch_size, max_bytes=max_bytes,
+            joint_model=joint_model, extra_draws=extra_draws,
+        )  # fmt: skip
         levels = PERCENTILES
         return WorkspaceUncertainty(
             tcp=result,

@@ -11,7 +11,7 @@ import robotcal
 from robotcal.errors import InputError
 from robotcal.geometry.euler import kuka_abc_from_matrix
 from robotcal.io import load_robot
-from robotcal.kinematics.compensation import _tool_frames, rotation_vector
+from robotcal.kinematics.compensation import rotation_vector, tool_frames
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet
@@ -33,7 +33,7 @@ def _regular_poses(robot, count, seed):
     orientation scaled by 700 mm, below 100)."""
     limits = np.rad2deg(robot.limits)
     poses = np.random.default_rng(seed).uniform(limits[:, 0] * 0.8, limits[:, 1] * 0.8, (4 * count, 6))
-    _, jacobian = _tool_frames(ParameterSet.nominal(robot), np.deg2rad(poses), np.eye(4))
+    _, jacobian = tool_frames(ParameterSet.nominal(robot), np.deg2rad(poses), np.eye(4))
     condition = np.linalg.cond(jacobian * np.r_[1, 1, 1, 700, 700, 700][:, None])
     return poses[condition < 100][:count]
 

@@ -23,7 +23,8 @@ def fake_stages(monkeypatch):
 
     def simulate(scenario, seeds, out, step):
         document = write_json(out / "truth.json", {"robot": scenario.robot.name})
-        return StageOutput(SimpleNamespace(truth="T", capture="C", validation="V"), {"truth.json": document}, "fake")
+        value = SimpleNamespace(truth="T", capture="C", validation="V", poses=None)
+        return StageOutput(value, {"truth.json": document}, "fake")
 
     def joints(*args, **kwargs):
         warnings.warn("J4 shows no backlash", UserWarning, stacklevel=1)

@@ -15,7 +15,9 @@ def test_plan_without_a_folder_writes_nothing(tmp_path, monkeypatch):
     assert isinstance(plan, RunPlan) and plan.out is None
     assert list(tmp_path.iterdir()) == []
     # the scenario's seeds, its Monte Carlo size, and the refined Monte Carlo capped at REFINED_DRAWS
-    assert plan.seeds == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6}
+    assert plan.seeds == {
+        "capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6, "poses": 3
+    }  # fmt: skip
     assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == REFINED_DRAWS
     assert plan.backlash and plan.command == "robotcal run"
     with pytest.raises(InputError, match="needs a run folder"):
@@ -92,9 +94,10 @@ def test_the_stage_tables_follow_the_stage_order():
 
     assert tuple(OUTPUTS) == STAGES
     assert tuple(STEPS) == tuple(stage for stage in STAGES if stage in STEPS)
-    assert RUN_ENTRIES[:4] == (RUN_RECORD, *OUTPUTS["simulate"])
-    # the method's order (thesis ch. 4-5): identify, refine and evaluate, the joints, the uncertainty of the
-    # parameters, then of the TCP, the plan and its sensitivity, the ISO 9283 test, the report
+    assert RUN_ENTRIES[:5] == (RUN_RECORD, *OUTPUTS["simulate"])
+    # the method's order (thesis ch. 4-5): identify, the joints (whose backlash the refinement corrects), refine
+    # and evaluate, the uncertainty of the parameters, then of the TCP, the plan and its sensitivity, the ISO 9283
+    # test, the report
     assert STAGES == (
-        "simulate", "identify", "refine", "evaluate", "joints", "uncertainty", "tcp", "plan", "iso9283", "report",
+        "simulate", "identify", "joints", "refine", "evaluate", "uncertainty", "tcp", "plan", "iso9283", "report",
     )  # fmt: skip

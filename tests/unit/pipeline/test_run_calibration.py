@@ -46,7 +46,9 @@ def test_every_stage_is_done_and_recorded(small_run):
     assert isinstance(result, RunResult) and result.folder == out
     assert result.record["status"] == "done" and list(result.record["stages"]) == list(STAGES)
     assert all(entry["status"] == "done" for entry in result.record["stages"].values())
-    assert result.record["seeds"] == {"capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6}
+    assert result.record["seeds"] == {
+        "capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6, "poses": 3
+    }  # fmt: skip
     # each stage announced its start (0) and end (-1) to the progress callback, in order
     starts = [stage for stage, done in events if done == 0]
     ends = [stage for stage, done in events if done == -1]
@@ -112,7 +114,9 @@ def test_typed_results_for_python_users(small_run):
     _, result, _, _ = small_run
     results = result.results
     assert isinstance(results["cpa"], ParameterSet) and isinstance(results["truth"], ParameterSet)
-    assert set(results["refined"]) == {"points", "distances"}
+    # both criteria, and the geometric fit beside the demo's extended deployed model (its [joint_model] is auto)
+    assert set(results["refined"]) == {"points", "distances", "geometric"}
+    assert results["refined"]["points"].model != "geometric" and results["refined"]["geometric"].model == "geometric"
     assert isinstance(results["montecarlo"]["cpa"], MonteCarloResult)
     assert results["montecarlo"]["cpa"].n_draws == DRAWS
     assert results["montecarlo"]["refined"].n_draws == REFINED_DRAWS

@@ -49,7 +49,7 @@ def _per_draw_reference(scenario, problem, seed: int, block: int, n_draws: int) 
 def test_batched_draws_equal_the_per_draw_loop(laser):
     scenario, problem = laser
     assert scenario.instrument.noise == "uniform"  # the reference above draws uniform noise
-    batched = draw_block(problem, seed=7, block=3, n_draws=40, batch_size=16)
+    batched = draw_block(problem, seed=7, block=3, n_draws=40, batch_size=16).reshape(40, 6, 5)
     reference = _per_draw_reference(scenario, problem, seed=7, block=3, n_draws=40)
     # same noise, same CPA; only batched-vs-single rounding differs (see test_batch_equals_separate_calls)
     np.testing.assert_allclose(batched, reference, rtol=0, atol=1e-9)
@@ -83,7 +83,7 @@ _KR5_DEMO_REFERENCE = {
 
 def test_demo_draws_are_those_of_the_reference_implementation():
     problem = monte_carlo_problem(load_scenario("kr5-demo"))
-    draws = draw_block(problem, seed=7, block=3, n_draws=2_000, batch_size=2_000)
+    draws = draw_block(problem, seed=7, block=3, n_draws=2_000, batch_size=2_000).reshape(2_000, 6, 5)
     identified = problem.identified
     assert identified.sum() == len(_KR5_DEMO_REFERENCE["mean"])
     lengths = np.zeros(identified.shape, dtype=bool)

@@ -86,7 +86,11 @@ def _facts_of_run(page: _Page) -> list[dict]:
         if a_um is not None and b_um is not None:
             text += f", U(L) = {_fmt(a_um)} µm + {_fmt(b_um)} µm/m · L"
         facts.append({"label": "instrument", "text": text, "code": None})
-    for name, what in (("capture.csv", "calibration capture"), ("validation.csv", "validation points")):
+    for name, what in (
+        ("capture.csv", "calibration capture"),
+        ("poses.csv", "calibration poses"),
+        ("validation.csv", "validation points"),
+    ):
         table = page.table(name)
         if table is not None:
             text = f"{len(table.rows)} points"
