@@ -1,7 +1,8 @@
-"""Limits checked before work starts: the seed bound and memory estimates of the large computations.
+"""Limits checked before work starts: the seed bound, the seeds and draws of a run, and memory estimates of
+the large computations.
 
 Only the standard library and :mod:`robotcal.errors` are imported, so the command line can check its options
-before it imports numpy.
+(and show its help) before it imports numpy.
 """
 
 from __future__ import annotations
@@ -11,7 +12,9 @@ from robotcal.errors import InputError
 __all__ = [
     "BYTES_PER_POSE",
     "FALLBACK_MEMORY",
+    "REFINED_DRAWS",
     "SEED_BOUND",
+    "SEED_OFFSETS",
     "available_memory",
     "check_memory",
     "monte_carlo_bytes",
@@ -21,6 +24,12 @@ __all__ = [
 #: Seeds are integers in ``[0, SEED_BOUND)``: numpy's ``SeedSequence`` takes any non-negative integer,
 #: but seeds are recorded in files as signed 64-bit integers (``draws.npz``), so 2^63 is the bound.
 SEED_BOUND = 2**63
+#: Offsets of the seeds a run derives from ``seed=N`` (:func:`robotcal.pipeline.plan_run`): every random
+#: part of the run gets its own, so a run's seed is at most ``SEED_BOUND - 1 - max(SEED_OFFSETS.values())``.
+SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4, "iso9283": 5, "poses": 6}
+#: Refined-model Monte Carlo draws of a run unless the option or the scenario says otherwise (at most the CPA
+#: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
+REFINED_DRAWS = 20_000
 #: Memory assumed available when ``/proc/meminfo`` cannot be read [bytes].
 FALLBACK_MEMORY = 4 * 2**30
 #: Memory per workspace or trajectory pose (readings, nominal and summary arrays) [bytes], generous.

@@ -9,7 +9,7 @@ import typer
 
 from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, handle_errors
 from robotcal.cli.run import _command_line, run_and_print
-from robotcal.pipeline.plan import SEED_OFFSETS, plan_run
+from robotcal.limits import SEED_OFFSETS
 
 app = command_app()
 
@@ -35,5 +35,7 @@ def demo(
 ) -> None:
     """The whole calibration of a simulated KUKA KR 5 sixx R650 with a perturbed "true" robot: writes
     OUT/report.html (run `robotcal run kr5-demo --out OUT`)."""
+    from robotcal.pipeline.plan import plan_run
+
     command = _command_line("demo", out=out, seed=seed, draws=draws)
     run_and_print(plan_run(DEMO_SCENARIO, out, seed=seed, draws=draws, command=command, force=force))

@@ -9,14 +9,16 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, console, error_console, handle_errors
 from robotcal.errors import RobotcalError
-from robotcal.io.run_folder import STAGES
-from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS, STEPS, RunPlan, plan_run
+from robotcal.limits import REFINED_DRAWS, SEED_OFFSETS
+
+if TYPE_CHECKING:  # the pipeline loads when a run starts, not for --help
+    from robotcal.pipeline.plan import RunPlan
 
 __all__ = ["run", "run_and_print", "run_with_display"]
 
@@ -33,6 +35,8 @@ def _progress_columns(width: int, totals: list[int]) -> tuple:
     shown only where it has room (it is in the Stages table after the run anyway)."""
     from rich.progress import BarColumn, MofNCompleteColumn, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Column
+
+    from robotcal.io.run_folder import STAGES
 
     def whole(min_width: int | None = None) -> Column:
         return Column(no_wrap=True, min_width=min_width)
@@ -56,6 +60,8 @@ def run_with_display(plan: RunPlan):
     for the Monte Carlo); returns its :class:`~robotcal.io.run_folder.RunResult`."""
     from rich.progress import Progress
 
+    from robotcal.io.run_folder import STAGES
+    from robotcal.pipeline.plan import STEPS
     from robotcal.pipeline.run import run_calibration
 
     totals = {
@@ -184,13 +190,16 @@ def run(
         typer.Option(
             "--refined-draws",
             min=1,
-            help=f"Draws of the refined-model Monte Carlo (default: {REFINED_DRAWS:,}, at most --draws).",
+            help="Draws of the refined-model Monte Carlo (default: the scenario's montecarlo.refined_iterations, "
+            f"else {REFINED_DRAWS:,}; at most --draws).",
         ),
     ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
-    """Run the whole pipeline (simulate, CPA, refine, evaluate, joints, Monte Carlo, TCP, plan, ISO 9283) and write
+    """Run the whole pipeline (simulate, CPA, joints, refine, evaluate, Monte Carlo, TCP, plan, ISO 9283) and write
     DIR/report.html."""
     options = dict(seed=seed, draws=draws, workspace=workspace, workers=workers, refined_draws=refined_draws)
+    from robotcal.pipeline.plan import plan_run
+
     plan = plan_run(scenario, out, **options, command=_command_line("run", scenario, out=out, **options), force=force)
     run_and_print(plan)

@@ -31,12 +31,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.distance import pdist
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.registration import register_points
-from robotcal.identification.refine import capture_target_index, capture_turning_joints, measurement_pairs
+from robotcal.identification.refine import capture_target_index, capture_turning_joints, measurement_pairs, pdist
 from robotcal.identification.targets import Target, resolve_targets
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount

@@ -31,12 +31,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.distance import pdist
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.identification.evaluation import distinct_pairs, predicted_points
+from robotcal.identification.refine import pdist
 from robotcal.identification.targets import Target
 from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques
 from robotcal.kinematics.model import LinkMasses, RobotModel

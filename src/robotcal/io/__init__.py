@@ -1,9 +1,7 @@
 """I/O at the edge: TOML robots and scenarios, capture CSV, parameter JSON, result files, atomic writes.
 
 Files hold millimetres and degrees (micrometres where a name says ``_um``); the objects read hold the
-core's mm and radians. The modules of scenario, robot, capture and parameter files load with the
-package; those of results (draws, uncertainty tables, TCP files, exports, output folders) and of tracker
-exports on first use.
+core's mm and radians. Every module of the package loads with it.
 
 Examples
 --------

@@ -159,11 +159,15 @@ class MonteCarloTable(_RunTable):
         Seed of the draws; None: fresh entropy, recorded.
     coverage : float
         Coverage probability of the intervals (0.95: 95 %).
+    refined_iterations : int or None
+        Draws of a run's refined-model Monte Carlo (at most ``iterations``; ``robotcal run --refined-draws``
+        overrides it); None: the run's default, ``robotcal.limits.REFINED_DRAWS``.
     """
 
     iterations: int = Field(default=100_000, ge=1)
     seed: int | None = Field(default=None, ge=0)
     coverage: float = Field(default=0.95, gt=0, lt=1)
+    refined_iterations: int | None = Field(default=None, ge=1)
 
 
 class TruthTable(_RunTable):

@@ -20,7 +20,15 @@ from robotcal.errors import InputError
 from robotcal.io.output import check_output_folder, existing_inputs
 from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES
 from robotcal.io.scenario import Scenario, ValidationTable, load_scenario
-from robotcal.limits import BYTES_PER_POSE, SEED_BOUND, check_memory, monte_carlo_bytes, pairs_bytes
+from robotcal.limits import (
+    BYTES_PER_POSE,
+    REFINED_DRAWS,
+    SEED_BOUND,
+    SEED_OFFSETS,
+    check_memory,
+    monte_carlo_bytes,
+    pairs_bytes,
+)
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
 __all__ = [
@@ -45,11 +53,6 @@ STEPS = {"simulate": 4, "identify": 1, "joints": 1, "refine": 2, "evaluate": 1, 
 PLAN_SENSITIVITY_KEY = "capture.sweep_deg.4"
 PLAN_SENSITIVITY_VALUES = (15.0, 50.0, 90.0, 180.0)
 PLAN_SENSITIVITY_DRAWS = 2_000
-#: Refined-model Monte Carlo draws of a run unless ``refined_draws`` says otherwise (at most the CPA
-#: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
-REFINED_DRAWS = 20_000
-#: Offsets of the seeds derived from ``seed=N``: every random part of the run gets its own.
-SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "workspace": 4, "iso9283": 5, "poses": 6}
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -120,7 +123,8 @@ def plan_run(
     workers : int, optional
         Monte Carlo worker processes (default: the CPU count, at most 4).
     refined_draws : int, optional
-        Draws of the refined-model Monte Carlo (default: :data:`REFINED_DRAWS`, at most ``draws``).
+        Draws of the refined-model Monte Carlo (default: the scenario's ``montecarlo.refined_iterations``, else
+        :data:`REFINED_DRAWS`; at most ``draws``).
     command : str
         The command line recorded in ``run.json``.
     force : bool
@@ -208,9 +212,10 @@ def plan_run(
         raise InputError(
             f"--refined-draws must be between 1 and the Monte Carlo draws ({iterations:,}); got {refined_draws}"
         )
+    default_refined = loaded.montecarlo.refined_iterations or REFINED_DRAWS
     try:
         refined_settings = dataclasses.replace(
-            settings, iterations=min(iterations, REFINED_DRAWS) if refined_draws is None else refined_draws
+            settings, iterations=min(iterations, default_refined) if refined_draws is None else refined_draws
         )
     except InputError as exc:
         raise InputError(f"--refined-draws: {exc}") from None

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from robotcal.errors import InputError
+from robotcal.io.scenario import load_scenario
 from robotcal.pipeline import RunPlan, plan_run, run_calibration
 from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS
 
@@ -14,11 +17,11 @@ def test_plan_without_a_folder_writes_nothing(tmp_path, monkeypatch):
     plan = plan_run("kr5-demo")
     assert isinstance(plan, RunPlan) and plan.out is None
     assert list(tmp_path.iterdir()) == []
-    # the scenario's seeds, its Monte Carlo size, and the refined Monte Carlo capped at REFINED_DRAWS
+    # the scenario's seeds, its Monte Carlo size, and its refined Monte Carlo size (montecarlo.refined_iterations)
     assert plan.seeds == {
         "capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6, "poses": 3
     }  # fmt: skip
-    assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == REFINED_DRAWS
+    assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == 5_000
     assert plan.backlash and plan.command == "robotcal run"
     with pytest.raises(InputError, match="needs a run folder"):
         run_calibration(plan)
@@ -31,6 +34,17 @@ def test_one_seed_seeds_every_part(tmp_path):
     assert plan.refined_montecarlo.iterations == 500  # at most the CPA Monte Carlo's draws
     assert plan.tcp.workspace_poses == 7
     assert not (tmp_path / "out").exists()
+
+
+def test_refined_draws_come_from_the_option_then_the_scenario_then_the_default(tmp_path):
+    demo = Path(load_scenario("kr5-demo").source)
+    text = demo.read_text(encoding="utf-8")
+    assert "\nrefined_iterations = 5000\n" in text
+    without = tmp_path / "demo-without.toml"
+    without.write_text(text.replace("\nrefined_iterations = 5000\n", "\n"), encoding="utf-8")
+    assert plan_run(without).refined_montecarlo.iterations == REFINED_DRAWS
+    assert plan_run("kr5-demo", refined_draws=700).refined_montecarlo.iterations == 700
+    assert plan_run("kr5-demo", draws=3000).refined_montecarlo.iterations == 3000  # capped by the draws
 
 
 @pytest.mark.parametrize(
