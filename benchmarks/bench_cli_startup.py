@@ -14,6 +14,11 @@ Rows, besides the commands themselves:
 Before the lazy registry (commit before issue 13's CLI change), ``robotcal --help`` took 0.9-2.4 s
 on the project's 2-core machine (measured by the lead; 1.9-2.2 s measured by H4 under load):
 :data:`BEFORE` holds those figures for the table.
+
+Issue 23 (2026-11-28, median of 10, 2 alternated rounds): ``robotcal --help`` 0.068-0.092 s before
+(05de958), 0.074-0.083 s with issue 23 (c0e2034), 0.078-0.081 s at 385f86a; ``run --help`` 0.33-0.39 s,
+0.86-0.89 s (it loaded the pipeline and the whole domain for two constants), 0.20-0.21 s (they live in
+:mod:`robotcal.limits`).
 """
 
 from __future__ import annotations

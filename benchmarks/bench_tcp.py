@@ -32,6 +32,9 @@ Before/after, the demo's TCP stage (Table 5.8 pose and 75-pose trajectory with t
   demo's ``tcp_stage`` alone on a saved run (load average 4-5.6, old and new alternating, 3 pairs of
   2 runs) 4.7-6.4 s of CPU before (median 5.5), 4.8-5.4 after (median 4.9); the 1000-pose workspace
   map on one thread 3.8-4.0 -> 3.3-3.4 s of CPU; the angles 93 -> 61 ns per draw-pose.
+- issue 23 (the series arctan replaced by ``np.arctan2`` of the turned vector; 2026-11-28, 2 alternated
+  rounds, load below 1; best / median of 3): 05de958 1.47 / 1.56 s and 1.36 / 1.44 s, c0e2034 1.36 / 1.46 s
+  and 1.36 / 1.38 s, 385f86a 1.31 / 1.35 s and 1.38 / 1.38 s: no measurable change at this scale.
 """
 
 from __future__ import annotations

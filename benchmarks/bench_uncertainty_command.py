@@ -22,6 +22,10 @@ does, ``--repeat`` times, and prints for each run and the best (by overhead):
 path), e.g. a copy of ``src`` with the files of an earlier commit, to compare before and after in one
 sitting: the runs alternate between the trees.
 
+The records below describe the code of their date: issue 23 (2026-11-28) replaced the figure worker, its
+page preparation and glyph cache, and the process end without the interpreter's teardown by a standard process
+pool, plain matplotlib and a normal exit (docs/pipeline.md).
+
 Measured (H5, issue 13, 2026-11-23) on the project's 2-core machine shared with other jobs, load average
 1.3-1.6 during the runs (under load 5-10 the wall times stretched 2-5x and compare nothing; the CPU columns
 held), 3 alternating runs per tree, the same source tree but for the command's two files

@@ -78,7 +78,7 @@ MODELS = ("cpa", "refined")
 REFINE_BATCH = 500
 #: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined._PointBatch`): its
 #: working arrays are ``(3, batch, points)``; at 32 draws x 300 points they stay a few hundred kB, which the cache
-#: and the allocator reuse (benchmarks/bench_extended.py: 1.5x faster per draw than batches of 100).
+#: and the allocator reuse (faster per draw than batches of 100: the record in benchmarks/bench_extended.py).
 EXTENDED_REFINE_BATCH = 32
 
 #: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.

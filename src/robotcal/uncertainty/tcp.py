@@ -26,9 +26,8 @@ coverage intervals and the min/max (a full sort took twice as long); the chain i
 in-place complex product ``(column_0 + i column_1) exp(-i q)`` and ``B_i`` one ``(3 P, 4) @ (4, 4)``
 product (2 to 2.5x cheaper than turning separate column slabs); the first joint is applied
 analytically (``Rz(q_1)`` turns X, Y per chunk and adds ``q_1`` to A); each angle is the nominal's plus
-the angle of its vector turned by the nominal, ``arctan(y'/x')`` of a small ratio, from a five-term
-series (exact to 1e-18 relative, checked per block, else ``arctan``/``arctan2``: libm's ``arctan``
-costs ~19 ns a value here). Chunks hold as many poses as ``max_bytes`` allows (the per-draw products
+the angle of its vector turned by the nominal, ``arctan2(y', x')``, so that no quadrant fix or wrap is
+needed (:func:`_angle_from`). Chunks hold as many poses as ``max_bytes`` allows (the per-draw products
 cost less per pose the more poses they carry); the threads share each chunk, its batches of draws
 first, then its poses for the statistics (numpy releases the GIL), with one reused pair of buffers.
 The results equal the plain composition (4x4 frames, :func:`~robotcal.uncertainty.statistics.summarize_draws`)
