@@ -230,11 +230,14 @@ def _snapshot(root: Path) -> dict[str, bytes | None]:
 
 
 @pytest.mark.parametrize("case", CASES, ids=[case.__name__ for case in CASES])
-def test_bad_input_is_refused_cleanly_and_touches_nothing(case, tmp_path, monkeypatch):
+def test_bad_input_is_refused_cleanly_and_touches_nothing(case, tmp_path, tmp_path_factory, monkeypatch):
     home = tmp_path / "home"
     work = home / "work"
     work.mkdir(parents=True)
     monkeypatch.setenv("HOME", str(home))
+    # matplotlib's font cache is matplotlib's, not robotcal's: where this test is the first to import matplotlib,
+    # it would land in the test's HOME (~/.cache/matplotlib) and in the snapshot
+    monkeypatch.setenv("MPLCONFIGDIR", str(tmp_path_factory.mktemp("matplotlib")))
     monkeypatch.chdir(work)
     # a fixed memory budget, so that the limits do not depend on the machine running the tests
     monkeypatch.setattr(common, "available_memory", lambda: 8 * 2**30)

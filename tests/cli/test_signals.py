@@ -50,7 +50,7 @@ def _start(tmp_path: Path, *args, terminal: int | None = None, stderr_on_termina
     """``robotcal ARGS`` in its own session; with ``terminal`` (a pseudo-terminal's follower end), that terminal is
     its controlling terminal, stdin and stdout (and stderr if asked), as in a terminal window or an ssh session."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "120"}
-    streams = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "start_new_session": True}
+    streams = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "preexec_fn": _foreground_job}
     if terminal is not None:
         streams = {
             "stdin": terminal,
@@ -66,12 +66,21 @@ def _start(tmp_path: Path, *args, terminal: int | None = None, stderr_on_termina
     )
 
 
+def _foreground_job() -> None:
+    """In the child: a new session (its own process group, so a group signal is a terminal's Ctrl-C) with Ctrl-C
+    at its default, as in a terminal's foreground job. The tests may run with SIGINT ignored (a shell without job
+    control ignores it in its background jobs, ``cmd &``), and robotcal, like any program, keeps an inherited
+    SIG_IGN (``nohup``): its Ctrl-C tests would then see a run that never stops."""
+    os.setsid()
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _own_terminal() -> None:
-    """In the child: a new session whose controlling terminal is stdin's (closing its other end hangs it up)."""
+    """:func:`_foreground_job` whose controlling terminal is stdin's (closing its other end hangs it up)."""
     import fcntl
     import termios
 
-    os.setsid()
+    _foreground_job()
     fcntl.ioctl(0, termios.TIOCSCTTY, 0)
 
 
