@@ -83,6 +83,11 @@ the joint model by 5-fold cross-validation and deploys the compliance model; 5,0
 ``montecarlo.refined_iterations``): 17.80-18.73 s, median 18.1 s, 6 runs; stages refine ~3 s (the geometric,
 compliance and harmonic fits with their cross-validation), uncertainty ~8.8 s (CPA 100,000 draws ~1.4 s; the
 5,000 extended draws ~7 s, on one core, since they make one block of the 10^4-draw reproducibility unit), tcp ~3 s.
+Then the refined draws in blocks of 10^3 (``REFINED_BLOCK_SIZE``: five blocks for the two workers), this script, 4
+runs, load average 1.1-2.0: 18.2-18.9 s, CPU 29.4-31.8 s; stages refine 3.1-4.3, uncertainty 7.0-8.8, tcp 3.6-3.9,
+report 0.5-2.0 s. No faster: the demo needs ~30 s of CPU and the second core was already drawing figures while the
+draws ran on one, so on 2 cores the blocks only move time between stages (the refined Monte Carlo alone, 5,000
+geometric draws on 2 workers: 0.57-0.75 s instead of 0.80-1.06 s).
 """
 
 from __future__ import annotations

@@ -7,8 +7,9 @@ Draws are vectorised: a batch of ``batch_size`` noisy captures goes through one
 estimate by the batched least-squares refinement of :mod:`robotcal.uncertainty.refined` (the
 deployed model); draws that do not converge are counted and left out of the statistics.
 
-Reproducibility: draws are organised in fixed blocks of ``block_size`` (10^4 by default, the block
-of JCGM 101 §7.9). Block ``b`` draws from its own generators, seeded by
+Reproducibility: draws are organised in fixed blocks of ``block_size`` (by default 10^4, the block
+of JCGM 101 §7.9, and 10^3 for a fixed number of refined draws, each of which costs tens of CPA draws, so
+that a few thousand of them still spread over the workers). Block ``b`` draws from its own generators, seeded by
 ``SeedSequence(seed, spawn_key=(b,))``, instrument noise and joint-error noise from separate
 children; a block is consumed in draw order whatever the batch size, and blocks are independent of
 which worker computes them. The same seed therefore gives the same draws for any ``batch_size``, any
@@ -83,6 +84,10 @@ EXTENDED_REFINE_BATCH = 32
 
 #: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.
 DEFAULT_BLOCK_SIZE = 10_000
+#: Draws per block of the refined model with a fixed number of draws (the adaptive procedure keeps
+#: :data:`DEFAULT_BLOCK_SIZE`): a refined draw costs 20 to 60 CPA draws, and a block is the unit a worker
+#: takes, so the 5,000 draws of the demo make 5 blocks for the workers rather than one.
+REFINED_BLOCK_SIZE = 1_000
 
 ProgressCallback = Callable[[int, int | None], None]
 
@@ -310,8 +315,10 @@ class MonteCarloSettings:
         Upper limit of the adaptive mode.
     batch_size : int
         Draws identified per vectorised call; bounds the working memory (~50 kB per draw).
-    block_size : int
-        Draws per seeded block (the reproducibility unit; also the adaptive block size).
+    block_size : int or None
+        Draws per seeded block (the reproducibility unit and the work a worker takes; also the adaptive block
+        size). None: :data:`REFINED_BLOCK_SIZE` for the refined model's fixed number of draws, else
+        :data:`DEFAULT_BLOCK_SIZE`; the result's ``settings`` hold the size used.
     workers : int
         Processes that compute blocks in parallel (1: in this process).
     scheduler : str or None
@@ -328,7 +335,7 @@ class MonteCarloSettings:
     ndig: int = 2
     max_draws: int = 2_000_000
     batch_size: int = 2_000
-    block_size: int = DEFAULT_BLOCK_SIZE
+    block_size: int | None = None
     workers: int = 1
     scheduler: str | None = None
     keep_draws: bool = True
@@ -336,6 +343,8 @@ class MonteCarloSettings:
     def __post_init__(self):
         for name in ("iterations", "ndig", "max_draws", "batch_size", "block_size", "workers"):
             value = getattr(self, name)
+            if name == "block_size" and value is None:
+                continue
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
                 raise InputError(f"`{name}` must be a positive integer; got {value!r}")
         object.__setattr__(self, "coverage", check_coverage(self.coverage))
@@ -347,8 +356,9 @@ class MonteCarloSettings:
                 f"`iterations` = {self.iterations} is too few for a {self.coverage:g} coverage interval: "
                 f"at least {smallest} (JCGM 101 §7.2 recommends 10^4 or more)"
             )
-        if self.adaptive and self.max_draws < 2 * self.block_size:
-            raise InputError(f"adaptive mode needs `max_draws` >= 2 blocks of {self.block_size}; got {self.max_draws}")
+        block = self.block_size or DEFAULT_BLOCK_SIZE
+        if self.adaptive and self.max_draws < 2 * block:
+            raise InputError(f"adaptive mode needs `max_draws` >= 2 blocks of {block}; got {self.max_draws}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -789,6 +799,11 @@ def run_monte_carlo(
     """
     with single_blas_thread():
         settings = MonteCarloSettings() if settings is None else settings
+        if settings.block_size is None:
+            fixed_refined = problem.model == "refined" and not settings.adaptive
+            settings = dataclasses.replace(
+                settings, block_size=REFINED_BLOCK_SIZE if fixed_refined else DEFAULT_BLOCK_SIZE
+            )
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
             raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
         seed = int(seed)

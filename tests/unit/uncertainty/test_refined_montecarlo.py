@@ -17,7 +17,15 @@ from robotcal.identification.refine import refine_parameters
 from robotcal.io import load_scenario
 from robotcal.io.uncertainty_files import read_uncertainty_csv, write_uncertainty_csv, write_uncertainty_json
 from robotcal.kinematics.model import ParameterSet
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, draw_block, run_monte_carlo
+from robotcal.uncertainty.montecarlo import (
+    DEFAULT_BLOCK_SIZE,
+    REFINED_BLOCK_SIZE,
+    MonteCarloSettings,
+    _block_generators,
+    _noise,
+    draw_block,
+    run_monte_carlo,
+)
 from robotcal.uncertainty.refined import refine_batch
 
 
@@ -176,3 +184,23 @@ def test_adaptive_mode_runs_the_refined_model_in_seeded_blocks(laser):
         problem, MonteCarloSettings(iterations=result.n_draws, block_size=100), seed=4, linearised=False
     )
     np.testing.assert_array_equal(result.draws, fixed.draws)
+
+
+def test_refined_draws_come_in_blocks_of_a_thousand_that_any_number_of_workers_shares(laser):
+    """A refined draw costs tens of CPA draws: by default a fixed number of them is cut into blocks of
+    REFINED_BLOCK_SIZE (so that the demo's 5,000 draws keep every worker busy), the CPA model's and the adaptive
+    procedure's into JCGM 101's 10^4; the size used is recorded, and the draws do not depend on the workers."""
+    scenario, problem = laser
+    one = run_monte_carlo(problem, MonteCarloSettings(iterations=1_500, workers=1), seed=6, linearised=False)
+    assert one.settings.block_size == REFINED_BLOCK_SIZE == 1_000
+    two = run_monte_carlo(problem, MonteCarloSettings(iterations=1_500, workers=2), seed=6, linearised=False)
+    np.testing.assert_array_equal(two.draws, one.draws)
+    # blocks 0 and 1 of 1,000 and 500 draws: the second block's draws are its own seeded stream
+    assert one.n_failed == 0
+    np.testing.assert_array_equal(
+        one.draws[1_000:1_007].reshape(7, -1), draw_block(problem, seed=6, block=1, n_draws=7, batch_size=7)
+    )
+    cpa = run_monte_carlo(monte_carlo_problem(scenario), MonteCarloSettings(iterations=100), seed=6, linearised=False)
+    assert cpa.settings.block_size == DEFAULT_BLOCK_SIZE == 10_000
+    adaptive = MonteCarloSettings(adaptive=True)
+    assert adaptive.block_size is None and adaptive.max_draws >= 2 * DEFAULT_BLOCK_SIZE
