@@ -159,6 +159,9 @@ def test_run_interrupted_is_recorded(tmp_path):
     returncode, elapsed, err, orphans = _interrupt(process, signal.SIGINT, group=True)  # Ctrl-C
     assert returncode == 130, err
     assert elapsed < EXIT_WITHIN_S and orphans == set()
+    # the figure pool is drawing the joints' figures meanwhile: its workers leave the signal to the run (issue 24:
+    # the former figure worker printed "SystemExit: 143" or "ValueError: Invalid bounding box" in 2 of 5 trials)
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted"), err
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "interrupted" and record["failed_stage"] == "refine"
     assert record["stages"]["refine"]["status"] == "interrupted"

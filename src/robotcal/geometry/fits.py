@@ -264,15 +264,6 @@ def _solve3_components(a, b, c, d, e, f, r0, r1, r2) -> tuple[np.ndarray, np.nda
     return x0, x1, x2
 
 
-def _solve3(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve batched symmetric 3x3 systems ``matrix (..., 3, 3) x = rhs (..., 3)`` by Cramer's rule."""
-    solution = _solve3_components(
-        matrix[..., 0, 0], matrix[..., 0, 1], matrix[..., 0, 2], matrix[..., 1, 1], matrix[..., 1, 2],
-        matrix[..., 2, 2], rhs[..., 0], rhs[..., 1], rhs[..., 2],
-    )  # fmt: skip
-    return np.stack(solution, axis=-1)
-
-
 def _fit_circle_2d_algebraic(
     u: np.ndarray, v: np.ndarray, scatter: tuple | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
