@@ -485,6 +485,7 @@ def measured_monte_carlo(
                 "the adaptive mode is not available for the Monte Carlo of a measured capture (each draw is a full "
                 "refinement); give a fixed number of draws"
             )
+        settings = replace(settings, block_size=DRAWS_PER_BLOCK)  # the blocks used, as the result records them
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
             raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
         seed = int(seed)

@@ -31,7 +31,7 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
-from robotcal.uncertainty.measured import draw_noise, prepare_measured
+from robotcal.uncertainty.measured import DRAWS_PER_BLOCK, draw_noise, prepare_measured
 from robotcal.uncertainty.measured import measured_monte_carlo as core_measured_monte_carlo
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
@@ -270,6 +270,7 @@ def test_failed_draws_are_counted_and_left_out(cell, monkeypatch):
     assert mc.n_failed == 5 and mc.n_draws == 20 and mc.draws.shape[0] == 20 and not mc.success
     assert np.all(np.isfinite(mc.draws)) and "5 of 25 draws failed" in mc.message
     assert result.target_draws.shape == (20, 3, 3)
+    assert mc.settings.block_size == DRAWS_PER_BLOCK  # the blocks used are what parameters.json records
 
 
 def test_adaptive_mode_and_a_foreign_estimate_are_refused(cell):
