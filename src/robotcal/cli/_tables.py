@@ -169,7 +169,7 @@ class FittedTable:
             table.add_row(*(row[index] for index in shown))
         return table
 
-    def _records(self) -> list:
+    def record_lines(self) -> list:
         """Every row as ``header: value`` lines, the first cell as a heading (nothing fits side by side)."""
         from rich.padding import Padding
         from rich.text import Text
@@ -191,7 +191,7 @@ class FittedTable:
         width = options.max_width
         shown, widths = self.layout(width)
         if not shown:
-            yield from self._records()
+            yield from self.record_lines()
             return
         yield self._table(shown, widths)
         hidden = [i for i in range(len(self.columns)) if i not in shown]

@@ -218,7 +218,8 @@ def plan_run(
             settings, iterations=min(iterations, default_refined) if refined_draws is None else refined_draws
         )
     except InputError as exc:
-        raise InputError(f"--refined-draws: {exc}") from None
+        where = "--refined-draws" if refined_draws is not None else f"{loaded.source}: montecarlo.refined_iterations"
+        raise InputError(f"{where}: {exc}") from None
     _check_tcp(loaded, targets, settings)
     _check_memory(loaded, targets, settings, validation)  # the refined Monte Carlo has at most as many draws
     return RunPlan(

@@ -45,6 +45,11 @@ def test_refined_draws_come_from_the_option_then_the_scenario_then_the_default(t
     assert plan_run(without).refined_montecarlo.iterations == REFINED_DRAWS
     assert plan_run("kr5-demo", refined_draws=700).refined_montecarlo.iterations == 700
     assert plan_run("kr5-demo", draws=3000).refined_montecarlo.iterations == 3000  # capped by the draws
+    # too few for a 95 % interval: the error names the scenario's key, not an option the user did not give
+    few = tmp_path / "demo-few.toml"
+    few.write_text(text.replace("\nrefined_iterations = 5000\n", "\nrefined_iterations = 5\n"), encoding="utf-8")
+    with pytest.raises(InputError, match=r"demo-few\.toml: montecarlo\.refined_iterations: `iterations` = 5 is too few"):
+        plan_run(few)
 
 
 @pytest.mark.parametrize(
