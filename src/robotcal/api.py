@@ -57,7 +57,7 @@ from robotcal.simulation.poses import simulate_poses as simulate_poses_core
 from robotcal.uncertainty.tcp import check_readings
 
 if TYPE_CHECKING:  # the Monte Carlo, TCP and planning modules load when a function needs them
-    from robotcal.kinematics.compensation import Compensation
+    from robotcal.kinematics.compensation import Compensation, CompensationSettings
     from robotcal.planning.cell import CellModel, PlanCheck
     from robotcal.uncertainty.montecarlo import MonteCarloResult
     from robotcal.uncertainty.tcp import TCPUncertainty
@@ -819,8 +819,14 @@ def compensate(
     cartesian=None,
     start_deg=None,
     tool_mm=None,
+    settings: CompensationSettings | None = None,
 ) -> Compensation:
-    """Joint commands with which the calibrated robot reaches the poses it was taught (issue 22, thesis ch. 6.2).
+    """Joint commands with which the calibrated robot reaches the poses it was taught (issues 22, 28; thesis ch. 6.2).
+
+    Every row gets a command and a status (:mod:`robotcal.kinematics.compensation`): ``ok`` (exact to 1e-6 mm and
+    1e-6 deg, on the taught branch, no joint moved more than 2 deg), ``near_singular`` / ``large_correction`` (a
+    damped command, flagged), ``outside_limits`` / ``unreachable`` (no command: NaN). One hard pose never fails the
+    others.
 
     Parameters
     ----------
@@ -830,25 +836,21 @@ def compensate(
         For a parameter JSON path.
     poses_deg : array_like, shape (n_poses, n_joints), optional
         Joint targets taught on the nominal model [deg]: the target is the nominal model's tool frame there, and
-        the iteration starts from them.
+        their branch is kept.
     cartesian : array_like, shape (n_poses, 6), optional
         Or Cartesian targets ``x, y, z`` [mm], ``A, B, C`` [deg, KUKA ``Rz(A) Ry(B) Rx(C)``] in the robot base
-        frame; the iteration starts from ``start_deg``.
+        frame; the nominal controller's solution nearest ``start_deg`` (its branch) is what the command replaces.
     start_deg : array_like, shape (n_joints,) or (n_poses, n_joints), optional
         Cartesian targets: readings near the wanted solution branch [deg] (default: the middle of the joint limits).
     tool_mm : array_like, shape (3,), optional
         The tool point in the flange frame [mm] (default: the flange).
+    settings : CompensationSettings, optional
+        What an ``ok`` command must meet (default: 2 deg, 1e-6 mm, 1e-6 deg).
 
     Returns
     -------
     Compensation
-        ``readings`` [rad] to command, and the remaining error of every pose.
-
-    Raises
-    ------
-    InputError
-        A pose the calibrated model cannot reach within 1 um and 1e-4 deg, or only outside the joint limits
-        (the error names the rows).
+        ``readings`` [rad] to command, ``status`` and the remaining error of every pose.
 
     Examples
     --------
@@ -857,12 +859,13 @@ def compensate(
     >>> calibrated = robotcal.perturb(robot, rng=3)
     >>> taught = [[10.0, 40.0, 30.0, 5.0, 45.0, 0.0]]
     >>> result = robotcal.compensate(calibrated, poses_deg=taught)
-    >>> bool(result.reached.all()), bool(np.abs(np.rad2deg(result.readings) - taught).max() > 1e-3)
-    (True, True)
+    >>> result.status.tolist(), bool(np.abs(np.rad2deg(result.readings) - taught).max() > 1e-3)
+    (['ok'], True)
     """
     from robotcal.geometry.euler import matrix_from_kuka_abc
-    from robotcal.kinematics.compensation import solve_commands
+    from robotcal.kinematics.compensation import compensate_commands
     from robotcal.kinematics.forward import forward_kinematics
+    from robotcal.kinematics.inverse import nominal_solutions
 
     if robot is None:
         held = getattr(parameters, "parameters", parameters)
@@ -880,7 +883,6 @@ def compensate(
     if poses_deg is not None:
         taught = check_joint_variables(np.deg2rad(np.asarray(poses_deg, dtype=float)), robot.n_joints, "poses_deg")
         targets = forward_kinematics(robot.nominal, robot.model_joint_variables(taught)) @ tool
-        start = taught
     else:
         values = np.atleast_2d(np.asarray(cartesian, dtype=float))
         if values.ndim != 2 or values.shape[1] != 6 or not np.all(np.isfinite(values)):
@@ -890,25 +892,11 @@ def compensate(
         targets[:, :3, 3] = values[:, :3]
         middle = np.where(np.isfinite(robot.limits), robot.limits, 0.0).mean(axis=1)
         seed = middle if start_deg is None else np.deg2rad(np.asarray(start_deg, dtype=float))
-        start = np.broadcast_to(seed, (values.shape[0], robot.n_joints)).copy()
-    result = solve_commands(parameters, targets, start, tool=tool)
-    missed = np.flatnonzero(~result.reached)
-    if missed.size:
-        worst = missed[np.argmax(result.position_error_mm[missed])]
-        raise InputError(
-            f"the calibrated model cannot reach {missed.size} target(s) within 1 um and 1e-4 deg (pose(s) "
-            f"{', '.join(str(k + 1) for k in missed[:10])}{'...' if missed.size > 10 else ''}; pose {worst + 1} ends "
-            f"{result.position_error_mm[worst]:.3g} mm and {result.orientation_error_deg[worst]:.3g} deg away): out of "
-            "reach, at a singularity, or too far from the start for Newton's method"
-        )
-    low, high = robot.limits[:, 0], robot.limits[:, 1]
-    outside = np.flatnonzero(np.any((result.readings < low) | (result.readings > high), axis=1))
-    if outside.size:
-        raise InputError(
-            f"the compensated commands of pose(s) {', '.join(str(k + 1) for k in outside[:10])}"
-            f"{'...' if outside.size > 10 else ''} are outside the joint limits of {robot.name!r}"
-        )
-    return result
+        seed = np.broadcast_to(seed, (values.shape[0], robot.n_joints))
+        solutions, exists = nominal_solutions(robot, targets @ np.linalg.inv(tool), reference=seed)
+        distance = np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6)
+        taught = solutions[np.arange(len(seed)), np.argmin(distance, axis=1)]
+    return compensate_commands(parameters, targets, taught, tool=tool, settings=settings)
 
 
 def evaluate(

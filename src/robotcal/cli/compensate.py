@@ -1,5 +1,5 @@
-"""``robotcal compensate PARAMS --poses CSV --out CSV [--tool x,y,z] [--start-deg q1,..,qN]``: the joint commands
-with which the calibrated robot reaches what was taught (issue 22; :func:`robotcal.compensate`)."""
+"""``robotcal compensate PARAMS --poses CSV --out CSV [--tool x,y,z] [--start-deg q1,..,qN] [--max-change-deg D]``:
+the joint commands with which the calibrated robot reaches what was taught (issues 22, 28; :func:`robotcal.compensate`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,18 @@ import typer
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
-from robotcal.io.trajectory_csv import read_pose_targets, write_trajectory
+from robotcal.io.trajectory_csv import pose_labels, read_pose_targets, write_trajectory
+from robotcal.kinematics.compensation import STATUSES, CompensationSettings
+
+#: Exit status of a command that wrote its output but some of its rows or points are not ok (their status says why).
+PARTIAL_EXIT = 3
+#: What each status other than ok means, for the console.
+STATUS_MEANING = {
+    "near_singular": "at a singularity: a damped command that leaves the error in the file",
+    "large_correction": "a correction larger than the calibration explains: a damped command, check it",
+    "outside_limits": "reachable only beyond a joint limit: no command",
+    "unreachable": "out of the calibrated robot's reach on the taught branch: no command",
+}
 
 app = command_app()
 
@@ -29,7 +40,15 @@ def compensate(
             "pose,x,y,z,A,B,C [mm, deg KUKA] in the robot base frame (predict's format), optionally with q1..qN seeds.",
         ),
     ],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Pose CSV to write: pose,q1..qN, the commands [deg].")],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Pose CSV to write: pose,q1..qN [deg],status,position_error_mm,orientation_error_deg,"
+            "largest_change_deg; every input row under its own name.",
+        ),
+    ],
     tool: Annotated[
         str | None, typer.Option("--tool", help='Tool point "x,y,z" in the flange frame [mm] (default: the flange).')
     ] = None,
@@ -41,12 +60,23 @@ def compensate(
             "middle of the joint limits).",
         ),
     ] = None,
+    max_change_deg: Annotated[
+        float,
+        typer.Option(
+            "--max-change-deg",
+            min=0.001,
+            help="Largest joint change from the taught reading in an ok row [deg]; more means a singularity or "
+            "another branch.",
+        ),
+    ] = 2.0,
     robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
     scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Joint commands with which the calibrated robot reaches the poses taught on the nominal model (or Cartesian
-    targets): Newton/LM on the calibrated model, its joint model (gravity sag, harmonic errors) included."""
+    targets): on the taught branch, near the taught joints, its joint model (gravity sag, harmonic errors) included.
+    Every row is written under its own name with a status (ok, near_singular, large_correction, outside_limits,
+    unreachable); rows without a command have empty q cells. Exit status 3 when some row is not ok."""
     from robotcal import api
 
     parameters, inputs = load_parameter_set(params, robot, scenario)
@@ -54,31 +84,59 @@ def compensate(
     inputs += existing_inputs(poses)
     check_output_file(out, inputs=inputs, force=force)
     cartesian, readings = read_pose_targets(poses, n_joints=n)
+    labels = pose_labels(poses)
     tool_mm = None if tool is None else parse_vector(tool, "--tool")
     start = None if start_deg is None else parse_vector(start_deg, "--start-deg", n)
+    settings = CompensationSettings(max_change_deg=max_change_deg)
     if cartesian is None:
-        result = api.compensate(parameters, poses_deg=np.rad2deg(readings), tool_mm=tool_mm)
+        result = api.compensate(parameters, poses_deg=np.rad2deg(readings), tool_mm=tool_mm, settings=settings)
         kind = "joint targets taught on the nominal model"
     else:
         seeds = np.rad2deg(readings) if readings is not None else start
         result = api.compensate(
-            parameters, cartesian=np.c_[cartesian[:, :3], np.rad2deg(cartesian[:, 3:])], start_deg=seeds, tool_mm=tool_mm
-        )
+            parameters, cartesian=np.c_[cartesian[:, :3], np.rad2deg(cartesian[:, 3:])], start_deg=seeds,
+            tool_mm=tool_mm, settings=settings,
+        )  # fmt: skip
         kind = "Cartesian targets in the robot base frame"
-    geometric_only = parameters.joint_model is None
+    counts = {status: int(np.sum(result.status == status)) for status in STATUSES if np.any(result.status == status)}
     comment = (
         f"{SIGNATURE} compensate: commands with which the calibrated model {params.name} reaches the {kind} of "
         f"{poses.name}\n"
-        f"largest remaining error {result.position_error_mm.max():.2g} mm, {result.orientation_error_deg.max():.2g} deg"
-        + ("" if geometric_only else "; the joint model (gravity compliance, harmonic errors) is applied")
+        f"rows: {', '.join(f'{count} {status}' for status, count in counts.items())}; only 'ok' rows are exact "
+        f"(<= 1e-6 mm, 1e-6 deg, same branch, no joint moved more than {max_change_deg:g} deg); rows without a "
+        "command have empty q cells"
+        + ("" if parameters.joint_model is None else "\nthe joint model (gravity compliance, harmonic errors) is applied")
     )
+    columns = {
+        "status": result.status,
+        "position_error_mm": result.position_error_mm,
+        "orientation_error_deg": result.orientation_error_deg,
+        "largest_change_deg": result.largest_change_deg,
+    }
     with result_file(out, inputs=inputs, force=force):
-        write_trajectory(out, result.readings, comment=comment)
-    change = np.abs(np.rad2deg(result.readings) - (np.rad2deg(readings) if cartesian is None else 0.0))
-    moved = f"; largest change from the taught commands {change.max():.4f} deg" if cartesian is None else ""
-    console.print(
-        f"wrote {out} ({result.readings.shape[0]} poses, {kind}; Newton/LM in {result.iterations} steps, largest "
-        f"remaining error {result.position_error_mm.max():.2g} mm{moved})",
-        highlight=False,
-        soft_wrap=True,
+        write_trajectory(out, result.readings, comment=comment, labels=labels, columns=columns)
+    ok = result.status == "ok"
+    worst = (
+        f"; ok rows: largest remaining error {np.max(result.position_error_mm[ok]):.2g} mm, "
+        f"{np.max(result.orientation_error_deg[ok]):.2g} deg, largest joint change {np.max(result.largest_change_deg[ok]):.4f} deg"
+        if ok.any()
+        else ""
     )
+    console.print(
+        f"wrote {out} ({len(labels)} pose{'s' if len(labels) != 1 else ''}, {kind}: "
+        f"{', '.join(f'{count} {status}' for status, count in counts.items())}{worst})",
+        highlight=False, soft_wrap=True, markup=False,
+    )  # fmt: skip
+    bad = np.flatnonzero(~ok)
+    if bad.size:
+        for status in STATUSES[1:]:
+            rows = [labels[k] for k in bad if result.status[k] == status]
+            if rows:
+                shown = ", ".join(rows[:10]) + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")
+                console.print(f"  {status}: {shown} ({STATUS_MEANING[status]})", highlight=False, soft_wrap=True, markup=False)
+        console.print(
+            f"{bad.size} row{'s are' if bad.size != 1 else ' is'} not ok: check the status column before running the "
+            "file (exit status 3)",
+            highlight=False, soft_wrap=True, markup=False,
+        )  # fmt: skip
+        raise typer.Exit(code=PARTIAL_EXIT)

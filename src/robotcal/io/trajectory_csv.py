@@ -7,8 +7,10 @@ Format::
     1,-45.0,-80.0,100.0,0.0,70.0,-90.0
     ...
 
-The header must name ``q1`` .. ``qN`` (N = the robot's joint count); other columns (``pose``, a
-name, a time stamp) are allowed and ignored. Readings are controller readings, mapped to model
+The header must name ``q1`` .. ``qN`` (N = the robot's joint count); other columns (a name, a time
+stamp) are allowed and ignored. A ``pose`` column names the rows: messages and the files robotcal
+writes from them (``compensate``, ``predict``) use those names, never row counts; without it the rows
+are named 1, 2, 3... Readings are controller readings, mapped to model
 joint variables by the robot file's ``reading_sign`` and ``reading_offset``. A reading beyond
 :data:`MAX_READING_DEG` is refused as no joint's reading (a unit or export error). Built-in
 trajectories live in ``robotcal/data/trajectories/<name>.csv``.
@@ -30,6 +32,7 @@ from robotcal.io.builtins import data_path
 __all__ = [
     "MAX_READING_DEG",
     "CARTESIAN_COLUMNS",
+    "pose_labels",
     "read_pose_targets",
     "read_trajectory",
     "write_trajectory",
@@ -49,24 +52,59 @@ def builtin_trajectories() -> list[str]:
     return sorted(p.stem for p in data_path("trajectories").glob("*.csv"))
 
 
-def trajectory_to_csv(readings_rad, *, comment: str = "") -> str:
-    """CSV text ``pose,q1..qN`` (readings in degrees, 9 decimals) of readings ``(n_poses, n_joints)`` [rad]."""
+def trajectory_to_csv(readings_rad, *, comment: str = "", labels=None, columns=None) -> str:
+    """CSV text ``pose,q1..qN`` (readings in degrees, 9 decimals) of readings ``(n_poses, n_joints)`` [rad].
+
+    ``labels``: the ``pose`` cells (default 1, 2, 3...). ``columns``: more columns after ``qN``, a mapping of name
+    to one value per row (floats written with 9 significant digits, NaN and None as empty cells, text as it is). A
+    NaN reading is written as an empty cell: a row without a command.
+    """
     readings = np.asarray(readings_rad, dtype=float)
     if readings.ndim != 2:
         raise InputError(f"`readings` must have shape (n_poses, n_joints); got {readings.shape}")
+    labels = [str(k) for k in range(1, len(readings) + 1)] if labels is None else [str(label) for label in labels]
+    columns = dict(columns or {})
+    if len(labels) != len(readings) or any(len(values) != len(readings) for values in columns.values()):
+        raise InputError(f"pose CSV: {len(readings)} rows but {len(labels)} labels or a column of another length")
     stream = io.StringIO()
     for line in comment.splitlines():
         stream.write(f"# {line}\n" if line else "#\n")
     writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow(["pose", *[f"q{i + 1}" for i in range(readings.shape[1])]])
-    for k, row in enumerate(np.rad2deg(readings), start=1):
-        writer.writerow([k, *[f"{value:.9f}" for value in row]])
+    writer.writerow(["pose", *[f"q{i + 1}" for i in range(readings.shape[1])], *columns])
+    for k, row in enumerate(np.rad2deg(readings)):
+        extra = [_cell(values[k]) for values in columns.values()]
+        writer.writerow([labels[k], *["" if np.isnan(value) else f"{value:.9f}" for value in row], *extra])
     return stream.getvalue()
 
 
-def write_trajectory(path, readings_rad, *, comment: str = "") -> Path:
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, str | np.str_):
+        return str(value)
+    value = float(value)
+    return "" if np.isnan(value) else f"{value:.9g}"
+
+
+def write_trajectory(path, readings_rad, *, comment: str = "", labels=None, columns=None) -> Path:
     """Write a pose CSV atomically (see :func:`trajectory_to_csv`)."""
-    return atomic_write_text(path, trajectory_to_csv(readings_rad, comment=comment))
+    return atomic_write_text(path, trajectory_to_csv(readings_rad, comment=comment, labels=labels, columns=columns))
+
+
+def _label(header: list[str], row: list[str], k: int) -> str:
+    """The user's name of data row ``k`` (0-based): its ``pose`` cell, else its 1-based number."""
+    if "pose" in header and header.index("pose") < len(row):
+        cell = row[header.index("pose")].strip()
+        if cell:
+            return cell
+    return str(k + 1)
+
+
+def pose_labels(path) -> list[str]:
+    """The names of a pose CSV's rows: the ``pose`` column (an empty cell: the row's number), else 1, 2, 3..."""
+    path = Path(path)
+    _, header, rows = _rows(path, "pose CSV")
+    return [_label(header, row, k) for k, (_, row) in enumerate(rows)]
 
 
 def _rows(path: Path, kind: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
@@ -87,7 +125,8 @@ def _rows(path: Path, kind: str) -> tuple[int, list[str], list[tuple[int, list[s
     for k, (number, row) in enumerate(lines[1:]):
         if len(row) != len(header):
             raise InputError(
-                f"{path}: line {number} (pose {k + 1}) has {len(row)} fields; the header has {len(header)}"
+                f"{path}: line {number} (pose {_label(header, row, k)}) has {len(row)} fields; the header has "
+                f"{len(header)}"
             )
     if len(lines) == 1:
         raise InputError(f"{path}: no poses after the header")
@@ -117,7 +156,7 @@ def _readings(path: Path, header_line: int, header: list[str], rows, n_joints: i
     readings = np.empty((len(rows), count))
     for k, (number, row) in enumerate(rows):
         for column, position in enumerate(index):
-            where = f"{path}: line {number} (pose {k + 1}), column `{expected[column]}`"
+            where = f"{path}: line {number} (pose {_label(header, row, k)}), column `{expected[column]}`"
             readings[k, column] = parse_finite(row[position], where)
             if abs(readings[k, column]) > MAX_READING_DEG:
                 raise InputError(
@@ -165,7 +204,7 @@ def read_pose_targets(path, *, n_joints: int) -> tuple[np.ndarray | None, np.nda
     cartesian = np.empty((len(rows), 6))
     for k, (number, row) in enumerate(rows):
         for column, name in enumerate(CARTESIAN_COLUMNS):
-            where = f"{path}: line {number} (pose {k + 1}), column `{name if column < 3 else name.upper()}`"
+            where = f"{path}: line {number} (pose {_label(header, row, k)}), column `{name if column < 3 else name.upper()}`"
             cartesian[k, column] = parse_finite(row[header.index(name)], where)
     cartesian[:, 3:] = np.deg2rad(cartesian[:, 3:])
     seeds = _readings(path, header_line, header, rows, n_joints) if has_joints else None

@@ -18,13 +18,24 @@ A planar two-link arm (links of 300 and 200 mm): at q = (90, -90) deg the flange
 [200.0, 300.0, 0.0]
 """
 
-from robotcal.kinematics.compensation import Compensation, rotation_vector, solve_commands, tool_frames
+from robotcal.kinematics.compensation import STATUSES, Compensation, CompensationSettings, compensate_commands
 from robotcal.kinematics.forward import (
     check_joint_variables,
     forward_kinematics,
     joint_frames,
     link_transforms,
     target_positions,
+)
+from robotcal.kinematics.inverse import (
+    BRANCH_NAMES,
+    InverseSolutions,
+    arm_family,
+    branch_of,
+    inverse_kinematics,
+    nominal_solutions,
+    rotation_vector,
+    solve_pose,
+    tool_frames,
 )
 from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.joint_model import (
@@ -53,9 +64,18 @@ from robotcal.kinematics.model import (
 )
 
 __all__ = [
+    "STATUSES",
     "Compensation",
+    "CompensationSettings",
+    "compensate_commands",
+    "BRANCH_NAMES",
+    "InverseSolutions",
+    "arm_family",
+    "branch_of",
+    "inverse_kinematics",
+    "nominal_solutions",
     "rotation_vector",
-    "solve_commands",
+    "solve_pose",
     "tool_frames",
     "link_transforms",
     "joint_frames",

@@ -1,4 +1,4 @@
-"""Compensation: the joint commands with which the calibrated robot reaches the poses it was taught (issue 22).
+"""Compensation: the joint commands with which the calibrated robot reaches the poses it was taught (issues 22, 28).
 
 A program taught on the nominal model (or written as Cartesian targets) sends joint commands that put the real
 robot somewhere else: its geometry differs from the nominal one and its joints sag under gravity and carry
@@ -6,19 +6,34 @@ periodic angle errors (:mod:`robotcal.kinematics.joint_model`). Knowing the cali
 sent other commands instead, those at which the *calibrated* model's tool frame is the intended one (thesis
 ch. 6.2, the compensation of joint errors left as future work).
 
-For every target frame ``T*`` the commands ``r`` (controller readings) solve ``F(q(r) + delta(q(r))) X = T*``,
-``F`` the calibrated chain, ``delta`` its joint model, ``X`` the tool. Newton's method, all poses at once: the
-error is ``e = (p* - p, L rotvec(R* R^T))`` (position [mm]; orientation as a rotation vector [rad] times the
-robot's size L, so that both parts are in mm) and the step solves ``J dr = e`` in the least-squares sense (per
-pose, by pseudo-inverse: a square J is solved exactly, a redundant robot takes the smallest step), ``J`` the geometric
-Jacobian of the tool frame in the joint variables (columns ``(z_i x (p - o_i), z_i)``) through the reading map.
-The joint model's own dependence on q (``d delta / d q``, about ``k dtau/dq ~ 1e-3`` or a harmonic amplitude) is
-left out of J: the iteration contracts by that factor per step instead of quadratically, reaching 1e-12 mm in a
-handful of steps. Near a singularity a Newton step can raise the error: each pose then damps its own step
-(Levenberg-Marquardt, ``(J^T J + lambda diag(J^T J)) dr = J^T e``, lambda from 1e-3 up by 10 until the error
-falls, back down by 10 after each accepted step).
-"""
+A command must be one a controller can run safely (issue 28): on the taught command's inverse-kinematics branch,
+near it, and exact. :func:`compensate_commands` gives every row a status (:data:`STATUSES`):
 
+``ok``
+    The calibrated model at the command is the target to 1e-6 mm and 1e-6 deg, every reading inside the limits,
+    the same branch (:func:`robotcal.kinematics.inverse.branch_of`) as the taught readings, no joint moved more than
+    ``max_change_deg`` (2 deg), and the nominal tool moved by no more than about the calibrated model's difference
+    from the nominal one there (``explained_ratio``).
+``near_singular``
+    The exact command would swing a joint more than ``max_change_deg`` or cross a branch boundary: the pose is at a
+    singularity (J4 and J6 aligned, the wrist centre on J1's axis, the stretched elbow). The command written is the
+    damped least-squares one (Levenberg-Marquardt towards the taught readings: the J4/J6 split stays where the taught
+    command had it), with the error it leaves.
+``large_correction``
+    The same away from any singularity: the exact command moves the robot further than the calibration explains
+    (a model far from nominal, or a pose the taught branch reaches only by a large move). The damped command is
+    written, flagged.
+``outside_limits``
+    The calibrated model reaches the target only with a reading outside the limits: no command (NaN).
+``unreachable``
+    No branch reaches the target: no command (NaN).
+
+The solve: Newton's method from the taught readings (:func:`robotcal.kinematics.inverse.solve_pose`: its steps are
+the smallest joint change that removes the error, so it stays on the taught branch); the rows it does not bring to
+``ok`` are solved on every branch (:func:`robotcal.kinematics.inverse.inverse_kinematics`, closed form on the nominal
+geometry then Newton on the calibrated model), and the taught branch's solution, or a neighbouring branch's within
+``max_change_deg``, is taken.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -26,14 +41,30 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.kinematics.forward import joint_frames
+from robotcal.kinematics.inverse import (
+    as_tool_frame,
+    branch_of,
+    inverse_kinematics,
+    rotation_vector,
+    solve_pose,
+    tool_frames,
+    within_limits,
+    wrap_readings,
+)
 from robotcal.kinematics.model import ParameterSet
 
-__all__ = ["Compensation", "rotation_vector", "solve_commands", "tool_frames"]
+__all__ = [
+    "STATUSES",
+    "Compensation",
+    "CompensationSettings",
+    "compensate_commands",
+]
 
-#: What a compensated pose must meet: the issue's 1 um and 1e-4 deg.
+#: What a solved pose must meet in :func:`solve_commands` (its ``reached``): 1 um and 1e-4 deg.
 POSITION_TOLERANCE_MM = 1e-3
 ORIENTATION_TOLERANCE_DEG = 1e-4
+#: The status of a compensated row (:func:`compensate_commands`), from best to worst.
+STATUSES = ("ok", "near_singular", "large_correction", "outside_limits", "unreachable")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -43,13 +74,22 @@ class Compensation:
     Attributes
     ----------
     readings : ndarray, shape (n_poses, n_joints)
-        Controller readings to command [rad].
+        Controller readings to command [rad]; NaN in the rows whose status is ``outside_limits`` or
+        ``unreachable`` (no command is given for them).
     position_error_mm, orientation_error_deg : ndarray, shape (n_poses,)
-        Remaining distance and rotation between the calibrated tool frame at ``readings`` and the target.
+        Remaining distance and rotation between the calibrated tool frame at ``readings`` and the target (NaN where
+        no command is given).
     iterations : int
         Newton steps taken (the slowest pose's).
     reached : ndarray of bool, shape (n_poses,)
-        Within :data:`POSITION_TOLERANCE_MM` and :data:`ORIENTATION_TOLERANCE_DEG`.
+        Within the tolerances of the solve (:data:`POSITION_TOLERANCE_MM`, :data:`ORIENTATION_TOLERANCE_DEG` for
+        :func:`solve_commands`; :class:`CompensationSettings`' for :func:`compensate_commands`).
+    status : ndarray of str, shape (n_poses,), optional
+        :func:`compensate_commands`: one of :data:`STATUSES` per row.
+    largest_change_deg : ndarray, shape (n_poses,), optional
+        :func:`compensate_commands`: the largest joint change from the taught readings [deg].
+    taught : ndarray, shape (n_poses, n_joints), optional
+        :func:`compensate_commands`: the readings the commands replace [rad].
     """
 
     readings: np.ndarray
@@ -57,73 +97,117 @@ class Compensation:
     orientation_error_deg: np.ndarray
     iterations: int
     reached: np.ndarray
+    status: np.ndarray | None = None
+    largest_change_deg: np.ndarray | None = None
+    taught: np.ndarray | None = None
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Rows whose command can be run as it is (status ``ok``; ``reached`` where there is no status)."""
+        return self.reached if self.status is None else self.status == "ok"
 
     def __repr__(self) -> str:
-        """One line: how many poses, how many reached, the worst remaining error."""
+        """One line: how many poses, how many ok (or reached), the worst remaining error."""
         n_poses = len(self.reached)
+        done = self.ok
+        given = np.isfinite(self.position_error_mm)
         worst = (
-            f", worst {self.position_error_mm.max() * 1e3:.2g} um / {self.orientation_error_deg.max():.2g} deg" if n_poses else ""
+            f", worst {np.max(self.position_error_mm[given]) * 1e3:.2g} um / "
+            f"{np.max(self.orientation_error_deg[given]):.2g} deg"
+            if given.any()
+            else ""
         )
-        return f"Compensation({n_poses} poses, {int(self.reached.sum())} reached{worst}, {self.iterations} Newton steps)"
+        word = "reached" if self.status is None else "ok"
+        steps = f"{self.iterations} Newton step{'s' if self.iterations != 1 else ''}"
+        return f"Compensation({n_poses} pose{'s' if n_poses != 1 else ''}, {int(done.sum())} {word}{worst}, {steps})"
 
 
-def rotation_vector(rotation: np.ndarray) -> np.ndarray:
-    """The rotation vector (axis times angle, [rad]) of rotation matrices ``(..., 3, 3)``, angles in [0, pi]."""
-    rotation = np.asarray(rotation, dtype=float)
-    axial = 0.5 * np.stack(
-        [
-            rotation[..., 2, 1] - rotation[..., 1, 2],
-            rotation[..., 0, 2] - rotation[..., 2, 0],
-            rotation[..., 1, 0] - rotation[..., 0, 1],
-        ],
-        axis=-1,
-    )  # sin(angle) axis
-    sine = np.linalg.norm(axial, axis=-1)
-    cosine = np.clip(0.5 * (np.trace(rotation, axis1=-2, axis2=-1) - 1.0), -1.0, 1.0)
-    angle = np.arctan2(sine, cosine)
-    small = sine < 1e-12
-    factor = np.where(small, 1.0, angle / np.where(small, 1.0, sine))
-    out = axial * factor[..., None]
-    near_pi = small & (cosine < 0.0)  # 180 deg: the axis from the symmetric part
-    if np.any(near_pi):
-        symmetric = 0.5 * (rotation[near_pi] + np.eye(3))
-        axis = np.sqrt(np.clip(np.diagonal(symmetric, axis1=-2, axis2=-1), 0.0, None))
-        column = np.argmax(axis, axis=-1)
-        picked = symmetric[np.arange(column.size), :, column]
-        axis = picked / np.linalg.norm(picked, axis=-1, keepdims=True)
-        out[near_pi] = axis * np.pi
-    return out
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CompensationSettings:
+    """What :func:`compensate_commands` accepts as a command a controller can run.
+
+    Attributes
+    ----------
+    max_change_deg : float
+        Largest change of any joint from the taught reading [deg] in an ``ok`` row; a calibration moves joints by
+        hundredths of a degree, so more means a singularity or another branch.
+    position_tolerance_mm, orientation_tolerance_deg : float
+        Largest remaining error of an ``ok`` row (the calibrated model at the command against the target).
+    explained_ratio : float
+        An ``ok`` row's correction moves the nominal tool by about the calibrated model's difference from the
+        nominal one at the pose; more than this times that difference (plus 1 um) is ``large_correction``.
+    max_iterations : int
+        Newton steps per solve.
+    """
+
+    max_change_deg: float = 2.0
+    position_tolerance_mm: float = 1e-6
+    orientation_tolerance_deg: float = 1e-6
+    explained_ratio: float = 2.0
+    max_iterations: int = 100
+
+    def __post_init__(self):
+        for name in ("max_change_deg", "position_tolerance_mm", "orientation_tolerance_deg", "explained_ratio"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
+                raise InputError(f"compensation setting `{name}` must be a finite number > 0; got {value!r}")
+        if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, int) or self.max_iterations < 1:
+            raise InputError(f"compensation setting `max_iterations` must be an integer >= 1; got {self.max_iterations!r}")
 
 
-def tool_frames(parameters: ParameterSet, readings: np.ndarray, tool: np.ndarray):
-    """Tool frames ``(P, 4, 4)`` of the calibrated model (its joint model included) at ``readings`` ``(P, n)``
-    [rad], and their Jacobian ``(P, 6, n)`` in the readings: rows translation [mm/rad] then rotation [rad/rad]. The
-    Jacobian is the chain's at the deflected joints; the deflection's own derivative (the gravity torque's change
-    with q times a compliance, ~1e-4 of a joint's turn) is left out, which slows Newton's convergence by nothing
-    measurable."""
+def _damped(parameters: ParameterSet, targets, taught, tool, max_change: float, iterations: int):
+    """Damped least-squares commands near ``taught``: minimise ``|e(r)|^2 + mu^2 |r - taught|^2`` by Gauss-Newton, for
+    the smallest ``mu`` of 1e-3, 1e-2, ... times the robot's size [mm/rad] that keeps every joint within
+    ``max_change`` [rad] of ``taught``. ``e`` is the position error [mm] and the orientation error [rad] times 1 % of
+    the robot's size: at a singularity the position is met and the orientation gives way."""
     robot = parameters.robot
-    q = parameters.model_joint_variables(readings)
-    frames = joint_frames(parameters.values, q)  # (P, n + 1, 4, 4)
-    tool_frame = frames[:, -1] @ tool
-    point = tool_frame[:, :3, 3]
-    axes, origins = frames[:, :-1, :3, 2], frames[:, :-1, :3, 3]  # z_{i-1}, o_{i-1}
-    jacobian = np.concatenate([np.cross(axes, point[:, None] - origins), axes], axis=-1)  # (P, n, 6)
-    # d q / d reading: the reading map (q = M^-1 reading + offset)
-    to_model = robot.model_joint_variables(np.eye(robot.n_joints)) - robot.model_joint_variables(
-        np.zeros((1, robot.n_joints))
-    )  # row k: dq / d reading_k
-    return tool_frame, np.swapaxes(to_model @ jacobian, 1, 2)
+    size = 0.01 * max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
+    weight = np.r_[np.ones(3), np.full(3, size)][:, None]
+    best = taught.copy()
+    chosen = np.zeros(len(taught), dtype=bool)
+    for factor in (1e-3, 1e-2, 1e-1, 1.0, 10.0):
+        mu = factor * size
+        readings = taught.copy()
+        for _ in range(iterations):
+            frames, jacobian = tool_frames(parameters, readings, tool)
+            error = np.concatenate(
+                [
+                    targets[:, :3, 3] - frames[:, :3, 3],
+                    size * rotation_vector(targets[:, :3, :3] @ np.swapaxes(frames[:, :3, :3], 1, 2)),
+                ],
+                axis=1,
+            )
+            scaled = jacobian * weight
+            normal = np.swapaxes(scaled, 1, 2) @ scaled + mu**2 * np.eye(robot.n_joints)
+            gradient = (np.swapaxes(scaled, 1, 2) @ error[..., None])[..., 0] - mu**2 * (readings - taught)
+            step = np.linalg.solve(normal, gradient[..., None])[..., 0]
+            readings = readings + step
+            if np.abs(step).max() < 1e-13:
+                break
+        fits = ~chosen & (np.abs(readings - taught).max(axis=1) <= max_change)
+        best[fits] = readings[fits]
+        chosen |= fits
+        if chosen.all():
+            break
+    return best
 
 
-def solve_commands(
+def _errors(parameters: ParameterSet, targets, readings, tool):
+    frames = tool_frames(parameters, readings, tool)[0]
+    position = np.linalg.norm(targets[:, :3, 3] - frames[:, :3, 3], axis=1)
+    turn = rotation_vector(targets[:, :3, :3] @ np.swapaxes(frames[:, :3, :3], 1, 2))
+    return position, np.degrees(np.linalg.norm(turn, axis=1))
+
+
+def compensate_commands(
     parameters: ParameterSet,
     targets,
-    start_readings,
+    taught,
     *,
     tool=None,
-    max_iterations: int = 50,
+    settings: CompensationSettings | None = None,
 ) -> Compensation:
-    """Controller readings at which the calibrated model's tool frame is each target frame (module notes).
+    """The command of every row, on the taught command's branch and near it, with its status (module notes).
 
     Parameters
     ----------
@@ -131,76 +215,110 @@ def solve_commands(
         The calibrated model (geometric, or extended with its joint model).
     targets : array_like, shape (n_poses, 4, 4)
         Target tool frames in the robot base frame [mm].
-    start_readings : array_like, shape (n_poses, n_joints)
-        Where each pose's iteration starts [rad] (the taught commands, or a seed near the wanted branch).
+    taught : array_like, shape (n_poses, n_joints)
+        The readings the commands replace [rad]: the taught joint targets, or the nominal controller's solution of
+        Cartesian targets. They choose the branch.
     tool : array_like, shape (3,) or (4, 4), optional
-        The tool point [mm] or frame in the flange frame (default: the flange).
-    max_iterations : int
+        The tool point or frame in the flange frame [mm] (default: the flange).
+    settings : CompensationSettings, optional
 
     Returns
     -------
     Compensation
+        With ``status``, ``largest_change_deg`` and ``taught``; NaN readings where no command is given.
     """
+    settings = settings or CompensationSettings()
     robot = parameters.robot
     targets = np.asarray(targets, dtype=float)
-    readings = np.array(start_readings, dtype=float)
+    taught = np.array(taught, dtype=float)
     if targets.ndim != 3 or targets.shape[1:] != (4, 4) or not np.all(np.isfinite(targets)):
         raise InputError(f"`targets` must be finite frames of shape (n_poses, 4, 4); got {targets.shape}")
-    if readings.shape != (targets.shape[0], robot.n_joints) or not np.all(np.isfinite(readings)):
-        raise InputError(f"`start_readings` must be finite, shape ({targets.shape[0]}, {robot.n_joints})")
-    tool_frame = np.eye(4)
-    if tool is not None:
-        tool = np.asarray(tool, dtype=float)
-        if tool.shape == (3,):
-            tool_frame[:3, 3] = tool
-        elif tool.shape == (4, 4):
-            tool_frame = tool
-        else:
-            raise InputError(f"`tool` must be a point (3,) or a frame (4, 4) [mm]; got shape {tool.shape}")
-    size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)  # the robot's size [mm]: orientation in mm
+    if taught.shape != (targets.shape[0], robot.n_joints) or not np.all(np.isfinite(taught)):
+        raise InputError(f"`taught` must be finite readings of shape ({targets.shape[0]}, {robot.n_joints})")
+    tool_frame = as_tool_frame(tool)
+    tolerance = (settings.position_tolerance_mm, settings.orientation_tolerance_deg)
+    max_change = np.radians(settings.max_change_deg)
+    taught_branch = branch_of(robot, taught)
 
-    def error(frames, rows):
-        position = targets[rows, :3, 3] - frames[:, :3, 3]
-        turn = rotation_vector(targets[rows, :3, :3] @ np.swapaxes(frames[:, :3, :3], 1, 2))
-        return np.concatenate([position, size * turn], axis=1)
-
-    every = np.arange(targets.shape[0])
-    weight = np.r_[np.ones(3), np.full(3, size)][:, None]
-    frames, jacobian = tool_frames(parameters, readings, tool_frame)
-    residual = error(frames, every)
-    cost = np.einsum("pk,pk->p", residual, residual)
-    damping = np.zeros(targets.shape[0])
-    iterations = 0
-    for iterations in range(1, max_iterations + 1):
-        active = np.flatnonzero((cost > (1e-11 * size) ** 2) & (damping < 1e12))  # converged, or no step helps
-        if active.size == 0:
-            iterations -= 1
-            break
-        scaled = jacobian[active] * weight  # (A, 6, n)
-        normal = np.swapaxes(scaled, 1, 2) @ scaled
-        gradient = (np.swapaxes(scaled, 1, 2) @ residual[active][..., None])[..., 0]
-        diagonal = np.einsum("pii->pi", normal)
-        system = normal + damping[active, None, None] * (diagonal[:, :, None] * np.eye(normal.shape[-1]))
-        step = (np.linalg.pinv(system) @ gradient[..., None])[..., 0]
-        trial = readings[active] + step
-        trial_frames, trial_jacobian = tool_frames(parameters, trial, tool_frame)
-        trial_residual = error(trial_frames, active)
-        trial_cost = np.einsum("pk,pk->p", trial_residual, trial_residual)
-        better = trial_cost < cost[active]
-        kept = active[better]
-        readings[kept], jacobian[kept], residual[kept], cost[kept] = (
-            trial[better], trial_jacobian[better], trial_residual[better], trial_cost[better]
-        )
-        damping[kept] = np.where(damping[kept] > 1e-9, damping[kept] / 10.0, 0.0)
-        worse = active[~better]
-        damping[worse] = np.where(damping[worse] > 0.0, damping[worse] * 10.0, 1e-3)
-    frames = tool_frames(parameters, readings, tool_frame)[0]
-    position = np.linalg.norm(targets[:, :3, 3] - frames[:, :3, 3], axis=1)
-    angle = np.degrees(np.linalg.norm(rotation_vector(targets[:, :3, :3] @ np.swapaxes(frames[:, :3, :3], 1, 2)), axis=1))
+    solved = solve_pose(parameters, targets, taught, tool=tool_frame, max_iterations=settings.max_iterations)
+    readings = wrap_readings(solved.readings, robot, taught)
+    change = np.abs(readings - taught).max(axis=1)
+    good = (
+        solved.reached(*tolerance)
+        & within_limits(robot, readings)
+        & (change <= max_change)
+        & (branch_of(robot, readings) == taught_branch)
+    )
+    status = np.where(good, "ok", "unreachable").astype(object)
+    rest = np.flatnonzero(~good)
+    if rest.size:
+        every = inverse_kinematics(
+            parameters, targets[rest], tool=tool_frame, reference=taught[rest],
+            position_tolerance_mm=tolerance[0], orientation_tolerance_deg=tolerance[1],
+        )  # fmt: skip
+        nearest = wrap_readings(every.readings, robot, taught[rest, None, :], prefer_limits=False)
+        inside = within_limits(robot, nearest)
+        branch_change = np.abs(nearest - taught[rest, None, :]).max(axis=-1)  # (R, 8)
+        on_branch = np.arange(8)[None, :] == taught_branch[rest, None]
+        close = every.reached & (branch_change <= max_change)
+        # the taught branch's solution first, then a neighbouring branch's within max_change (a boundary crossed)
+        cost = np.where(close & inside, branch_change + np.where(on_branch, 0.0, 10.0), np.inf)
+        pick = np.argmin(cost, axis=1)
+        found = np.isfinite(cost[np.arange(rest.size), pick])
+        readings[rest[found]] = nearest[found, pick[found]]
+        status[rest[found]] = np.where(on_branch[found, pick[found]], "ok", "near_singular")
+        lost = ~found
+        own = every.reached & on_branch  # the taught branch's exact solution, nearest turn
+        outside = lost & np.any(close | (own & ~inside), axis=1)  # near, or on the branch, only beyond a limit
+        far = lost & ~outside & np.any(own, axis=1)  # on the branch within the limits, but only by a large move
+        status[rest[outside]] = "outside_limits"
+        if np.any(far):
+            rows = rest[far]
+            readings[rows] = _damped(
+                parameters, targets[rows], taught[rows], tool_frame, max_change, settings.max_iterations
+            )
+            status[rows] = np.where(_singular(robot, taught[rows], tool_frame), "near_singular", "large_correction")
+        readings[rest[lost & ~far]] = np.nan
+    # an ok correction moves the nominal tool by about the calibrated model's difference from the nominal there
+    ok = np.flatnonzero(status == "ok")
+    if ok.size:
+        nominal = ParameterSet.nominal(robot)
+        difference = _distance(tool_frames(parameters, taught[ok], tool_frame)[0], tool_frames(nominal, taught[ok], tool_frame)[0], robot)
+        moved = _distance(tool_frames(nominal, readings[ok], tool_frame)[0], tool_frames(nominal, taught[ok], tool_frame)[0], robot)
+        status[ok[moved > settings.explained_ratio * difference + 1e-3]] = "large_correction"
+    given = np.all(np.isfinite(readings), axis=1)
+    position = np.full(len(readings), np.nan)
+    angle = np.full(len(readings), np.nan)
+    if given.any():
+        position[given], angle[given] = _errors(parameters, targets[given], readings[given], tool_frame)
+    exact = given & (position <= tolerance[0]) & (angle <= tolerance[1])
+    status[(status == "ok") & ~exact] = "near_singular"
     return Compensation(
         readings=readings,
         position_error_mm=position,
         orientation_error_deg=angle,
-        iterations=iterations,
-        reached=(position <= POSITION_TOLERANCE_MM) & (angle <= ORIENTATION_TOLERANCE_DEG),
+        iterations=solved.iterations,
+        reached=exact,
+        status=status.astype(str),
+        largest_change_deg=np.degrees(np.where(given, np.abs(readings - taught).max(axis=1), np.nan)),
+        taught=taught,
     )
+
+
+def _distance(frames_a, frames_b, robot) -> np.ndarray:
+    """Per pose, the larger of the position difference [mm] and the rotation [rad] times the robot's size."""
+    size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
+    position = np.linalg.norm(frames_a[:, :3, 3] - frames_b[:, :3, 3], axis=1)
+    turn = np.linalg.norm(rotation_vector(frames_a[:, :3, :3] @ np.swapaxes(frames_b[:, :3, :3], 1, 2)), axis=1)
+    return np.maximum(position, size * turn)
+
+
+#: Smallest over largest singular value of the size-scaled tool Jacobian below which a pose is at a singularity.
+SINGULAR_RATIO = 0.02
+
+
+def _singular(robot, readings, tool) -> np.ndarray:
+    size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
+    _, jacobian = tool_frames(ParameterSet.nominal(robot), readings, tool)
+    values = np.linalg.svd(jacobian * np.r_[np.ones(3), np.full(3, size)][:, None], compute_uv=False)
+    return values[:, -1] < SINGULAR_RATIO * values[:, 0]
