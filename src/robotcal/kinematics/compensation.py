@@ -144,7 +144,7 @@ class CompensationSettings:
     position_tolerance_mm: float = 1e-6
     orientation_tolerance_deg: float = 1e-6
     explained_ratio: float = 2.0
-    max_iterations: int = 100
+    max_iterations: int = 200
 
     def __post_init__(self):
         for name in ("max_change_deg", "position_tolerance_mm", "orientation_tolerance_deg", "explained_ratio"):
@@ -274,18 +274,24 @@ def compensate_commands(
         status[rest[outside]] = "outside_limits"
         if np.any(far):
             rows = rest[far]
+            exact = nearest[far][np.arange(rows.size), taught_branch[rows]]
+            # a singularity turns a small move of the tool into a large joint move: the exact solution moves the
+            # nominal tool by no more than the calibration explains; anything else is a correction too large
+            explained = _moved(parameters, taught[rows], exact, tool_frame) <= (
+                settings.explained_ratio * _moved(parameters, taught[rows], None, tool_frame) + 1e-3
+            )
+            status[rows] = np.where(explained, "near_singular", "large_correction")
             readings[rows] = _damped(
                 parameters, targets[rows], taught[rows], tool_frame, max_change, settings.max_iterations
             )
-            status[rows] = np.where(_singular(robot, taught[rows], tool_frame), "near_singular", "large_correction")
         readings[rest[lost & ~far]] = np.nan
     # an ok correction moves the nominal tool by about the calibrated model's difference from the nominal there
     ok = np.flatnonzero(status == "ok")
     if ok.size:
-        nominal = ParameterSet.nominal(robot)
-        difference = _distance(tool_frames(parameters, taught[ok], tool_frame)[0], tool_frames(nominal, taught[ok], tool_frame)[0], robot)
-        moved = _distance(tool_frames(nominal, readings[ok], tool_frame)[0], tool_frames(nominal, taught[ok], tool_frame)[0], robot)
-        status[ok[moved > settings.explained_ratio * difference + 1e-3]] = "large_correction"
+        explained = _moved(parameters, taught[ok], readings[ok], tool_frame) <= (
+            settings.explained_ratio * _moved(parameters, taught[ok], None, tool_frame) + 1e-3
+        )
+        status[ok[~explained]] = "large_correction"
     given = np.all(np.isfinite(readings), axis=1)
     position = np.full(len(readings), np.nan)
     angle = np.full(len(readings), np.nan)
@@ -305,20 +311,15 @@ def compensate_commands(
     )
 
 
-def _distance(frames_a, frames_b, robot) -> np.ndarray:
-    """Per pose, the larger of the position difference [mm] and the rotation [rad] times the robot's size."""
+def _moved(parameters: ParameterSet, taught, commands, tool) -> np.ndarray:
+    """Per pose, how far the nominal tool moves from ``taught`` to ``commands`` (None: the calibrated model's
+    difference from the nominal one at ``taught``): the larger of the distance [mm] and the rotation [rad] times the
+    robot's size."""
+    robot = parameters.robot
+    nominal = ParameterSet.nominal(robot)
+    reference = tool_frames(nominal, taught, tool)[0]
+    moved = tool_frames(parameters, taught, tool)[0] if commands is None else tool_frames(nominal, commands, tool)[0]
     size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
-    position = np.linalg.norm(frames_a[:, :3, 3] - frames_b[:, :3, 3], axis=1)
-    turn = np.linalg.norm(rotation_vector(frames_a[:, :3, :3] @ np.swapaxes(frames_b[:, :3, :3], 1, 2)), axis=1)
+    position = np.linalg.norm(moved[:, :3, 3] - reference[:, :3, 3], axis=1)
+    turn = np.linalg.norm(rotation_vector(moved[:, :3, :3] @ np.swapaxes(reference[:, :3, :3], 1, 2)), axis=1)
     return np.maximum(position, size * turn)
-
-
-#: Smallest over largest singular value of the size-scaled tool Jacobian below which a pose is at a singularity.
-SINGULAR_RATIO = 0.02
-
-
-def _singular(robot, readings, tool) -> np.ndarray:
-    size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
-    _, jacobian = tool_frames(ParameterSet.nominal(robot), readings, tool)
-    values = np.linalg.svd(jacobian * np.r_[np.ones(3), np.full(3, size)][:, None], compute_uv=False)
-    return values[:, -1] < SINGULAR_RATIO * values[:, 0]

@@ -361,7 +361,7 @@ def solve_pose(
     start_readings,
     *,
     tool=None,
-    max_iterations: int = 100,
+    max_iterations: int = 200,
 ) -> Solved:
     """Controller readings at which the model's tool frame is each target frame, by Newton's method from
     ``start_readings``.
@@ -417,7 +417,7 @@ def solve_pose(
     damping = np.zeros(targets.shape[0])
     iterations = 0
     for iterations in range(1, max_iterations + 1):
-        active = np.flatnonzero((cost > (1e-11 * size) ** 2) & (damping < 1e12))  # converged, or no step helps
+        active = np.flatnonzero((cost > (2e-13 * size) ** 2) & (damping < 1e12))  # converged, or no step helps
         if active.size == 0:
             iterations -= 1
             break
