@@ -16,12 +16,12 @@ MODULE PickPlace
 
     ! Infeed fixture, robot base frame
     CONST robtarget pAbovePick:=[[450,150,420],[0,0,1,0],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-    CONST robtarget pPick:=[[450.5,150.25,252.75],[0,0,1,0],[0,0,-1,0],
+    CONST robtarget pPick:=[[450.5,150.25,252.75],[0,0,1,0],[0,0,0,0],
                             [9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
 
     ! Tray pockets, wobjTray
-    PERS robtarget pAbovePlace:=[[60,40,120],[0,0.707106781,0.707106781,0],[-1,0,-1,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-    PERS robtarget pPlace:=[[60,40,30],[0,0.707106781,0.707106781,0],[-1,0,-1,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+    PERS robtarget pAbovePlace:=[[60,40,120],[0,0.707106781,0.707106781,0],[-1,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+    PERS robtarget pPlace:=[[60,40,30],[0,0.707106781,0.707106781,0],[-1,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
     ! Old tray's pocket, kept for the next changeover
     CONST robtarget pPlaceOld:=[[140,40,30],[0,0.707106781,0.707106781,0],[-1,0,-1,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
 

@@ -97,6 +97,7 @@ class RobotFile(BaseModel):
     description: str = ""
     source: str = ""
     mass_source: str = ""
+    flange_frame: tuple[float, float, float, float, float, float] | None = None  # x, y, z [mm], A, B, C [deg KUKA]
     joints: list[JointEntry] = Field(min_length=1)
 
 
@@ -126,7 +127,18 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
         description=spec.description,
         reading_coupling=_coupling_matrix(spec, source),
         masses=_masses(spec, source),
+        flange_frame=None if spec.flange_frame is None else _frame(spec.flange_frame),
     )
+
+
+def _frame(values) -> np.ndarray:
+    """A frame from ``x, y, z`` [mm] and KUKA ``A, B, C`` [deg] (``R = Rz(A) Ry(B) Rx(C)``)."""
+    from robotcal.geometry.euler import matrix_from_kuka_abc
+
+    frame = np.eye(4)
+    frame[:3, :3] = matrix_from_kuka_abc(np.deg2rad(values[3:]))
+    frame[:3, 3] = values[:3]
+    return frame
 
 
 def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
@@ -159,6 +171,11 @@ def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
     document = {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
     if robot.masses is not None:
         document["mass_source"] = robot.masses.source
+    if robot.flange_frame is not None:
+        from robotcal.geometry.euler import kuka_abc_from_matrix
+
+        abc = np.rad2deg(kuka_abc_from_matrix(robot.flange_frame[:3, :3]))
+        document["flange_frame"] = [float(v) for v in np.r_[robot.flange_frame[:3, 3], abc]]
     return document
 
 

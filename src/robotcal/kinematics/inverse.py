@@ -57,6 +57,7 @@ __all__ = [
     "nominal_solutions",
     "within_limits",
     "wrap_readings",
+    "wrist_centre_in_flange",
 ]
 
 FAMILIES = ("spherical-wrist", "parallel-wrist")
@@ -153,6 +154,15 @@ def _structure(robot: RobotModel) -> _Structure:
         f"robot {robot.name!r}: neither a spherical wrist (J4, J5, J6 meeting in a point) nor a UR-type arm (J2, J3, J4 "
         "parallel, a4 = a5 = 0) in the nominal geometry; robotcal has no closed-form inverse kinematics for it"
     )
+
+
+def wrist_centre_in_flange(robot: RobotModel) -> np.ndarray:
+    """The wrist centre (where the axes of J4, J5, J6 meet) in the flange frame, homogeneous ``(4,)`` [mm], of a
+    spherical-wrist arm's nominal geometry (InputError for any other arm)."""
+    structure = _structure(robot)
+    if structure.family != "spherical-wrist":
+        raise InputError(f"robot {robot.name!r} has no spherical wrist (its axes J4, J5, J6 do not meet)")
+    return structure.point_in_flange
 
 
 def arm_family(robot: RobotModel) -> str:

@@ -151,6 +151,10 @@ class RobotModel:
     masses : LinkMasses or None
         Catalogue-level masses and centres of mass of the links, for the gravity compliance of the extended
         model (:mod:`robotcal.kinematics.joint_model`); None when unknown.
+    flange_frame : ndarray, shape (4, 4), or None
+        The controller's flange frame (the frame its tools are given in) in the model's last DH frame [mm]; None:
+        the same frame. KUKA's flange has X along the flange normal where the DH frame has z (robot files
+        ``flange_frame``, docs/deploy.md).
     """
 
     name: str
@@ -162,6 +166,7 @@ class RobotModel:
     description: str = ""
     reading_coupling: np.ndarray = field(default=None)
     masses: LinkMasses | None = None
+    flange_frame: np.ndarray | None = None
     _model_from_reading: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -200,6 +205,13 @@ class RobotModel:
         object.__setattr__(self, "reading_offset", _frozen(offset))
         object.__setattr__(self, "limits", _frozen(limits))
         object.__setattr__(self, "reading_coupling", _frozen(coupling))
+        if self.flange_frame is not None:
+            flange = np.asarray(self.flange_frame, dtype=float)
+            if flange.shape != (4, 4) or not np.all(np.isfinite(flange)) or not np.allclose(
+                flange[:3, :3] @ flange[:3, :3].T, np.eye(3), atol=1e-9
+            ):
+                raise InputError(f"robot {self.name!r}: `flange_frame` must be a rigid 4x4 transform")
+            object.__setattr__(self, "flange_frame", _frozen(flange))
         inverse = None if not np.any(coupling) else _frozen(np.linalg.inv(np.diag(sign) + coupling))
         object.__setattr__(self, "_model_from_reading", inverse)
 

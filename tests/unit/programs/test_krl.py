@@ -87,7 +87,7 @@ def test_pick_place_sample_points_tool_base_and_skipped():
         assert all(span.file == "kuka_pick_place.dat" for span in point.spans)  # never the ;FOLD comment
     assert [points[label].motion for label in expected] == ["PTP", "LIN", "LIN", "PTP", "CIRC", "CIRC", "LIN"]
     assert points["XP2"].values == (-19.874, -140.216, 18.502, 0.317, 89.846, 0.095)
-    assert dict(points["XP1"].config) == {"S": 6, "T": 50} and dict(points["XP4"].config) == {"S": 6, "T": 18}
+    assert dict(points["XP1"].config) == {"S": 2, "T": 2} and dict(points["XP4"].config) == {"S": 2, "T": 3}
     text = program.texts["kuka_pick_place.dat"]
     assert [text[s.start : s.end] for s in points["XP2"].spans] == [
         "-19.874",
@@ -143,10 +143,10 @@ def test_weld_seam_sample_points_and_skipped():
     assert (points["XARC_AUX"].motion, points["XARC_END"].motion) == ("CIRC", "CIRC")
     # S and T as decimal, as 'B010' and as 'B 010': the same integers
     for label in ("XAPPROACH", "XSEAM_START", "XSEAM_MID", "XARC_AUX", "XARC_END"):
-        assert dict(points[label].config) == {"S": 2, "T": 35}
+        assert dict(points[label].config) == {"S": 2, "T": 42}
     text = program.texts["kuka_weld_seam.dat"]
     start = points["XSEAM_START"].config_spans
-    assert (text[start["S"].start : start["S"].end], text[start["T"].start : start["T"].end]) == ("010", "100011")
+    assert (text[start["S"].start : start["S"].end], text[start["T"].start : start["T"].end]) == ("010", "101010")
     assert isinstance(start["S"], IntegerSpan) and (start["S"].radix, start["S"].digits) == (2, 3)
     assert points["XAPPROACH"].config_spans["T"].radix == 10
     assert program.skipped == [
@@ -208,7 +208,7 @@ def test_changed_target_touches_only_its_numbers(tmp_path):
     frame = point.frame_mm.copy()
     frame[:3, 3] += [0.512, -0.25, 0.125]
     frame[:3, :3] = _rotation(0.2, 0.0, 0.0) @ frame[:3, :3]
-    written = replace_numbers(program.texts, render(point, frame_mm=frame, config={"S": 6, "T": 50}))
+    written = replace_numbers(program.texts, render(point, frame_mm=frame, config={"S": 2, "T": 2}))
     for file in program.texts:
         if file != "kuka_pick_place.dat":
             assert written[file] == program.texts[file]
@@ -279,7 +279,7 @@ def test_render_joints_config_notation_and_errors(tmp_path):
     assert list(out.values()) == ["-62.500000", "-78.250000", "104.000000", "0.000000", "64.000000", "-10.500000"]
     assert set(out) == set(clean.spans)
     start, mid, approach = points["XSEAM_START"], points["XSEAM_MID"], points["XAPPROACH"]
-    out = render(start, frame_mm=start.frame_mm, config={"S": 3, "T": 35})
+    out = render(start, frame_mm=start.frame_mm, config={"S": 3, "T": 42})
     assert out[start.config_spans["S"]] == "011" and start.config_spans["T"] not in out
     assert render(mid, frame_mm=mid.frame_mm, config={"s": 6})[mid.config_spans["S"]] == "110"
     assert render(approach, frame_mm=approach.frame_mm, config={"T": 43})[approach.config_spans["T"]] == "43"

@@ -81,8 +81,8 @@ def test_pick_place_sample_points():
     assert [p.base for p in points] == [None, None, None, "wobjTray", "wobjTray", None, None]
     by_label = {p.label: p for p in points}
     assert by_label["pPick"].values == (450.5, 150.25, 252.75, 0.0, 0.0, 1.0, 0.0)
-    assert by_label["pPick"].config == {"cf1": 0, "cf4": 0, "cf6": -1, "cfx": 0}
-    assert by_label["pPlace"].config == {"cf1": -1, "cf4": 0, "cf6": -1, "cfx": 0}
+    assert by_label["pPick"].config == {"cf1": 0, "cf4": 0, "cf6": 0, "cfx": 0}
+    assert by_label["pPlace"].config == {"cf1": -1, "cf4": 0, "cf6": 0, "cfx": 0}
     np.testing.assert_array_equal(by_label["jHome"].joints_deg, [0, -20, 30, 0, 80, 0])
     np.testing.assert_array_equal(by_label["abb_pick_place.mod:40"].joints_deg, [-30, -25, 35, 0, 75, 0])
     assert by_label["jHome"].frame_mm is None and by_label["jHome"].config == {}
@@ -147,7 +147,7 @@ def test_glue_path_sample_points():
     assert {text.count("\n", 0, span.start) + 1 for span in pedge3.spans} == {23, 24}
     assert text.count("\n", 0, pedge3.config_spans["cfx"].start) + 1 == 25
     assert points[-1].values == (20.0, 140.0, 60.0, 0.0, -0.707106781, -0.707106781, 0.0)
-    assert points[-1].config == {"cf1": 0, "cf4": 0, "cf6": -1, "cfx": 0}
+    assert points[-1].config == {"cf1": 0, "cf4": -1, "cf6": 1, "cfx": 0}
     assert [(line, "Offs(pStart,0,0,50)" in why) for _, line, why in program.skipped] == [(34, True)]
     # speeddata and num declarations are no frames
     assert set(program.frames) == {"tGlueGun", "wobjFixture"}
@@ -331,13 +331,13 @@ def test_config_written_only_when_given_and_different():
     ppick = next(p for p in program.points if p.label == "pPick")
     plain = render(ppick, frame_mm=ppick.frame_mm)
     assert set(plain) == set(ppick.spans)
-    same = render(ppick, frame_mm=ppick.frame_mm, config={"cf1": 0, "cf4": 0, "cf6": -1, "cfx": 0})
+    same = render(ppick, frame_mm=ppick.frame_mm, config={"cf1": 0, "cf4": 0, "cf6": 0, "cfx": 0})
     assert set(same) == set(ppick.spans)
-    changed = render(ppick, frame_mm=ppick.frame_mm, config={"cf1": 0, "cf6": 0, "cfx": np.int64(1)})
+    changed = render(ppick, frame_mm=ppick.frame_mm, config={"cf1": 0, "cf6": -1, "cfx": np.int64(1)})
     assert set(changed) - set(ppick.spans) == {ppick.config_spans["cf6"], ppick.config_spans["cfx"]}
-    assert changed[ppick.config_spans["cf6"]] == "0" and changed[ppick.config_spans["cfx"]] == "1"
+    assert changed[ppick.config_spans["cf6"]] == "-1" and changed[ppick.config_spans["cfx"]] == "1"
     texts = replace_numbers(program.texts, changed)
-    assert "[0,0,0,1],\n" in texts["abb_pick_place.mod"]
+    assert "[0,0,-1,1],\n" in texts["abb_pick_place.mod"]
     with pytest.raises(InputError, match="unknown configuration entry 'cf5'"):
         render(ppick, frame_mm=ppick.frame_mm, config={"cf5": 1})
     with pytest.raises(InputError, match="whole number"):
