@@ -242,7 +242,7 @@ def filter_program(
         previous = np.where(np.isfinite(robot.limits), robot.limits, 0.0).mean(axis=1)
     else:
         previous = _to_robot(robot, controller, np.deg2rad(np.asarray(start_deg, dtype=float)))
-    targets, taught, tools, rows = [], [], [], []
+    targets, taught, tools = [], [], []
     records: list[dict] = []
     for point in program.points:
         base, tool = _frames_of(point, known, flange)

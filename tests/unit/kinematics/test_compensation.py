@@ -14,8 +14,8 @@ from robotcal.errors import InputError
 from robotcal.geometry.euler import kuka_abc_from_matrix
 from robotcal.io import load_robot
 from robotcal.kinematics.compensation import CompensationSettings
-from robotcal.kinematics.inverse import branch_of, rotation_vector, tool_frames
 from robotcal.kinematics.forward import forward_kinematics
+from robotcal.kinematics.inverse import branch_of, rotation_vector, tool_frames
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet
 
