@@ -50,6 +50,7 @@ COMMANDS: dict[str, CommandEntry] = {
     # using the calibrated model
     "predict": CommandEntry("predict", "Forward kinematics with the calibrated model."),
     "compensate": CommandEntry("compensate", "Joint commands that reach the taught poses, calibrated."),
+    "filter": CommandEntry("filter", "A KRL, RAPID or URScript program compensated, numbers only."),
     "export": CommandEntry("export", "The calibrated model as JSON, URDF, UR YAML, DH or MDH."),
     "iso9283": CommandEntry("iso9283", "ISO 9283 pose accuracy/repeatability (AP, RP, AD, RD, APa..)."),
     "iso9283-plan": CommandEntry("iso9283", "ISO 9283 test poses P1..P5: pose CSV and robot program."),

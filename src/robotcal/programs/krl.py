@@ -50,10 +50,13 @@ from robotcal.errors import InputError
 from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, matrix_from_kuka_abc
 from robotcal.programs.base import NumberSpan, Program, ProgramPoint, format_number
 
-__all__ = ["DECIMALS", "IntegerSpan", "read_program", "render"]
+__all__ = ["DECIMALS", "JOINT_DECIMALS", "IntegerSpan", "read_program", "render"]
 
 #: Decimals written for mm and degrees (a round trip reproduces the value to 5e-7).
 DECIMALS = 6
+#: Decimals of axis values [deg]: 5e-9 deg of rounding moves a 1 m arm's tool by under 1e-7 mm per axis (6 decimals
+#: would leave up to 6e-6 mm over six axes).
+JOINT_DECIMALS = 8
 
 _CARTESIAN = ("X", "Y", "Z", "A", "B", "C")
 _AXES = ("A1", "A2", "A3", "A4", "A5", "A6")
@@ -233,7 +236,7 @@ def render(point: ProgramPoint, *, frame_mm=None, joints_deg=None, config=None) 
         nearest the point's present angles among the equivalent ones (``(A + 180, 180 - B, C + 180)``; at ``B =
         +-90`` every split of ``A -+ C``), each within [-180, 180] deg, with :data:`DECIMALS` decimals.
     joints_deg : array_like (6,), optional
-        Joint points: the new ``A1..A6`` [deg]. A Cartesian point cannot be written from joints (KRL cannot write
+        Joint points: the new ``A1..A6`` [deg], with :data:`JOINT_DECIMALS` decimals. A Cartesian point cannot be written from joints (KRL cannot write
         axis values into an ``E6POS``): InputError.
     config : mapping of str to int, optional
         New ``S`` / ``T``; written only where they differ from the point's and the point writes them, in the
@@ -265,8 +268,9 @@ def render(point: ProgramPoint, *, frame_mm=None, joints_deg=None, config=None) 
             raise InputError(
                 f"point {point.label!r}: joints_deg must hold {len(point.values)} finite angles [deg]; got {new}"
             )
+    decimals = DECIMALS if point.kind == "cartesian" else JOINT_DECIMALS
     for span, value in zip(point.spans, new, strict=True):
-        out[span] = format_number(float(value), DECIMALS)
+        out[span] = format_number(float(value), decimals)
     for key, value in (config or {}).items():
         name = str(key).upper()
         if name not in _CONFIG:

@@ -276,7 +276,7 @@ def test_render_joints_config_notation_and_errors(tmp_path):
     points = _by_label(program)
     clean = points["kuka_weld_seam.src:22"]
     out = render(clean, joints_deg=[-62.5, -78.25, 104.0, 0.0, 64.0, -10.5])
-    assert list(out.values()) == ["-62.500000", "-78.250000", "104.000000", "0.000000", "64.000000", "-10.500000"]
+    assert list(out.values()) == ["-62.50000000", "-78.25000000", "104.00000000", "0.00000000", "64.00000000", "-10.50000000"]
     assert set(out) == set(clean.spans)
     start, mid, approach = points["XSEAM_START"], points["XSEAM_MID"], points["XAPPROACH"]
     out = render(start, frame_mm=start.frame_mm, config={"S": 3, "T": 42})

@@ -351,7 +351,7 @@ def test_joint_target_rendered_external_axes_untouched(tmp_path):
     texts, again = _rewrite(program, render(jhome, joints_deg=joints), tmp_path)
     line = texts["abb_pick_place.mod"].splitlines()[14]
     assert line == (
-        "    CONST jointtarget jHome:=[[1.500000,-21.250000,30.125000,0.000000,79.500000,0.000000],"
+        "    CONST jointtarget jHome:=[[1.50000000,-21.25000000,30.12500000,0.00000000,79.50000000,0.00000000],"
         "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];"
     )
     np.testing.assert_allclose(again.points[0].joints_deg, np.round(joints, 6), atol=1e-12)

@@ -1,0 +1,175 @@
+"""``robotcal filter PROGRAM --params JSON --out DIR [--controller ROBOT] [--frame NAME=x,y,z,A,B,C]...``: a robot
+program (KUKA KRL .src/.dat, ABB RAPID .mod, URScript .script) with every target compensated by the calibrated
+model, numbers changed and nothing else (issue 28; :mod:`robotcal.programs.filter`, docs/deploy.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli.compensate import PARTIAL_EXIT, STATUS_MEANING
+from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
+
+app = command_app()
+
+__all__ = ["filter_command", "LANGUAGE_OF_SUFFIX"]
+
+#: The language of a program file, by its suffix (lower case).
+LANGUAGE_OF_SUFFIX = {
+    ".src": "krl",
+    ".mod": "rapid",
+    ".modx": "rapid",
+    ".prg": "rapid",
+    ".sys": "rapid",
+    ".sysx": "rapid",
+    ".script": "urscript",
+    ".urscript": "urscript",
+}
+STATUS_MEANING_FILTER = {
+    **STATUS_MEANING,
+    "config_mismatch": "no nominal solution has the point's configuration data (S/T, cf): left as it was",
+    "outside_limits": "reachable only beyond a joint limit: left as it was",
+    "unreachable": "out of the calibrated robot's reach on its branch: left as it was",
+}
+
+
+def _frames(items: list[str] | None) -> dict:
+    """``NAME=x,y,z,A,B,C`` options -> ``{NAME: 4x4}`` [mm, deg KUKA]."""
+    import numpy as np
+
+    from robotcal.errors import InputError
+    from robotcal.geometry.euler import matrix_from_kuka_abc
+
+    frames = {}
+    for item in items or []:
+        name, separator, numbers = item.partition("=")
+        if not separator or not name.strip():
+            raise InputError(f"--frame must be NAME=x,y,z,A,B,C (mm, deg KUKA); got {item!r}")
+        values = parse_vector(numbers, f"--frame {name.strip()}", 6)
+        frame = np.eye(4)
+        frame[:3, :3] = matrix_from_kuka_abc(np.deg2rad(values[3:]))
+        frame[:3, 3] = values[:3]
+        frames[name.strip()] = frame
+    return frames
+
+
+def _read(program: Path, language: str | None, dat: Path | None, config_dat: Path | None, encoding: str):
+    from robotcal.errors import InputError
+
+    language = language or LANGUAGE_OF_SUFFIX.get(program.suffix.lower())
+    if language is None:
+        raise InputError(
+            f"{program}: cannot tell the language from the suffix {program.suffix!r}; give --language krl, rapid or "
+            "urscript"
+        )
+    if language != "krl" and (dat is not None or config_dat is not None):
+        raise InputError("--dat and --config-dat are for KRL programs (.src)")
+    if language == "krl":
+        from robotcal.programs.krl import read_program
+
+        return read_program(program, dat_path=dat, config_dat=config_dat, encoding=encoding)
+    if language == "rapid":
+        from robotcal.programs.rapid import read_program
+    elif language == "urscript":
+        from robotcal.programs.urscript import read_program
+    else:
+        raise InputError(f"unknown --language {language!r}; choose krl, rapid or urscript")
+    return read_program(program, encoding=encoding)
+
+
+@app.command("filter")
+@handle_errors
+def filter_command(
+    program: Annotated[Path, typer.Argument(help="The robot program: KRL .src (its .dat beside it), RAPID .mod, URScript .script.")],
+    params: Annotated[Path, typer.Option("--params", "-p", help="Parameter JSON of the calibrated model.")],
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Folder to write: the filtered program files under their own names, points.csv (every point's "
+            "status and correction) and filter.html.",
+        ),
+    ],
+    controller: Annotated[
+        str | None,
+        typer.Option(
+            help="Robot file of the same arm with the controller's reading signs and flange frame (e.g. "
+            "kuka-kr5-sixx-r650-krc); default: the parameters' robot."
+        ),
+    ] = None,
+    frame: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--frame",
+            help="A tool or base the program uses, NAME=x,y,z,A,B,C [mm, deg KUKA] (e.g. TOOL_DATA[1]=..., tool1=..., "
+            "wobj1=...); replaces the program's own declaration. Repeat for several.",
+        ),
+    ] = None,
+    language: Annotated[str | None, typer.Option(help="krl | rapid | urscript (default: from the suffix).")] = None,
+    dat: Annotated[Path | None, typer.Option("--dat", help="KRL: the .dat (default: beside the .src).")] = None,
+    config_dat: Annotated[
+        Path | None, typer.Option("--config-dat", help="KRL: the cell's $config.dat with TOOL_DATA and BASE_DATA.")
+    ] = None,
+    start_deg: Annotated[
+        str | None,
+        typer.Option(
+            "--start-deg",
+            help="Controller readings q1,..,qN [deg] where the robot stands before the program: the first point "
+            "without configuration data takes the solution nearest them (default: mid-limits).",
+        ),
+    ] = None,
+    max_change_deg: Annotated[
+        float, typer.Option("--max-change-deg", min=0.001, help="Largest joint change in an ok point [deg].")
+    ] = 2.0,
+    encoding: Annotated[str, typer.Option(help="Text encoding of the program files (e.g. cp1252).")] = "utf-8",
+    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
+    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+) -> None:
+    """Filter a robot program with the calibrated model: every target solved on the nominal controller's branch
+    (its S/T or cf configuration data, or nearest the previous point), compensated on the calibrated model, and
+    written back in the program's own representation; everything else byte-identical. Exit status 3 when some
+    point is not ok."""
+    from robotcal.io import load_robot
+    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.kinematics.compensation import CompensationSettings
+    from robotcal.programs.filter import filter_program
+    from robotcal.programs.report import write_report
+
+    parameters, inputs = load_parameter_set(params, robot, scenario)
+    target = None if controller is None else load_robot(controller)
+    inputs += existing_inputs(program, dat, config_dat, controller)
+    check_output_folder(out, inputs=inputs, force=force)
+    loaded = _read(program, language, dat, config_dat, encoding)
+    inputs += existing_inputs(*(program.with_name(name) for name in loaded.texts))
+    start = None if start_deg is None else parse_vector(start_deg, "--start-deg", parameters.robot.n_joints)
+    result = filter_program(
+        loaded, parameters, controller=target, frames=_frames(frame), start_deg=start,
+        settings=CompensationSettings(max_change_deg=max_change_deg),
+    )  # fmt: skip
+    with result_folder(out, inputs=inputs, force=force, command="filter") as folder:
+        write_report(result, folder, params=params, program=program, encoding=encoding)
+    counts = result.counts
+    console.print(
+        f"wrote {out}: {', '.join(loaded.texts)} filtered ({len(result.points)} point"
+        f"{'s' if len(result.points) != 1 else ''}: {', '.join(f'{n} {s}' for s, n in counts.items()) or 'none'}"
+        f"{f'; {len(loaded.skipped)} target(s) not filtered, listed in points.csv' if loaded.skipped else ''})",
+        highlight=False, soft_wrap=True, markup=False,
+    )  # fmt: skip
+    bad = [p for p in result.points if p.status != "ok"]
+    for status in STATUS_MEANING_FILTER:
+        where = [f"{p.point.label} (line {p.point.line})" for p in bad if p.status == status]
+        if where:
+            shown = ", ".join(where[:8]) + (f" and {len(where) - 8} more" if len(where) > 8 else "")
+            console.print(f"  {status}: {shown}: {STATUS_MEANING_FILTER[status]}", highlight=False, soft_wrap=True, markup=False)
+    if bad:
+        console.print(
+            f"{len(bad)} point{'s are' if len(bad) != 1 else ' is'} not ok: read points.csv before running the "
+            "program (exit status 3)",
+            highlight=False, soft_wrap=True, markup=False,
+        )  # fmt: skip
+        raise typer.Exit(code=PARTIAL_EXIT)
