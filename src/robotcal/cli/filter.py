@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
-from robotcal.cli.compensate import PARTIAL_EXIT, STATUS_MEANING
+from robotcal.cli.compensate import PARTIAL_EXIT
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 
 app = command_app()
@@ -28,12 +28,7 @@ LANGUAGE_OF_SUFFIX = {
     ".script": "urscript",
     ".urscript": "urscript",
 }
-STATUS_MEANING_FILTER = {
-    **STATUS_MEANING,
-    "config_mismatch": "no nominal solution has the point's configuration data (S/T, cf): left as it was",
-    "outside_limits": "reachable only beyond a joint limit: left as it was",
-    "unreachable": "out of the calibrated robot's reach on its branch: left as it was",
-}
+
 
 
 def _frames(items: list[str] | None) -> dict:
@@ -138,7 +133,7 @@ def filter_command(
     from robotcal.io.output import check_output_folder, existing_inputs, result_folder
     from robotcal.kinematics.compensation import CompensationSettings
     from robotcal.programs.filter import filter_program
-    from robotcal.programs.report import write_report
+    from robotcal.programs.report import STATUS_NOTES, write_report
 
     parameters, inputs = load_parameter_set(params, robot, scenario)
     target = None if controller is None else load_robot(controller)
@@ -161,11 +156,11 @@ def filter_command(
         highlight=False, soft_wrap=True, markup=False,
     )  # fmt: skip
     bad = [p for p in result.points if p.status != "ok"]
-    for status in STATUS_MEANING_FILTER:
+    for status, note in STATUS_NOTES.items():
         where = [f"{p.point.label} (line {p.point.line})" for p in bad if p.status == status]
         if where:
             shown = ", ".join(where[:8]) + (f" and {len(where) - 8} more" if len(where) > 8 else "")
-            console.print(f"  {status}: {shown}: {STATUS_MEANING_FILTER[status]}", highlight=False, soft_wrap=True, markup=False)
+            console.print(f"  {status}: {shown}: {note}", highlight=False, soft_wrap=True, markup=False)
     if bad:
         console.print(
             f"{len(bad)} point{'s are' if len(bad) != 1 else ' is'} not ok: read points.csv before running the "

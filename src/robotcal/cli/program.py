@@ -74,10 +74,29 @@ def program(
         from robotcal.api import compensate as compensate_poses
         from robotcal.io.parameters_json import read_parameters
 
+        from robotcal.errors import InputError
+
         inputs += existing_inputs(compensate)
         parameters = read_parameters(compensate, loaded.robot)
-        readings = compensate_poses(parameters, poses_deg=np.rad2deg(readings)).readings
+        result = compensate_poses(parameters, poses_deg=np.rad2deg(readings))
+        lost = np.flatnonzero(np.isin(result.status, ["outside_limits", "unreachable"]))
+        if lost.size:
+            raise InputError(
+                f"--compensate {compensate}: the calibrated model cannot reach {lost.size} point(s) of the plan "
+                f"inside the joint limits on their branch (point(s) {', '.join(str(k + 1) for k in lost[:10])}"
+                f"{'...' if lost.size > 10 else ''}: {', '.join(sorted(set(result.status[lost])))}); no program written"
+            )
+        damped = np.flatnonzero(result.status != "ok")
+        readings = result.readings
         compensated = f"\ncompensated with the calibrated model {compensate} (robotcal compensate)"
+        if damped.size:
+            note = (
+                f"{damped.size} point(s) near a singularity ({', '.join(str(k + 1) for k in damped[:10])}"
+                f"{'...' if damped.size > 10 else ''}): damped commands, up to "
+                f"{np.nanmax(result.position_error_mm[damped]):.3g} mm from the target"
+            )
+            compensated += f"; {note}"
+            console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     angles = controller_readings(readings, loaded.robot, target)
     header = (
         f"robotcal capture program: scenario {loaded.name} ({loaded.source})\n"

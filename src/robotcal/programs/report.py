@@ -2,8 +2,8 @@
 
 - the filtered program files, under their own names, in the encoding and with the line endings they were read in;
 - ``points.csv``: one row per point (label, file, line, kind, motion, tool, base, status, correction, joint change,
-  remaining error, the nominal controller's readings and the command's), then one row per target the reader could
-  not filter (status ``not_filtered`` and why);
+  remaining error, a note on the status, the nominal controller's readings and the command's), then one row per
+  target the reader could not filter (status ``not_filtered``, the note saying why);
 - ``filter.html``: the summary and the same table, a page that needs no network;
 - ``filter.json``: provenance (versions, the inputs and their SHA-256, the counts).
 """
@@ -22,13 +22,22 @@ from robotcal.io.output import SIGNATURE
 from robotcal.io.provenance import versions
 from robotcal.programs.filter import FilteredProgram
 
-__all__ = ["POINT_COLUMNS", "points_table", "write_report"]
+__all__ = ["POINT_COLUMNS", "STATUS_NOTES", "points_table", "write_report"]
 
 #: The columns of ``points.csv`` before the readings (``taught_q1..qN``, ``command_q1..qN`` [deg]).
 POINT_COLUMNS = (
     "label", "file", "line", "kind", "motion", "tool", "base", "status", "written", "correction_mm",
-    "correction_deg", "largest_change_deg", "position_error_mm", "orientation_error_deg",
+    "correction_deg", "largest_change_deg", "position_error_mm", "orientation_error_deg", "note",
 )  # fmt: skip
+#: What a point's status means (the ``note`` of points.csv).
+STATUS_NOTES = {
+    "ok": "",
+    "near_singular": "at a singularity: the damped command, with the error it leaves",
+    "large_correction": "a correction larger than the calibration explains: the damped command, check it",
+    "outside_limits": "reachable only beyond a joint limit: left as written",
+    "unreachable": "out of the calibrated robot's reach on its branch: left as written",
+    "config_mismatch": "no nominal solution has the point's configuration data: left as written",
+}
 
 
 def _number(value: float, digits: int = 6) -> str:
@@ -46,12 +55,13 @@ def points_table(result: FilteredProgram) -> list[list[str]]:
                 point.label, point.file, str(point.line), point.kind, point.motion, point.tool or "", point.base or "",
                 record.status, "yes" if record.written else "no", _number(record.correction_mm),
                 _number(record.correction_deg), _number(record.largest_change_deg), _number(record.position_error_mm),
-                _number(record.orientation_error_deg), *(_number(v, 10) for v in record.taught_deg),
+                _number(record.orientation_error_deg), STATUS_NOTES[record.status],
+                *(_number(v, 10) for v in record.taught_deg),
                 *(_number(v, 10) for v in record.command_deg),
             ]
         )  # fmt: skip
     for file, line, why in result.program.skipped:
-        rows.append(["", file, str(line), "", "", "", "", "not_filtered", "no", "", "", "", "", why] + [""] * (2 * n))
+        rows.append(["", file, str(line), "", "", "", "", "not_filtered", "no", "", "", "", "", "", why] + [""] * (2 * n))
     return rows
 
 
