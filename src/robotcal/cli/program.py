@@ -72,9 +72,8 @@ def program(
         import numpy as np
 
         from robotcal.api import compensate as compensate_poses
-        from robotcal.io.parameters_json import read_parameters
-
         from robotcal.errors import InputError
+        from robotcal.io.parameters_json import read_parameters
 
         inputs += existing_inputs(compensate)
         parameters = read_parameters(compensate, loaded.robot)
