@@ -60,9 +60,6 @@ __all__ = [
     "compensate_commands",
 ]
 
-#: What a solved pose must meet in :func:`solve_commands` (its ``reached``): 1 um and 1e-4 deg.
-POSITION_TOLERANCE_MM = 1e-3
-ORIENTATION_TOLERANCE_DEG = 1e-4
 #: The status of a compensated row (:func:`compensate_commands`), from best to worst.
 STATUSES = ("ok", "near_singular", "large_correction", "outside_limits", "unreachable")
 
@@ -80,16 +77,15 @@ class Compensation:
         Remaining distance and rotation between the calibrated tool frame at ``readings`` and the target (NaN where
         no command is given).
     iterations : int
-        Newton steps taken (the slowest pose's).
+        Newton steps taken from the taught readings (the slowest pose's).
     reached : ndarray of bool, shape (n_poses,)
-        Within the tolerances of the solve (:data:`POSITION_TOLERANCE_MM`, :data:`ORIENTATION_TOLERANCE_DEG` for
-        :func:`solve_commands`; :class:`CompensationSettings`' for :func:`compensate_commands`).
-    status : ndarray of str, shape (n_poses,), optional
-        :func:`compensate_commands`: one of :data:`STATUSES` per row.
-    largest_change_deg : ndarray, shape (n_poses,), optional
-        :func:`compensate_commands`: the largest joint change from the taught readings [deg].
-    taught : ndarray, shape (n_poses, n_joints), optional
-        :func:`compensate_commands`: the readings the commands replace [rad].
+        Within the tolerances of :class:`CompensationSettings` (an ``ok`` row always is).
+    status : ndarray of str, shape (n_poses,)
+        One of :data:`STATUSES` per row.
+    largest_change_deg : ndarray, shape (n_poses,)
+        The largest joint change from the taught readings [deg] (NaN where no command is given).
+    taught : ndarray, shape (n_poses, n_joints)
+        The readings the commands replace [rad].
     """
 
     readings: np.ndarray
@@ -97,14 +93,14 @@ class Compensation:
     orientation_error_deg: np.ndarray
     iterations: int
     reached: np.ndarray
-    status: np.ndarray | None = None
-    largest_change_deg: np.ndarray | None = None
-    taught: np.ndarray | None = None
+    status: np.ndarray
+    largest_change_deg: np.ndarray
+    taught: np.ndarray
 
     @property
     def ok(self) -> np.ndarray:
-        """Rows whose command can be run as it is (status ``ok``; ``reached`` where there is no status)."""
-        return self.reached if self.status is None else self.status == "ok"
+        """Rows whose command can be run as it is (status ``ok``)."""
+        return self.status == "ok"
 
     def __repr__(self) -> str:
         """One line: how many poses, how many ok (or reached), the worst remaining error."""
@@ -117,9 +113,8 @@ class Compensation:
             if given.any()
             else ""
         )
-        word = "reached" if self.status is None else "ok"
         steps = f"{self.iterations} Newton step{'s' if self.iterations != 1 else ''}"
-        return f"Compensation({n_poses} pose{'s' if n_poses != 1 else ''}, {int(done.sum())} {word}{worst}, {steps})"
+        return f"Compensation({n_poses} pose{'s' if n_poses != 1 else ''}, {int(done.sum())} ok{worst}, {steps})"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -302,6 +302,7 @@ def _compensate(parameters, targets, taught, tools, settings):
     count = len(targets)
     n = parameters.robot.n_joints
     readings = np.full((count, n), np.nan)
+    taught_all = np.stack(taught) if count else np.zeros((0, n))
     status = np.full(count, "unreachable", dtype=object)
     position, angle, change = (np.full(count, np.nan) for _ in range(3))
     groups: dict[bytes, list[int]] = {}
@@ -320,7 +321,7 @@ def _compensate(parameters, targets, taught, tools, settings):
         )
     return Compensation(
         readings=readings, position_error_mm=position, orientation_error_deg=angle, iterations=0,
-        reached=status == "ok", status=status.astype(str), largest_change_deg=change,
+        reached=status == "ok", status=status.astype(str), largest_change_deg=change, taught=taught_all,
     )  # fmt: skip
 
 
