@@ -820,6 +820,7 @@ def compensate(
     start_deg=None,
     tool_mm=None,
     settings: CompensationSettings | None = None,
+    progress=None,
 ) -> Compensation:
     """Joint commands with which the calibrated robot reaches the poses it was taught (issues 22, 28; thesis ch. 6.2).
 
@@ -846,6 +847,8 @@ def compensate(
         The tool point in the flange frame [mm] (default: the flange).
     settings : CompensationSettings, optional
         What an ``ok`` command must meet (default: 2 deg, 1e-6 mm, 1e-6 deg).
+    progress : callable, optional
+        ``progress(done, total)`` after every block of 5,000 poses.
 
     Returns
     -------
@@ -896,7 +899,7 @@ def compensate(
         solutions, exists = nominal_solutions(robot, targets @ np.linalg.inv(tool), reference=seed)
         distance = np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6)
         taught = solutions[np.arange(len(seed)), np.argmin(distance, axis=1)]
-    return compensate_commands(parameters, targets, taught, tool=tool, settings=settings)
+    return compensate_commands(parameters, targets, taught, tool=tool, settings=settings, progress=progress)
 
 
 def evaluate(

@@ -330,3 +330,31 @@ def print_health(health) -> None:
             console.print(f"  {label}: {item}", highlight=False, markup=False, soft_wrap=True)
     if health.failed:
         raise typer.Exit(code=1)
+
+
+def progress_bar(title: str, unit: str):
+    """A transient Rich progress bar ``title [bar] done/total unit elapsed remaining``; in a narrow console
+    only the bar shrinks (the title and the counts are never cut)."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.table import Column
+
+    def whole() -> Column:
+        return Column(no_wrap=True)
+
+    return Progress(
+        TextColumn(title, markup=False, table_column=whole()),
+        BarColumn(),
+        MofNCompleteColumn(table_column=whole()),
+        TextColumn(unit, markup=False, table_column=whole()),
+        TimeElapsedColumn(table_column=whole()),
+        TimeRemainingColumn(table_column=whole()),
+        console=__getattr__("console"),
+        transient=True,
+    )

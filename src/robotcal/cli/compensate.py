@@ -9,11 +9,11 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors, progress_bar
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
 from robotcal.io.trajectory_csv import pose_labels, read_pose_targets, write_trajectory
-from robotcal.kinematics.compensation import STATUSES, CompensationSettings
+from robotcal.kinematics.compensation import BLOCK_ROWS, STATUSES, CompensationSettings
 
 #: Exit status of a command that wrote its output but some of its rows or points are not ok (their status says why).
 PARTIAL_EXIT = 3
@@ -89,15 +89,21 @@ def compensate(
     start = None if start_deg is None else parse_vector(start_deg, "--start-deg", n)
     settings = CompensationSettings(max_change_deg=max_change_deg)
     if cartesian is None:
-        result = api.compensate(parameters, poses_deg=np.rad2deg(readings), tool_mm=tool_mm, settings=settings)
+        targets = {"poses_deg": np.rad2deg(readings)}
         kind = "joint targets taught on the nominal model"
     else:
         seeds = np.rad2deg(readings) if readings is not None else start
-        result = api.compensate(
-            parameters, cartesian=np.c_[cartesian[:, :3], np.rad2deg(cartesian[:, 3:])], start_deg=seeds,
-            tool_mm=tool_mm, settings=settings,
-        )  # fmt: skip
+        targets = {"cartesian": np.c_[cartesian[:, :3], np.rad2deg(cartesian[:, 3:])], "start_deg": seeds}
         kind = "Cartesian targets in the robot base frame"
+    if len(labels) > BLOCK_ROWS:  # more than one block: show the blocks go by
+        with progress_bar("compensate", "poses") as display:
+            task = display.add_task("compensate", total=len(labels))
+            result = api.compensate(
+                parameters, **targets, tool_mm=tool_mm, settings=settings,
+                progress=lambda done, total: display.update(task, completed=done),
+            )  # fmt: skip
+    else:
+        result = api.compensate(parameters, **targets, tool_mm=tool_mm, settings=settings)
     counts = {status: int(np.sum(result.status == status)) for status in STATUSES if np.any(result.status == status)}
     comment = (
         f"{SIGNATURE} compensate: commands with which the calibrated model {params.name} reaches the {kind} of "

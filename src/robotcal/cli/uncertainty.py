@@ -21,6 +21,7 @@ from robotcal.cli._common import (
     console,
     handle_errors,
     monte_carlo_bytes,
+    progress_bar,
     seed_option_check,
     styled,
 )
@@ -36,34 +37,6 @@ __all__ = ["uncertainty", "uncertainty_table"]
 
 #: Draws of ``--capture`` without ``-n``: each draw is a full refinement (docs/uncertainty.md).
 MEASURED_DEFAULT_DRAWS = 300
-
-
-def _progress(title: str):
-    """A transient Rich progress bar ``title [bar] done/total draws elapsed remaining``; in a narrow console
-    only the bar shrinks (the title and the counts are never cut)."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-    from rich.table import Column
-
-    def whole() -> Column:
-        return Column(no_wrap=True)
-
-    return Progress(
-        TextColumn(title, markup=False, table_column=whole()),
-        BarColumn(),
-        MofNCompleteColumn(table_column=whole()),
-        TextColumn("draws", table_column=whole()),
-        TimeElapsedColumn(table_column=whole()),
-        TimeRemainingColumn(table_column=whole()),
-        console=console,
-        transient=True,
-    )
 
 
 def _model_name(result: MonteCarloResult) -> str:
@@ -298,7 +271,7 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
     run_seed = api.seed_from(seed, table.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")  # checked before any draw
     problem = api.monte_carlo_problem(loaded, parameters=truth, model=model, criterion=criterion, poses=poses)
-    with _progress("Monte Carlo") as display:
+    with progress_bar("Monte Carlo", "draws") as display:
         task = display.add_task("draws", total=None if settings.adaptive else settings.iterations)
         result = run_monte_carlo(
             problem,
@@ -386,7 +359,7 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
     run_seed = api.seed_from(seed, loaded.montecarlo.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")
     draws = MEASURED_DEFAULT_DRAWS if iterations is None else iterations
-    with _progress("Monte Carlo of the capture") as display:
+    with progress_bar("Monte Carlo of the capture", "draws") as display:
         task = display.add_task("draws", total=draws)
         result = api.measured_monte_carlo(
             measured,

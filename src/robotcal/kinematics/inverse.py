@@ -118,7 +118,18 @@ def _meeting_point(frames: np.ndarray) -> np.ndarray | None:
     return np.array(points)
 
 
+_STRUCTURES: dict[tuple, _Structure] = {}
+
+
 def _structure(robot: RobotModel) -> _Structure:
+    """The closed form's constants of ``robot``'s nominal geometry (computed once per geometry)."""
+    key = (robot.name, robot.nominal.tobytes())
+    if key not in _STRUCTURES:
+        _STRUCTURES[key] = _find_structure(robot)
+    return _STRUCTURES[key]
+
+
+def _find_structure(robot: RobotModel) -> _Structure:
     """The closed form's constants of ``robot``'s nominal geometry, or InputError naming what is missing."""
     if robot.n_joints != 6:
         raise InputError(
@@ -386,7 +397,9 @@ def solve_pose(
     left out of J: the iteration contracts by that factor per step instead of quadratically, reaching 1e-12 mm in a
     handful of steps. Near a singularity a Newton step can raise the error: each pose then damps its own step
     (Levenberg-Marquardt, ``(J^T J + lambda diag(J^T J)) dr = J^T e``, lambda from 1e-3 up by 10 until the error
-    falls, back down by 10 after each accepted step).
+    falls, back down by 10 after each accepted step). A pose stops at 2e-13 of the robot's size (2e-10 mm on a 1 m
+    arm), when an accepted step moves no joint by 1e-13 rad (a local minimum: an unreachable target), or when no
+    damping up to 1e12 lowers its error.
 
     Parameters
     ----------
@@ -447,6 +460,8 @@ def solve_pose(
             trial[better], trial_jacobian[better], trial_residual[better], trial_cost[better]
         )
         damping[kept] = np.where(damping[kept] > 1e-9, damping[kept] / 10.0, 0.0)
+        # a pose whose accepted step moved no joint by 1e-13 rad is at its (local) minimum: done
+        damping[kept[np.abs(step[better]).max(axis=1, initial=0.0) < 1e-13]] = np.inf
         worse = active[~better]
         damping[worse] = np.where(damping[worse] > 0.0, damping[worse] * 10.0, 1e-3)
     frames = tool_frames(parameters, readings, tool_frame)[0]
@@ -533,7 +548,7 @@ class InverseSolutions:
     within_limits : ndarray of bool, shape (n_poses, 8)
         Every reading inside the robot's limits.
     position_error_mm, orientation_error_deg : ndarray, shape (n_poses, 8)
-        What remains between the tool frame at ``readings`` and the target.
+        What remains between the tool frame at ``readings`` and the target (NaN for a branch not solved).
     """
 
     readings: np.ndarray
@@ -582,6 +597,8 @@ def inverse_kinematics(
     reference=None,
     position_tolerance_mm: float = 1e-6,
     orientation_tolerance_deg: float = 1e-6,
+    branches=None,
+    max_iterations: int = 200,
 ) -> InverseSolutions:
     """Every branch's readings at which ``parameters``' tool frame is each target (module notes).
 
@@ -597,6 +614,10 @@ def inverse_kinematics(
         Readings [rad] that choose whole turns and the free angle at a singularity (default: mid-limits).
     position_tolerance_mm, orientation_tolerance_deg : float
         What ``reached`` means.
+    branches : array_like of bool, shape (n_poses, 8), optional
+        Solve only these branches on the calibrated model (the others hold their nominal solution, not reached).
+    max_iterations : int
+        Newton steps per branch solution.
 
     Returns
     -------
@@ -619,15 +640,24 @@ def inverse_kinematics(
     count = targets.shape[0]
     reference = _reference(robot, reference, count)
     start, _ = nominal_solutions(robot, targets @ _invert(tool_frame), reference=reference)
-    flat_targets = np.repeat(targets, 8, axis=0)
-    result = solve_pose(parameters, flat_targets, start.reshape(-1, robot.n_joints), tool=tool_frame)
-    readings = wrap_readings(result.readings.reshape(count, 8, -1), robot, reference[:, None, :])
+    chosen = np.ones((count, 8), dtype=bool) if branches is None else np.asarray(branches, dtype=bool)
+    if chosen.shape != (count, 8):
+        raise InputError(f"`branches` must be a mask of shape ({count}, 8); got {chosen.shape}")
+    pose, branch = np.nonzero(chosen)
+    result = solve_pose(parameters, targets[pose], start[pose, branch], tool=tool_frame, max_iterations=max_iterations)
+    readings = start.copy()
+    readings[pose, branch] = result.readings
+    readings = wrap_readings(readings, robot, reference[:, None, :])
+    reached = np.zeros((count, 8), dtype=bool)
+    reached[pose, branch] = result.reached(position_tolerance_mm, orientation_tolerance_deg)
+    position, angle = np.full((count, 8), np.nan), np.full((count, 8), np.nan)
+    position[pose, branch], angle[pose, branch] = result.position_error_mm, result.orientation_error_deg
     return InverseSolutions(
         readings=readings,
-        reached=result.reached(position_tolerance_mm, orientation_tolerance_deg).reshape(count, 8),
+        reached=reached,
         within_limits=within_limits(robot, readings),
-        position_error_mm=result.position_error_mm.reshape(count, 8),
-        orientation_error_deg=result.orientation_error_deg.reshape(count, 8),
+        position_error_mm=position,
+        orientation_error_deg=angle,
     )
 
 

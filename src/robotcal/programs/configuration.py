@@ -52,8 +52,23 @@ def _geometry(controller: RobotModel, readings: np.ndarray):
     return forward, side
 
 
+def _key(robot: RobotModel) -> tuple:
+    return (robot.name, robot.nominal.tobytes(), robot.reading_matrix.tobytes(), robot.reading_offset.tobytes())
+
+
+_STRETCHED: dict[tuple, float] = {}
+
+
 def _stretched_a3(controller: RobotModel) -> float:
-    """The A3 reading [rad] at which the wrist centre lies on the line through the axes of A2 and A3, beyond A3."""
+    """The A3 reading [rad] at which the wrist centre lies on the line through the axes of A2 and A3, beyond A3
+    (computed once per robot geometry and reading map)."""
+    key = _key(controller)
+    if key not in _STRETCHED:
+        _STRETCHED[key] = _search_stretched_a3(controller)
+    return _STRETCHED[key]
+
+
+def _search_stretched_a3(controller: RobotModel) -> float:
     readings = np.zeros((721, controller.n_joints))
     readings[:, 2] = np.linspace(-np.pi, np.pi, 721)
     q = controller.model_joint_variables(readings)
