@@ -119,3 +119,17 @@ def test_filter_a_urscript_program_and_refuse_its_own_input(calibrated, tmp_path
     result = invoke("filter", tmp_path / "ur_dispense.script", "--params", calibrated / "ur5e.json", "--language",
                     "gcode", "-o", tmp_path / "x")  # fmt: skip
     assert result.exit_code == 2 and "gcode" in result.output
+
+
+def test_exports_that_carry_a_hayati_beta(calibrated, tmp_path):
+    """A calibrated UR5e has betas on its parallel J2, J3: the UR calibration YAML holds them (each joint's origin as
+    x, y, z, roll, pitch, yaw, the format the UR drivers read), a DH table cannot and names the forms that can."""
+    parameters = robotcal.read_parameters(calibrated / "ur5e.json", robotcal.load_robot("ur5e"))
+    assert np.abs(parameters.values[[1, 2], 4]).min() > 0  # the perturbation tilted both parallel axes
+    result = invoke("export", calibrated / "ur5e.json", "--format", "ur-yaml", "-o", tmp_path / "calibration.yaml")
+    assert result.exit_code == 0, result.output
+    text = (tmp_path / "calibration.yaml").read_text()
+    assert all(f"  {joint}:" in text for joint in ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"))
+    result = invoke("export", calibrated / "ur5e.json", "--format", "dh", "-o", tmp_path / "dh.csv")
+    assert result.exit_code == 2
+    assert "J2.beta" in result.output and "--format urdf" in result.output and "--format ur-yaml" in result.output

@@ -37,6 +37,7 @@ from robotcal.kinematics.model import ParameterSet
 __all__ = [
     "joint_model_note",
     "with_note",
+    "BETA_ALTERNATIVES",
     "EXPORT_FORMATS",
     "UR_JOINT_NAMES",
     "coupled_joints",
@@ -57,6 +58,13 @@ EXPORT_FORMATS = ("json", "urdf", "ur-yaml", "dh", "mdh")
 #: Joint names of the UR calibration file, J1..J6.
 UR_JOINT_NAMES = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
 _EXACT = 1e-12  # a value is "zero" for a convention check below this [mm, rad]
+#: Where a Hayati beta (nearly parallel axes, thesis ch. 3.4.5) rules out a DH table: the exact forms that hold it.
+BETA_ALTERNATIVES = (
+    "exact equivalents that hold it: --format urdf (each joint's origin as x, y, z, roll, pitch, yaw: ROS, MoveIt, "
+    "Gazebo and most simulators read it), --format ur-yaml for a UR-type arm (its controller's calibration file), or "
+    "--format json (the hybrid DH / Hayati model itself); `robotcal compensate` and `robotcal filter` carry the whole "
+    "model to a controller that only knows its nominal DH"
+)
 
 
 def _float(value: float) -> str:
@@ -323,7 +331,7 @@ def dh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> li
         f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
     ]
     if bad:
-        raise InputError(f"standard DH cannot express a rotation about y: {', '.join(bad)} (export --format urdf)")
+        raise InputError(f"standard DH cannot express a rotation about y: {', '.join(bad)}; {BETA_ALTERNATIVES}")
     rows = []
     for i in range(parameters.robot.n_joints):
         d, theta, a, alpha, _ = values[i]
@@ -348,7 +356,7 @@ def mdh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> l
         f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
     ]
     if bad:
-        raise InputError(f"modified DH cannot express a rotation about y: {', '.join(bad)} (export --format urdf)")
+        raise InputError(f"modified DH cannot express a rotation about y: {', '.join(bad)}; {BETA_ALTERNATIVES}")
     rows = []
     previous_a, previous_alpha = 0.0, 0.0
     for i in range(parameters.robot.n_joints):
