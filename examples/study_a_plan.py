@@ -3,9 +3,10 @@
 What it shows
     Planning with the Python API (thesis ch. 4.5.2 and 5.2.4, docs/planning.md):
 
-    1. :func:`robotcal.check_plan` checks every point of the kr5-demo plan (the thesis's Table 5.1 plan)
-       in its cell: joint limits, the tracker's range, the reflector's acceptance angle, the line of
-       sight past the links. The circles of J5 and J6 lose most of their points.
+    1. :func:`robotcal.check_plan` checks every point of the kr5-demo plan (the thesis's Table 5.1 plan,
+       J5 swept -115..115 deg within its limits) in its cell: joint limits, the tracker's range, the
+       reflector's acceptance angle, the line of sight past the links. The circles of J5 and J6 lose most
+       of their points.
     2. :func:`robotcal.change_plan` makes a plan that passes: the J5 and J6 circles start and sweep
        within the range the check found usable (one start per circle).
     3. A second plan is the same with the J4 target 120 mm from the axis instead of 20 mm.
@@ -56,12 +57,12 @@ def main(argv: list[str] | None = None) -> int:
     print(describe(check))
 
     # One start per circle (row i: the readings where circle i starts): J5 and J6 turn where the check
-    # found their points usable; every other circle starts as before.
+    # found their points usable (J5 -38..38 deg, J6 124..166 deg); every other circle starts as before.
     start = scenario.plan.start
     start_deg = np.rad2deg(start if start.ndim == 2 else np.tile(start, (start.size, 1)))
-    start_deg[4, 4], start_deg[5, 5] = 60.0, 115.0
+    start_deg[4, 4], start_deg[5, 5] = -35.0, 125.0
     sweep_deg = np.rad2deg(scenario.plan.sweep)
-    sweep_deg[4], sweep_deg[5] = 55.0, 60.0
+    sweep_deg[4], sweep_deg[5] = 70.0, 40.0
     short_arm = robotcal.change_plan(scenario, start_deg=start_deg, sweep_deg=sweep_deg)
     reflector_mm = np.array(short_arm.plan.reflector.positions)
     reflector_mm[3] = [120.0, 0.0, 0.0]

@@ -1598,17 +1598,20 @@ def check_plan(
 
     Examples
     --------
-    The thesis plan (Table 5.1) in the cell of Table 5.4: the circles of J5 and J6 lose points to
-    the reflector's acceptance angle and to the line of sight past the links:
+    The demo's plan (Table 5.1 with J5 swept -115..115 deg, within its limits) in the cell of Table 5.4:
+    no reading leaves a joint limit, but the circles of J5 and J6 lose points to the reflector's acceptance
+    angle and to the line of sight past the links:
 
     >>> import robotcal
     >>> check = robotcal.check_plan(robotcal.load_scenario("kr5-demo"))
     >>> check.feasible
     False
+    >>> int(check.failures[:, 0].sum())  # joint limit
+    0
     >>> [(c.circle, c.feasible_points, c.points) for c in check.circles if c.feasible_points < c.points]
-    [(5, 8, 25), (6, 7, 30)]
+    [(5, 9, 25), (6, 5, 30)]
     >>> check.circles[4].first_reasons
-    ('acceptance (60 deg)',)
+    ('acceptance (66 deg)',)
     """
     from robotcal.planning.cell import check_plan as check_points
     from robotcal.planning.scenario import cell_from_scenario

@@ -98,6 +98,51 @@ def test_program_cli_round_trip(tmp_path):
     )
 
 
+def test_kr5_demo_plan_is_a_program_the_robot_can_run(tmp_path):
+    # issue 28: kr5-demo turned A5 to 200 deg (20 readings beyond +-120, `joint_limits = "ignore"`), so
+    # `robotcal program kr5-demo` refused; its J5 now sweeps -115..115 deg and the thesis scenarios keep Table 5.1
+    from robotcal.io import load_robot, load_scenario
+    from robotcal.planning.program import controller_readings
+
+    scenario = load_scenario("kr5-demo")
+    assert scenario.joint_limits == "warn"
+    circle, direction, readings = scenario.plan.readings(scenario.robot)
+    assert readings.shape == (270, 6) and set(direction.tolist()) == {1, -1}
+    # independent truth: the robot file's limits (kuka-kr5-sixx-r650.toml, Fig. 4.17) and the J5 circle by hand,
+    # 25 points from -115 to 115 deg in steps of 230 / 24 deg, then back
+    limits = np.array([[-170, 170], [-45, 190], [-166, 119], [-190, 190], [-120, 120], [-350, 350]], dtype=float)
+    degrees = np.rad2deg(readings)
+    assert np.all((degrees >= limits[:, 0]) & (degrees <= limits[:, 1]))
+    j5 = -115.0 + 230.0 / 24.0 * np.arange(25)
+    np.testing.assert_allclose(degrees[(circle == 5) & (direction == 1), 4], j5, atol=1e-9)
+    np.testing.assert_allclose(degrees[(circle == 5) & (direction == -1), 4], j5[::-1], atol=1e-9)
+    controller = load_robot("kuka-kr5-sixx-r650-krc")
+    angles = controller_readings(readings, scenario.robot, controller)  # raises beyond the KRC's limits
+    assert np.all((angles >= controller.limits[:, 0]) & (angles <= controller.limits[:, 1]))
+
+    out = tmp_path / "check"
+    result = runner.invoke(app, ["plan", "check", "kr5-demo", "--out", str(out)])
+    # infeasible still (exit 1): one SMR cannot face the tracker over the J5 and J6 sweeps; but no joint limit
+    assert result.exit_code == 1 and "joint limit 0" in result.output, result.output
+    assert json.loads((out / "plan_check.json").read_text())["failures"]["joint limit"] == 0
+    for language, name in (("krl", "kr5_demo.src"), ("rapid", "kr5_demo.mod"), ("urscript", "kr5_demo.script")):
+        result = runner.invoke(app, ["program", "kr5-demo", "--language", language, "--out", str(tmp_path / name)])
+        assert result.exit_code == 0, result.output
+    moves = [
+        [float(v) for v in re.findall(r"A\d (-?[\d.]+)", line)]
+        for line in (tmp_path / "kr5_demo.src").read_text().splitlines()
+        if "PTP {" in line
+    ]
+    np.testing.assert_allclose(moves, degrees, atol=1e-6)  # the model robot file reads the model variables
+    krc = tmp_path / "kr5_demo_krc.src"
+    result = runner.invoke(app, ["program", "kr5-demo", "--controller", "kuka-kr5-sixx-r650-krc", "--out", str(krc)])
+    assert result.exit_code == 0, result.output
+    # the thesis scenarios keep the thesis plan (Table 5.1: J5 through 200 deg) and say the limits are ignored
+    thesis = load_scenario("thesis-laser-tracker")
+    np.testing.assert_allclose(np.rad2deg(thesis.plan.sweep), [45.0, 80.0, 100.0, 50.0, 200.0, 300.0])
+    assert thesis.joint_limits == "ignore"
+
+
 def test_sensitivity_cli(tmp_path):
     out = tmp_path / "sens"
     result = runner.invoke(
