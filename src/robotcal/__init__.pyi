@@ -6,6 +6,7 @@ from .api import check_plan as check_plan
 from .api import compensate as compensate
 from .api import diagnose_joints as diagnose_joints
 from .api import evaluate as evaluate
+from .api import filter_program as filter_program
 from .api import identify as identify
 from .api import monte_carlo as monte_carlo
 from .api import perturb as perturb

@@ -59,6 +59,7 @@ from robotcal.uncertainty.tcp import check_readings
 if TYPE_CHECKING:  # the Monte Carlo, TCP and planning modules load when a function needs them
     from robotcal.kinematics.compensation import Compensation, CompensationSettings
     from robotcal.planning.cell import CellModel, PlanCheck
+    from robotcal.programs.filter import FilteredProgram
     from robotcal.uncertainty.montecarlo import MonteCarloResult
     from robotcal.uncertainty.tcp import TCPUncertainty
     from robotcal.uncertainty.workspace import WorkspaceUncertainty
@@ -900,6 +901,66 @@ def compensate(
         distance = np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6)
         taught = solutions[np.arange(len(seed)), np.argmin(distance, axis=1)]
     return compensate_commands(parameters, targets, taught, tool=tool, settings=settings, progress=progress)
+
+
+def filter_program(
+    program,
+    parameters,
+    robot=None,
+    *,
+    controller=None,
+    frames=None,
+    language: str | None = None,
+    dat=None,
+    config_dat=None,
+    encoding: str = "utf-8",
+    start_deg=None,
+    settings: CompensationSettings | None = None,
+) -> FilteredProgram:
+    """A robot program with every target compensated by the calibrated model, numbers changed only (issue 28).
+
+    Parameters
+    ----------
+    program : path or Program
+        A KUKA KRL ``.src`` (its ``.dat`` beside it), ABB RAPID ``.mod`` or URScript ``.script``, or a program read by
+        :func:`robotcal.programs.read_program`.
+    parameters : ParameterSet, a result holding one, or a parameter JSON path
+        The calibrated model; a path needs ``robot``.
+    robot : RobotModel or Scenario, optional
+        For a parameter JSON path.
+    controller : RobotModel or robot name, optional
+        The robot file whose readings are the program's axis values and whose ``flange_frame`` is the controller's
+        flange (e.g. ``"kuka-kr5-sixx-r650-krc"``; default: the calibrated model's robot).
+    frames : dict of str to (4, 4) [mm], optional
+        Tools and bases the program uses but does not declare, or that replace its declarations.
+    language, dat, config_dat, encoding
+        How to read a program path (:func:`robotcal.programs.read_program`).
+    start_deg : array_like (n_joints,), optional
+        Controller readings before the first point [deg] (default: mid-limits).
+    settings : CompensationSettings, optional
+
+    Returns
+    -------
+    FilteredProgram
+        ``texts`` (the new files), ``points`` (every point's status, correction and remaining error) and ``counts``.
+    """
+    from robotcal.programs import read_program
+    from robotcal.programs.base import Program
+    from robotcal.programs.filter import filter_program as filter_core
+
+    if robot is None:
+        held = getattr(parameters, "parameters", parameters)
+        if not isinstance(held, ParameterSet):
+            raise InputError("`parameters` must be a ParameterSet or a result holding one (a JSON path needs `robot`)")
+        robot = held.robot
+    else:
+        robot, _ = _split(robot)
+    parameters = _parameters(parameters, robot, "parameters")
+    if isinstance(controller, str | os.PathLike):
+        controller = load_robot(controller)
+    if not isinstance(program, Program):
+        program = read_program(program, language=language, dat=dat, config_dat=config_dat, encoding=encoding)
+    return filter_core(program, parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
 
 
 def evaluate(

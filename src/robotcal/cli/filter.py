@@ -15,21 +15,7 @@ from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, p
 
 app = command_app()
 
-__all__ = ["filter_command", "LANGUAGE_OF_SUFFIX"]
-
-#: The language of a program file, by its suffix (lower case).
-LANGUAGE_OF_SUFFIX = {
-    ".src": "krl",
-    ".mod": "rapid",
-    ".modx": "rapid",
-    ".prg": "rapid",
-    ".sys": "rapid",
-    ".sysx": "rapid",
-    ".script": "urscript",
-    ".urscript": "urscript",
-}
-
-
+__all__ = ["filter_command"]
 
 def _frames(items: list[str] | None) -> dict:
     """``NAME=x,y,z,A,B,C`` options -> ``{NAME: 4x4}`` [mm, deg KUKA]."""
@@ -49,30 +35,6 @@ def _frames(items: list[str] | None) -> dict:
         frame[:3, 3] = values[:3]
         frames[name.strip()] = frame
     return frames
-
-
-def _read(program: Path, language: str | None, dat: Path | None, config_dat: Path | None, encoding: str):
-    from robotcal.errors import InputError
-
-    language = language or LANGUAGE_OF_SUFFIX.get(program.suffix.lower())
-    if language is None:
-        raise InputError(
-            f"{program}: cannot tell the language from the suffix {program.suffix!r}; give --language krl, rapid or "
-            "urscript"
-        )
-    if language != "krl" and (dat is not None or config_dat is not None):
-        raise InputError("--dat and --config-dat are for KRL programs (.src)")
-    if language == "krl":
-        from robotcal.programs.krl import read_program
-
-        return read_program(program, dat_path=dat, config_dat=config_dat, encoding=encoding)
-    if language == "rapid":
-        from robotcal.programs.rapid import read_program
-    elif language == "urscript":
-        from robotcal.programs.urscript import read_program
-    else:
-        raise InputError(f"unknown --language {language!r}; choose krl, rapid or urscript")
-    return read_program(program, encoding=encoding)
 
 
 @app.command("filter")
@@ -129,20 +91,21 @@ def filter_command(
     (its S/T or cf configuration data, or nearest the previous point), compensated on the calibrated model, and
     written back in the program's own representation; everything else byte-identical. Exit status 3 when some
     point is not ok."""
+    from robotcal import api
     from robotcal.io import load_robot
     from robotcal.io.output import check_output_folder, existing_inputs, result_folder
     from robotcal.kinematics.compensation import CompensationSettings
-    from robotcal.programs.filter import filter_program
+    from robotcal.programs import read_program
     from robotcal.programs.report import STATUS_NOTES, write_report
 
     parameters, inputs = load_parameter_set(params, robot, scenario)
     target = None if controller is None else load_robot(controller)
     inputs += existing_inputs(program, dat, config_dat, controller)
     check_output_folder(out, inputs=inputs, force=force)
-    loaded = _read(program, language, dat, config_dat, encoding)
+    loaded = read_program(program, language=language, dat=dat, config_dat=config_dat, encoding=encoding)
     inputs += existing_inputs(*(program.with_name(name) for name in loaded.texts))
     start = None if start_deg is None else parse_vector(start_deg, "--start-deg", parameters.robot.n_joints)
-    result = filter_program(
+    result = api.filter_program(
         loaded, parameters, controller=target, frames=_frames(frame), start_deg=start,
         settings=CompensationSettings(max_change_deg=max_change_deg),
     )  # fmt: skip

@@ -43,6 +43,7 @@ from robotcal.io.evaluation_files import (
     write_evaluation_folder,
 )
 from robotcal.io.export import (
+    BETA_ALTERNATIVES,
     EXPORT_FORMATS,
     UR_JOINT_NAMES,
     coupled_joints,
@@ -212,6 +213,7 @@ __all__ = [
     "write_evaluation_folder",
     "joint_model_note",
     "with_note",
+    "BETA_ALTERNATIVES",
     "EXPORT_FORMATS",
     "UR_JOINT_NAMES",
     "coupled_joints",

@@ -28,14 +28,20 @@ from robotcal.kinematics.forward import (
 )
 from robotcal.kinematics.inverse import (
     BRANCH_NAMES,
+    FAMILIES,
     InverseSolutions,
+    Solved,
     arm_family,
+    as_tool_frame,
     branch_of,
     inverse_kinematics,
     nominal_solutions,
     rotation_vector,
     solve_pose,
     tool_frames,
+    within_limits,
+    wrap_readings,
+    wrist_centre_in_flange,
 )
 from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.joint_model import (
@@ -69,7 +75,13 @@ __all__ = [
     "CompensationSettings",
     "compensate_commands",
     "BRANCH_NAMES",
+    "FAMILIES",
     "InverseSolutions",
+    "Solved",
+    "as_tool_frame",
+    "within_limits",
+    "wrap_readings",
+    "wrist_centre_in_flange",
     "arm_family",
     "branch_of",
     "inverse_kinematics",
