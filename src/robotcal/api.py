@@ -916,6 +916,7 @@ def filter_program(
     encoding: str = "utf-8",
     start_deg=None,
     settings: CompensationSettings | None = None,
+    draws=None,
 ) -> FilteredProgram:
     """A robot program with every target compensated by the calibrated model, numbers changed only (issue 28).
 
@@ -938,11 +939,15 @@ def filter_program(
     start_deg : array_like (n_joints,), optional
         Controller readings before the first point [deg] (default: mid-limits).
     settings : CompensationSettings, optional
+    draws : MonteCarloResult, draws.npz path or array, optional
+        The deployed model's Monte Carlo draws (``uncertainty-refined/draws.npz`` of a run): each written point's
+        tool position uncertainty at its command (``tcp_u_mm``, thesis ch. 5.3).
 
     Returns
     -------
     FilteredProgram
-        ``texts`` (the new files), ``points`` (every point's status, correction and remaining error) and ``counts``.
+        ``texts`` (the new files), ``points`` (every point's status, correction, remaining error and, with
+        ``draws``, its tool position uncertainty) and ``counts``.
     """
     from robotcal.programs import read_program
     from robotcal.programs.base import Program
@@ -960,7 +965,35 @@ def filter_program(
         controller = load_robot(controller)
     if not isinstance(program, Program):
         program = read_program(program, language=language, dat=dat, config_dat=config_dat, encoding=encoding)
-    return filter_core(program, parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
+    result = filter_core(program, parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
+    if draws is None:
+        return result
+    return _with_tcp_uncertainty(result, parameters.robot, controller or parameters.robot, draws, frames)
+
+
+def _with_tcp_uncertainty(result: FilteredProgram, robot: RobotModel, controller: RobotModel, draws, frames):
+    """``result`` with every written point's tool position uncertainty at its command, from ``draws``; points are
+    grouped by their tool point in the model's flange frame (the propagation takes one tool point per call)."""
+    from robotcal.uncertainty.tcp import propagate_to_tcp
+
+    values, joint_model, extras = _parameter_draws(draws, robot)
+    flange = np.eye(4) if controller.flange_frame is None else controller.flange_frame
+    known = {**result.program.frames, **(frames or {})}
+    groups: dict[tuple, list[int]] = {}
+    for index, record in enumerate(result.points):
+        if record.written:
+            tool = flange @ (np.eye(4) if record.point.tool is None else known[record.point.tool])
+            groups.setdefault(tuple(np.round(tool[:3, 3], 9)), []).append(index)
+    points = list(result.points)
+    for tool_mm, members in groups.items():
+        commands = np.deg2rad([points[k].command_deg for k in members])
+        readings = robot.readings_from_model(controller.model_joint_variables(commands))
+        tcp = propagate_to_tcp(
+            robot, values, readings, tool=np.array(tool_mm), joint_model=joint_model, extra_draws=extras
+        )
+        for k, u in zip(members, tcp.position_uncertainty, strict=True):
+            points[k] = dataclasses.replace(points[k], tcp_u_mm=float(u))
+    return dataclasses.replace(result, points=points)
 
 
 def evaluate(

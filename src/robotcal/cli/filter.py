@@ -82,6 +82,14 @@ def filter_command(
     max_change_deg: Annotated[
         float, typer.Option("--max-change-deg", min=0.001, help="Largest joint change in an ok point [deg].")
     ] = 2.0,
+    draws: Annotated[
+        Path | None,
+        typer.Option(
+            "--draws",
+            help="The deployed model's Monte Carlo draws (a run's uncertainty-refined/draws.npz): each point's tool "
+            "position uncertainty at its command, column tcp_u_mm.",
+        ),
+    ] = None,
     encoding: Annotated[str, typer.Option(help="Text encoding of the program files (e.g. cp1252).")] = "utf-8",
     robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
     scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
@@ -100,14 +108,14 @@ def filter_command(
 
     parameters, inputs = load_parameter_set(params, robot, scenario)
     target = None if controller is None else load_robot(controller)
-    inputs += existing_inputs(program, dat, config_dat, controller)
+    inputs += existing_inputs(program, dat, config_dat, controller, draws)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = read_program(program, language=language, dat=dat, config_dat=config_dat, encoding=encoding)
     inputs += existing_inputs(*(program.with_name(name) for name in loaded.texts))
     start = None if start_deg is None else parse_vector(start_deg, "--start-deg", parameters.robot.n_joints)
     result = api.filter_program(
         loaded, parameters, controller=target, frames=_frames(frame), start_deg=start,
-        settings=CompensationSettings(max_change_deg=max_change_deg),
+        settings=CompensationSettings(max_change_deg=max_change_deg), draws=draws,
     )  # fmt: skip
     with result_folder(out, inputs=inputs, force=force, command="filter") as folder:
         write_report(result, folder, params=params, program=program, encoding=encoding)

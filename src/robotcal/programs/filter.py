@@ -69,6 +69,9 @@ class FilteredPoint:
         What remains between the calibrated model's tool at the command and the intended target.
     written : bool
         Whether the point's numbers were changed.
+    tcp_u_mm : float
+        Standard uncertainty of the tool position at the command [mm] (root-sum-square of u(X), u(Y), u(Z)) from the
+        deployed model's Monte Carlo draws, when they were given (NaN otherwise).
     """
 
     point: ProgramPoint
@@ -81,6 +84,7 @@ class FilteredPoint:
     position_error_mm: float
     orientation_error_deg: float
     written: bool
+    tcp_u_mm: float = float("nan")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -2,7 +2,8 @@
 
 - the filtered program files, under their own names, in the encoding and with the line endings they were read in;
 - ``points.csv``: one row per point (label, file, line, kind, motion, tool, base, status, correction, joint change,
-  remaining error, a note on the status, the nominal controller's readings and the command's), then one row per
+  remaining error, the tool position uncertainty from the deployed model's draws when given, a note on the status,
+  the nominal controller's readings and the command's), then one row per
   target the reader could not filter (status ``not_filtered``, the note saying why);
 - ``filter.html``: the summary and the same table, a page that needs no network;
 - ``filter.json``: provenance (versions, the inputs and their SHA-256, the counts).
@@ -27,7 +28,7 @@ __all__ = ["POINT_COLUMNS", "STATUS_NOTES", "points_table", "write_report"]
 #: The columns of ``points.csv`` before the readings (``taught_q1..qN``, ``command_q1..qN`` [deg]).
 POINT_COLUMNS = (
     "label", "file", "line", "kind", "motion", "tool", "base", "status", "written", "correction_mm",
-    "correction_deg", "largest_change_deg", "position_error_mm", "orientation_error_deg", "note",
+    "correction_deg", "largest_change_deg", "position_error_mm", "orientation_error_deg", "tcp_u_mm", "note",
 )  # fmt: skip
 #: What a point's status means (the ``note`` of points.csv).
 STATUS_NOTES = {
@@ -55,13 +56,13 @@ def points_table(result: FilteredProgram) -> list[list[str]]:
                 point.label, point.file, str(point.line), point.kind, point.motion, point.tool or "", point.base or "",
                 record.status, "yes" if record.written else "no", _number(record.correction_mm),
                 _number(record.correction_deg), _number(record.largest_change_deg), _number(record.position_error_mm),
-                _number(record.orientation_error_deg), STATUS_NOTES[record.status],
+                _number(record.orientation_error_deg), _number(record.tcp_u_mm), STATUS_NOTES[record.status],
                 *(_number(v, 10) for v in record.taught_deg),
                 *(_number(v, 10) for v in record.command_deg),
             ]
         )  # fmt: skip
     for file, line, why in result.program.skipped:
-        rows.append(["", file, str(line), "", "", "", "", "not_filtered", "no", "", "", "", "", "", why] + [""] * (2 * n))
+        rows.append(["", file, str(line), "", "", "", "", "not_filtered", "no", "", "", "", "", "", "", why] + [""] * (2 * n))
     return rows
 
 
@@ -90,7 +91,8 @@ def _page(result: FilteredProgram, rows: list[list[str]], title: str) -> str:
         f"<h1>{html.escape(title)}</h1><p>{html.escape(counts)}. Only <b>ok</b> points are exact (the calibrated model "
         "at the filtered target reaches the original target to 1e-6 mm and 1e-6 deg on the same branch); the others "
         "are flagged and described in docs/deploy.md. Corrections: how far the filtered target moves the tool on the "
-        "nominal model; errors: what remains on the calibrated model.</p>"
+        "nominal model; errors: what remains on the calibrated model; tcp_u_mm: the standard uncertainty of the tool "
+        "position at the command from the deployed model's Monte Carlo (with --draws).</p>"
         f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table></body></html>\n"
     )
 

@@ -165,3 +165,25 @@ def test_configuration_data_against_published_examples():
     wrist = forward_kinematics(kuka.nominal, kuka.model_joint_variables(frames))[0] @ wrist_centre_in_flange(kuka)
     assert wrist[0] < 0 and kuka_status_turn(kuka, frames)[0][0] & 1
     assert np.rad2deg(kuka_abc_from_matrix(np.eye(3))).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_tool_position_uncertainty_from_draws():
+    """``draws`` give each written point the standard uncertainty of its tool position at the command: the
+    root-sum-square of the standard deviations of X, Y, Z over the draws, computed here from the draws directly."""
+    robot = load_robot("ur5e")
+    calibrated = robotcal.perturb(robot, rng=3)
+    rng = np.random.default_rng(8)
+    draws = calibrated.values + rng.normal(0.0, 1.0, (300, 6, 5)) * np.array([0.01, 1e-4, 0.01, 1e-4, 1e-4])
+    draws[:, robot.structurally_fixed] = 0.0
+    program = urscript.read_program(PROGRAMS / "ur_pick_place.script")
+    result = robotcal.filter_program(program, calibrated, draws=draws)
+    flange = program.frames
+    for record in result.points:
+        assert record.written and np.isfinite(record.tcp_u_mm)
+        tool = np.eye(4) if record.point.tool is None else flange[record.point.tool]
+        q = robot.model_joint_variables(np.deg2rad(record.command_deg)[None])
+        positions = (forward_kinematics(draws, q)[:, 0] @ tool)[:, :3, 3]
+        expected = np.sqrt(np.sum(np.var(positions, axis=0, ddof=1)))
+        assert record.tcp_u_mm == pytest.approx(expected, rel=1e-9)
+    plain = robotcal.filter_program(program, calibrated)
+    assert all(np.isnan(p.tcp_u_mm) for p in plain.points)
