@@ -266,52 +266,13 @@ def compensate_commands(
     status = np.where(good, "ok", "unreachable").astype(object)
     rest = np.flatnonzero(~good)
     if rest.size:
-        # the calibrated model's solution of the taught branch, and of the branches whose nominal solution lies
-        # within max_change (+ 5 deg for the calibration) of the taught readings: the others cannot be picked
-        nominal, _ = nominal_solutions(robot, targets[rest] @ np.linalg.inv(tool_frame), reference=taught[rest])
-        near = np.abs(nominal - taught[rest, None, :]).max(axis=-1) <= max_change + np.radians(5.0)
-        near[np.arange(rest.size), taught_branch[rest]] = True
-        every = inverse_kinematics(
-            parameters, targets[rest], tool=tool_frame, reference=taught[rest], branches=near,
-            position_tolerance_mm=tolerance[0], orientation_tolerance_deg=tolerance[1],
-            max_iterations=settings.max_iterations,
-        )  # fmt: skip
-        nearest = wrap_readings(every.readings, robot, taught[rest, None, :], prefer_limits=False)
-        inside = within_limits(robot, nearest)
-        branch_change = np.abs(nearest - taught[rest, None, :]).max(axis=-1)  # (R, 8)
-        on_branch = np.arange(8)[None, :] == taught_branch[rest, None]
-        close = every.reached & (branch_change <= max_change)
-        # the taught branch's solution first, then a neighbouring branch's within max_change (a boundary crossed)
-        cost = np.where(close & inside, branch_change + np.where(on_branch, 0.0, 10.0), np.inf)
-        pick = np.argmin(cost, axis=1)
-        found = np.isfinite(cost[np.arange(rest.size), pick])
-        readings[rest[found]] = nearest[found, pick[found]]
-        status[rest[found]] = np.where(on_branch[found, pick[found]], "ok", "near_singular")
-        lost = ~found
-        own = every.reached & on_branch  # the taught branch's exact solution, nearest turn
-        outside = lost & np.any(close | (own & ~inside), axis=1)  # near, or on the branch, only beyond a limit
-        far = lost & ~outside & np.any(own, axis=1)  # on the branch within the limits, but only by a large move
-        status[rest[outside]] = "outside_limits"
-        if np.any(far):
-            rows = rest[far]
-            exact = nearest[far][np.arange(rows.size), taught_branch[rows]]
-            # a singularity turns a small move of the tool into a large joint move: the exact solution moves the
-            # nominal tool by no more than the calibration explains; anything else is a correction too large
-            explained = _moved(parameters, taught[rows], exact, tool_frame) <= (
-                settings.explained_ratio * _moved(parameters, taught[rows], None, tool_frame) + 1e-3
-            )
-            status[rows] = np.where(explained, "near_singular", "large_correction")
-            readings[rows] = _damped(
-                parameters, targets[rows], taught[rows], tool_frame, max_change, settings.max_iterations
-            )
-        readings[rest[lost & ~far]] = np.nan
+        readings[rest], status[rest] = _branch_by_branch(
+            parameters, targets[rest], taught[rest], taught_branch[rest], tool_frame, settings
+        )
     # an ok correction moves the nominal tool by about the calibrated model's difference from the nominal there
     ok = np.flatnonzero(status == "ok")
     if ok.size:
-        explained = _moved(parameters, taught[ok], readings[ok], tool_frame) <= (
-            settings.explained_ratio * _moved(parameters, taught[ok], None, tool_frame) + 1e-3
-        )
-        status[ok[~explained]] = "large_correction"
+        status[ok[~_explained(parameters, taught[ok], readings[ok], tool_frame, settings)]] = "large_correction"
     given = np.all(np.isfinite(readings), axis=1)
     position = np.full(len(readings), np.nan)
     angle = np.full(len(readings), np.nan)
@@ -329,6 +290,59 @@ def compensate_commands(
         largest_change_deg=np.degrees(np.where(given, np.abs(readings - taught).max(axis=1), np.nan)),
         taught=taught,
     )
+
+
+def _explained(parameters: ParameterSet, taught, commands, tool, settings: CompensationSettings) -> np.ndarray:
+    """Whether the commands move the nominal tool by no more than ``explained_ratio`` times the calibrated model's
+    difference from the nominal one at ``taught`` (plus 1 um)."""
+    return _moved(parameters, taught, commands, tool) <= (
+        settings.explained_ratio * _moved(parameters, taught, None, tool) + 1e-3
+    )
+
+
+def _branch_by_branch(parameters: ParameterSet, targets, taught, taught_branch, tool, settings: CompensationSettings):
+    """Readings ``(R, n)`` and statuses ``(R,)`` of the rows Newton's method from the taught readings did not bring
+    to ``ok``: the calibrated solution of the taught branch, or of a neighbouring branch within ``max_change``
+    (a boundary crossed: ``near_singular``); else the damped command or none (module notes)."""
+    robot = parameters.robot
+    count = len(targets)
+    max_change = np.radians(settings.max_change_deg)
+    # the taught branch, and the branches whose nominal solution lies within max_change (+ 5 deg for the
+    # calibration) of the taught readings: the others cannot be picked
+    nominal, _ = nominal_solutions(robot, targets @ np.linalg.inv(tool), reference=taught)
+    near = np.abs(nominal - taught[:, None, :]).max(axis=-1) <= max_change + np.radians(5.0)
+    near[np.arange(count), taught_branch] = True
+    every = inverse_kinematics(
+        parameters, targets, tool=tool, reference=taught, branches=near,
+        position_tolerance_mm=settings.position_tolerance_mm,
+        orientation_tolerance_deg=settings.orientation_tolerance_deg, max_iterations=settings.max_iterations,
+    )  # fmt: skip
+    nearest = wrap_readings(every.readings, robot, taught[:, None, :], prefer_limits=False)
+    inside = within_limits(robot, nearest)
+    branch_change = np.abs(nearest - taught[:, None, :]).max(axis=-1)  # (R, 8)
+    on_branch = np.arange(8)[None, :] == taught_branch[:, None]
+    close = every.reached & (branch_change <= max_change)
+    # the taught branch's solution first, then a neighbouring branch's within max_change
+    cost = np.where(close & inside, branch_change + np.where(on_branch, 0.0, 10.0), np.inf)
+    pick = np.argmin(cost, axis=1)
+    found = np.isfinite(cost[np.arange(count), pick])
+    readings = np.full((count, robot.n_joints), np.nan)
+    status = np.full(count, "unreachable", dtype=object)
+    readings[found] = nearest[found, pick[found]]
+    status[found] = np.where(on_branch[found, pick[found]], "ok", "near_singular")
+    own = every.reached & on_branch  # the taught branch's exact solution, nearest turn
+    outside = ~found & np.any(close | (own & ~inside), axis=1)  # near, or on the branch, only beyond a limit
+    far = ~found & ~outside & np.any(own, axis=1)  # on the branch within the limits, but only by a large move
+    status[outside] = "outside_limits"
+    if np.any(far):
+        exact = nearest[far][np.arange(int(far.sum())), taught_branch[far]]
+        # a singularity turns a small move of the tool into a large joint move: the exact solution moves the
+        # nominal tool by no more than the calibration explains; anything else is a correction too large
+        status[far] = np.where(
+            _explained(parameters, taught[far], exact, tool, settings), "near_singular", "large_correction"
+        )
+        readings[far] = _damped(parameters, targets[far], taught[far], tool, max_change, settings.max_iterations)
+    return readings, status
 
 
 def _concatenate(parts: list[Compensation]) -> Compensation:
