@@ -812,6 +812,19 @@ def refine(
     return dataclasses.replace(result, health=verdict, cross_validation=validations.get(chosen), model_choice=choice)
 
 
+def _calibrated(parameters, robot) -> ParameterSet:
+    """The calibrated model of ``compensate`` and ``filter_program``: a ParameterSet, a result holding one, or a
+    parameter JSON path read for ``robot`` (a RobotModel or a Scenario)."""
+    if robot is None:
+        held = getattr(parameters, "parameters", parameters)
+        if not isinstance(held, ParameterSet):
+            raise InputError("`parameters` must be a ParameterSet or a result holding one (a JSON path needs `robot`)")
+        robot = held.robot
+    else:
+        robot, _ = _split(robot)
+    return _parameters(parameters, robot, "parameters")
+
+
 def compensate(
     parameters,
     robot=None,
@@ -871,14 +884,8 @@ def compensate(
     from robotcal.kinematics.forward import forward_kinematics
     from robotcal.kinematics.inverse import nominal_solutions
 
-    if robot is None:
-        held = getattr(parameters, "parameters", parameters)
-        if not isinstance(held, ParameterSet):
-            raise InputError("`parameters` must be a ParameterSet or a result holding one (a JSON path needs `robot`)")
-        robot = held.robot
-    else:
-        robot, _ = _split(robot)
-    parameters = _parameters(parameters, robot, "parameters")
+    parameters = _calibrated(parameters, robot)
+    robot = parameters.robot
     if (poses_deg is None) == (cartesian is None):
         raise InputError("give the targets as joint poses (`poses_deg`) or as Cartesian targets (`cartesian`), one of them")
     tool = np.eye(4)
@@ -953,14 +960,7 @@ def filter_program(
     from robotcal.programs.base import Program
     from robotcal.programs.filter import filter_program as filter_core
 
-    if robot is None:
-        held = getattr(parameters, "parameters", parameters)
-        if not isinstance(held, ParameterSet):
-            raise InputError("`parameters` must be a ParameterSet or a result holding one (a JSON path needs `robot`)")
-        robot = held.robot
-    else:
-        robot, _ = _split(robot)
-    parameters = _parameters(parameters, robot, "parameters")
+    parameters = _calibrated(parameters, robot)
     if isinstance(controller, str | os.PathLike):
         controller = load_robot(controller)
     if not isinstance(program, Program):

@@ -44,8 +44,10 @@ from robotcal.errors import InputError
 from robotcal.kinematics.inverse import (
     as_tool_frame,
     branch_of,
+    check_targets,
     inverse_kinematics,
     nominal_solutions,
+    robot_size,
     rotation_vector,
     solve_pose,
     tool_frames,
@@ -159,7 +161,7 @@ def _damped(parameters: ParameterSet, targets, taught, tool, max_change: float, 
     ``max_change`` [rad] of ``taught``. ``e`` is the position error [mm] and the orientation error [rad] times 1 % of
     the robot's size: at a singularity the position is met and the orientation gives way."""
     robot = parameters.robot
-    size = 0.01 * max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
+    size = 0.01 * robot_size(robot)
     weight = np.r_[np.ones(3), np.full(3, size)][:, None]
     best = taught.copy()
     left = np.arange(len(taught))
@@ -240,12 +242,7 @@ def compensate_commands(
                 progress(min(start + BLOCK_ROWS, len(targets)), len(targets))
         return _concatenate(parts)
     robot = parameters.robot
-    targets = np.asarray(targets, dtype=float)
-    taught = np.array(taught, dtype=float)
-    if targets.ndim != 3 or targets.shape[1:] != (4, 4) or not np.all(np.isfinite(targets)):
-        raise InputError(f"`targets` must be finite frames of shape (n_poses, 4, 4); got {targets.shape}")
-    if taught.shape != (targets.shape[0], robot.n_joints) or not np.all(np.isfinite(taught)):
-        raise InputError(f"`taught` must be finite readings of shape ({targets.shape[0]}, {robot.n_joints})")
+    targets, taught = check_targets(targets, taught, robot.n_joints, "taught")
     tool_frame = as_tool_frame(tool)
     tolerance = (settings.position_tolerance_mm, settings.orientation_tolerance_deg)
     max_change = np.radians(settings.max_change_deg)
@@ -368,7 +365,7 @@ def _moved(parameters: ParameterSet, taught, commands, tool) -> np.ndarray:
     nominal = ParameterSet.nominal(robot)
     reference = tool_frames(nominal, taught, tool)[0]
     moved = tool_frames(parameters, taught, tool)[0] if commands is None else tool_frames(nominal, commands, tool)[0]
-    size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
+    size = robot_size(robot)
     position = np.linalg.norm(moved[:, :3, 3] - reference[:, :3, 3], axis=1)
     turn = np.linalg.norm(rotation_vector(moved[:, :3, :3] @ np.swapaxes(reference[:, :3, :3], 1, 2)), axis=1)
     return np.maximum(position, size * turn)

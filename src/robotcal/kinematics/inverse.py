@@ -58,6 +58,8 @@ __all__ = [
     "within_limits",
     "wrap_readings",
     "wrist_centre_in_flange",
+    "robot_size",
+    "check_targets",
 ]
 
 FAMILIES = ("spherical-wrist", "parallel-wrist")
@@ -418,14 +420,10 @@ def solve_pose(
     Solved
     """
     robot = parameters.robot
-    targets = np.asarray(targets, dtype=float)
-    readings = np.array(start_readings, dtype=float)
-    if targets.ndim != 3 or targets.shape[1:] != (4, 4) or not np.all(np.isfinite(targets)):
-        raise InputError(f"`targets` must be finite frames of shape (n_poses, 4, 4); got {targets.shape}")
-    if readings.shape != (targets.shape[0], robot.n_joints) or not np.all(np.isfinite(readings)):
-        raise InputError(f"`start_readings` must be finite, shape ({targets.shape[0]}, {robot.n_joints})")
+    targets, readings = check_targets(targets, start_readings, robot.n_joints, "start_readings")
+    readings = readings.copy()
     tool_frame = as_tool_frame(tool)
-    size = max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)  # the robot's size [mm]: orientation in mm
+    size = robot_size(robot)  # orientation errors [rad] times the robot's size: in mm
 
     def error(frames, rows):
         position = targets[rows, :3, 3] - frames[:, :3, 3]
@@ -468,6 +466,23 @@ def solve_pose(
     position = np.linalg.norm(targets[:, :3, 3] - frames[:, :3, 3], axis=1)
     angle = np.degrees(np.linalg.norm(rotation_vector(targets[:, :3, :3] @ np.swapaxes(frames[:, :3, :3], 1, 2)), axis=1))
     return Solved(readings=readings, position_error_mm=position, orientation_error_deg=angle, iterations=iterations)
+
+
+def robot_size(robot: RobotModel) -> float:
+    """The robot's size [mm]: the sum of its link lengths |d| + |a| (at least 1 mm), the lever that turns an
+    orientation error [rad] into millimetres where the solvers weigh both."""
+    return max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
+
+
+def check_targets(targets, readings, n_joints: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """``targets`` as finite frames ``(P, 4, 4)`` and ``readings`` as finite ``(P, n_joints)``, or InputError."""
+    targets = np.asarray(targets, dtype=float)
+    readings = np.asarray(readings, dtype=float)
+    if targets.ndim != 3 or targets.shape[1:] != (4, 4) or not np.all(np.isfinite(targets)):
+        raise InputError(f"`targets` must be finite frames of shape (n_poses, 4, 4); got {targets.shape}")
+    if readings.shape != (targets.shape[0], n_joints) or not np.all(np.isfinite(readings)):
+        raise InputError(f"`{name}` must be finite readings of shape ({targets.shape[0]}, {n_joints})")
+    return targets, readings
 
 
 def _wrapped(angle):
