@@ -241,7 +241,6 @@ def filter_program(
         )
     flange = np.eye(4) if controller.flange_frame is None else np.asarray(controller.flange_frame)
     nominal = ParameterSet.nominal(robot)
-    render = renderer(program.language)
     if start_deg is None:
         previous = np.where(np.isfinite(robot.limits), robot.limits, 0.0).mean(axis=1)
     else:
@@ -280,14 +279,7 @@ def filter_program(
         command = result.readings[row]
         written = bool(np.all(np.isfinite(command)))
         if written:
-            controller_command = _to_controller(robot, controller, command)
-            if point.kind == "joint":
-                replacements.update(render(point, joints_deg=np.degrees(controller_command)))
-            else:
-                frame = forward_kinematics(nominal.values, robot.model_joint_variables(command[None]))[0] @ tool
-                new_config = configuration(program.language, controller, controller_command[None])[0]
-                config = {key: new_config[key] for key in point.config} if point.config else None
-                replacements.update(render(point, frame_mm=_invert(base) @ frame, config=config))
+            replacements.update(_new_numbers(program.language, point, command, robot, controller, base, tool))
         moved = _nominal_move(nominal, taught_row, command, tool) if written else (np.nan, np.nan)
         filtered.append(
             _record(
@@ -297,6 +289,20 @@ def filter_program(
             )
         )  # fmt: skip
     return FilteredProgram(program=program, texts=replace_numbers(program.texts, replacements), points=filtered)
+
+
+def _new_numbers(language: str, point: ProgramPoint, command, robot, controller, base, tool) -> dict:
+    """The replacement text of ``point``'s numbers for the robot ``command`` [rad]: a joint point's controller axis
+    values; a Cartesian point's target for the nominal controller, ``B^-1 F_nominal(command) T``, with its
+    configuration data recomputed."""
+    render = renderer(language)
+    controller_command = _to_controller(robot, controller, command)
+    if point.kind == "joint":
+        return render(point, joints_deg=np.degrees(controller_command))
+    frame = forward_kinematics(robot.nominal, robot.model_joint_variables(command[None]))[0] @ tool
+    new_config = configuration(language, controller, controller_command[None])[0]
+    config = {key: new_config[key] for key in point.config} if point.config else None
+    return render(point, frame_mm=_invert(base) @ frame, config=config)
 
 
 def _compensate(parameters, targets, taught, tools, settings):
