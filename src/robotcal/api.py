@@ -905,7 +905,9 @@ def compensate(
         seed = middle if start_deg is None else np.deg2rad(np.asarray(start_deg, dtype=float))
         seed = np.broadcast_to(seed, (values.shape[0], robot.n_joints))
         solutions, exists = nominal_solutions(robot, targets @ np.linalg.inv(tool), reference=seed)
-        distance = np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6)
+        # the nominal controller's solution nearest the seed: an exact one inside the limits before any other
+        inside = np.all((solutions >= robot.limits[:, 0]) & (solutions <= robot.limits[:, 1]), axis=-1)
+        distance = np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6) + np.where(inside, 0.0, 1e3)
         taught = solutions[np.arange(len(seed)), np.argmin(distance, axis=1)]
     return compensate_commands(parameters, targets, taught, tool=tool, settings=settings, progress=progress)
 

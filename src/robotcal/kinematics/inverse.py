@@ -189,7 +189,7 @@ def _cos_sin_roots(a, b, c):
     radius = np.hypot(a, b)
     free = radius < 1e-9
     ratio = np.where(free, 0.0, c / np.where(free, 1.0, radius))
-    exists = np.abs(ratio) <= 1.0 + _ROOT_SLACK
+    exists = np.where(free, np.abs(c) < 1e-6, np.abs(ratio) <= 1.0 + _ROOT_SLACK)
     half = np.arccos(np.clip(ratio, -1.0, 1.0))
     delta = np.arctan2(b, a)
     return np.stack([delta + half, delta - half], axis=-1), exists, free
@@ -216,8 +216,8 @@ def _first_joint(structure: _Structure, point: np.ndarray, reference: np.ndarray
     b = point[:, 1] * u[0] - point[:, 0] * u[1]
     c = structure.point_along_z1 + float(u @ c1[:3, 3]) - point[:, 2] * u[2]
     roots, exists, free = _cos_sin_roots(a, b, c)
-    free = free & (np.abs(c) < 1e-6)  # on J1's axis: phi_1 free, taken from the reference
-    return np.where(free[:, None], reference[:, None], roots), exists | free
+    # on J1's axis (and at the height the arm can put it there): phi_1 is free, taken from the reference
+    return np.where(free[:, None], reference[:, None], roots), exists
 
 
 def _planar(structure: _Structure, local: np.ndarray):

@@ -130,3 +130,13 @@ def test_arms_without_a_closed_form_are_refused():
     with pytest.raises(InputError, match="needs 6 joints"):
         arm_family(three)
     assert len(BRANCH_NAMES) == 8 and BRANCH_NAMES[0] == "shoulder A, elbow A, wrist A"
+
+
+def test_a_free_angle_exists_only_where_its_equation_holds():
+    """``a cos phi + b sin phi = c`` with a = b = 0 holds for every phi when c = 0 (a singularity: the angle is free)
+    and for none otherwise; with a, b not both 0 its two roots satisfy it."""
+    from robotcal.kinematics.inverse import _cos_sin_roots
+
+    roots, exists, free = _cos_sin_roots(np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 4.0]), np.array([0.0, 1.0, 2.5]))
+    assert free.tolist() == [True, True, False] and exists.tolist() == [True, False, True]
+    assert np.allclose(3.0 * np.cos(roots[2]) + 4.0 * np.sin(roots[2]), 2.5)
