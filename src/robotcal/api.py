@@ -984,7 +984,7 @@ def _with_tcp_uncertainty(result: FilteredProgram, robot: RobotModel, controller
     groups: dict[tuple, list[int]] = {}
     for index, record in enumerate(result.points):
         if record.written:
-            tool = flange @ (np.eye(4) if record.point.tool is None else known[record.point.tool])
+            tool = flange @ (np.eye(4) if record.point.tool not in known else known[record.point.tool])
             groups.setdefault(tuple(np.round(tool[:3, 3], 9)), []).append(index)
     points = list(result.points)
     for tool_mm, members in groups.items():

@@ -69,6 +69,8 @@ class FilteredPoint:
         What remains between the calibrated model's tool at the command and the intended target.
     written : bool
         Whether the point's numbers were changed.
+    remark : str
+        What else a reader of the table should know of this point (a tool declared nowhere), else empty.
     tcp_u_mm : float
         Standard uncertainty of the tool position at the command [mm] (root-sum-square of u(X), u(Y), u(Z)) from the
         deployed model's Monte Carlo draws, when they were given (NaN otherwise).
@@ -84,6 +86,7 @@ class FilteredPoint:
     position_error_mm: float
     orientation_error_deg: float
     written: bool
+    remark: str = ""
     tcp_u_mm: float = float("nan")
 
 
@@ -126,14 +129,18 @@ def _invert(frame: np.ndarray) -> np.ndarray:
     return out
 
 
-def _frames_of(point: ProgramPoint, frames: dict, flange: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(B, T)``: the point's base in the robot base frame and its tool in the model's flange frame."""
+def _frames_of(point: ProgramPoint, frames: dict, flange: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
+    """``(B, T, remark)``: the point's base in the robot base frame, its tool in the model's flange frame, and a
+    remark when a joint point's tool is declared nowhere (it is then compensated at the flange: its joints are
+    what the program moves, the tool only says which point of the arm is to be exact)."""
+    if point.kind == "joint" and point.tool is not None and point.tool not in frames:
+        return np.eye(4), flange, f"tool {point.tool} declared nowhere: compensated at the flange"
     missing = [name for name in (point.tool, point.base) if name is not None and name not in frames]
     if missing:
         raise InputError(f"{point.file}: line {point.line}: frame {missing[0]} is not declared in the files read")
     base = np.eye(4) if point.base is None else frames[point.base]
     tool = flange @ (np.eye(4) if point.tool is None else frames[point.tool])
-    return base, tool
+    return base, tool, ""
 
 
 def missing_frames(program: Program, frames: dict) -> list[str]:
@@ -248,7 +255,7 @@ def filter_program(
     targets, taught, tools = [], [], []
     records: list[dict] = []
     for point in program.points:
-        base, tool = _frames_of(point, known, flange)
+        base, tool, remark = _frames_of(point, known, flange)
         if point.kind == "joint":
             readings = _to_robot(robot, controller, np.deg2rad(np.asarray(point.joints_deg, dtype=float)))
             target = forward_kinematics(robot.nominal, robot.model_joint_variables(readings[None]))[0] @ tool
@@ -256,10 +263,10 @@ def filter_program(
             target = base @ point.frame_mm
             readings = _taught(program, point, robot, controller, target @ _invert(tool), previous)
         if readings is None:
-            records.append({"point": point, "status": "config_mismatch", "base": base, "tool": tool})
+            records.append({"point": point, "status": "config_mismatch", "base": base, "tool": tool, "remark": remark})
             continue
         previous = readings
-        records.append({"point": point, "status": None, "base": base, "tool": tool, "row": len(targets)})
+        records.append({"point": point, "status": None, "base": base, "tool": tool, "row": len(targets), "remark": remark})
         targets.append(target)
         taught.append(readings)
         tools.append(tool)
@@ -271,7 +278,7 @@ def filter_program(
         point, base, tool = record["point"], record["base"], record["tool"]
         if record["status"] == "config_mismatch":
             nan = np.full(n, np.nan)
-            filtered.append(_record(point, "config_mismatch", nan, nan, None, None, False))
+            filtered.append(_record(point, "config_mismatch", nan, nan, None, None, False, record["remark"]))
             continue
         row = record["row"]
         status = str(result.status[row])
@@ -285,7 +292,7 @@ def filter_program(
             _record(
                 point, status, np.degrees(_to_controller(robot, controller, taught_row)),
                 np.degrees(_to_controller(robot, controller, command)) if written else np.full(n, np.nan),
-                moved, (result, row), written,
+                moved, (result, row), written, record["remark"],
             )
         )  # fmt: skip
     return FilteredProgram(program=program, texts=replace_numbers(program.texts, replacements), points=filtered)
@@ -344,7 +351,7 @@ def _nominal_move(nominal: ParameterSet, taught, command, tool) -> tuple[float, 
     return distance, turn
 
 
-def _record(point, status, taught_deg, command_deg, moved, solved, written) -> FilteredPoint:
+def _record(point, status, taught_deg, command_deg, moved, solved, written, remark) -> FilteredPoint:
     if solved is None:
         errors = (np.nan, np.nan, np.nan)
     else:
@@ -354,6 +361,6 @@ def _record(point, status, taught_deg, command_deg, moved, solved, written) -> F
     return FilteredPoint(
         point=point, status=status, taught_deg=taught_deg, command_deg=command_deg,
         correction_mm=float(correction[0]), correction_deg=float(correction[1]), largest_change_deg=float(errors[0]),
-        position_error_mm=float(errors[1]), orientation_error_deg=float(errors[2]), written=written,
+        position_error_mm=float(errors[1]), orientation_error_deg=float(errors[2]), written=written, remark=remark,
     )  # fmt: skip
 

@@ -56,7 +56,7 @@ def points_table(result: FilteredProgram) -> list[list[str]]:
                 point.label, point.file, str(point.line), point.kind, point.motion, point.tool or "", point.base or "",
                 record.status, "yes" if record.written else "no", _number(record.correction_mm),
                 _number(record.correction_deg), _number(record.largest_change_deg), _number(record.position_error_mm),
-                _number(record.orientation_error_deg), _number(record.tcp_u_mm), STATUS_NOTES[record.status],
+                _number(record.orientation_error_deg), _number(record.tcp_u_mm), "; ".join(filter(None, (STATUS_NOTES[record.status], record.remark))),
                 *(_number(v, 10) for v in record.taught_deg),
                 *(_number(v, 10) for v in record.command_deg),
             ]

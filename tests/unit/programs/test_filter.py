@@ -187,3 +187,23 @@ def test_tool_position_uncertainty_from_draws():
         assert record.tcp_u_mm == pytest.approx(expected, rel=1e-9)
     plain = robotcal.filter_program(program, calibrated)
     assert all(np.isnan(p.tcp_u_mm) for p in plain.points)
+
+
+def test_a_joint_point_whose_tool_is_declared_nowhere_is_compensated_at_the_flange(tmp_path):
+    script = tmp_path / "tool_from_expression.script"
+    script.write_text(
+        "def job():\n"
+        "  set_tcp(pose_trans(p[0, 0, 0.1, 0, 0, 0], p[0, 0, 0.05, 0, 0, 0]))\n"
+        "  movej([0.1, -1.2, 1.4, -1.6, -1.5, 0.3], a=1.0, v=0.5)\n"
+        "end\n"
+    )
+    program = urscript.read_program(script)
+    assert program.points[0].tool is not None and program.points[0].tool not in program.frames
+    calibrated = _calibrated(load_robot("ur5e"))
+    result = filter_program(program, calibrated)
+    (record,) = result.points
+    assert record.status == "ok" and record.written and "declared nowhere" in record.remark
+    nominal = ParameterSet.nominal(calibrated.robot)
+    wanted = _tool_frames(nominal, calibrated.robot, record.point.joints_deg, np.eye(4))
+    reached = _tool_frames(calibrated, calibrated.robot, record.command_deg, np.eye(4))
+    assert np.linalg.norm(reached[:3, 3] - wanted[:3, 3]) <= 1e-6
