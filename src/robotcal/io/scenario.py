@@ -29,6 +29,7 @@ from robotcal.io._validation import TomlBool, TomlFloat, TomlInt, validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
 from robotcal.io.instruments import make_instrument
 from robotcal.io.robots import load_robot
+from robotcal.kinematics.joint_model import MAX_HARMONIC_ORDER
 from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel
 from robotcal.simulation.plan import CapturePlan
@@ -252,7 +253,7 @@ class JointModelTable(_RunTable):
     fit: Literal["geometric", "compliance", "harmonic", "compliance+harmonic", "auto"] = "geometric"
     compliance_joints: tuple[TomlInt, ...] | None = None
     harmonic_joints: tuple[TomlInt, ...] | None = None
-    harmonic_order: TomlInt = Field(default=1, ge=1, le=4)
+    harmonic_order: TomlInt = Field(default=1, ge=1, le=MAX_HARMONIC_ORDER)
     folds: TomlInt = Field(default=5, ge=0)
     seed: TomlInt = Field(default=0, ge=0)
 
