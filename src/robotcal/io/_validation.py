@@ -180,6 +180,7 @@ _MESSAGES = {
     "finite_number": "must be a finite number",
     "bool_type": "must be true or false",
     "string_type": "must be a text",
+    "list_type": "must be an array [...]",
     "greater_than_equal": "must be >= {ge}",
     "greater_than": "must be > {gt}",
     "less_than_equal": "must be <= {le}",
@@ -203,13 +204,35 @@ def _problem(error) -> str:
     return f"{where}: {message}; got {as_toml(value)}"
 
 
+def _closest_branches(errors: list) -> list:
+    """The errors of a value that matches no type of a union (``start_deg``: numbers, or rows of numbers) for the
+    types it comes closest to (fewest errors, then the deepest inside the value; every type on a tie), with
+    pydantic's type tag (a location part such as ``list[float]``: key names hold no brackets) taken out of the
+    location."""
+    branches: dict[tuple, dict[str, list]] = {}
+    kept = []
+    for error in errors:
+        loc = tuple(error["loc"])
+        tag = next((k for k, part in enumerate(loc) if isinstance(part, str) and "[" in part), None)
+        if tag is None:
+            kept.append(error)
+            continue
+        branches.setdefault(loc[:tag], {}).setdefault(loc[tag], []).append(error | {"loc": loc[:tag] + loc[tag + 1 :]})
+    for options in branches.values():
+        scores = {tag: (len(found), -max(len(e["loc"]) for e in found)) for tag, found in options.items()}
+        best = min(scores.values())
+        kept.extend(error for tag, found in options.items() if scores[tag] == best for error in found)
+    return kept
+
+
 def validate_model(model: type[BaseModel], data: dict, source: str) -> BaseModel:
     """``model.model_validate(data)`` with errors as ``InputError("<source>: key <k>: <why>; got <value>")``, the
     value as the TOML file writes it (``true``, not 1)."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise InputError(f"{source}: " + "; ".join(_problem(error) for error in exc.errors())) from None
+        problems = dict.fromkeys(_problem(error) for error in _closest_branches(exc.errors()))  # once each, in order
+        raise InputError(f"{source}: " + "; ".join(problems)) from None
 
 
 def parse_finite(cell: str, where: str) -> float:

@@ -142,3 +142,15 @@ def test_instrument_terms_must_be_numbers():
         make_instrument(a_um=True, b_um_per_m=1.0)
     with pytest.raises(InputError, match=r"`coverage_factor` must be a finite number; got 'x'"):
         make_instrument(preset="thesis-laser-tracker", coverage_factor="x")
+
+
+def test_a_key_of_several_types_names_the_element_once():
+    """``start_deg`` is numbers or rows of numbers: the error is about the element, not about every type."""
+    rows = [[0.0] * 6] * 5 + [[0.0, 0.0, False, 0.0, 0.0, 0.0]]
+    for value, message in [
+        ([True, 0.0, 0.0, 0.0, 0.0, 0.0], r"key `capture\.start_deg\[0\]`: must be a number; got true"),
+        (rows, r"key `capture\.start_deg\[5\]\[2\]`: must be a number; got false"),
+        (5, r"key `capture\.start_deg`: must be an array \[\.\.\.\]; got 5"),
+    ]:
+        with pytest.raises(InputError, match=rf"^s\.toml: {message}$"):
+            scenario_from_dict({"robot": ROBOT, "capture": {"start_deg": value}}, source="s.toml")
