@@ -516,7 +516,8 @@ def simulate_poses(
         ``kind="calibration"``: its ``[calibration_poses]`` table and target (``flange``, in a ``target`` column),
         the free poses measured for the refinement.
     poses_deg : array_like, shape (n_poses, n_joints), optional
-        Joint readings [deg]; default: ``n_poses`` random poses.
+        Joint readings [deg]; default: ``n_poses`` random poses. Readings outside the joint limits are simulated
+        with a :class:`~robotcal.errors.JointLimitWarning` naming the pose and joint.
     n_poses : int, optional
         Number of random poses (default the ``[validation]`` table's, 100).
     targets : ReflectorMount or sequence of Target, optional
@@ -579,6 +580,7 @@ def simulate_poses(
         )
     else:
         readings = np.deg2rad(check_joint_variables(poses_deg, robot.n_joints, "poses_deg"))
+        readings = check_readings(robot, readings, name="poses_deg")  # outside the limits: a JointLimitWarning
     if single:
         capture, _ = simulate_poses_core(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, rng=generator

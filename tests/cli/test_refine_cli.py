@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from typer.testing import CliRunner
 from robotcal.api import refine
 from robotcal.capture import Capture
 from robotcal.cli import app
+from robotcal.identification.evaluation import GuessedOffsetWarning
 from robotcal.io import load_scenario, read_capture, read_parameters, write_capture
 
 runner = CliRunner()
@@ -219,13 +221,15 @@ def test_planless_scenario_with_three_unknown_targets_refines_and_evaluates_abso
     rows = {(r["parameter_set"], r["view"]): r for r in evaluation["rows"]}
     for view in ("points", "distances", "absolute"):
         assert rows[("bare", view)]["mean_error_mm"] == rows[("refined", view)]["mean_error_mm"]
-    # no file carries them: the guess, said per set
+    # no file carries them: the guess, a warning per set (issue 30) and a note in the settings
     out = tmp_path / "eval4"
-    result = invoke("evaluate", "--scenario", scenario, "--params", bare, "--capture", held_out, "--out", out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", GuessedOffsetWarning)  # printed by the CLI as "warning: ..."
+        result = invoke("evaluate", "--scenario", scenario, "--params", bare, "--capture", held_out, "--out", out)
     assert result.exit_code == 0, result.output
     notes = json.loads((out / "evaluation.json").read_text())["settings"]["target_offsets"]
-    assert notes == dict.fromkeys(("nominal", "bare"), "unknown target offsets at their guess (guess_mm)")
-    assert "nominal: unknown target offsets at their guess (guess_mm)" in result.output
+    assert notes == dict.fromkeys(("nominal", "bare"), "A, B, C at their guess (guess_mm): no parameter file estimates them")
+    assert "warning: parameter set 'nominal' estimated no offset for targets A, B, C" in " ".join(result.output.split())
 
 
 def test_absolute_view_without_any_base_frame_is_refused(tmp_path):

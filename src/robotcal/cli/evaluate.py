@@ -13,6 +13,7 @@ from robotcal import api
 from robotcal.cli._common import FORCE_HELP, check_memory, command_app, console, handle_errors, pairs_bytes
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError
+from robotcal.identification.evaluation import guessed_targets
 from robotcal.io.capture_csv import read_capture
 from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
@@ -30,27 +31,35 @@ def _label(path: Path, used: set[str]) -> str:
     return label
 
 
-def _borrow_offsets(scenario, set_targets: dict, labels, files: dict) -> dict[str, str]:
+def _borrow_offsets(scenario, set_targets: dict, labels, files: dict, captures: dict) -> dict[str, str]:
     """Give the sets without estimated offsets (the nominal set, a JSON without ``targets``) those of the
-    first ``--params`` file that carries them; returns a note per such set (modified in place).
-
-    Without any, their unknown targets stay at the scenario's ``guess_mm``, and the note says so.
+    first ``--params`` file that carries them (``set_targets`` is modified in place); returns a note per set that
+    evaluates points of ``captures`` with offsets it did not estimate: borrowed ones, and the unknown targets that
+    no set lent it, left at their ``guess_mm`` (the library warns for those: :class:`GuessedOffsetWarning`).
     """
     unknown = {t.name for t in scenario.targets if t.frame == "flange" and not t.known}
     if not unknown:
         return {}
+    used = {  # the unknown targets that points lie on
+        name for capture in captures.values() for name in guessed_targets(capture, api.capture_targets(scenario, capture), {})
+    }
     carriers = [label for label in labels if unknown & set(set_targets.get(label) or {})]
     notes = {}
     for label in labels:
-        if label in carriers:
-            continue
-        if carriers:
-            source = carriers[0]
-            set_targets[label] = {name: set_targets[source][name] for name in unknown & set(set_targets[source])}
+        parts, owner = [], label
+        if label not in carriers and carriers:
+            owner = carriers[0]
+            set_targets[label] = {name: set_targets[owner][name] for name in unknown & set(set_targets[owner])}
             which = f"the first of {len(carriers)} that carry them" if len(carriers) > 1 else "the only one that does"
-            notes[label] = f"unknown target offsets estimated by {source} ({files[source]}; {which})"
-        else:
-            notes[label] = "unknown target offsets at their guess (guess_mm)"
+            if used & set(set_targets[label]):
+                parts.append(f"unknown target offsets estimated by {owner} ({files[owner]}; {which})")
+        guessed = sorted(used - set(set_targets.get(label) or {}))
+        if guessed:
+            one = len(guessed) == 1
+            who = f"{owner} did not estimate {'it' if one else 'them'}" if carriers else "no parameter file estimates them"
+            parts.append(f"{', '.join(guessed)} at {'its' if one else 'their'} guess (guess_mm): {who}")
+        if parts:
+            notes[label] = "; ".join(parts)
     return notes
 
 
@@ -152,7 +161,7 @@ def evaluate(
         pairs_bytes(largest),
         "evaluate on a capture with fewer points",
     )
-    target_notes = _borrow_offsets(loaded, set_targets, list(sets), files)
+    target_notes = _borrow_offsets(loaded, set_targets, list(sets), files, captures)
     views = ("points", "distances", "absolute") if absolute else ("points", "distances")
     bases, base_notes = _absolute_bases(loaded, provenances) if absolute else (None, {})
     rows = api.evaluate(captures, sets, loaded, views=views, bases=bases, set_targets=set_targets)

@@ -18,7 +18,9 @@ Two views of the error, one per criterion of ch. 4.5.7:
     estimates none) is evaluated with the scenario's, and the caller says so.
 
 Captures with a ``target`` column are evaluated point by point on their own targets (each capture may
-name its own); the unknown offsets are the ones the evaluated parameter set estimated.
+name its own); the unknown offsets are the ones the evaluated parameter set estimated. Where a set did not
+estimate the offset of a target that points lie on, those points are predicted at the target's guess: a
+:class:`GuessedOffsetWarning` names the set, the targets and the captures (their errors measure the guess).
 
 The improvement of a set is ``100 (1 - mean / mean_reference)`` [%], the reference being the
 first set given (normally the nominal parameters), per view and capture, as in the tables'
@@ -27,13 +29,14 @@ first set given (normally the nominal parameters), per view and capture, as in t
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from robotcal.capture import Capture
-from robotcal.errors import InputError
+from robotcal.errors import InputError, RobotcalWarning
 from robotcal.geometry.registration import register_points
 from robotcal.identification.refine import capture_target_index, capture_turning_joints, measurement_pairs, pdist
 from robotcal.identification.targets import Target, resolve_targets
@@ -50,6 +53,8 @@ __all__ = [
     "distance_errors",
     "absolute_errors",
     "evaluate_parameters",
+    "guessed_targets",
+    "GuessedOffsetWarning",
 ]
 
 #: Evaluation views (Tables 4.10, 4.11).
@@ -70,6 +75,46 @@ class EvaluationRow:
     max_error_mm: float
     rms_error_mm: float
     improvement_pct: float
+
+
+class GuessedOffsetWarning(RobotcalWarning):
+    """Points on a target declared with an unknown offset are evaluated at its guess (``guess_mm``): the parameter
+    set did not estimate that offset, so the errors of those points measure the guess, not the set."""
+
+
+def guessed_targets(capture: Capture, reflector, offsets: Mapping[str, tuple]) -> tuple[str, ...]:
+    """Names of the targets with an unknown offset that points of ``capture`` lie on and that ``offsets`` (a set's
+    estimated offsets, name -> (x, y, z) [mm]) does not give: those points are predicted at the target's guess.
+    ``reflector`` as for :func:`predicted_points` (a :class:`ReflectorMount` is always known)."""
+    if isinstance(reflector, ReflectorMount):
+        return ()
+    targets, _ = resolve_targets(capture, (reflector,) if isinstance(reflector, Target) else tuple(reflector))
+    return tuple(t.name for t in targets if t.frame == "flange" and not t.known and t.name not in offsets)
+
+
+def _warn_guessed(captures, parameter_sets, reflectors, set_targets) -> None:
+    """One :class:`GuessedOffsetWarning` per parameter set that leaves targets of the captures at their guess."""
+    for set_name in parameter_sets:
+        offsets = (set_targets or {}).get(set_name) or {}
+        guessed: dict[str, list[str]] = {}
+        for capture_name, capture in captures.items():
+            reflector = reflectors if isinstance(reflectors, ReflectorMount) else reflectors.get(capture_name)
+            if reflector is None:
+                continue  # refused below, naming the capture
+            for target in guessed_targets(capture, reflector, offsets):
+                guessed.setdefault(target, []).append(repr(capture_name))
+        if not guessed:
+            continue
+        names = ", ".join(guessed)
+        which = sorted({name for names_of in guessed.values() for name in names_of})
+        warnings.warn(
+            f"parameter set {set_name!r} estimated no offset for target{'s' if len(guessed) > 1 else ''} {names} "
+            f"(declared unknown): {'its' if len(guessed) == 1 else 'their'} points in capture{'s' if len(which) > 1 else ''} "
+            f"{', '.join(which)} are predicted at the guess (guess_mm), so their errors measure the guess, not the "
+            "set; evaluate a parameter set that estimated the offset",
+            GuessedOffsetWarning,
+            stacklevel=3,
+        )
 
 
 def predicted_points(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
@@ -159,6 +204,12 @@ def evaluate_parameters(
         Per parameter set, flange offsets [mm] that replace those of same-named targets (the offsets
         a refinement estimated for targets declared unknown).
 
+    Warns
+    -----
+    GuessedOffsetWarning
+        Once per parameter set that leaves a target with an unknown offset, which points of the captures lie on,
+        at its guess (:func:`guessed_targets`), naming the set, the targets and the captures.
+
     Returns
     -------
     tuple of EvaluationRow
@@ -173,6 +224,8 @@ def evaluate_parameters(
         missing = [name for name in parameter_sets if bases is None or bases.get(name) is None]
         if missing:
             raise InputError(f"the absolute view needs a base frame for every parameter set; none for {missing}")
+
+    _warn_guessed(captures, parameter_sets, reflectors, set_targets)
 
     def errors_of(view, capture, set_name, parameters, reflector):
         offsets = (set_targets or {}).get(set_name) or {}

@@ -14,8 +14,9 @@ import io
 import json
 import math
 from pathlib import Path
+from typing import Annotated
 
-from pydantic import BaseModel, ValidationError
+from pydantic import AllowInfNan, BaseModel, Strict, ValidationError
 
 from robotcal.errors import InputError
 
@@ -25,6 +26,15 @@ MAX_FILE_BYTES = 512 * 1024 * 1024
 MAX_LINE_CHARS = 10_000
 #: Deepest JSON/TOML nesting accepted: robotcal's own files nest 4 levels.
 MAX_NESTING = 64
+
+# The value types of the TOML tables (scenario, robot). pydantic's lax mode reads `true` as 1, `"5"` as 5 and 1 as
+# `true`: a boolean written where a number belongs would silently become a 1 kg payload or seed 1 (issue 30).
+#: A TOML integer: a boolean, a float (``1000.0``) or a text (``"5"``) is refused, never converted.
+TomlInt = Annotated[int, Strict()]
+#: A TOML number (an integer is a number): a boolean or a text is refused, and so are ``nan`` and ``inf``.
+TomlFloat = Annotated[float, Strict(), AllowInfNan(False)]
+#: A TOML boolean: ``true`` or ``false``, never a number or a text.
+TomlBool = Annotated[bool, Strict()]
 
 
 def read_text_file(path, *, kind: str = "file") -> str:
@@ -143,19 +153,85 @@ def _location(loc) -> str:
     return text or "(top level)"
 
 
+def as_toml(value) -> str:
+    """``value`` as TOML writes it (``true``, ``"5"``, ``[1, 2.5]``, ``nan``), shortened like :func:`_short`."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, int):
+        return _short(value)
+    elif isinstance(value, float):
+        text = repr(value)  # as TOML: 2.5, 1e-05, nan, inf, -inf
+    elif isinstance(value, str):
+        text = json.dumps(value, ensure_ascii=False)
+    elif isinstance(value, list | tuple):
+        text = "[" + ", ".join(as_toml(item) for item in value[:8]) + (", ...]" if len(value) > 8 else "]")
+    elif isinstance(value, dict):
+        items = list(value.items())
+        text = "{" + ", ".join(f"{key} = {as_toml(item)}" for key, item in items[:4]) + (", ...}" if len(items) > 4 else "}")
+    else:
+        return _short(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+#: pydantic's wording of the common errors, as robotcal words them (bounds from the error's context).
+_MESSAGES = {
+    "int_type": "must be an integer",
+    "float_type": "must be a number",
+    "finite_number": "must be a finite number",
+    "bool_type": "must be true or false",
+    "string_type": "must be a text",
+    "list_type": "must be an array [...]",
+    "greater_than_equal": "must be >= {ge}",
+    "greater_than": "must be > {gt}",
+    "less_than_equal": "must be <= {le}",
+    "less_than": "must be < {lt}",
+}
+
+
+def _problem(error) -> str:
+    """One pydantic error as ``key `<k>`: <why>; got <value as written>``."""
+    kind = error["type"]
+    where = f"key `{_location(error['loc'])}`"
+    if kind == "extra_forbidden":
+        return f"{where}: unknown key"
+    if kind == "missing":
+        return f"{where}: missing required key"
+    bounds = {key: f"{bound:g}" if isinstance(bound, float) else bound for key, bound in error.get("ctx", {}).items()}
+    message = _MESSAGES[kind].format(**bounds) if kind in _MESSAGES else error["msg"]
+    value = error.get("input")
+    if not error["loc"] or isinstance(value, dict) or "got " in message:  # a table-wide check says what it saw
+        return f"{where}: {message}"
+    return f"{where}: {message}; got {as_toml(value)}"
+
+
+def _closest_branches(errors: list) -> list:
+    """The errors of a value that matches no type of a union (``start_deg``: numbers, or rows of numbers) for the
+    types it comes closest to (fewest errors, then the deepest inside the value; every type on a tie), with
+    pydantic's type tag (a location part such as ``list[float]``: key names hold no brackets) taken out of the
+    location."""
+    branches: dict[tuple, dict[str, list]] = {}
+    kept = []
+    for error in errors:
+        loc = tuple(error["loc"])
+        tag = next((k for k, part in enumerate(loc) if isinstance(part, str) and "[" in part), None)
+        if tag is None:
+            kept.append(error)
+            continue
+        branches.setdefault(loc[:tag], {}).setdefault(loc[tag], []).append(error | {"loc": loc[:tag] + loc[tag + 1 :]})
+    for options in branches.values():
+        scores = {tag: (len(found), -max(len(e["loc"]) for e in found)) for tag, found in options.items()}
+        best = min(scores.values())
+        kept.extend(error for tag, found in options.items() if scores[tag] == best for error in found)
+    return kept
+
+
 def validate_model(model: type[BaseModel], data: dict, source: str) -> BaseModel:
-    """``model.model_validate(data)`` with errors as ``InputError("<source>: key <k>: <why>")``."""
+    """``model.model_validate(data)`` with errors as ``InputError("<source>: key <k>: <why>; got <value>")``, the
+    value as the TOML file writes it (``true``, not 1)."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        problems = []
-        for error in exc.errors():
-            message = error["msg"]
-            if error["type"] == "extra_forbidden":
-                message = "unknown key"
-            elif error["type"] == "missing":
-                message = "missing required key"
-            problems.append(f"key `{_location(error['loc'])}`: {message}")
+        problems = dict.fromkeys(_problem(error) for error in _closest_branches(exc.errors()))  # once each, in order
         raise InputError(f"{source}: " + "; ".join(problems)) from None
 
 

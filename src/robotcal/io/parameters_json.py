@@ -24,7 +24,7 @@ import numpy as np
 from robotcal.errors import InputError, RobotcalWarning
 from robotcal.io._validation import _short, as_finite_float, read_json_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.kinematics.joint_model import JointModel
+from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, JointModel, largest_deflection, parse_parameter_name
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
 
 __all__ = [
@@ -140,6 +140,10 @@ def read_joint_model(data, robot: RobotModel, path) -> JointModel:
     for k, entry in enumerate(data["parameters"]):
         if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
             raise InputError(f"{where}.parameters[{k}]` must be an object with a `name`")
+        try:
+            parse_parameter_name(entry["name"], robot.n_joints)
+        except InputError as exc:
+            raise InputError(f"{where}.parameters[{k}].name`: {exc}") from None
         names.append(entry["name"])
         values.append(as_finite_float(entry.get("value"), f"{where}.parameters[{k}].value`"))
         flags.append(bool(entry.get("identified", False)))
@@ -161,7 +165,31 @@ def read_joint_model(data, robot: RobotModel, path) -> JointModel:
     if not isinstance(lash, list) or len(lash) != robot.n_joints:
         raise InputError(f"{where}.backlash_deg` must be {robot.n_joints} angles [deg]")
     lash = np.radians([as_finite_float(v, f"{where}.backlash_deg`") for v in lash])
-    return model.with_values(model.from_display(values)).with_backlash(lash, str(data.get("backlash_source", "")))
+    model = model.with_values(model.from_display(values))
+    _check_deflection(model, robot, values, where)
+    return model.with_backlash(lash, str(data.get("backlash_source", "")))
+
+
+def _check_deflection(model: JointModel, robot: RobotModel, display_values, where: str) -> None:
+    """Refuse a joint model that deflects a joint by more than :data:`MAX_DEFLECTION_DEG` at a pose within the
+    limits (a compliance of 1 rad/(N m) moved ``predict``'s flange by a metre, issue 30): no robot's joint does,
+    so the value is a typing error or a unit slip, and every prediction from it would be wrong."""
+    if model.is_empty:
+        return
+    worst = largest_deflection(model, robot)
+    if np.degrees(worst.angle) <= MAX_DEFLECTION_DEG:
+        return
+    k = worst.parameter
+    angle = np.degrees(worst.angle)
+    pose = ", ".join(f"{v:.4g}" for v in np.degrees(worst.readings))
+    shift = f" and moves the flange by {worst.flange_shift_mm:,.1f} mm" if angle < 90.0 else ""  # else it wraps
+    raise InputError(
+        f"{where}.parameters[{k}].value`: {model.names[k]} = {display_values[k]:g} {model.display_units[k]} deflects "
+        f"J{worst.joint + 1} by {angle:.3g} deg at the readings [{pose}] deg{shift}: more than the "
+        f"{MAX_DEFLECTION_DEG:g} deg of any robot's joint (a "
+        "compliance of 1e-6..1e-4 rad/(N m) sags a joint by under 0.2 deg, gear harmonics are arc-minutes); check the "
+        "value and its unit"
+    )
 
 
 def parameters_to_dict(

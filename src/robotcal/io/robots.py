@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from robotcal.errors import InputError
-from robotcal.io._validation import validate_model
+from robotcal.io._validation import TomlBool, TomlFloat, TomlInt, validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
 from robotcal.kinematics.model import ANGLE_COLUMNS, LinkMasses, RobotModel
 
@@ -34,19 +34,19 @@ __all__ = ["robot_to_dict", "RobotFile", "JointEntry", "load_robot", "robot_from
 class JointEntry(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    d: float = 0.0
-    theta: float = 0.0
-    a: float = 0.0
-    alpha: float = 0.0
-    beta: float = 0.0
-    hayati: bool = False
-    limits_deg: tuple[float, float] = (-360.0, 360.0)
-    reading_sign: int = 1
-    reading_offset_deg: float = 0.0
-    capsule_radius_mm: float | None = Field(default=None, ge=0)  # link i as a capsule F_{i-1}-F_i (planning.cell)
-    reading_coupling: dict[int, float] = Field(default_factory=dict)  # {other joint (1-based): coefficient}
-    mass_kg: float | None = Field(default=None, ge=0)  # the link joint i moves (joint_model)
-    com_mm: tuple[float, float, float] | None = None  # its centre of mass in DH frame {i}
+    d: TomlFloat = 0.0
+    theta: TomlFloat = 0.0
+    a: TomlFloat = 0.0
+    alpha: TomlFloat = 0.0
+    beta: TomlFloat = 0.0
+    hayati: TomlBool = False
+    limits_deg: tuple[TomlFloat, TomlFloat] = (-360.0, 360.0)
+    reading_sign: TomlInt = 1
+    reading_offset_deg: TomlFloat = 0.0
+    capsule_radius_mm: TomlFloat | None = Field(default=None, ge=0)  # link i as a capsule F_{i-1}-F_i (planning.cell)
+    reading_coupling: dict[int, TomlFloat] = Field(default_factory=dict)  # {other joint (1-based): coefficient}
+    mass_kg: TomlFloat | None = Field(default=None, ge=0)  # the link joint i moves (joint_model)
+    com_mm: tuple[TomlFloat, TomlFloat, TomlFloat] | None = None  # its centre of mass in DH frame {i}
 
     @field_validator("reading_sign")
     @classmethod
@@ -97,7 +97,8 @@ class RobotFile(BaseModel):
     description: str = ""
     source: str = ""
     mass_source: str = ""
-    flange_frame: tuple[float, float, float, float, float, float] | None = None  # x, y, z [mm], A, B, C [deg KUKA]
+    #: x, y, z [mm], A, B, C [deg KUKA]
+    flange_frame: tuple[TomlFloat, TomlFloat, TomlFloat, TomlFloat, TomlFloat, TomlFloat] | None = None
     joints: list[JointEntry] = Field(min_length=1)
 
 

@@ -25,10 +25,11 @@ from robotcal.geometry.transforms import check_rigid_transform, nearest_rotation
 from robotcal.identification.cpa import CPAOptions
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io._validation import validate_model
+from robotcal.io._validation import TomlBool, TomlFloat, TomlInt, validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
 from robotcal.io.instruments import make_instrument
 from robotcal.io.robots import load_robot
+from robotcal.kinematics.joint_model import MAX_HARMONIC_ORDER
 from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel
 from robotcal.simulation.plan import CapturePlan
@@ -68,7 +69,7 @@ def _three_values(value):
 
 
 #: A position [x, y, z]; a list of another length is refused with that message.
-XYZ = Annotated[tuple[float, float, float], BeforeValidator(_three_values)]
+XYZ = Annotated[tuple[TomlFloat, TomlFloat, TomlFloat], BeforeValidator(_three_values)]
 
 
 class _RunTable(_Strict):
@@ -77,39 +78,39 @@ class _RunTable(_Strict):
 
 class InstrumentTable(_Strict):
     preset: str | None = None
-    a_um: float | None = Field(default=None, ge=0)
-    b_um_per_m: float | None = Field(default=None, ge=0)
+    a_um: TomlFloat | None = Field(default=None, ge=0)
+    b_um_per_m: TomlFloat | None = Field(default=None, ge=0)
     noise: Literal["uniform", "normal"] = "uniform"
-    coverage_factor: float = Field(default=2.0, gt=0)
+    coverage_factor: TomlFloat = Field(default=2.0, gt=0)
 
 
 class ErrorTerm(_Strict):
-    amplitude: float = 0.0
-    period_deg: float = Field(default=360.0, gt=0)
-    phase_deg: float = 0.0
-    noise_sd: float = Field(default=0.0, ge=0)
+    amplitude: TomlFloat = 0.0
+    period_deg: TomlFloat = Field(default=360.0, gt=0)
+    phase_deg: TomlFloat = 0.0
+    noise_sd: TomlFloat = Field(default=0.0, ge=0)
 
 
 class JointErrorTable(_Strict):
-    joint: int = Field(ge=1)
+    joint: TomlInt = Field(ge=1)
     dx: ErrorTerm = ErrorTerm()
     dy: ErrorTerm = ErrorTerm()
     dz: ErrorTerm = ErrorTerm()
     ex: ErrorTerm = ErrorTerm()
     ey: ErrorTerm = ErrorTerm()
-    backlash_deg: float = Field(default=0.0, ge=0)
+    backlash_deg: TomlFloat = Field(default=0.0, ge=0)
     lash_mm: XYZ = (0.0, 0.0, 0.0)
 
 
 class CaptureTable(_Strict):
-    start_deg: list[float] | list[list[float]] | None = None
-    sweep_deg: list[float] | None = None
-    points: list[int] | None = None
-    reflector_mm: list[list[float]] | None = None
-    flange_reflector_mm: list[float] | None = None
-    bidirectional: bool = False
+    start_deg: list[TomlFloat] | list[list[TomlFloat]] | None = None
+    sweep_deg: list[TomlFloat] | None = None
+    points: list[TomlInt] | None = None
+    reflector_mm: list[list[TomlFloat]] | None = None
+    flange_reflector_mm: list[TomlFloat] | None = None
+    bidirectional: TomlBool = False
     joint_limits: Literal["warn", "error", "ignore"] = "warn"
-    seed: int | None = Field(default=None, ge=0)
+    seed: TomlInt | None = Field(default=None, ge=0)
     joint_errors: list[JointErrorTable] = []
 
     @model_validator(mode="after")
@@ -127,9 +128,9 @@ class TargetTable(_Strict):
     """One measured target (``[[targets]]``): per-joint reflectors or a flange target, known or unknown."""
 
     name: str = Field(min_length=1)
-    flange_mm: list[float] | Literal["unknown"] | None = None
-    guess_mm: list[float] | None = None
-    reflector_mm: list[list[float]] | None = None
+    flange_mm: list[TomlFloat] | Literal["unknown"] | None = None
+    guess_mm: list[TomlFloat] | None = None
+    reflector_mm: list[list[TomlFloat]] | None = None
 
     @model_validator(mode="after")
     def _one_position(self):
@@ -144,8 +145,8 @@ class IdentificationTable(_Strict):
     circle_fit: Literal["geometric", "algebraic"] = "geometric"
     base_frame: Literal["given", "registered"] = "given"
     base_axis: Literal["registration", "circle1"] = "registration"
-    near_parallel_deg: float = Field(default=5.0, ge=0, le=45)
-    still_tolerance_deg: float = Field(default=1e-6, ge=0)
+    near_parallel_deg: TomlFloat = Field(default=5.0, ge=0, le=45)
+    still_tolerance_deg: TomlFloat = Field(default=1e-6, ge=0)
 
 
 class MonteCarloTable(_RunTable):
@@ -164,10 +165,10 @@ class MonteCarloTable(_RunTable):
         overrides it); None: the run's default, ``robotcal.limits.REFINED_DRAWS``.
     """
 
-    iterations: int = Field(default=100_000, ge=1)
-    seed: int | None = Field(default=None, ge=0)
-    coverage: float = Field(default=0.95, gt=0, lt=1)
-    refined_iterations: int | None = Field(default=None, ge=1)
+    iterations: TomlInt = Field(default=100_000, ge=1)
+    seed: TomlInt | None = Field(default=None, ge=0)
+    coverage: TomlFloat = Field(default=0.95, gt=0, lt=1)
+    refined_iterations: TomlInt | None = Field(default=None, ge=1)
 
 
 class TruthTable(_RunTable):
@@ -179,11 +180,11 @@ class TruthTable(_RunTable):
     gravity (link masses of the robot file, the ``[payload]``), a joint model in its truth JSON.
     """
 
-    length_sd_mm: float = Field(default=0.2, ge=0)
-    angle_sd_deg: float = Field(default=0.05, ge=0)
-    include_base: bool = False
-    seed: int | None = Field(default=None, ge=0)
-    compliance_rad_per_nm: tuple[float, ...] | None = None
+    length_sd_mm: TomlFloat = Field(default=0.2, ge=0)
+    angle_sd_deg: TomlFloat = Field(default=0.05, ge=0)
+    include_base: TomlBool = False
+    seed: TomlInt | None = Field(default=None, ge=0)
+    compliance_rad_per_nm: tuple[TomlFloat, ...] | None = None
 
 
 class ValidationTable(_RunTable):
@@ -194,11 +195,11 @@ class ValidationTable(_RunTable):
     ``ValidationTable()`` holds the defaults.
     """
 
-    poses: int = Field(default=100, ge=4)
-    seed: int | None = Field(default=None, ge=0)
+    poses: TomlInt = Field(default=100, ge=4)
+    seed: TomlInt | None = Field(default=None, ge=0)
     flange_reflector_mm: XYZ = (60.0, 40.0, 30.0)
-    margin_deg: float = Field(default=5.0, ge=0)
-    min_height_mm: float | None = None
+    margin_deg: TomlFloat = Field(default=5.0, ge=0)
+    min_height_mm: TomlFloat | None = None
 
 
 class CalibrationPosesTable(ValidationTable):
@@ -209,7 +210,7 @@ class CalibrationPosesTable(ValidationTable):
     ``Scenario.calibration_poses`` is None without the table.
     """
 
-    poses: int = Field(default=30, ge=4)
+    poses: TomlInt = Field(default=30, ge=4)
 
 
 class TCPTable(_RunTable):
@@ -220,12 +221,12 @@ class TCPTable(_RunTable):
     ``pose_deg`` and ``trajectory`` None: the thesis's pose and trajectory (KR 5 sixx R650 only).
     """
 
-    pose_deg: tuple[float, ...] | None = None
+    pose_deg: tuple[TomlFloat, ...] | None = None
     trajectory: str | None = None
     readings_robot: str | None = None
-    workspace_poses: int = Field(default=1000, ge=1)
-    workspace_draws: int | None = Field(default=10_000, ge=2)
-    workspace_seed: int = Field(default=0, ge=0)
+    workspace_poses: TomlInt = Field(default=1000, ge=1)
+    workspace_draws: TomlInt | None = Field(default=10_000, ge=2)
+    workspace_seed: TomlInt = Field(default=0, ge=0)
     tool_mm: XYZ | None = None
 
 
@@ -236,7 +237,7 @@ class PayloadTable(_RunTable):
     the table (no payload).
     """
 
-    mass_kg: float = Field(ge=0)
+    mass_kg: TomlFloat = Field(ge=0)
     com_mm: XYZ = (0.0, 0.0, 0.0)
 
 
@@ -250,11 +251,11 @@ class JointModelTable(_RunTable):
     """
 
     fit: Literal["geometric", "compliance", "harmonic", "compliance+harmonic", "auto"] = "geometric"
-    compliance_joints: tuple[int, ...] | None = None
-    harmonic_joints: tuple[int, ...] | None = None
-    harmonic_order: int = Field(default=1, ge=1, le=4)
-    folds: int = Field(default=5, ge=0)
-    seed: int = Field(default=0, ge=0)
+    compliance_joints: tuple[TomlInt, ...] | None = None
+    harmonic_joints: tuple[TomlInt, ...] | None = None
+    harmonic_order: TomlInt = Field(default=1, ge=1, le=MAX_HARMONIC_ORDER)
+    folds: TomlInt = Field(default=5, ge=0)
+    seed: TomlInt = Field(default=0, ge=0)
 
     @model_validator(mode="after")
     def _valid(self):
@@ -270,7 +271,7 @@ class JointModelTable(_RunTable):
 class ScenarioFile(_Strict):
     description: str = ""
     robot: str
-    tracker_from_base: list[list[float]] = _IDENTITY
+    tracker_from_base: list[list[TomlFloat]] = _IDENTITY
     instrument: InstrumentTable | None = None
     capture: CaptureTable | None = None
     targets: list[TargetTable] = []

@@ -49,18 +49,24 @@ the refinement's Jacobian is ``dp/de = sum_i dp/dq_i C_i``, ``dp/dq_i`` that of 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
-from robotcal.kinematics.forward import joint_frames
+from robotcal.kinematics.forward import forward_kinematics, joint_frames
 from robotcal.kinematics.model import LinkMasses
 
 __all__ = [
     "GRAVITY_MPS2",
     "JOINT_MODEL_GROUPS",
+    "MAX_DEFLECTION_DEG",
+    "MAX_HARMONIC_ORDER",
+    "Deflection",
     "JointModel",
+    "largest_deflection",
+    "parse_parameter_name",
     "gravity_regressor",
     "gravity_torques",
     "lumped_terms",
@@ -72,6 +78,16 @@ __all__ = [
 GRAVITY_MPS2 = (0.0, 0.0, -9.81)
 #: The groups of non-geometric parameters, in the order of a model's parameter vector.
 JOINT_MODEL_GROUPS = ("compliance", "harmonic")
+#: Highest harmonic order of a joint model (a scenario's ``[joint_model] harmonic_order``, a parameter file's
+#: ``J<i>.a<k>`` / ``J<i>.b<k>``): a gear's errors of higher orders are below a tracker's noise on a circle.
+MAX_HARMONIC_ORDER = 4
+#: Largest deflection [deg] that a joint model may give a joint at a pose within the limits (compliance and
+#: harmonics together; :func:`largest_deflection`). Industrial joints have compliances of 1e-6..1e-4 rad/(N m)
+#: (the kr5-demo's 1e-5 and 4e-5); under the gravity torques of their own robots (~50 N m on a KR 5's J2, ~1e4 N m
+#: on a 200 kg robot's with stiffness to match) they sag by 0.03..0.2 deg, and gear harmonics are arc-minutes (the
+#: thesis's ~0.01 deg). 1 deg is five times the softest of these, and moves the flange of a 650 mm arm by ~11 mm:
+#: a value beyond it is a typing error or a unit slip (deg for rad, a stiffness for a compliance), not a robot.
+MAX_DEFLECTION_DEG = 1.0
 _MM = 1e-3  # mm -> m
 
 
@@ -214,8 +230,8 @@ class JointModel:
             In the base frame [m/s^2].
         """
         order = int(harmonic_order)
-        if order < 1 or order > 4:
-            raise InputError(f"joint model: harmonic order must be 1..4; got {harmonic_order!r}")
+        if order < 1 or order > MAX_HARMONIC_ORDER:
+            raise InputError(f"joint model: harmonic order must be 1..{MAX_HARMONIC_ORDER}; got {harmonic_order!r}")
         names, lumped = [], {}
         compliance = sorted({int(j) for j in compliance_joints})
         harmonic = sorted({int(j) for j in harmonic_joints})
@@ -241,7 +257,7 @@ class JointModel:
         n = robot.n_joints
         lumped = dict(lumped or {})
         names = tuple(names)
-        parsed = [_parse_name(name, n) for name in names]
+        parsed = [parse_parameter_name(name, n) for name in names]
         if len(set(names)) != len(names):
             raise InputError(f"joint model: a parameter is named twice in {', '.join(names)}")
         if masses is not None and masses.mass_kg.size != n:
@@ -389,8 +405,9 @@ def lash_turns(backlash, q, circle) -> np.ndarray:
     return out
 
 
-def _parse_name(name: str, n_joints: int) -> tuple[int, str, int]:
-    """``"J2.k"`` -> ``(1, "k", 0)``; ``"J4.b2"`` -> ``(3, "b", 2)``; an :class:`InputError` for any other text."""
+def parse_parameter_name(name: str, n_joints: int) -> tuple[int, str, int]:
+    """``"J2.k"`` -> ``(1, "k", 0)``; ``"J4.b2"`` -> ``(3, "b", 2)``; an :class:`InputError` for any other text,
+    and for a harmonic order above :data:`MAX_HARMONIC_ORDER`."""
     joint, _, term = str(name).partition(".")
     kind, number = term[:1], term[1:]
     valid = (
@@ -404,7 +421,44 @@ def _parse_name(name: str, n_joints: int) -> tuple[int, str, int]:
             f"joint model: unknown parameter {name!r}; expected J<i>.k (compliance), J<i>.g<b> (lumped compliance) "
             f"or J<i>.a<k> / J<i>.b<k> (harmonic) with i in 1..{n_joints}"
         )
+    if kind in "ab" and int(number) > MAX_HARMONIC_ORDER:
+        raise InputError(f"{name}: harmonic order {int(number)} is outside 1..{MAX_HARMONIC_ORDER}")
     return int(joint[1:]) - 1, kind, int(number) if number else 0
+
+
+class Deflection(NamedTuple):
+    """The largest deflection of a joint model over a sample of poses (:func:`largest_deflection`)."""
+
+    #: ``|delta_i(q)|`` [rad].
+    angle: float
+    #: The joint (0-based) and the parameter (index into the model's names) that contributes most to it.
+    joint: int
+    parameter: int
+    #: The controller readings of the pose [rad], and how far the deflection moves the flange there [mm].
+    readings: np.ndarray
+    flange_shift_mm: float
+
+
+def largest_deflection(model: JointModel, robot, *, poses: int = 400, seed: int = 0) -> Deflection:
+    """The largest deflection ``|delta_i(q)|`` of any joint over ``poses`` seeded random poses within the joint
+    limits (compliance and harmonics together), where it happens and what it does to the flange of the nominal
+    structure. Compare it with :data:`MAX_DEFLECTION_DEG`."""
+    n = robot.n_joints
+    limits = np.where(np.isfinite(robot.limits), robot.limits, np.array([-np.pi, np.pi]))
+    readings = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(poses, n))
+    q = robot.model_joint_variables(readings)
+    columns = model.columns(q)  # (P, n, m)
+    delta = columns @ model.values
+    pose, joint = np.unravel_index(int(np.argmax(np.abs(delta))), delta.shape)
+    parameter = int(np.argmax(np.abs(columns[pose, joint] * model.values))) if model.size else 0
+    shifted = forward_kinematics(robot.nominal, np.stack([q[pose], q[pose] + delta[pose]]))[:, :3, 3]
+    return Deflection(
+        angle=float(abs(delta[pose, joint])),
+        joint=int(joint),
+        parameter=parameter,
+        readings=readings[pose],
+        flange_shift_mm=float(np.linalg.norm(shifted[1] - shifted[0])),
+    )
 
 
 def lumped_terms(robot, joints, gravity=GRAVITY_MPS2, *, poses: int = 400, seed: int = 0) -> dict[str, np.ndarray]:
