@@ -25,14 +25,17 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
     Each panel shows the draws as a density histogram, the mean (solid), the coverage interval for the
     measurand (dashed: the draws' interval of the kind chosen in the settings moved by twice the bias,
     :meth:`~robotcal.uncertainty.montecarlo.MonteCarloResult.interval`), the draws' own
-    interval (dash-dot, thin), the linearised (GUM) normal density when available, and the value CPA
-    gives for the noise-free capture (dotted). Angles in degrees, lengths in mm.
+    interval (dash-dot, thin), the linearised (GUM) normal density when the result has the linearised comparison
+    (``result.linearised``; a refined Monte Carlo has it only when asked for), and the value the model gives for
+    the noise-free capture (dotted): CPA's, or the refinement's for ``result.model == "refined"``. Angles in
+    degrees, lengths in mm.
     """
     if result.draws is None:
         raise ValueError("the result holds no draws (run with keep_draws=True)")
     folder = Path(folder)
     low, high = result.interval()
     draws_low, draws_high = result.draws_interval()
+    noise_free = "noise-free refinement" if result.model == "refined" else "noise-free CPA"
     written = []
     for joint in range(result.robot.n_joints):
         columns = np.flatnonzero(result.identified[joint])
@@ -59,7 +62,7 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             for end, label in ((draws_low, f"draws' {interval}"), (draws_high, None)):
                 axis.axvline(end[joint, column] * scale, color="#7f8c8d", ls="-.", lw=0.9, label=label)
             axis.axvline(
-                result.noise_free_values[joint, column] * scale, color="#444444", ls=":", lw=1.2, label="noise-free CPA"
+                result.noise_free_values[joint, column] * scale, color="#444444", ls=":", lw=1.2, label=noise_free
             )
             if result.linearised is not None:
                 sigma = result.linearised.std_uncertainty[joint, column] * scale

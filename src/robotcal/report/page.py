@@ -310,6 +310,27 @@ def _captions(page: _Page, folder: str) -> dict:
     return captions
 
 
+def _histogram_caption(joint: str, *, model: str | None = None, linearised: bool | None = None, refinement=None) -> str:
+    """The caption of ``hist_J<n>.png`` (:func:`robotcal.plots.montecarlo.write_histograms`): what it draws depends
+    on the Monte Carlo: the noise-free value is CPA's or the refinement's (``model``), and the linearised (GUM)
+    density is drawn only when the Monte Carlo computed the linearised comparison (``linearised``; None: not
+    known). ``refinement``: the document holding the refinement's own linearised u, named where there is no
+    density."""
+    noise_free = {"cpa": "the noise-free CPA value", "refined": "the noise-free refined value (the refinement "
+                  "of the noise-free capture)"}.get(model or "", "the model's noise-free value")  # fmt: skip
+    text = (
+        f"Monte Carlo histograms of the identified parameters of {joint} (lengths in mm, angles in deg; density per "
+        f"unit), with the mean (solid), the coverage interval for the measurand (dashed), the draws' own interval "
+        f"(dash-dot), {noise_free} (dotted)"
+    )
+    if linearised is None:
+        return text + " and, where the Monte Carlo computed the linearised comparison, the linearised (GUM) density."
+    if linearised:
+        return text + " and the linearised (GUM) density."
+    where = f"; the refinement's own linearised standard uncertainties are in {refinement}" if refinement else ""
+    return text + f". This Monte Carlo computed no linearised comparison, so no linearised (GUM) density is drawn{where}."
+
+
 def _caption(name: str, captions: Mapping) -> str:
     if name in captions:
         return captions[name]
@@ -317,11 +338,7 @@ def _caption(name: str, captions: Mapping) -> str:
         return _CAPTIONS[name]
     stem = name.rsplit(".", 1)[0]
     if re.fullmatch(r"hist_J\d+", stem):
-        return (
-            f"Monte Carlo histograms of the identified parameters of {stem[5:]} (lengths in mm, angles in deg; "
-            "density per unit), with the mean, the coverage interval, the noise-free CPA value and the "
-            "linearised (GUM) density."
-        )
+        return _histogram_caption(stem[5:])
     if stem.startswith("sensitivity_"):
         return (
             "Sensitivity of the CPA Monte Carlo to the swept setting: Cpk (eq. 5-5) and mean − nominal (µm for "

@@ -5,6 +5,7 @@ scipy's)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -72,3 +73,15 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
         assert figure.get_suptitle() == f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws"
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
         assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free CPA", "linearised (GUM)"]
+
+
+def test_the_refined_model_names_its_noise_free_value_and_draws_no_density_it_has_not(result, tmp_path, monkeypatch):
+    """A refined Monte Carlo run without the linearised comparison (robotcal run's): its noise-free value is the
+    refinement's, not CPA's, and no GUM density is drawn (issue 30)."""
+    figures = []
+    monkeypatch.setattr(histograms, "save_figure", lambda figure, path: figures.append(figure) or path)
+    refined = dataclasses.replace(result, model="refined", linearised=None)
+    histograms.write_histograms(refined, tmp_path)
+    for figure in figures:
+        labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
+        assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free refinement"]
