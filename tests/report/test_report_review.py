@@ -6,13 +6,15 @@ document the synthetic run does not hold.
 
 from __future__ import annotations
 
+import html
 import json
 import re
 import shutil
 
-from report_run import load_run
+from report_run import CONSISTENCY_MM, load_run
 
 from robotcal.report.html import render_report
+from robotcal.report.page import _length
 
 
 def _render(folder) -> str:
@@ -48,3 +50,38 @@ def test_histogram_captions_say_what_each_monte_carlo_drew(run_folder):
     assert "with the linearised" not in refined and "the linearised (GUM) density" not in refined
     assert "no linearised (GUM) density" in refined
     assert "noise-free refined value" in refined and "CPA value" not in refined
+
+
+def _cards(page: str) -> dict[str, tuple[str, str]]:
+    """``{card label: (value, detail)}`` of the summary's headline cards (text unescaped)."""
+    found = re.findall(
+        r'<div class="rc-label">(.*?)</div><div class="rc-value">(.*?)</div>.*?<div class="rc-detail">(.*?)</div>',
+        _section(page, "summary"),
+    )
+    return {html.unescape(label): (html.unescape(value), html.unescape(detail)) for label, value, detail in found}
+
+
+def test_the_validation_card_says_which_error_its_numbers_are(run_folder):
+    """The headline's mean errors are after a best-fit registration (the evaluation's points view); the card says
+    so, gives the RMS of the same errors, and the absolute figures of the consistency check (base frame given,
+    no registration), so that the page's three numbers for the deployed model are told apart."""
+    cards = _cards(_render(run_folder))
+    label = next(name for name in cards if "validation error" in name and "before" in name)
+    value, detail = cards[label]
+    assert value == "900 µm → 50 µm" and "mean" in label
+    assert "after a best-fit registration" in detail and "points view" in detail
+    # evaluation.csv of the fixture: RMS = 1.1 x mean at the validation points
+    assert f"RMS {_length(0.9 * 1.1)} → {_length(0.05 * 1.1)}" in detail
+    # the consistency check's observed error: absolute, with the given base frame
+    assert f"RMS {_length(CONSISTENCY_MM['observed_rms_mm'])}" in detail
+    assert "base frame given, no registration" in detail
+    _, consistency = cards["validation RMS error, expected → observed"]
+    assert "base frame given, no registration" in consistency and "after a best-fit registration" in consistency
+
+
+def test_the_model_section_labels_its_validation_numbers(run_folder):
+    """The model-choice section shows the registered errors (table) and the absolute RMS (consistency note): each
+    says which it is."""
+    section = html.unescape(_section(_render(run_folder), "model"))
+    assert "after a best-fit registration" in section
+    assert f"observed {_length(CONSISTENCY_MM['observed_rms_mm'])} (RMS, base frame given, no registration)" in section

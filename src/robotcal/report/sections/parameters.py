@@ -78,7 +78,7 @@ def _refinement_rms(page: _Page, label: str, data: dict) -> list:
                     [
                         "validation RMS error",
                         _length(_number(row["rms_error_mm"])),
-                        f"RMS of the {row.get('n_errors')} validation point errors after registration "
+                        f"RMS of the {row.get('n_errors')} validation point errors after a best-fit registration "
                         "(evaluation, points view): not fitted, so the honest figure",
                     ]
                 )

@@ -105,26 +105,64 @@ def _facts_of_run(page: _Page) -> list[dict]:
     return facts
 
 
+def _absolute(base_frame: str | None) -> str:
+    """How ``tcp/consistency.json`` placed the predictions: with the base frame given (no registration), or a
+    best-fit registration of them onto the measurements."""
+    if base_frame == "registered":
+        return "after a best-fit registration of the base frame"
+    return f"with the base frame {base_frame or 'given'}, no registration"
+
+
+def _validation_detail(page: _Page) -> str:
+    """What the numbers of the validation card are: means of the evaluation's errors in its view (the points
+    view: distances after a best-fit registration of each model's predicted points onto the measured ones), the
+    RMS of the same errors, and the consistency check's absolute errors of the deployed model, which differ."""
+    summary = page.summary
+    before, after = summary.validation_before_set or "before", summary.validation_after_set or "after"
+    capture, view = summary.validation_capture or "validation", summary.validation_view or "points"
+    rows = {}
+    for row in (page.json("evaluation/evaluation.json") or {}).get("rows") or []:
+        if isinstance(row, dict) and row.get("capture") == capture and row.get("view") == view:
+            rows[row.get("parameter_set")] = row
+    count = _number((rows.get(after) or {}).get("n_errors"))
+    points = f"the {int(count)} {capture} points" if count is not None else f"the {capture} points"
+    if view == "points":
+        what = (
+            f"mean distance between predicted and measured point at {points}, after a best-fit registration of "
+            f"each model's predicted points onto the measured ones (evaluation, points view)"
+        )
+    else:
+        what = f"mean error at {points} (evaluation, {view} view)"
+    text = f"{what}; {before} → {after}" + (f" ({set_label(after)})" if set_label(after) != after else "")
+    rms = [_number((rows.get(name) or {}).get("rms_error_mm")) for name in (before, after)]
+    if None not in rms:
+        text += f"; RMS {_length(rms[0])} → {_length(rms[1])}"
+    check = summary.consistency
+    if check is not None and view == "points" and check.base_frame != "registered":
+        absolute = _number((page.json("tcp/consistency.json") or {}).get("observed_mean_mm"))
+        mean = f"mean {_length(absolute)}, " if absolute is not None else ""
+        text += (
+            f"; the deployed model's errors {_absolute(check.base_frame)} (validation consistency): "
+            f"{mean}RMS {_length(check.observed_rms_mm)}"
+        )
+    return text
+
+
 def _cards(page: _Page) -> list[dict]:
     summary = page.summary
     cards = []
     if summary.validation_before_mm is not None and summary.validation_after_mm is not None:
-        before, after = summary.validation_before_set or "before", summary.validation_after_set or "after"
-        detail = (
-            f"mean position error at the {summary.validation_capture or 'validation'} points, {before} → {after}"
-            + (f" ({set_label(after)})" if set_label(after) != after else "")
-        )
         cards.append(
             _card(
                 "How good is it?",
-                "validation error, before → after",
+                "mean validation error, before → after",
                 f"{_length(summary.validation_before_mm)} → {_length(summary.validation_after_mm)}",
-                detail,
+                _validation_detail(page),
             )
         )
     else:
         why = "evaluation stage not run" if not page.has("evaluation") else "no headline in evaluation.json"
-        cards.append(_card("How good is it?", "validation error, before → after", "n/a", why))
+        cards.append(_card("How good is it?", "mean validation error, before → after", "n/a", why))
     if summary.circle_rms_mm is not None:
         circle = f"circle J{summary.circle_rms_circle}; " if summary.circle_rms_circle is not None else ""
         cards.append(
@@ -208,7 +246,9 @@ def _cards(page: _Page) -> list[dict]:
                 f"expected = √(predicted² + instrument²) = √({_length(check.predicted_rms_mm)}² + "
                 f"{_length(check.instrument_rms_mm)}²) at {check.poses} validation poses ({check.model}"
                 + (", base frame registered: the registration absorbs part of the error" if registered else "")
-                + f"); observed / expected = {_fmt(check.ratio, '.3g')}: {check.verdict}",
+                + f"); observed: RMS of the errors {_absolute(check.base_frame)}"
+                + ("" if registered else " (the validation card's errors are after a best-fit registration)")
+                + f"; observed / expected = {_fmt(check.ratio, '.3g')}: {check.verdict}",
             )
         )
     return cards
