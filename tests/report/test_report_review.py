@@ -11,7 +11,7 @@ import json
 import re
 import shutil
 
-from report_run import CONSISTENCY_MM, load_run
+from report_run import CONSISTENCY_MM, U_REFINED_ANGLE_DEG, U_REFINED_LENGTH_MM, load_run
 
 from robotcal.report.html import render_report
 from robotcal.report.page import _length
@@ -85,3 +85,29 @@ def test_the_model_section_labels_its_validation_numbers(run_folder):
     section = html.unescape(_section(_render(run_folder), "model"))
     assert "after a best-fit registration" in section
     assert f"observed {_length(CONSISTENCY_MM['observed_rms_mm'])} (RMS, base frame given, no registration)" in section
+
+
+def test_the_largest_uncertainty_is_over_the_parameters_the_refinement_determines(run_folder):
+    """A refinement marks the free parameters that take up the effect of held ones ``confounded`` (only their
+    combination is determined): the headline's largest u is over the others, and the card names the confounded
+    one that is larger."""
+    refined = run_folder / "uncertainty-refined" / "parameters.json"
+
+    def widen(document):
+        for entry in document["parameters"]:
+            if entry["name"] in ("J5.a", "J5.theta"):
+                entry["std_uncertainty"] = 0.009 if entry["unit"] == "mm" else 0.005
+
+    _edit_json(refined, widen)
+    _edit_json(
+        run_folder / "refine" / "points.json",
+        lambda d: d["provenance"].update(held=["J5.alpha"], confounded=["J5.d", "J5.theta", "J5.a"]),
+    )
+    cards = _cards(_render(run_folder))
+    value, detail = cards["largest standard uncertainty, lengths"]
+    assert value == _length(U_REFINED_LENGTH_MM)
+    assert "J5.a" in detail and "confounded" in detail and _length(0.009) in detail
+    assert "parameters the refinement determines" in detail
+    value, detail = cards["largest standard uncertainty, angles"]
+    assert value == f"{U_REFINED_ANGLE_DEG:.3g}°"
+    assert "J5.theta" in detail and "confounded" in detail and "0.005°" in detail
