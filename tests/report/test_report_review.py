@@ -111,3 +111,76 @@ def test_the_largest_uncertainty_is_over_the_parameters_the_refinement_determine
     value, detail = cards["largest standard uncertainty, angles"]
     assert value == f"{U_REFINED_ANGLE_DEG:.3g}°"
     assert "J5.theta" in detail and "confounded" in detail and "0.005°" in detail
+
+
+def _facts(section: str) -> dict[str, tuple[str, str]]:
+    """``{entry: (value, unit)}`` of the entry/value/unit tables of a section."""
+    rows = re.findall(
+        r'<tr><td class="rc-text">([^<]*)</td><td class="rc-text">([^<]*)</td><td class="rc-text">([^<]*)</td></tr>',
+        section,
+    )
+    return {html.unescape(entry): (html.unescape(value), html.unescape(unit)) for entry, value, unit in rows}
+
+
+def test_joint_model_uncertainties_carry_their_unit(run_folder):
+    """A refinement's ``standard_uncertainty`` of a joint-model parameter (``J2.k``) is one entry, in the unit the
+    document's joint model gives it, not a pure number."""
+
+    def extend(document):
+        document["provenance"]["standard_uncertainty"]["J2.k"] = 2.5e-07
+        document["provenance"]["standard_uncertainty"]["J3.a1"] = 0.0012
+        document["joint_model"] = {"parameters": [{"name": "J2.k", "unit": "rad/(N m)", "value": 1e-05, "u": 2.5e-07}]}
+
+    _edit_json(run_folder / "refine" / "points.json", extend)
+    facts = _facts(_section(_render(run_folder), "parameters"))
+    assert facts["standard uncertainty › J2.k"][1] == "rad/(N m)"
+    assert facts["standard uncertainty › J3.a1"][1] == "deg"  # a harmonic coefficient
+    assert "standard uncertainty › J2 › k" not in facts
+
+
+def test_micrometres_are_written_one_way(run_folder):
+    """The stages' one-line results say "um" (console text); the page writes µm, as everywhere else."""
+    _edit_json(
+        run_folder / "run.json",
+        lambda d: d["stages"].update(refine={"status": "done", "detail": "points RMS 11.5 um, distances RMS 13.9 um"}),
+    )
+    page = html.unescape(_render(run_folder))
+    assert "points RMS 11.5 µm, distances RMS 13.9 µm" in _section(page, "summary")
+    assert re.search(r"\d um\b", page) is None
+
+
+def test_cpa_minus_truth_in_fixed_notation(run_folder):
+    page = _render(run_folder)
+    section = _section(page, "parameters")
+    result = load_run(run_folder)
+    cpa, truth = result.json("cpa/parameters.json"), result.json("truth.json")
+    for joint, kind in ((1, "a"), (2, "a"), (3, "theta"), (2, "beta")):
+        cells = re.search(rf'<tr[^>]*><td class="rc-text">J{joint}\.{kind}</td>(.*?)</tr>', section).group(1)
+        difference = re.findall(r"<td[^>]*>(.*?)</td>", cells)[3]
+        assert "e" not in difference
+        expected = cpa["joints"][joint - 1][kind] - truth["joints"][joint - 1][kind]
+        assert difference == f"{expected:.4f}".replace("-0.0000", "0.0000")
+
+
+def test_percentages_are_rounded(run_folder):
+    """evaluation.csv's improvement_pct: one decimal (52.4 %, not 52.4319 %)."""
+    tables = re.findall(r"<table>.*?</table>", _section(_render(run_folder), "evaluation"), re.S)
+    section = next(table for table in tables if "<code>evaluation/evaluation.csv</code>" in table)
+    header = re.search(r"<thead><tr>(.*?)</tr></thead>", section).group(1)
+    column = re.findall(r"<th[^>]*>(.*?)</th>", header).index("improvement (%)")
+    shown = [re.findall(r"<td[^>]*>(.*?)</td>", row)[column] for row in re.findall(r"<tr>(<td.*?)</tr>", section)]
+    assert shown and all(re.fullmatch(r"-?\d+\.\d", value) for value in shown), shown
+    assert "86.7" in shown  # cpa: 100 (1 - 0.12 / 0.9)
+
+
+def test_long_provenance_tables_show_every_entry_folded(run_folder):
+    """A provenance of 90 entries is shown whole (no "First 60 of 90 rows"), in a table folded under a summary."""
+    extra = {f"entry_{k:02d}": k for k in range(80)}
+    _edit_json(run_folder / "refine" / "points.json", lambda d: d["provenance"].update(extra))
+    section = _section(_render(run_folder), "parameters")
+    assert "First 60" not in section and "rows; the file holds them all" not in section
+    facts = _facts(section)
+    assert all(f"entry {k:02d}" in facts for k in range(80))
+    fold = re.search(r"<details class=\"rc-fold\"><summary>([^<]*)</summary>(.*?)</details>", section, re.S)
+    assert fold and "entry_79" not in fold.group(1) and "entry 79" in fold.group(2)
+    assert re.search(r"\d+ entries", fold.group(1))

@@ -9,6 +9,7 @@ from robotcal.report.page import (
     _facts,
     _fmt,
     _is_param,
+    _joint_model_units,
     _length,
     _number,
     _Page,
@@ -120,7 +121,7 @@ def _parameters(page: _Page) -> dict:
                 (
                     "CPA − truth",
                     {k: _difference(k, v, truth_values[k]) for k, v in cpa_values.items() if k in truth_values},
-                    ".3e",
+                    ".4f",
                 )
             )
     for label, data in refined.items():
@@ -233,5 +234,6 @@ def _parameters(page: _Page) -> dict:
                 caption="provenance",
                 source=f"refine/{label}.json",
                 skip=("versions", "convergence", "correlation", "tracker_from_base"),
+                units=_joint_model_units(data),
             )
     return {"present": True, "blocks_": blocks}

@@ -6,7 +6,7 @@ import re
 
 from robotcal.io.run_folder import OUTPUTS
 from robotcal.io.run_summary import set_label
-from robotcal.report.page import _angle, _fmt, _length, _number, _Page
+from robotcal.report.page import _angle, _fmt, _length, _micrometres, _number, _Page
 
 
 def _card(question: str, label: str, value: str, detail: str = "", caution: str = "") -> dict:
@@ -317,7 +317,7 @@ def _summary(page: _Page) -> dict:
         status = entry.get("status") if isinstance(entry.get("status"), str) else None
         shown = status or ("done" if present else "not run")
         css = "failed" if shown in ("failed", "error") else ("ok" if present else "missing")
-        detail = entry.get("detail") if isinstance(entry.get("detail"), str) else ""
+        detail = _micrometres(entry["detail"]) if isinstance(entry.get("detail"), str) else ""
         seconds = _fmt(_number(entry.get("seconds")), ".2f")
         rows.append(
             {"stage": stage, "outputs": outputs, "status": shown, "css": css, "seconds": seconds, "detail": detail}
