@@ -184,3 +184,17 @@ def test_long_provenance_tables_show_every_entry_folded(run_folder):
     fold = re.search(r"<details class=\"rc-fold\"><summary>([^<]*)</summary>(.*?)</details>", section, re.S)
     assert fold and "entry_79" not in fold.group(1) and "entry 79" in fold.group(2)
     assert re.search(r"\d+ entries", fold.group(1))
+
+
+def test_only_cells_with_a_long_token_may_break_it_anywhere(run_folder):
+    """A word is never broken over two lines ("uncertaint y" in the stage table): text cells wrap between words,
+    and only a cell holding a token longer than a column (a path) may break inside it. The browser test
+    (test_browser.py) checks the rendered page; this checks the page's rules without a browser."""
+    page = _render(run_folder)
+    css = re.search(r"<style>(.*?)</style>", page, re.S).group(1)
+    text_rule = re.search(r"td\.rc-text \{([^}]*)\}", css).group(1)
+    assert "anywhere" not in text_rule and "break-word" in text_rule
+    assert re.search(r"td\.rc-long \{[^}]*overflow-wrap: anywhere", css)
+    assert '<td class="rc-text">uncertainty</td>' in _section(page, "summary")
+    long_source = re.search(r'<td class="rc-text( rc-long)?">/calibration_runs_of_the_welding_cell', page)
+    assert long_source and long_source.group(1) == " rc-long"

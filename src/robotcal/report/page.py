@@ -252,6 +252,10 @@ def _param_order(name: str):
 # template data
 
 
+#: Characters of a token (a path, a long name) above which a table cell may break it anywhere.
+_LONG_TOKEN = 32
+
+
 @dataclass(slots=True, kw_only=True)
 class _Table:
     """A table for ``macros.table``: plain text cells (the template escapes them)."""
@@ -270,6 +274,17 @@ class _Table:
     @property
     def kind(self) -> str:
         return "table"
+
+    @property
+    def long_cells(self) -> frozenset:
+        """``(row, column)`` of the text cells holding a token too long to fit a column (a path): those, and
+        only those, may break anywhere; a word never breaks (issue 30: "uncertaint y")."""
+        return frozenset(
+            (r, c)
+            for r, row in enumerate(self.rows)
+            for c, cell in enumerate(row)
+            if c in self.text_columns and max(map(len, str(cell).split()), default=0) > _LONG_TOKEN
+        )
 
 
 def _block(kind: str, **data) -> dict:
