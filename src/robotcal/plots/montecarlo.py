@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.kinematics.model import ANGLE_KINDS, KIND_UNITS, PARAMETER_KINDS
-from robotcal.plots.figures import new_figure, save_figure, set_margins
+from robotcal.plots.figures import new_figure, save_figure, set_margins, y_label_room
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
 __all__ = ["write_histograms"]
@@ -45,7 +45,6 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
         n_rows = math.ceil(columns.size / n_cols)
         width, height = 3.3 * n_cols, 2.6 * n_rows + 0.4
         figure, axes = new_figure(n_rows, n_cols, width_in=width, height_in=height, squeeze=False, layout=None)
-        set_margins(figure, left=0.62, right=0.3, bottom=0.95, top=0.3, wspace=0.7, hspace=0.75, cell=(3.3, 2.6))
         for axis in axes.ravel()[columns.size :]:
             axis.axis("off")
         for axis, column in zip(axes.ravel(), columns, strict=False):
@@ -77,6 +76,19 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             axis.tick_params(axis="x", labelrotation=20)
             axis.set_xlabel(f"J{joint + 1}.{kind} [{unit}]")
             axis.set_ylabel(f"density [1/{unit}]")
+        # fixed margins [in] (no constrained layout pass), wide enough for the widest y tick labels drawn: a
+        # narrow distribution has densities in the thousands per unit
+        room = max(y_label_room(axis) for axis in axes.ravel()[: columns.size])
+        set_margins(
+            figure,
+            left=max(0.62, room + 0.08),
+            right=0.3,
+            bottom=0.95,
+            top=0.3,
+            wspace=max(0.7, room + 0.25),
+            hspace=0.75,
+            cell=(3.3, 2.6),
+        )
         figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
         handles, labels = axes[0, 0].get_legend_handles_labels()
         figure.legend(handles, labels, loc="lower center", ncols=5, fontsize="small", frameon=False)

@@ -22,7 +22,8 @@ _CAPTIONS = {
     "iso9283.png": "ISO 9283 pose accuracy AP (bars) and repeatability RP (tick above each bar) at the five test "
     "poses, per model (µm).",
     "convergence.png": "Convergence of the refinement, per criterion: RMS residual per coordinate "
-    "√(2·cost/m) over the m residuals (mm, log scale) after each iteration.",
+    "√(2·cost/m) over the m residuals (mm, log scale) after each iteration; the y axis labels where each "
+    "refinement ended, in the colour of its curve.",
     "ellipsoid.png": "95 % coverage ellipsoid of the TCP position (mm).",
     "scatter.png": "Monte Carlo draws of the TCP position about their mean, with the coverage ellipsoid (mm).",
     "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg) about their "

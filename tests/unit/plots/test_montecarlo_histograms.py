@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.patches import StepPatch
 from scipy.stats import norm
 
@@ -85,3 +86,42 @@ def test_the_refined_model_names_its_noise_free_value_and_draws_no_density_it_ha
     for figure in figures:
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
         assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free refinement"]
+
+
+def _drawn(figure):
+    """Draw ``figure`` on an Agg canvas (as savefig does) and return its renderer."""
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def assert_y_labels_fit(figure) -> None:
+    """Every panel's y label lies inside the figure, clear of its own tick labels and of every other panel."""
+    renderer = _drawn(figure)
+    width, height = figure.bbox.width, figure.bbox.height
+    panels = [axis for axis in figure.axes if axis.get_visible() and axis.axison]
+    for axis in panels:
+        label = axis.yaxis.label.get_window_extent(renderer)
+        assert label.x0 >= 0 and label.x1 <= width and label.y0 >= 0 and label.y1 <= height, axis.get_ylabel()
+        for tick in axis.get_yticklabels():
+            if tick.get_visible() and tick.get_text():
+                box = tick.get_window_extent(renderer)
+                assert box.x0 >= 0, (axis.get_ylabel(), tick.get_text())
+                assert not box.overlaps(label), (axis.get_ylabel(), tick.get_text())
+        for other in panels:
+            if other is not axis:
+                assert not other.get_window_extent(renderer).overlaps(label), axis.get_ylabel()
+
+
+def test_y_labels_stay_inside_the_figure_for_large_densities(result, tmp_path, monkeypatch):
+    """A narrow distribution (a refined model's: u of a few µm) has densities in the thousands per unit: the
+    wide tick labels push the y label out of a fixed margin (issue 30: "density [1/deg]" clipped)."""
+    figures = []
+    monkeypatch.setattr(histograms, "save_figure", lambda figure, path: figures.append(figure) or path)
+    mean = result.draws.mean(axis=0)
+    narrow = dataclasses.replace(result, draws=mean + (result.draws - mean) * 1e-3)
+    histograms.write_histograms(result, tmp_path)
+    histograms.write_histograms(narrow, tmp_path)
+    assert len(figures) > 2
+    for figure in figures:
+        assert_y_labels_fit(figure)
