@@ -79,15 +79,16 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
         # fixed margins [in] (no constrained layout pass), wide enough for the widest y tick labels drawn: a
         # narrow distribution has densities in the thousands per unit
         room = max(y_label_room(axis) for axis in axes.ravel()[: columns.size])
+        left, gap = max(0.62, room + 0.08), max(0.7, room + 0.25)
         set_margins(
             figure,
-            left=max(0.62, room + 0.08),
+            left=left,
             right=0.3,
             bottom=0.95,
             top=0.3,
-            wspace=max(0.7, room + 0.25),
+            wspace=gap,
             hspace=0.75,
-            cell=(3.3, 2.6),
+            cell=((width - left - 0.3 + gap) / n_cols, 2.6),
         )
         figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
         handles, labels = axes[0, 0].get_legend_handles_labels()

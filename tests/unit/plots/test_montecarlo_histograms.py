@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from matplotlib.backends.backend_agg import FigureCanvasAgg
+from figure_layout import assert_y_labels_fit
 from matplotlib.patches import StepPatch
 from scipy.stats import norm
 
@@ -86,31 +86,6 @@ def test_the_refined_model_names_its_noise_free_value_and_draws_no_density_it_ha
     for figure in figures:
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
         assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free refinement"]
-
-
-def _drawn(figure):
-    """Draw ``figure`` on an Agg canvas (as savefig does) and return its renderer."""
-    canvas = FigureCanvasAgg(figure)
-    canvas.draw()
-    return canvas.get_renderer()
-
-
-def assert_y_labels_fit(figure) -> None:
-    """Every panel's y label lies inside the figure, clear of its own tick labels and of every other panel."""
-    renderer = _drawn(figure)
-    width, height = figure.bbox.width, figure.bbox.height
-    panels = [axis for axis in figure.axes if axis.get_visible() and axis.axison]
-    for axis in panels:
-        label = axis.yaxis.label.get_window_extent(renderer)
-        assert label.x0 >= 0 and label.x1 <= width and label.y0 >= 0 and label.y1 <= height, axis.get_ylabel()
-        for tick in axis.get_yticklabels():
-            if tick.get_visible() and tick.get_text():
-                box = tick.get_window_extent(renderer)
-                assert box.x0 >= 0, (axis.get_ylabel(), tick.get_text())
-                assert not box.overlaps(label), (axis.get_ylabel(), tick.get_text())
-        for other in panels:
-            if other is not axis:
-                assert not other.get_window_extent(renderer).overlaps(label), axis.get_ylabel()
 
 
 def test_y_labels_stay_inside_the_figure_for_large_densities(result, tmp_path, monkeypatch):
