@@ -26,6 +26,8 @@ from robotcal.report.html import build_report
 #: Appended to a copy of the page by the layout test: after the load event, the tables whose content is wider
 #: than their box (they would scroll sideways) and the page's own width, as attributes of <body>.
 LAYOUT_PROBE = """<script>window.addEventListener("load", function () { setTimeout(function () {
+  var folds = document.querySelectorAll("details");  // long tables are folded: measure them open
+  for (var f = 0; f < folds.length; f++) folds[f].open = true;
   var wide = [], wraps = document.querySelectorAll(".rc-table-wrap");
   for (var i = 0; i < wraps.length; i++) {
     if (wraps[i].scrollWidth > wraps[i].clientWidth) {

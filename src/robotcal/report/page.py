@@ -553,7 +553,7 @@ def _facts(data: dict | None, *, caption: str = "", source: str = "", skip=(), u
         rows.append([label, shown, _fact_unit(key, value, units)])
     if not rows:
         return []
-    what = caption or (f"entries of {source}" if source else "entries")
+    what = " of ".join(part for part in (caption, source) if part) or "entries"
     return [
         _Table(
             header=["entry", "value", "unit"],
@@ -561,7 +561,7 @@ def _facts(data: dict | None, *, caption: str = "", source: str = "", skip=(), u
             caption=caption,
             source=source,
             text_columns=frozenset({0, 1, 2}),
-            fold=f"{len(rows)} entries: {what}" if len(rows) > _FOLD_ROWS else "",
+            fold=f"{what}: {len(rows)} entries (show)" if len(rows) > _FOLD_ROWS else "",
         )
     ]
 

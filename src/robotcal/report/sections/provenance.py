@@ -48,7 +48,7 @@ def _provenance(page: _Page) -> dict:
             caption="The documents of the run this report was built from",
             text_columns=frozenset({0, 1, 2}),
             code_columns=frozenset({0}),
-            fold=f"{len(rows)} documents of the run" if len(rows) > _FOLD_ROWS else "",
+            fold=f"{len(rows)} documents of the run (show)" if len(rows) > _FOLD_ROWS else "",
         )
     )
     folder = page.result.folder

@@ -128,8 +128,8 @@ def _validation_detail(page: _Page) -> str:
     points = f"the {int(count)} {capture} points" if count is not None else f"the {capture} points"
     if view == "points":
         what = (
-            f"mean distance between predicted and measured point at {points}, after a best-fit registration of "
-            f"each model's predicted points onto the measured ones (evaluation, points view)"
+            f"mean distance |predicted − measured| at {points} after a best-fit registration of each model's "
+            "predictions (evaluation, points view)"
         )
     else:
         what = f"mean error at {points} (evaluation, {view} view)"
@@ -142,7 +142,7 @@ def _validation_detail(page: _Page) -> str:
         absolute = _number((page.json("tcp/consistency.json") or {}).get("observed_mean_mm"))
         mean = f"mean {_length(absolute)}, " if absolute is not None else ""
         text += (
-            f"; the deployed model's errors {_absolute(check.base_frame)} (validation consistency): "
+            f"; deployed model {_absolute(check.base_frame)} (validation consistency): "
             f"{mean}RMS {_length(check.observed_rms_mm)}"
         )
     return text
