@@ -371,19 +371,21 @@ def _histogram_caption(joint: str, *, model: str | None = None, linearised: bool
     density is drawn only when the Monte Carlo computed the linearised comparison (``linearised``; None: not
     known). ``refinement``: the document holding the refinement's own linearised u, named where there is no
     density."""
-    noise_free = {"cpa": "the noise-free CPA value", "refined": "the noise-free refined value (the refinement "
-                  "of the noise-free capture)"}.get(model or "", "the model's noise-free value")  # fmt: skip
+    noise_free = {
+        "cpa": "the noise-free CPA value (dotted)",
+        "refined": "the noise-free refined value (dotted: the refinement of the noise-free capture)",
+    }.get(model or "", "the model's noise-free value (dotted)")
     text = (
         f"Monte Carlo histograms of the identified parameters of {joint} (lengths in mm, angles in deg; density per "
         f"unit), with the mean (solid), the coverage interval for the measurand (dashed), the draws' own interval "
-        f"(dash-dot), {noise_free} (dotted)"
+        f"(dash-dot), {noise_free}"
     )
     if linearised is None:
         return text + " and, where the Monte Carlo computed the linearised comparison, the linearised (GUM) density."
     if linearised:
         return text + " and the linearised (GUM) density."
     where = f"; the refinement's own linearised standard uncertainties are in {refinement}" if refinement else ""
-    return text + f". This Monte Carlo computed no linearised comparison, so no linearised (GUM) density is drawn{where}."
+    return f"{text}. This Monte Carlo computed no linearised comparison, so no linearised (GUM) density is drawn{where}."
 
 
 def _caption(name: str, captions: Mapping) -> str:
