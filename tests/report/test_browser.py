@@ -26,6 +26,8 @@ from robotcal.report.html import build_report
 #: Appended to a copy of the page by the layout test: after the load event, the tables whose content is wider
 #: than their box (they would scroll sideways) and the page's own width, as attributes of <body>.
 LAYOUT_PROBE = """<script>window.addEventListener("load", function () { setTimeout(function () {
+  var folds = document.querySelectorAll("details");  // long tables are folded: measure them open
+  for (var f = 0; f < folds.length; f++) folds[f].open = true;
   var wide = [], wraps = document.querySelectorAll(".rc-table-wrap");
   for (var i = 0; i < wraps.length; i++) {
     if (wraps[i].scrollWidth > wraps[i].clientWidth) {
@@ -34,6 +36,25 @@ LAYOUT_PROBE = """<script>window.addEventListener("load", function () { setTimeo
       wide.push(name + ": " + wraps[i].scrollWidth + " px in " + wraps[i].clientWidth + " px");
     }
   }
+  // words broken over two lines in a table cell (issue 30: "uncertaint y"): a run of letters whose text
+  // ranges lie on more than one line; cells holding a token longer than a column (rc-long) may break it
+  var split = [], cells = document.querySelectorAll("th, td");
+  for (var c = 0; c < cells.length; c++) {
+    if (cells[c].classList.contains("rc-long")) continue;
+    var walker = document.createTreeWalker(cells[c], NodeFilter.SHOW_TEXT), node;
+    while ((node = walker.nextNode())) {
+      var pattern = /[A-Za-z\u00b5]{2,}/g, match;
+      while ((match = pattern.exec(node.data))) {
+        var range = document.createRange();
+        range.setStart(node, match.index);
+        range.setEnd(node, match.index + match[0].length);
+        var rects = range.getClientRects(), tops = {};
+        for (var r = 0; r < rects.length; r++) if (rects[r].width > 0) tops[Math.round(rects[r].top)] = 1;
+        if (Object.keys(tops).length > 1) split.push(match[0]);
+      }
+    }
+  }
+  document.body.setAttribute("data-split-words", split.join(" | "));
   document.body.setAttribute("data-tables", String(wraps.length));
   document.body.setAttribute("data-wide-tables", wide.join(" | "));
   document.body.setAttribute("data-page-width", String(document.documentElement.scrollWidth));
@@ -133,6 +154,7 @@ def test_layout_at_1280_px(run_folder, tmp_path):
     assert console == [] and body["data-status"] == "ok", body
     assert int(body["data-tables"]) > 20
     assert body["data-wide-tables"] == "", body["data-wide-tables"]
+    assert body["data-split-words"] == "", body["data-split-words"]  # no word broken over two lines
     assert int(body["data-page-width"]) <= 1280
     for section in (
         "summary",
@@ -155,6 +177,17 @@ def test_layout_at_1280_px(run_folder, tmp_path):
     attributes = dict(re.findall(r'([\w-]+)="([^"]*)"', canvas))
     assert int(attributes["data-ink"]) > 5000 and int(attributes["data-labels"]) >= 6
     assert attributes["data-label-overlaps"] == "0"
+
+
+def test_layout_probe_sees_a_split_word(run_folder, tmp_path):
+    """Negative control of the split-word check: a header squeezed to a few pixels breaks its word."""
+    report = build_report(run_folder)
+    page = report.html.replace("</body>", LAYOUT_PROBE + "</body>")
+    page = page.replace("<th>", '<th style="min-width: 0; width: 1px; overflow-wrap: anywhere">', 1)
+    probed = tmp_path / "split.html"
+    probed.write_text(page, encoding="utf-8")
+    body, _, _ = _load(probed, tmp_path, "--window-size=1280,4000")
+    assert body["data-split-words"] != ""
 
 
 def test_layout_probe_sees_a_wide_table(run_folder, tmp_path):

@@ -205,8 +205,9 @@ class ValidationTable(_RunTable):
 class CalibrationPosesTable(ValidationTable):
     """``[calibration_poses]``: free poses measured on a flange target after the circles, refined together with
     them (issue 22): where the joints are loaded in other ways than along the circles, so that gravity compliance
-    and joint errors become observable. Keys as ``[validation]``; the target is a declared flange target at the
-    same offset (``Scenario.poses_target``, e.g. ``validation``), else a new one named ``flange``.
+    and joint errors become observable. Keys as ``[validation]``; the target is a ``[[targets]]`` flange target at
+    the same offset (``Scenario.poses_target``), else a new one named ``flange`` (also when the ``[validation]``
+    target has that offset: the same reflector, named for this capture).
     ``Scenario.calibration_poses`` is None without the table.
     """
 
@@ -349,8 +350,8 @@ class Scenario:
     validation: ValidationTable | None = None
     calibration_poses: CalibrationPosesTable | None = None
     tcp: TCPTable = field(default_factory=TCPTable)
-    #: The target the ``[calibration_poses]`` are measured on: a declared flange target at their offset (e.g.
-    #: ``validation``), else ``flange``; None without the table.
+    #: The target the ``[calibration_poses]`` are measured on: a ``[[targets]]`` flange target at their offset,
+    #: else ``flange``; None without the table.
     poses_target: str | None = None
     #: ``[payload]`` (None: no payload) and ``[joint_model]``: the extended model's inputs and choice.
     payload: PayloadTable | None = None
@@ -471,9 +472,10 @@ def scenario_from_dict(
     if validation is not None and "validation" not in taken:
         targets.append(Target(name="validation", frame="flange", positions=validation.flange_reflector_mm))
     poses_target = None
-    if spec.calibration_poses is not None:  # measured on an existing flange target at that offset, else on "flange"
+    if spec.calibration_poses is not None:  # measured on a [[targets]] flange target at that offset, else on "flange"
         offset = np.asarray(spec.calibration_poses.flange_reflector_mm, dtype=float)
-        same = [t.name for t in targets if t.frame == "flange" and t.known and np.array_equal(t.positions, offset)]
+        # not the [validation] one: a target is named for its capture (the same reflector is "flange" here)
+        same = [t.name for t in declared if t.frame == "flange" and t.known and np.array_equal(t.positions, offset)]
         if same:
             poses_target = same[0]
         elif POSES_TARGET not in {t.name for t in targets}:

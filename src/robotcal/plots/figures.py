@@ -9,13 +9,15 @@ compress well at the fastest level, and the files are lossless at any level.
 from __future__ import annotations
 
 import io
+from functools import cache
 from pathlib import Path
 
+import matplotlib as mpl
 from matplotlib.figure import Figure
 
 from robotcal.io.atomic import atomic_write_bytes
 
-__all__ = ["DPI", "PNG_COMPRESS_LEVEL", "new_figure", "save_figure", "set_margins"]
+__all__ = ["DPI", "PNG_COMPRESS_LEVEL", "new_figure", "save_figure", "set_margins", "y_label_room"]
 
 DPI = 110
 #: zlib level of the PNG data (0-9), given to Pillow through ``savefig(..., pil_kwargs=...)``.
@@ -53,6 +55,35 @@ def set_margins(
         wspace=wspace / max(cell[0] - wspace, 1e-6),
         hspace=hspace / max(cell[1] - hspace, 1e-6),
     )
+
+
+@cache
+def _text_renderer():
+    """An Agg renderer for text metrics only (glyph extents at :data:`DPI`; nothing is drawn)."""
+    from matplotlib.backends.backend_agg import RendererAgg
+
+    return RendererAgg(1, 1, DPI)
+
+
+def y_label_room(axes) -> float:
+    """Inches an axes needs left of its frame for its y tick labels and its y label, as they will be drawn.
+
+    The tick labels are those of the axes' locator and formatter at its current limits, measured with the
+    font's glyph metrics; then the tick, its pad, the label pad and one line of the label's font. Cheap (no
+    draw): for fixed margins (:func:`set_margins`) that fit the labels of the data at hand, where constrained
+    layout would cost a layout pass.
+    """
+    renderer = _text_renderer()
+    low, high = sorted(axes.get_ylim())
+    locations = [v for v in axes.yaxis.get_major_locator()() if low <= v <= high]
+    labels = axes.yaxis.get_major_formatter().format_ticks(locations) if locations else []
+    ticks = axes.yaxis.get_major_ticks()
+    font = ticks[0].label1.get_fontproperties() if ticks else axes.yaxis.label.get_fontproperties()
+    widest = max((renderer.get_text_width_height_descent(t, font, ismath=False)[0] for t in labels if t), default=0)
+    points = widest * 72.0 / DPI + mpl.rcParams["ytick.major.size"] + mpl.rcParams["ytick.major.pad"]
+    if axes.get_ylabel():
+        points += axes.yaxis.labelpad + 1.25 * axes.yaxis.label.get_fontsize()
+    return points / 72.0
 
 
 def save_figure(figure: Figure, path: str | Path) -> Path:

@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.kinematics.model import ANGLE_KINDS, KIND_UNITS, PARAMETER_KINDS
-from robotcal.plots.figures import new_figure, save_figure, set_margins
+from robotcal.plots.figures import new_figure, save_figure, set_margins, y_label_room
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
 __all__ = ["write_histograms"]
@@ -25,14 +25,17 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
     Each panel shows the draws as a density histogram, the mean (solid), the coverage interval for the
     measurand (dashed: the draws' interval of the kind chosen in the settings moved by twice the bias,
     :meth:`~robotcal.uncertainty.montecarlo.MonteCarloResult.interval`), the draws' own
-    interval (dash-dot, thin), the linearised (GUM) normal density when available, and the value CPA
-    gives for the noise-free capture (dotted). Angles in degrees, lengths in mm.
+    interval (dash-dot, thin), the linearised (GUM) normal density when the result has the linearised comparison
+    (``result.linearised``; a refined Monte Carlo has it only when asked for), and the value the model gives for
+    the noise-free capture (dotted): CPA's, or the refinement's for ``result.model == "refined"``. Angles in
+    degrees, lengths in mm.
     """
     if result.draws is None:
         raise ValueError("the result holds no draws (run with keep_draws=True)")
     folder = Path(folder)
     low, high = result.interval()
     draws_low, draws_high = result.draws_interval()
+    noise_free = "noise-free refinement" if result.model == "refined" else "noise-free CPA"
     written = []
     for joint in range(result.robot.n_joints):
         columns = np.flatnonzero(result.identified[joint])
@@ -42,7 +45,6 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
         n_rows = math.ceil(columns.size / n_cols)
         width, height = 3.3 * n_cols, 2.6 * n_rows + 0.4
         figure, axes = new_figure(n_rows, n_cols, width_in=width, height_in=height, squeeze=False, layout=None)
-        set_margins(figure, left=0.62, right=0.3, bottom=0.95, top=0.3, wspace=0.7, hspace=0.75, cell=(3.3, 2.6))
         for axis in axes.ravel()[columns.size :]:
             axis.axis("off")
         for axis, column in zip(axes.ravel(), columns, strict=False):
@@ -59,7 +61,7 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             for end, label in ((draws_low, f"draws' {interval}"), (draws_high, None)):
                 axis.axvline(end[joint, column] * scale, color="#7f8c8d", ls="-.", lw=0.9, label=label)
             axis.axvline(
-                result.noise_free_values[joint, column] * scale, color="#444444", ls=":", lw=1.2, label="noise-free CPA"
+                result.noise_free_values[joint, column] * scale, color="#444444", ls=":", lw=1.2, label=noise_free
             )
             if result.linearised is not None:
                 sigma = result.linearised.std_uncertainty[joint, column] * scale
@@ -74,6 +76,20 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
             axis.tick_params(axis="x", labelrotation=20)
             axis.set_xlabel(f"J{joint + 1}.{kind} [{unit}]")
             axis.set_ylabel(f"density [1/{unit}]")
+        # fixed margins [in] (no constrained layout pass), wide enough for the widest y tick labels drawn: a
+        # narrow distribution has densities in the thousands per unit
+        room = max(y_label_room(axis) for axis in axes.ravel()[: columns.size])
+        left, gap = max(0.62, room + 0.08), max(0.7, room + 0.25)
+        set_margins(
+            figure,
+            left=left,
+            right=0.3,
+            bottom=0.95,
+            top=0.3,
+            wspace=gap,
+            hspace=0.75,
+            cell=((width - left - 0.3 + gap) / n_cols, 2.6),
+        )
         figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
         handles, labels = axes[0, 0].get_legend_handles_labels()
         figure.legend(handles, labels, loc="lower center", ncols=5, fontsize="small", frameon=False)

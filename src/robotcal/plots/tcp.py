@@ -9,7 +9,7 @@ from matplotlib.colors import Normalize
 from matplotlib.ticker import MaxNLocator
 
 from robotcal.errors import InputError
-from robotcal.plots.figures import new_figure, save_figure, set_margins
+from robotcal.plots.figures import new_figure, save_figure, set_margins, y_label_room
 from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
@@ -77,7 +77,6 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
     """
     draws = _need_draws(result, pose)
     figure, axes = new_figure(2, 3, width_in=10.0, height_in=5.6, layout=None)
-    set_margins(figure, left=0.65, right=0.15, bottom=0.6, top=0.7, wspace=0.75, hspace=1.0, cell=(3.07, 2.23))
     low, high = result.summary.interval("symmetric")
     for k, ax in enumerate(axes.ravel()):
         f = _DEG[k]
@@ -107,6 +106,19 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
     for ax in axes.ravel():  # mean and interval always; the nominal where some panel draws it
         handles.update(zip(*reversed(ax.get_legend_handles_labels()), strict=True))
     axes[0, 0].legend(list(handles.values()), list(handles), fontsize=7, loc="upper left")
+    # fixed margins [in], wide enough for the count labels drawn (thousands with many draws)
+    room = max(y_label_room(ax) for ax in axes.ravel())
+    left, gap = max(0.65, room + 0.08), max(0.75, room + 0.25)
+    set_margins(
+        figure,
+        left=left,
+        right=0.15,
+        bottom=0.6,
+        top=0.7,
+        wspace=gap,
+        hspace=1.0,
+        cell=((10.0 - left - 0.15 + gap) / 3, 2.23),
+    )
     figure.suptitle(
         f"TCP at pose {pose + 1}: {result.n_draws} draws about their mean, {result.coverage:.0%} interval dashed",
         fontsize=10,

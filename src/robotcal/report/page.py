@@ -22,7 +22,8 @@ _CAPTIONS = {
     "iso9283.png": "ISO 9283 pose accuracy AP (bars) and repeatability RP (tick above each bar) at the five test "
     "poses, per model (µm).",
     "convergence.png": "Convergence of the refinement, per criterion: RMS residual per coordinate "
-    "√(2·cost/m) over the m residuals (mm, log scale) after each iteration.",
+    "√(2·cost/m) over the m residuals (mm, log scale) after each iteration; the y axis labels where each "
+    "refinement ended, in the colour of its curve.",
     "ellipsoid.png": "95 % coverage ellipsoid of the TCP position (mm).",
     "scatter.png": "Monte Carlo draws of the TCP position about their mean, with the coverage ellipsoid (mm).",
     "histograms.png": "Monte Carlo histograms of the TCP coordinates X, Y, Z (mm) and A, B, C (deg) about their "
@@ -146,11 +147,16 @@ def _angle(deg) -> str:
     return "n/a" if deg is None else f"{_fmt(deg, '.3g')}°"
 
 
-def _cell(text: str) -> str:
+def _cell(text: str, spec: str = ".6g") -> str:
+    """A CSV cell: integers and text as written, other numbers in ``spec`` (:func:`_fmt`)."""
     number = _number(text)
     if number is None or re.fullmatch(r"[+-]?\d+", text.strip() or "x"):
         return text
-    return _fmt(number)
+    return _fmt(number, spec, exponent=spec == ".6g")
+
+
+#: The format of the numbers of a CSV column by its unit (a percentage: one decimal, 52.4 %).
+_UNIT_FORMATS = {"%": ".1f"}
 
 
 def _unit_of(name: str) -> str | None:
@@ -203,6 +209,39 @@ def _param_unit(name: str) -> str:
     return KIND_UNITS[name.split(".")[1]]
 
 
+#: Units of the joint-model parameters by kind (robotcal.kinematics.joint_model): the compliance ``Jn.k`` and the
+#: harmonic coefficients ``Jn.a1``, ``Jn.b1``, ...; a document's own joint model (``joint_model.parameters``, name
+#: and unit) is asked first (:func:`_joint_model_units`).
+_JOINT_MODEL_KINDS = ((re.compile(r"k"), "rad/(N m)"), (re.compile(r"[ab]\d+"), "deg"))
+
+
+def _joint_model_units(document) -> dict[str, str]:
+    """``{parameter name: unit}`` of a parameter document's ``joint_model.parameters`` (``refine/points.json``)."""
+    model = document.get("joint_model") if isinstance(document, dict) else None
+    parameters = model.get("parameters") if isinstance(model, dict) else None
+    if not isinstance(parameters, list):
+        return {}
+    return {
+        p["name"]: p["unit"]
+        for p in parameters
+        if isinstance(p, dict) and isinstance(p.get("name"), str) and isinstance(p.get("unit"), str)
+    }
+
+
+def _name_unit(name: str, units: Mapping | None = None) -> str | None:
+    """The unit of a parameter name: a DH parameter (``J1.a``: mm) or a joint-model one (``J2.k``), else None."""
+    if _is_param(name):
+        return _param_unit(name)
+    if units and name in units:
+        return units[name]
+    match = re.fullmatch(r"J\d+\.(\w+)", name)
+    if match is not None:
+        for pattern, unit in _JOINT_MODEL_KINDS:
+            if pattern.fullmatch(match.group(1)):
+                return unit
+    return None
+
+
 def _param_order(name: str):
     if _is_param(name):
         joint, kind = name.split(".")
@@ -212,6 +251,10 @@ def _param_order(name: str):
 
 # --------------------------------------------------------------------------------------------------
 # template data
+
+
+#: Characters of a token (a path, a long name) above which a table cell may break it anywhere.
+_LONG_TOKEN = 32
 
 
 @dataclass(slots=True, kw_only=True)
@@ -227,10 +270,22 @@ class _Table:
     dim_rows: frozenset = frozenset()
     tags: dict = field(default_factory=dict)  # row -> small text after the first cell
     note: str = ""  # below the table
+    fold: str = ""  # not empty: the table is folded under this summary line (a long table)
 
     @property
     def kind(self) -> str:
         return "table"
+
+    @property
+    def long_cells(self) -> frozenset:
+        """``(row, column)`` of the text cells holding a token too long to fit a column (a path): those, and
+        only those, may break anywhere; a word never breaks (issue 30: "uncertaint y")."""
+        return frozenset(
+            (r, c)
+            for r, row in enumerate(self.rows)
+            for c, cell in enumerate(row)
+            if c in self.text_columns and max(map(len, str(cell).split()), default=0) > _LONG_TOKEN
+        )
 
 
 def _block(kind: str, **data) -> dict:
@@ -310,6 +365,29 @@ def _captions(page: _Page, folder: str) -> dict:
     return captions
 
 
+def _histogram_caption(joint: str, *, model: str | None = None, linearised: bool | None = None, refinement=None) -> str:
+    """The caption of ``hist_J<n>.png`` (:func:`robotcal.plots.montecarlo.write_histograms`): what it draws depends
+    on the Monte Carlo: the noise-free value is CPA's or the refinement's (``model``), and the linearised (GUM)
+    density is drawn only when the Monte Carlo computed the linearised comparison (``linearised``; None: not
+    known). ``refinement``: the document holding the refinement's own linearised u, named where there is no
+    density."""
+    noise_free = {
+        "cpa": "the noise-free CPA value (dotted)",
+        "refined": "the noise-free refined value (dotted: the refinement of the noise-free capture)",
+    }.get(model or "", "the model's noise-free value (dotted)")
+    text = (
+        f"Monte Carlo histograms of the identified parameters of {joint} (lengths in mm, angles in deg; density per "
+        f"unit), with the mean (solid), the coverage interval for the measurand (dashed), the draws' own interval "
+        f"(dash-dot), {noise_free}"
+    )
+    if linearised is None:
+        return text + " and, where the Monte Carlo computed the linearised comparison, the linearised (GUM) density."
+    if linearised:
+        return text + " and the linearised (GUM) density."
+    where = f"; the refinement's own linearised standard uncertainties are in {refinement}" if refinement else ""
+    return f"{text}. This Monte Carlo computed no linearised comparison, so no linearised (GUM) density is drawn{where}."
+
+
 def _caption(name: str, captions: Mapping) -> str:
     if name in captions:
         return captions[name]
@@ -317,11 +395,7 @@ def _caption(name: str, captions: Mapping) -> str:
         return _CAPTIONS[name]
     stem = name.rsplit(".", 1)[0]
     if re.fullmatch(r"hist_J\d+", stem):
-        return (
-            f"Monte Carlo histograms of the identified parameters of {stem[5:]} (lengths in mm, angles in deg; "
-            "density per unit), with the mean, the coverage interval, the noise-free CPA value and the "
-            "linearised (GUM) density."
-        )
+        return _histogram_caption(stem[5:])
     if stem.startswith("sensitivity_"):
         return (
             "Sensitivity of the CPA Monte Carlo to the swept setting: Cpk (eq. 5-5) and mean − nominal (µm for "
@@ -408,7 +482,7 @@ def _csv(page: _Page, name: str, *, caption: str = "", columns=None, rows_limit:
                     header=[
                         _column_label(header[k], unit) if unit and numeric[k] else _label(header[k]) for k in picked
                     ],
-                    rows=[[_cell(row[k]) for k in picked] for row in shown],
+                    rows=[[_cell(row[k], _UNIT_FORMATS.get(_unit_of(header[k]), ".6g")) for k in picked] for row in shown],
                     caption="; ".join(parts),
                     source=name,
                     text_columns=frozenset(i for i, k in enumerate(picked) if not numeric[k]),
@@ -432,9 +506,10 @@ def _flatten(data, prefix: str = "", depth: int = 0):
             yield name, value
 
 
-def _fact_unit(key: str, value) -> str:
+def _fact_unit(key: str, value, units: Mapping | None = None) -> str:
     """The unit of a provenance fact: named by a key's suffix or a parameter name (``J1.a`` mm, ``J1.alpha``
-    deg) on its path; ``—`` for a pure number (a count, a ratio); empty for text."""
+    deg, ``J2.k`` rad/(N m); ``units``: more names) on its path; ``—`` for a pure number (a count, a ratio);
+    empty for text."""
     if isinstance(value, bool) or value is None:
         return ""
     parts = key.split(".")
@@ -442,28 +517,45 @@ def _fact_unit(key: str, value) -> str:
         unit = "s" if parts[k] == "seconds" else _unit_of(parts[k])
         if unit is not None:
             return unit
-        if k + 1 < len(parts) and _is_param(f"{parts[k]}.{parts[k + 1]}"):
-            return _param_unit(f"{parts[k]}.{parts[k + 1]}")
+        if k + 1 < len(parts) and (unit := _name_unit(f"{parts[k]}.{parts[k + 1]}", units)) is not None:
+            return unit
     if isinstance(value, str):
         return ""
     return "—"
 
 
-def _facts(data: dict | None, *, caption: str = "", source: str = "", skip=(), limit: int = 60) -> list:
-    """Scalar entries of a JSON object as a table of entry, value and unit."""
+#: A unit written "um" in a stage's one-line result (console text): the page writes µm.
+_UM = re.compile(r"(?<![\w.])(\d+(?:\.\d+)?(?:e[+-]?\d+)?) ?um\b")
+
+
+def _micrometres(text: str) -> str:
+    """``"points RMS 11.5 um"`` -> ``"points RMS 11.5 µm"``: the page writes micrometres one way."""
+    return _UM.sub(r"\1 µm", text)
+
+
+#: Tables longer than this are folded under a summary line (every row is in the page).
+_FOLD_ROWS = 40
+
+
+def _facts(data: dict | None, *, caption: str = "", source: str = "", skip=(), units: Mapping | None = None) -> list:
+    """Scalar entries of a JSON object as a table of entry, value and unit; every entry, folded when long.
+
+    ``units``: units of parameter names beyond the DH and joint-model kinds (``{"J2.k": "rad/(N m)"}``)."""
     if not data:
         return []
     items = [(k, v) for k, v in _flatten(data) if not any(k == s or k.startswith(s + ".") for s in skip)]
     # parameter names are dotted themselves: "standard_uncertainty.J1.a" is one entry of a parameter
     rows = []
-    for key, value in items[:limit]:
-        parts = re.sub(r"\.(J\d+)\.(d|theta|a|alpha|beta)$", r".\1·\2", key).split(".")
-        label = " › ".join(_bare(part) for part in parts)
-        label = label.replace("·", ".")
-        shown = value if isinstance(value, str) else _fmt(value)
-        rows.append([label, shown, _fact_unit(key, value)])
+    for key, value in items:
+        parts = key.split(".")
+        if len(parts) > 2 and _name_unit(".".join(parts[-2:]), units) is not None:
+            parts = [*parts[:-2], ".".join(parts[-2:])]
+        label = " › ".join(part if _name_unit(part, units) else _bare(part) for part in parts)
+        shown = _micrometres(value) if isinstance(value, str) else _fmt(value)
+        rows.append([label, shown, _fact_unit(key, value, units)])
     if not rows:
         return []
+    what = " of ".join(part for part in (caption, source) if part) or "entries"
     return [
         _Table(
             header=["entry", "value", "unit"],
@@ -471,7 +563,7 @@ def _facts(data: dict | None, *, caption: str = "", source: str = "", skip=(), l
             caption=caption,
             source=source,
             text_columns=frozenset({0, 1, 2}),
-            note=_rows_note(limit, len(items)) if len(items) > limit else "",
+            fold=f"{what}: {len(rows)} entries (show)" if len(rows) > _FOLD_ROWS else "",
         )
     ]
 

@@ -5,10 +5,12 @@ scipy's)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
+from figure_layout import assert_y_labels_fit
 from matplotlib.patches import StepPatch
 from scipy.stats import norm
 
@@ -72,3 +74,29 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
         assert figure.get_suptitle() == f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws"
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
         assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free CPA", "linearised (GUM)"]
+
+
+def test_the_refined_model_names_its_noise_free_value_and_draws_no_density_it_has_not(result, tmp_path, monkeypatch):
+    """A refined Monte Carlo run without the linearised comparison (robotcal run's): its noise-free value is the
+    refinement's, not CPA's, and no GUM density is drawn (issue 30)."""
+    figures = []
+    monkeypatch.setattr(histograms, "save_figure", lambda figure, path: figures.append(figure) or path)
+    refined = dataclasses.replace(result, model="refined", linearised=None)
+    histograms.write_histograms(refined, tmp_path)
+    for figure in figures:
+        labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
+        assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free refinement"]
+
+
+def test_y_labels_stay_inside_the_figure_for_large_densities(result, tmp_path, monkeypatch):
+    """A narrow distribution (a refined model's: u of a few µm) has densities in the thousands per unit: the
+    wide tick labels push the y label out of a fixed margin (issue 30: "density [1/deg]" clipped)."""
+    figures = []
+    monkeypatch.setattr(histograms, "save_figure", lambda figure, path: figures.append(figure) or path)
+    mean = result.draws.mean(axis=0)
+    narrow = dataclasses.replace(result, draws=mean + (result.draws - mean) * 1e-3)
+    histograms.write_histograms(result, tmp_path)
+    histograms.write_histograms(narrow, tmp_path)
+    assert len(figures) > 2
+    for figure in figures:
+        assert_y_labels_fit(figure)

@@ -1,6 +1,7 @@
 /* robotcal report, last script: once the page has loaded, check that every figure decoded and every
  * canvas drew something, then set the body's data-status to "ok" (or "error") and list any recorded errors
- * in #rc-errors. The browser test reads these attributes from the DOM. */
+ * in #rc-errors. The browser test reads these attributes from the DOM. Also opens the folded long tables
+ * before printing. */
 (function () {
   "use strict";
   function finish() {
@@ -29,6 +30,11 @@
     body.dataset.errors = String(errors.length);
     body.dataset.status = errors.length ? "error" : "ok";
   }
+  // long tables are folded (<details class="rc-fold">): a printed page shows them whole
+  window.addEventListener("beforeprint", function () {
+    var folds = document.querySelectorAll("details.rc-fold");
+    for (var k = 0; k < folds.length; k++) folds[k].open = true;
+  });
   if (document.readyState === "complete") finish();
   else window.addEventListener("load", finish);
 })();

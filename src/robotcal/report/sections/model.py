@@ -18,6 +18,13 @@ def _candidates(provenance: dict) -> tuple[list[dict], str, str]:
     return ([single] if isinstance(single, dict) else []), model, ""
 
 
+def _observed(base_frame: str | None) -> str:
+    """What the consistency check's observed RMS is: with the given base frame (absolute), or registered."""
+    if base_frame == "registered":
+        return "RMS, after a best-fit registration of the base frame"
+    return f"RMS, base frame {base_frame or 'given'}, no registration"
+
+
 def _model(page: _Page) -> dict:
     document = page.json("refine/points.json")
     provenance = (document or {}).get("provenance")
@@ -109,7 +116,8 @@ def _model(page: _Page) -> dict:
             _Table(
                 header=["model", "mean", "RMS", "max"],
                 rows=rows,
-                caption="error at the held-out validation poses after registration (evaluation, points view); "
+                caption="error at the held-out validation poses after a best-fit registration of each model's "
+                "predicted points onto the measured ones (evaluation, points view); "
                 "robotcal compensate commands the joints with the deployed model, so the robot then lands within "
                 "this error of where it was taught",
 
@@ -124,7 +132,8 @@ def _model(page: _Page) -> dict:
                 "note",
                 text=f"Consistency of the deployed model at {check.poses} validation poses: expected RMS "
                 f"{_length(check.expected_rms_mm)} (uncertainty {_length(check.predicted_rms_mm)} with the instrument "
-                f"{_length(check.instrument_rms_mm)}), observed {_length(check.observed_rms_mm)}, ratio "
+                f"{_length(check.instrument_rms_mm)}), observed {_length(check.observed_rms_mm)} "
+                f"({_observed(check.base_frame)}), ratio "
                 f"{_fmt(check.ratio, '.3g')}: {check.verdict}.",
             )
         )

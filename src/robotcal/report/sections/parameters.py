@@ -9,6 +9,7 @@ from robotcal.report.page import (
     _facts,
     _fmt,
     _is_param,
+    _joint_model_units,
     _length,
     _number,
     _Page,
@@ -78,7 +79,7 @@ def _refinement_rms(page: _Page, label: str, data: dict) -> list:
                     [
                         "validation RMS error",
                         _length(_number(row["rms_error_mm"])),
-                        f"RMS of the {row.get('n_errors')} validation point errors after registration "
+                        f"RMS of the {row.get('n_errors')} validation point errors after a best-fit registration "
                         "(evaluation, points view): not fitted, so the honest figure",
                     ]
                 )
@@ -120,7 +121,7 @@ def _parameters(page: _Page) -> dict:
                 (
                     "CPA − truth",
                     {k: _difference(k, v, truth_values[k]) for k, v in cpa_values.items() if k in truth_values},
-                    ".3e",
+                    ".4f",
                 )
             )
     for label, data in refined.items():
@@ -233,5 +234,6 @@ def _parameters(page: _Page) -> dict:
                 caption="provenance",
                 source=f"refine/{label}.json",
                 skip=("versions", "convergence", "correlation", "tracker_from_base"),
+                units=_joint_model_units(data),
             )
     return {"present": True, "blocks_": blocks}

@@ -6,13 +6,13 @@ import datetime as _dt
 
 import robotcal
 from robotcal.io.run_folder import REPORT_NAME, Table
-from robotcal.report.page import _block, _facts, _Page, _rows_note, _Table
+from robotcal.report.page import _FOLD_ROWS, _block, _facts, _Page, _Table
 
 
 def _provenance(page: _Page) -> dict:
     record = page.record
     blocks = (
-        _facts(record, caption="run record", source="run.json", skip=("versions", "scenario.settings"), limit=80)
+        _facts(record, caption="run record", source="run.json", skip=("versions", "scenario.settings"))
         if record
         else [_block("note", text="No run.json: this run was not recorded by robotcal run.")]
     )
@@ -44,11 +44,11 @@ def _provenance(page: _Page) -> dict:
     blocks.append(
         _Table(
             header=["document", "kind", "contents"],
-            rows=rows[:300],
+            rows=rows,
             caption="The documents of the run this report was built from",
             text_columns=frozenset({0, 1, 2}),
             code_columns=frozenset({0}),
-            note=_rows_note(min(len(rows), 300), len(rows)),
+            fold=f"{len(rows)} documents of the run (show)" if len(rows) > _FOLD_ROWS else "",
         )
     )
     folder = page.result.folder

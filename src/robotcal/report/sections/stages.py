@@ -13,6 +13,7 @@ from robotcal.report.page import (
     _facts,
     _figures,
     _fmt,
+    _histogram_caption,
     _label,
     _number,
     _Page,
@@ -148,6 +149,26 @@ _TCP_COLUMNS = (
 )
 
 
+def _histogram_captions(page: _Page, folder: str, names: list[str]) -> dict:
+    """``{hist_J<n>.png: caption}`` of a Monte Carlo folder: what its histograms draw, from its ``parameters.json``
+    (``model``, ``criterion``, ``linearised``: null when the Monte Carlo computed no linearised comparison, as
+    ``robotcal run``'s refined one); a ``"figures"`` caption of the folder's JSON documents wins."""
+    data = page.json(f"{folder}/parameters.json") or {}
+    model = data.get("model") if isinstance(data.get("model"), str) else None
+    linearised = isinstance(data["linearised"], dict) if "linearised" in data else None
+    refinement = f"refine/{data.get('criterion')}.json" if isinstance(data.get("criterion"), str) else None
+    captions = {}
+    for name in names:
+        stem = PurePosixPath(name).stem
+        captions[PurePosixPath(name).name] = _histogram_caption(
+            stem.removeprefix("hist_"),
+            model=model,
+            linearised=linearised,
+            refinement=refinement if refinement and page.has(refinement) else None,
+        )
+    return {**captions, **_captions(page, folder)}
+
+
 def _montecarlo(page: _Page) -> dict:
     if not page.has("uncertainty") and not page.has("uncertainty-refined"):
         return {"present": False, "blocks_": [_block("not_run", what="uncertainty/")]}
@@ -166,7 +187,8 @@ def _montecarlo(page: _Page) -> dict:
             skip=("figures", "versions", "scenario", "parameters", "covariance", "correlation", "linearised"),
         )
         pngs = page.children(folder, ".png")
-        blocks += _figures(page, folder, names=[n for n in pngs if PurePosixPath(n).name.startswith("hist_")])
+        histograms = [n for n in pngs if PurePosixPath(n).name.startswith("hist_")]
+        blocks += _figures(page, folder, names=histograms, captions=_histogram_captions(page, folder, histograms))
         blocks += _figures(page, folder, names=[n for n in pngs if not PurePosixPath(n).name.startswith("hist_")])
         blocks += _csv(
             page,

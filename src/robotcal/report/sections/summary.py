@@ -6,7 +6,7 @@ import re
 
 from robotcal.io.run_folder import OUTPUTS
 from robotcal.io.run_summary import set_label
-from robotcal.report.page import _angle, _fmt, _length, _number, _Page
+from robotcal.report.page import _angle, _fmt, _length, _micrometres, _number, _Page
 
 
 def _card(question: str, label: str, value: str, detail: str = "", caution: str = "") -> dict:
@@ -105,26 +105,106 @@ def _facts_of_run(page: _Page) -> list[dict]:
     return facts
 
 
+def _absolute(base_frame: str | None) -> str:
+    """How ``tcp/consistency.json`` placed the predictions: with the base frame given (no registration), or a
+    best-fit registration of them onto the measurements."""
+    if base_frame == "registered":
+        return "after a best-fit registration of the base frame"
+    return f"with the base frame {base_frame or 'given'}, no registration"
+
+
+def _validation_detail(page: _Page) -> str:
+    """What the numbers of the validation card are: means of the evaluation's errors in its view (the points
+    view: distances after a best-fit registration of each model's predicted points onto the measured ones), the
+    RMS of the same errors, and the consistency check's absolute errors of the deployed model, which differ."""
+    summary = page.summary
+    before, after = summary.validation_before_set or "before", summary.validation_after_set or "after"
+    capture, view = summary.validation_capture or "validation", summary.validation_view or "points"
+    rows = {}
+    for row in (page.json("evaluation/evaluation.json") or {}).get("rows") or []:
+        if isinstance(row, dict) and row.get("capture") == capture and row.get("view") == view:
+            rows[row.get("parameter_set")] = row
+    count = _number((rows.get(after) or {}).get("n_errors"))
+    points = f"the {int(count)} {capture} points" if count is not None else f"the {capture} points"
+    if view == "points":
+        what = (
+            f"mean distance |predicted − measured| at {points} after a best-fit registration of each model's "
+            "predictions (evaluation, points view)"
+        )
+    else:
+        what = f"mean error at {points} (evaluation, {view} view)"
+    text = f"{what}; {before} → {after}" + (f" ({set_label(after)})" if set_label(after) != after else "")
+    rms = [_number((rows.get(name) or {}).get("rms_error_mm")) for name in (before, after)]
+    if None not in rms:
+        text += f"; RMS {_length(rms[0])} → {_length(rms[1])}"
+    check = summary.consistency
+    if check is not None and view == "points" and check.base_frame != "registered":
+        absolute = _number((page.json("tcp/consistency.json") or {}).get("observed_mean_mm"))
+        mean = f"mean {_length(absolute)}, " if absolute is not None else ""
+        text += (
+            f"; deployed model {_absolute(check.base_frame)} (validation consistency): "
+            f"{mean}RMS {_length(check.observed_rms_mm)}"
+        )
+    return text
+
+
+def _determined(page: _Page) -> tuple[dict, dict] | None:
+    """The largest standard uncertainty of the refined (deployed) model per unit over the parameters its
+    refinement determines, and over those it does not.
+
+    The refinement (``refine/<criterion>.json`` ``provenance``) lists the parameters it holds (``held``,
+    ``gauge``) and the free ones that take up their effect (``confounded``: only their combination is
+    determined, identification/refine.py); the Monte Carlo (``uncertainty-refined/parameters.json``) gives every
+    identified parameter a u. Returns ``({unit: (u, name)}, {unit: (u, name, why)})`` (``unit``: ``"mm"`` or
+    ``"deg"``), or None when the run has no such Monte Carlo.
+    """
+    data = page.json("uncertainty-refined/parameters.json") or {}
+    parameters = data.get("parameters")
+    if not isinstance(parameters, list):
+        return None
+    criterion = data.get("criterion") if isinstance(data.get("criterion"), str) else "points"
+    provenance = (page.json(f"refine/{criterion}.json") or {}).get("provenance")
+    provenance = provenance if isinstance(provenance, dict) else {}
+
+    def names(key: str) -> list[str]:
+        listed = provenance.get(key)
+        return [n for n in listed if isinstance(n, str)] if isinstance(listed, list) else []
+
+    held = names("held") + names("gauge")
+    reasons = {n: "held at its start value by the refinement" for n in held}
+    with_held = f" with the held {', '.join(held)}" if held else ""
+    reasons.update({n: f"confounded{with_held}: only their combination is determined" for n in names("confounded")})
+    largest: dict[str, tuple[float, str]] = {}
+    tied: dict[str, tuple[float, str, str]] = {}
+    for entry in parameters:
+        if not isinstance(entry, dict) or entry.get("identified") is not True:
+            continue
+        u, unit, name = _number(entry.get("std_uncertainty")), entry.get("unit"), entry.get("name")
+        if u is None or unit not in ("mm", "deg") or not isinstance(name, str):
+            continue
+        if name in reasons:
+            if unit not in tied or u > tied[unit][0]:
+                tied[unit] = (u, name, reasons[name])
+        elif unit not in largest or u > largest[unit][0]:
+            largest[unit] = (u, name)
+    return largest, tied
+
+
 def _cards(page: _Page) -> list[dict]:
     summary = page.summary
     cards = []
     if summary.validation_before_mm is not None and summary.validation_after_mm is not None:
-        before, after = summary.validation_before_set or "before", summary.validation_after_set or "after"
-        detail = (
-            f"mean position error at the {summary.validation_capture or 'validation'} points, {before} → {after}"
-            + (f" ({set_label(after)})" if set_label(after) != after else "")
-        )
         cards.append(
             _card(
                 "How good is it?",
-                "validation error, before → after",
+                "mean validation error, before → after",
                 f"{_length(summary.validation_before_mm)} → {_length(summary.validation_after_mm)}",
-                detail,
+                _validation_detail(page),
             )
         )
     else:
         why = "evaluation stage not run" if not page.has("evaluation") else "no headline in evaluation.json"
-        cards.append(_card("How good is it?", "validation error, before → after", "n/a", why))
+        cards.append(_card("How good is it?", "mean validation error, before → after", "n/a", why))
     if summary.circle_rms_mm is not None:
         circle = f"circle J{summary.circle_rms_circle}; " if summary.circle_rms_circle is not None else ""
         cards.append(
@@ -138,15 +218,25 @@ def _cards(page: _Page) -> list[dict]:
     refined, cpa = summary.uncertainty("uncertainty-refined"), summary.uncertainty("uncertainty")
     shown = refined or cpa
     model = "refined model (deployed)" if refined is not None else "CPA model"
-    for label, value_of, name_of, fmt in (
-        ("largest standard uncertainty, lengths", "length_mm", "length_name", _length),
-        ("largest standard uncertainty, angles", "angle_deg", "angle_name", _angle),
+    determined = _determined(page) if refined is not None else None
+    for label, unit, value_of, name_of, fmt in (
+        ("largest standard uncertainty, lengths", "mm", "length_mm", "length_name", _length),
+        ("largest standard uncertainty, angles", "deg", "angle_deg", "angle_name", _angle),
     ):
         value = getattr(shown, value_of) if shown is not None else None
         if value is None:
             cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
             continue
-        detail = f"{getattr(shown, name_of)}, {model}, Monte Carlo (GUM-S1)"
+        name, over = getattr(shown, name_of), ""
+        if determined is not None:
+            largest, tied = determined
+            if unit in largest:
+                value, name = largest[unit]
+                over = ", largest over the parameters the refinement determines"
+            if tied.get(unit) is not None and tied[unit][0] > value:
+                u, tied_name, why = tied[unit]
+                over += f"; larger: {tied_name}, {fmt(u)}, {why}"
+        detail = f"{name}, {model}, Monte Carlo (GUM-S1){over}"
         if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
             detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
         cards.append(_card("How sure are we?", label, fmt(value), detail))
@@ -208,7 +298,9 @@ def _cards(page: _Page) -> list[dict]:
                 f"expected = √(predicted² + instrument²) = √({_length(check.predicted_rms_mm)}² + "
                 f"{_length(check.instrument_rms_mm)}²) at {check.poses} validation poses ({check.model}"
                 + (", base frame registered: the registration absorbs part of the error" if registered else "")
-                + f"); observed / expected = {_fmt(check.ratio, '.3g')}: {check.verdict}",
+                + f"); observed: RMS of the errors {_absolute(check.base_frame)}"
+                + ("" if registered else " (the validation card's errors are after a best-fit registration)")
+                + f"; observed / expected = {_fmt(check.ratio, '.3g')}: {check.verdict}",
             )
         )
     return cards
@@ -225,7 +317,7 @@ def _summary(page: _Page) -> dict:
         status = entry.get("status") if isinstance(entry.get("status"), str) else None
         shown = status or ("done" if present else "not run")
         css = "failed" if shown in ("failed", "error") else ("ok" if present else "missing")
-        detail = entry.get("detail") if isinstance(entry.get("detail"), str) else ""
+        detail = _micrometres(entry["detail"]) if isinstance(entry.get("detail"), str) else ""
         seconds = _fmt(_number(entry.get("seconds")), ".2f")
         rows.append(
             {"stage": stage, "outputs": outputs, "status": shown, "css": css, "seconds": seconds, "detail": detail}
