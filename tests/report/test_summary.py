@@ -120,8 +120,8 @@ def test_console_lines():
     lines = summarise(RECORD, documents()).console_lines()
     assert lines == [
         "how good: mean validation error 0.5900 mm (nominal) -> 0.0770 mm (refined, points criterion)",
-        "how sure, refined (deployed) model: largest standard uncertainty 0.0050 mm (lengths), 0.0039 deg (angles); "
-        "2,000 draws",
+        "how sure, refined (deployed) model: largest standard uncertainty of the parameters its refinement determines "
+        "0.0050 mm (lengths), 0.0039 deg (angles); 2,000 draws",
         "how sure, CPA model: largest standard uncertainty 0.7000 mm (lengths), 0.1360 deg (angles); 500 draws",
         "consistency at the 100 validation poses: predicted RMS position uncertainty 0.0300 mm, with the instrument "
         "0.0340 mm; observed RMS error 0.0910 mm (ratio 2.68: not explained by the stated uncertainty)",
@@ -174,3 +174,15 @@ def test_a_csv_where_a_json_is_expected_is_ignored():
     docs = documents()
     docs["tcp/pose/tcp.json"] = Table(header=("pose",), rows=(("1",),))
     assert summarise({}, docs).tcp_pose is None
+
+
+def test_the_refined_models_largest_u_leaves_out_what_its_refinement_does_not_determine():
+    """Issue 30: a parameter the refinement holds, or one confounded with a held one, is not the headline's largest u
+    (on the console and in the report); it is set aside with why."""
+    docs = dict(documents())
+    docs["refine/points.json"] = {"provenance": {"held": ["J6.alpha"], "confounded": ["J3.a"]}}
+    refined = summarise(RECORD, docs).uncertainty("uncertainty-refined")
+    assert refined.length_name != "J3.a" and refined.length_mm < 0.005
+    u, name, why = refined.set_aside["mm"]
+    assert (u, name) == (0.005, "J3.a") and "confounded with the held J6.alpha" in why
+    assert "deg" not in refined.set_aside  # J2.theta is determined

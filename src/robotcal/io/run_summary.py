@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -70,9 +70,12 @@ class ModelUncertainty:
     draws : int or None
         ``draws``: Monte Carlo draws.
     length_mm, length_name : float or None, str or None
-        Largest ``std_uncertainty`` among the identified parameters of ``unit`` ``"mm"``, and its name.
+        Largest ``std_uncertainty`` among the identified parameters of ``unit`` ``"mm"``, and its name; of the
+        refined model, among those its refinement determines (not held, not confounded with a held one).
     angle_deg, angle_name : float or None, str or None
         The same for ``unit`` ``"deg"``.
+    set_aside : dict of str to (float, str, str)
+        Per unit, a larger u of a parameter the refinement does not determine on its own: ``(u, name, why)``.
     """
 
     folder: str
@@ -82,6 +85,7 @@ class ModelUncertainty:
     length_name: str | None = None
     angle_deg: float | None = None
     angle_name: str | None = None
+    set_aside: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -199,7 +203,8 @@ class Summary:
             if not parts:
                 continue
             draws = f"; {model.draws:,} draws" if model.draws is not None else ""
-            lines.append(f"how sure, {model.label}: largest standard uncertainty {', '.join(parts)}{draws}")
+            over = " of the parameters its refinement determines" if model.folder == "uncertainty-refined" else ""
+            lines.append(f"how sure, {model.label}: largest standard uncertainty{over} {', '.join(parts)}{draws}")
         check = self.consistency
         if check is not None:
             predicted = f"{check.predicted_rms_mm:.4f} mm" if check.predicted_rms_mm is not None else "n/a"
@@ -251,17 +256,43 @@ def _circles(documents: Mapping) -> dict:
     }
 
 
+def _not_determined(documents: Mapping, data: Mapping) -> dict[str, str]:
+    """The refined model's parameters its refinement does not determine on their own, with why: those it holds
+    (``held``, ``gauge``) and the free ones that take up their effect (``confounded``: only their combination is
+    determined), from ``refine/<criterion>.json``'s provenance (identification/refine.py)."""
+    criterion = data.get("criterion") if isinstance(data.get("criterion"), str) else "points"
+    provenance = _json(documents, f"refine/{criterion}.json").get("provenance")
+    provenance = provenance if isinstance(provenance, Mapping) else {}
+
+    def names(key: str) -> list[str]:
+        listed = provenance.get(key)
+        return [n for n in listed if isinstance(n, str)] if isinstance(listed, list) else []
+
+    held = names("held") + names("gauge")
+    reasons = {name: "held at its start value by the refinement" for name in held}
+    with_held = f" with the held {', '.join(held)}" if held else ""
+    reasons.update({n: f"confounded{with_held}: only their combination is determined" for n in names("confounded")})
+    return reasons
+
+
 def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUncertainty | None:
     data = _json(documents, f"{folder}/parameters.json")
     parameters = data.get("parameters")
     if not isinstance(parameters, list):
         return None
+    reasons = _not_determined(documents, data) if folder == "uncertainty-refined" else {}
     largest: dict[str, tuple[float, str]] = {}
+    aside: dict[str, tuple[float, str, str]] = {}
     for entry in parameters:
         if not isinstance(entry, dict) or entry.get("identified") is not True:
             continue
         u, unit, name = _number(entry.get("std_uncertainty")), entry.get("unit"), _text(entry.get("name"))
-        if u is not None and unit in ("mm", "deg") and (unit not in largest or u > largest[unit][0]):
+        if u is None or unit not in ("mm", "deg"):
+            continue
+        if name in reasons:
+            if unit not in aside or u > aside[unit][0]:
+                aside[unit] = (u, name, reasons[name])
+        elif unit not in largest or u > largest[unit][0]:
             largest[unit] = (u, name)
     draws = data.get("draws")
     length, angle = largest.get("mm", (None, None)), largest.get("deg", (None, None))
@@ -273,6 +304,7 @@ def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUnce
         length_name=length[1],
         angle_deg=angle[0],
         angle_name=angle[1],
+        set_aside={unit: entry for unit, entry in aside.items() if entry[0] > largest.get(unit, (-1.0,))[0]},
     )
 
 

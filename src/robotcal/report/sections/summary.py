@@ -148,48 +148,6 @@ def _validation_detail(page: _Page) -> str:
     return text
 
 
-def _determined(page: _Page) -> tuple[dict, dict] | None:
-    """The largest standard uncertainty of the refined (deployed) model per unit over the parameters its
-    refinement determines, and over those it does not.
-
-    The refinement (``refine/<criterion>.json`` ``provenance``) lists the parameters it holds (``held``,
-    ``gauge``) and the free ones that take up their effect (``confounded``: only their combination is
-    determined, identification/refine.py); the Monte Carlo (``uncertainty-refined/parameters.json``) gives every
-    identified parameter a u. Returns ``({unit: (u, name)}, {unit: (u, name, why)})`` (``unit``: ``"mm"`` or
-    ``"deg"``), or None when the run has no such Monte Carlo.
-    """
-    data = page.json("uncertainty-refined/parameters.json") or {}
-    parameters = data.get("parameters")
-    if not isinstance(parameters, list):
-        return None
-    criterion = data.get("criterion") if isinstance(data.get("criterion"), str) else "points"
-    provenance = (page.json(f"refine/{criterion}.json") or {}).get("provenance")
-    provenance = provenance if isinstance(provenance, dict) else {}
-
-    def names(key: str) -> list[str]:
-        listed = provenance.get(key)
-        return [n for n in listed if isinstance(n, str)] if isinstance(listed, list) else []
-
-    held = names("held") + names("gauge")
-    reasons = {n: "held at its start value by the refinement" for n in held}
-    with_held = f" with the held {', '.join(held)}" if held else ""
-    reasons.update({n: f"confounded{with_held}: only their combination is determined" for n in names("confounded")})
-    largest: dict[str, tuple[float, str]] = {}
-    tied: dict[str, tuple[float, str, str]] = {}
-    for entry in parameters:
-        if not isinstance(entry, dict) or entry.get("identified") is not True:
-            continue
-        u, unit, name = _number(entry.get("std_uncertainty")), entry.get("unit"), entry.get("name")
-        if u is None or unit not in ("mm", "deg") or not isinstance(name, str):
-            continue
-        if name in reasons:
-            if unit not in tied or u > tied[unit][0]:
-                tied[unit] = (u, name, reasons[name])
-        elif unit not in largest or u > largest[unit][0]:
-            largest[unit] = (u, name)
-    return largest, tied
-
-
 def _cards(page: _Page) -> list[dict]:
     summary = page.summary
     cards = []
@@ -218,7 +176,6 @@ def _cards(page: _Page) -> list[dict]:
     refined, cpa = summary.uncertainty("uncertainty-refined"), summary.uncertainty("uncertainty")
     shown = refined or cpa
     model = "refined model (deployed)" if refined is not None else "CPA model"
-    determined = _determined(page) if refined is not None else None
     for label, unit, value_of, name_of, fmt in (
         ("largest standard uncertainty, lengths", "mm", "length_mm", "length_name", _length),
         ("largest standard uncertainty, angles", "deg", "angle_deg", "angle_name", _angle),
@@ -228,14 +185,11 @@ def _cards(page: _Page) -> list[dict]:
             cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
             continue
         name, over = getattr(shown, name_of), ""
-        if determined is not None:
-            largest, tied = determined
-            if unit in largest:
-                value, name = largest[unit]
-                over = ", largest over the parameters the refinement determines"
-            if tied.get(unit) is not None and tied[unit][0] > value:
-                u, tied_name, why = tied[unit]
-                over += f"; larger: {tied_name}, {fmt(u)}, {why}"
+        if refined is not None:
+            over = ", largest over the parameters the refinement determines"
+            if unit in shown.set_aside:
+                u, aside_name, why = shown.set_aside[unit]
+                over += f"; larger: {aside_name}, {fmt(u)}, {why}"
         detail = f"{name}, {model}, Monte Carlo (GUM-S1){over}"
         if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
             detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
