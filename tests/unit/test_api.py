@@ -37,6 +37,7 @@ DATA_QUALITY_WARNINGS = pytest.mark.filterwarnings("ignore::robotcal.errors.Robo
 #: Module names whose ``__all__`` entries a sub-package does not re-export, and why.
 NOT_REEXPORTED = {
     ("io", "FORMAT"): "draws_npz.FORMAT and uncertainty_files.FORMAT are two different file formats",
+    ("io", "joints_files"): "the function is named like its module, which the import system binds on the lazy package",
 }
 
 
@@ -70,6 +71,18 @@ def test_import_robotcal_imports_nothing_heavy():
         "print(*sorted(m for m in sys.modules if m.startswith('robotcal') or m in ('numpy', 'scipy', 'pydantic')))\n"
     )
     assert loaded == ["robotcal"]
+
+
+def test_import_robotcal_io_imports_none_of_its_modules():
+    """Issue 30: robotcal.io loads its names on first use, as the robotcal package does (a command's --help
+    that names one of them stays light); a name imports its own module and that module's imports only."""
+    loaded = _fresh_modules(
+        "import sys, robotcal.io\n"
+        "print(*sorted(m for m in sys.modules if m.startswith('robotcal') or m in ('numpy', 'scipy', 'pydantic')))\n"
+        "robotcal.io.builtin_names\n"
+        "print('robotcal.io.builtins' in sys.modules, 'robotcal.io.scenario' in sys.modules)\n"
+    )
+    assert loaded == ["robotcal", "robotcal.io", "True", "False"]
 
 
 def test_a_name_imports_its_module_on_first_use():
