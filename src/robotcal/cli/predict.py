@@ -184,5 +184,25 @@ def predict(
     frames = predict_frames(parameters, readings, target=point, world_from_base=world_from_base)
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, predictions_to_csv(frames))
-    frame = f"tracker frame ({frame_from})" if world_from_base is not None else "robot base"
-    console.print(f"wrote {out} ({frames.shape[0]} poses; {point_from}; {frame})", highlight=False)
+    console.print(f"wrote {out}: {prediction_summary(frames.shape[0], point, point_from, frame_from)}", highlight=False)
+
+
+def prediction_summary(n_poses: int, point, point_from: str, frame_from: str) -> str:
+    """What ``predict`` wrote, as a sentence: ``"3 poses of the flange point (60, 40, 30) mm given by --target,
+    in the tracker frame, from the base frame recorded in refined.json"``.
+
+    ``point``: the flange point [mm] (None: the flange frame); ``point_from``, ``frame_from``: where the point and
+    the base frame come from, as :func:`flange_target_mm` and :func:`world_from_base_of` say ("given": the option's
+    numbers; ``frame_from`` empty: no base frame, the robot base).
+    """
+    poses = f"{n_poses} pose{'s' if n_poses != 1 else ''}"
+    if point is None:
+        what = "the flange frame"
+    else:
+        where = "given by --target" if point_from == "given" else f"of {point_from}"
+        what = f"the flange point ({', '.join(f'{v:g}' for v in point)}) mm {where}"
+    if not frame_from:
+        frame = "in the robot base frame"
+    else:
+        frame = "in the tracker frame, " + ("given by --tracker-from-base" if frame_from == "given" else f"from {frame_from}")
+    return f"{poses} of {what}, {frame}"
