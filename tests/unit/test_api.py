@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import re
 import subprocess
 import sys
 
@@ -136,6 +137,21 @@ def test_sub_package_all_is_complete_and_resolves(package):
             assert getattr(pkg, name) is getattr(module, name)
     for name in pkg.__all__:
         getattr(pkg, name)
+
+
+def test_the_api_doc_says_what_robot_accepts():
+    """Issue 30: docs/api.md said `robot` accepts a robot or scenario name and a TOML path; the code takes a
+    RobotModel or a Scenario and refuses the rest (the doc now says so, and how to read a name or path)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "api.md").read_text(encoding="utf-8")
+    row = next(line for line in doc.splitlines() if line.startswith("| `robot` |"))
+    accepted = row.split("|")[2].split("(")[0]
+    assert re.findall(r"`(\w+)`", accepted) == ["RobotModel", "Scenario"]
+    assert "name" not in accepted and "path" not in accepted, row
+    for given in ("kr5-demo", "kuka-kr5-sixx-r650", str(robotcal.io.data_path("scenarios", "kr5-demo.toml"))):
+        with pytest.raises(InputError, match="`robot` must be a RobotModel"):
+            api.check_plan(given)
 
 
 # ----------------------------------------------------------------------------------------------- rng
