@@ -72,7 +72,7 @@ def test_prose_states_no_measured_times():
     for path in paths:
         if path.name == "report.md":
             continue
-        for number, line in enumerate(_prose_of(path).splitlines(), start=1):
+        for line in _prose_of(path).splitlines():
             for phrase in PROMISED:
                 line = line.replace(phrase, "")
             found += [f"{path.name}: {match.group(0)!r} in {line.strip()!r}" for match in TIME.finditer(line)]

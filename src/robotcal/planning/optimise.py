@@ -24,6 +24,7 @@ scored, in parallel through :mod:`robotcal.execution` when workers or a schedule
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -244,7 +245,7 @@ def optimise_plan(
     seed: int = 0,
     workers: int = 1,
     scheduler: str | None = None,
-    progress=None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> OptimisationResult:
     """Search for a feasible plan of ``budget`` points (per direction) minimising ``problem.objective``.
 
