@@ -39,6 +39,36 @@ Issue 23 (2026-11-28, ``--draws 20000 --loop 30 --workers 2``, 3 alternated roun
 2 workers, draws/s: 05de958 (before) 12,547-15,604 (median 14,665), c0e2034 11,261-13,811 (median 13,070),
 385f86a 10,995-13,686 (median 13,410, -8.6 %); CPU per draw 0.123-0.142 / 0.140-0.155 / 0.136-0.156 ms. The
 draws themselves are unchanged; ~0.1 s of pool start and shutdown is ~7 % of these 1.5 s (bench_montecarlo.py).
+
+Figures formerly in the docs, moved here by issue 30 (the docs say what dominates a cost; measured times
+live here, with their machine):
+
+Moved from docs/uncertainty.md:
+
+`benchmarks/bench_refined_montecarlo.py` (demo capture, 270 points, points criterion, base given),
+on the 2-core development machine shared with other jobs:
+
+| path | wall time | CPU per draw |
+| --- | ---: | ---: |
+| loop: batched CPA, then `refine_parameters` draw after draw (60-200 draws) | 0.16-0.55 s/draw (100,000 draws: 4.6-15 h) | 53-124 ms |
+| batched engine, 1 worker | 307-1,090 draws/s | 0.47 ms |
+| batched engine, 2 workers, 100,000 draws, machine nearly idle (load average 1.4-1.6) | **25.8 s** (3,880 draws/s) | 0.50 ms |
+| batched engine, 2 workers, 100,000 draws, shared (load average 3.6-4.9) | 153 s and 168 s | 0.55 ms |
+| batched engine, 2 workers, 6,000 draws | 5.2 s (1,150 draws/s) | 0.55 ms |
+
+The machine was shared with four other jobs (load average 3.6-4.9 on 2 cores) during every run,
+so wall times are inflated by 2-3x and vary between runs; CPU time per draw is the stable figure.
+At 0.55 ms of CPU per draw, 100,000 draws need 55 CPU-seconds: about 28 s on 2 dedicated cores
+(target: 120 s), and a run on the nearly idle machine took 25.8 s (the loop over the same 60 draws
+was 36x slower per core there); the two 100,000-draw runs on the loaded machine took 153 and 168 s. Against
+the per-draw loop the engine is 180-190x faster in wall time on one core and 100-230x in CPU time
+(target: 20x). Each draw needs 2-5 evaluations of residuals and normal equations from its CPA
+start (2: 41 %, 3: 55 %, 4-5: 3 %), no draw failed. The distances criterion costs about 0.13 s per
+draw (kr5-demo, 36,180 pairs; 100 draws in 13 s on the loaded machine).
+
+docs/uncertainty.md, Monte Carlo of a measured capture: for 30 poses x 3 targets (90 points, 29 unknowns)
+0.03-0.24 s per draw on one core (measured under load on a shared 2-core machine; `-n 300 --workers 1` took
+32 s, 0.11 s per draw), so 300 draws take 10-70 s.
 """
 
 from __future__ import annotations

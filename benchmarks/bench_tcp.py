@@ -35,6 +35,35 @@ Before/after, the demo's TCP stage (Table 5.8 pose and 75-pose trajectory with t
 - issue 23 (the series arctan replaced by ``np.arctan2`` of the turned vector; 2026-11-28, 2 alternated
   rounds, load below 1; best / median of 3): 05de958 1.47 / 1.56 s and 1.36 / 1.44 s, c0e2034 1.36 / 1.46 s
   and 1.36 / 1.38 s, 385f86a 1.31 / 1.35 s and 1.38 / 1.38 s: no measurable change at this scale.
+
+Figures formerly in the docs, moved here by issue 30 (the docs say what dominates a cost; measured times
+live here, with their machine):
+
+Moved from docs/tcp.md:
+
+Measured before these changes (2 shared CPU cores, load average ~2.9 from other jobs, numpy 2.4): 100,000 draws x 75
+poses in **8.5 s** (best of 2; about 1.1 µs per draw-pose including statistics and the linearised
+result), peak traced memory **149 MiB** (the draws array itself 23 MiB). The time grows linearly
+with draws x poses; memory is bounded by `max_bytes` and the block size, not by the pose count.
+After the changes above (issue 13; same machine, load average 7-10, so CPU seconds compare): the
+demo's TCP stage on the same draws takes 7.9-8.1 s of CPU instead of 13.0-13.9 s, outputs equal to
+1e-11 relative (summation order); the 100,000 x 75 benchmark script 13.1 instead of 17.1 s of CPU,
+peak traced memory 183 MiB. Then (the angles from the series above, chunks of as many poses as fit with
+the threads sharing each chunk, X and Y turned by the first joint once per chunk on contiguous rows,
+covariances by rows of the upper triangle, `tcp.csv` formatted a row at a time): the TCP stage alone
+(`tcp_stage` on a saved demo run's draws, validation capture and refined model; load average 4-5.6 from
+other jobs on the 2 cores, old and new code alternating) 4.8-5.4 s of CPU instead of 4.7-6.4 s (median
+4.9 vs 5.5), wall 4.6-7.3 s instead of 5.9-10.3 s; the workspace map alone on one thread 3.3-3.4 instead
+of 3.8-4.0 s of CPU, the trajectory 0.52 instead of 0.58-0.61 s.
+
+In the demo (`robotcal demo`, 2 cores), the TCP stage's `seconds` in `run.json` were 3.3-4.6 s at the end of
+issue 13's work (7.0-9.8 s for the code of its first part, run alternately with it): the computing alone
+(`benchmarks/bench_tcp.py --stage`) takes about 2.6 s of wall and 4.7 s of CPU, and in the demo the stage
+shares the two cores with the figure process, which draws the Monte Carlo histograms and the TCP figures
+meanwhile. The issue's 3 s for the stage is met by the computing alone, not by the stage inside the demo.
+
+docs/tcp.md, the multilinear expansion tried for the workspace map: in isolation 0.11 vs 0.21 us of CPU per
+draw-pose.
 """
 
 from __future__ import annotations

@@ -71,8 +71,12 @@ refined = robotcal.refine(
 print(refined.health.line())
 print(f"calibration RMS {refined.cross_validation.calibration_rms_mm * 1e3:.1f} um, "
       f"cross-validated {refined.cross_validation.cv_rms_mm * 1e3:.1f} um")  # fmt: skip
-error = refined.parameters.difference(truth)[refined.free]
-print(f"largest error against the truth: {np.abs(error).max():.2e} (mm or rad)")
+# the columns of a parameter table are d, theta, a, alpha, beta: lengths [mm] in 0 and 2, angles [rad] in 1, 3, 4
+LENGTHS = np.zeros(refined.free.shape, dtype=bool)
+LENGTHS[:, [0, 2]] = True
+error = np.abs(refined.parameters.difference(truth))
+print(f"largest error against the truth: {error[refined.free & LENGTHS].max():.4f} mm (lengths), "
+      f"{np.degrees(error[refined.free & ~LENGTHS]).max():.5f} deg (angles)")  # fmt: skip
 
 # %% Monte Carlo (GUM Supplement 1) of the deployed model, simulated at its estimate, and the TCP at a pose
 draws = 500 if args.quick else 5000
@@ -80,8 +84,9 @@ uncertainty = robotcal.monte_carlo(
     robot, plan=plan, instrument=instrument, tracker_from_base=tracker_from_base, parameters=refined,
     model="refined", draws=draws, rng=7,
 )  # fmt: skip
-u = uncertainty.summary.std_uncertainty[uncertainty.identified]
-print(f"{uncertainty.n_draws} draws: largest u {u.max():.3g} (mm or rad)")
+u = uncertainty.summary.std_uncertainty
+print(f"{uncertainty.n_draws} draws: largest u {u[uncertainty.identified & LENGTHS].max():.4f} mm (lengths), "
+      f"{np.degrees(u[uncertainty.identified & ~LENGTHS]).max():.5f} deg (angles)")  # fmt: skip
 tcp = robotcal.tcp_uncertainty(robot, uncertainty, [[10.0, 40.0, 30.0, 5.0, 45.0, 0.0]], tool_mm=[0, 0, 100])
 print(f"TCP position uncertainty at the pose: {tcp.position_uncertainty[0] * 1e3:.2f} um")
 

@@ -13,7 +13,9 @@ What it shows
        :func:`robotcal.render_report` renders its HTML report again from it.
 
 Run
-    python examples/run_and_report.py --out run-example            # the demo's sizes (tens of seconds)
+    python examples/run_and_report.py --out run-example            # the demo's sizes: the refinement's model
+                                                                    # choice, the refined Monte Carlo and the
+                                                                    # TCP stage are most of the cost
     python examples/run_and_report.py --quick --out run-example    # small Monte Carlos (the test suite)
 """
 

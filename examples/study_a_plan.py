@@ -16,7 +16,7 @@ What it shows
        determines J4's axis several times better.
 
 Run
-    python examples/study_a_plan.py               # 2000 draws per plan (a few seconds)
+    python examples/study_a_plan.py               # 2000 draws per plan (the three Monte Carlos are the cost)
     python examples/study_a_plan.py --quick       # 300 draws (the test suite)
 """
 

@@ -14,7 +14,7 @@ What it shows
        the trajectory, Monte Carlo beside the linearised propagation of the same draws.
 
 Run
-    python examples/trajectory_uncertainty.py --out trajectory-example   # 2000 draws (under 10 s)
+    python examples/trajectory_uncertainty.py --out trajectory-example   # 2000 draws, each a refinement: the cost
     python examples/trajectory_uncertainty.py --quick                    # 200 draws (the test suite)
 """
 

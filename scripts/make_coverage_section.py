@@ -122,8 +122,8 @@ def scenario_table(name: str, study) -> list[str]:
     lines = [
         f"### {TITLES.get(name, name)}: `{name}`",
         "",
-        f"K = {study.captures} captures (seed {study.seed}), {study.draws:,} draws per capture and Monte Carlo, "
-        f"computed in {study.seconds:.0f} s; 99 % band **{study.band[0]:.3f} .. {study.band[1]:.3f}**. "
+        f"K = {study.captures} captures (seed {study.seed}), {study.draws:,} draws per capture and Monte Carlo; "
+        f"99 % band **{study.band[0]:.3f} .. {study.band[1]:.3f}**. "
         '"CPA bias" is the CPA estimator\'s mean error over the K captures in units of its mean stated u.',
         "",
         "| parameter | CPA bias (u) | " + " | ".join(COLUMNS[c] for c in columns) + " |",
@@ -224,9 +224,9 @@ def section(studies: dict, criterion: str, command: str) -> str:
         "`test_biased_case_draws_percentiles_under_cover_and_the_stated_interval_does_not`).",
         "",
     ]
-    total = sum(s.seconds for s in studies.values())
     lines += [
-        f"Computed in {total:.0f} s in all with robotcal {robotcal.__version__}. With {m:,} draws the symmetric "
+        f"Computed with robotcal {robotcal.__version__} (the K x 2 Monte Carlos are its cost). With {m:,} draws the "
+        "symmetric "
         f"interval [y_(r), y_(r+q)] of one Monte Carlo holds a further exchangeable draw with probability "
         f"q / (M + 1) = {q}/{m + 1} = {q / (m + 1):.3f}. Reproduce: `{command}`. A reduced version (fewer "
         "captures and draws, a wider band) runs in the test suite; the full studies are "
@@ -322,7 +322,7 @@ def extended_section(captures: int, draws: int, seed: int) -> str:
         "identified by CPA and refined with the compliance model; the refined Monte Carlo, simulated at that "
         "capture's refined estimate, fits the compliance in every draw and states the intervals checked: "
         f"`coverage_low/high` (the interval for the measurand) and the draws' own. K = {study.captures} (seed "
-        f"{study.seed}), {study.draws:,} draws per capture, {study.seconds:.0f} s; 99 % band "
+        f"{study.seed}), {study.draws:,} draws per capture; 99 % band "
         f"**{study.band[0]:.3f} .. {study.band[1]:.3f}** (`tests/unit/uncertainty/test_extended_coverage.py`, slow).",
         "",
         "| quantity | stated | draws' percentiles | mean error / u |",

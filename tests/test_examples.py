@@ -13,7 +13,7 @@ from pathlib import Path
 import robotcal
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-#: Generous: the examples take a few seconds each on an idle machine, much more on a loaded CI runner.
+#: Generous: a loaded CI runner is many times slower than an idle machine.
 TIMEOUT_S = 600
 
 
@@ -59,6 +59,14 @@ def test_calibrate_from_capture(tmp_path):
     nominal_um, refined_um = (float(value) for value in match.groups())
     # the demo's truth deviates by ~0.5 mm; the refined model is within its joint errors (< 0.1 mm)
     assert refined_um < 0.25 * nominal_um
+    # Issue 30: CPA alone is worse than nominal at these validation poses (3,094 against 559 um): the screen says
+    # why, with the u a CPA Monte Carlo of the plan gives and how far this capture's noise moved a parameter
+    cpa_um = float(re.search(r"^validation\s+cpa\s+([\d.]+)", stdout, flags=re.MULTILINE).group(1))
+    assert cpa_um > nominal_um
+    assert "why CPA alone is worse than nominal at the validation poses" in stdout
+    u = re.search(r"largest standard uncertainties (J\d\.\w+) ([\d.]+) mm.* and (J\d\.\w+) ([\d.]+) deg", stdout)
+    assert u and u.group(1) == "J4.a" and 0.3 < float(u.group(2)) < 2.0, stdout  # the 20 mm arm on J4
+    assert re.search(r"this capture's noise moved J\d\.\w+ by [\d.]+ (mm|deg) from the truth, [\d.]+ times its u", stdout)
 
 
 def test_notebook_calibration_without_any_toml(tmp_path):
@@ -67,8 +75,12 @@ def test_notebook_calibration_without_any_toml(tmp_path):
     assert not list(tmp_path.rglob("*.toml"))
     assert "Capture(" in stdout and "135 points" in stdout and "CPAResult(6 circles" in stdout
     # the refinement recovers the perturbed truth to the noise: a few micrometres, thousandths of a degree
-    error = float(re.search(r"largest error against the truth: ([\d.e+-]+)", stdout).group(1))
-    assert error < 0.05
+    # Issue 30: lengths in mm and angles in deg, each its own maximum (not one over mixed mm and rad)
+    error = re.search(r"largest error against the truth: ([\d.]+) mm \(lengths\), ([\d.]+) deg \(angles\)", stdout)
+    assert error, stdout
+    assert float(error.group(1)) < 0.05 and float(error.group(2)) < 0.02
+    assert "mm or rad" not in stdout
+    assert re.search(r"draws: largest u [\d.]+ mm \(lengths\), [\d.]+ deg \(angles\)", stdout), stdout
     cross = re.search(r"calibration RMS ([\d.]+) um, cross-validated ([\d.]+) um", stdout)
     assert cross and float(cross.group(2)) < 1.5 * float(cross.group(1))  # no over-fit of the 270 points
     robot = robotcal.load_robot("kuka-kr5-sixx-r650")

@@ -12,6 +12,7 @@ from robotcal.errors import InputError
 __all__ = [
     "BYTES_PER_POSE",
     "FALLBACK_MEMORY",
+    "ISO_CYCLES",
     "REFINED_DRAWS",
     "SEED_BOUND",
     "SEED_OFFSETS",
@@ -30,6 +31,9 @@ SEED_OFFSETS = {"capture": 0, "truth": 1, "validation": 2, "montecarlo": 3, "wor
 #: Refined-model Monte Carlo draws of a run unless the option or the scenario says otherwise (at most the CPA
 #: Monte Carlo's): each refined draw costs about 20 CPA draws (docs/uncertainty.md).
 REFINED_DRAWS = 20_000
+#: Cycles of ISO 9283's pose test (the run's iso9283 stage, ``robotcal iso9283-plan``), here so that the
+#: command's help names the default without importing numpy (:mod:`robotcal.diagnostics.iso9283` re-exports it).
+ISO_CYCLES = 30
 #: Memory assumed available when ``/proc/meminfo`` cannot be read [bytes].
 FALLBACK_MEMORY = 4 * 2**30
 #: Memory per workspace or trajectory pose (readings, nominal and summary arrays) [bytes], generous.

@@ -38,6 +38,21 @@ def test_catalog_commands_list_builtins():
         assert expected in result.output.replace("\n", "")
 
 
+def test_scenarios_lists_the_points_a_capture_measures():
+    """Issue 30: kr5-demo was listed with 135 points, its bidirectional capture has 270."""
+    from robotcal.io import list_scenarios
+
+    result = invoke("scenarios")
+    assert result.exit_code == 0, result.output
+    rows = {line.split("│")[1].strip(): line for line in result.output.splitlines() if line.startswith("│ ")}
+    for scenario in list_scenarios():
+        circle, _, _ = scenario.plan.readings(scenario.robot)  # the points `robotcal simulate` writes
+        if scenario.name in rows:  # the row's first line (a wrapped instrument cell continues below it)
+            assert f"│ {circle.size:<6} │" in rows[scenario.name], (scenario.name, circle.size, rows[scenario.name])
+    assert rows["kr5-demo"].count("270") == 1
+    assert "kr5-demo: 2 x 135" in " ".join(result.output.split())
+
+
 def test_noise_free_simulate_identify_gives_table_3_1(tmp_path):
     capture = tmp_path / "capture.csv"
     params = tmp_path / "params.json"

@@ -197,3 +197,42 @@ def test_piped_output_is_whole(tmp_path):
     body = assert_uncertainty_table(wide, tmp_path / "b", 140)
     assert all(len(cells) == 9 for cells in body) and "not shown" not in wide
     assert {cells[8] for cells in body} <= {"agrees", "differs"}
+
+
+def test_simulate_message_is_one_line_at_80_columns(tmp_path):
+    """Issue 30: piped (80 columns), simulate's one-line message wrapped, its seed on a line of its own."""
+    folder = tmp_path / "a-folder-with-a-name-long-enough-to-push-the-message-past-80-columns"
+    output = invoke(
+        "simulate", "kr5-demo", "--out", folder / "capture.csv", "--truth-out", folder / "truth.json", "--seed", 12
+    )
+    lines = output.splitlines()
+    wrote = [line for line in lines if line.startswith("wrote ")]
+    assert len(wrote) == 2 and len(lines) == 2, output
+    assert wrote[0].endswith(f"{folder / 'truth.json'}: perturbed 'true' robot (seed 11)"), wrote[0]  # kr5-demo's truth.seed
+    assert wrote[1].startswith(f"wrote {folder / 'capture.csv'}: 270 points") and wrote[1].endswith("seed 12)"), wrote[1]
+
+
+def test_model_table_has_no_empty_header():
+    """Issue 30: the cross-validation table had a column with an empty header (the chosen model's mark)."""
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from robotcal.cli._common import model_table
+
+    def candidate(model, unknowns, rms):
+        return SimpleNamespace(model=model, unknowns=unknowns, calibration_rms_mm=rms, cv_rms_mm=2 * rms, folds=5)
+
+    one = candidate("geometric", 23, 0.05)
+    choice = SimpleNamespace(candidates=(one, candidate("compliance", 25, 0.02)), chosen="compliance")
+    for result, headers in (
+        (SimpleNamespace(model_choice=None, cross_validation=one), ["model", "unknowns", "calibration RMS [mm]", "CV RMS [mm]"]),
+        (SimpleNamespace(model_choice=choice, cross_validation=one), ["model", "unknowns", "calibration RMS [mm]", "CV RMS [mm]", "chosen"]),
+    ):  # fmt: skip
+        table = model_table(result)
+        assert [column.header for column in table.columns] == headers
+        console = Console(width=120, record=True, file=open(os.devnull, "w"))  # noqa: SIM115
+        console.print(table)
+        header_line = next(line for line in console.export_text().splitlines() if line.startswith("┃"))
+        assert all(cell.strip() for cell in header_line.split("┃")[1:-1]), header_line
+    assert [row[-1] for row in table.rows] == ["", "yes"]

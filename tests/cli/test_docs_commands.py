@@ -66,3 +66,39 @@ def test_documented_options_exist(path):
             if option not in known and option != "--help":
                 wrong.append(f"{path.name}:{number}: `{invocation}`: {option} is no option of `robotcal {command.name}`")
     assert wrong == [], "\n".join(wrong)
+
+
+CLI_DOC = ROOT / "docs" / "cli.md"
+
+
+def _command_sections() -> dict[str, str]:
+    """``{command: its section}`` of docs/cli.md, for the sections headed ``## `robotcal COMMAND```."""
+    text = CLI_DOC.read_text(encoding="utf-8")
+    found = re.finditer(r"^## `robotcal ([a-z0-9 -]+)`\n(.*?)(?=^## )", text, re.S | re.M)
+    return {match.group(1): match.group(2) for match in found}
+
+
+@pytest.mark.parametrize("name", sorted(_command_sections()))
+def test_every_option_is_in_its_commands_table(name):
+    """Issue 30: `--weights none` was missing from refine's table. Where a command's section has an options
+    table, every option of the command is in it (``--force`` is in "Output safety", for every command)."""
+    rows = "\n".join(line for line in _command_sections()[name].splitlines() if line.startswith("| `"))
+    command = _command(name.split())
+    options = [p.opts[0] for p in command.params if p.param_type_name == "option" and p.opts[0] != "--force"]
+    if not rows:
+        pytest.skip(f"{name}: no options table (the options are described in its text)")
+    listed = {match for match in re.findall(r"^\| `([^`]+)`", rows, re.M)}
+    named = {word for cell in listed for word in re.split(r"[\s,/=\\|]+", cell) if word.startswith("-")}
+    missing = [option for option in options if option not in named]
+    assert missing == [], f"docs/cli.md, robotcal {name}: options not in the table: {', '.join(missing)}"
+
+
+def test_joint_model_doc_quotes_the_demos_draws():
+    """Issue 30: docs/joint-model.md gave the consistency check of a 1,000-draw run; the demo's refined Monte
+    Carlo (whose draws tcp/consistency.json uses) has the scenario's refined_iterations."""
+    from robotcal.io import load_scenario
+
+    draws = load_scenario("kr5-demo").montecarlo.refined_iterations
+    text = " ".join((ROOT / "docs" / "joint-model.md").read_text(encoding="utf-8").split())
+    consistency = text.split("The demo's consistency check", 1)[1].split(". ", 1)[0]
+    assert f"{draws:,} draws" in consistency, consistency

@@ -59,6 +59,35 @@ def test_refine_auto_reports_every_model_and_writes_the_joint_model(calibrated):
     }
 
 
+def test_refine_output_says_what_its_start_column_and_times_are(calibrated):
+    """Issue 30: the "vs start" table headed the start (CPA) values "nominal"; with --model auto the "time [s]"
+    was the chosen model's fit alone, not the refinement's 24 fits."""
+    output = calibrated[3]
+    table = output.split("vs start", 1)[1].split("Refinement", 1)[0]
+    header = next(line for line in table.splitlines() if line.startswith("┃"))
+    assert [cell.strip() for cell in header.split("┃")[1:-1]] == ["parameter", "unit", "start", "identified", "difference"]
+    summary = output.split("Refinement", 1)[1].split("Joint model", 1)[0]
+    rows = [line.split("│")[1:3] for line in summary.splitlines() if line.startswith("│")]
+    labels, values = (" ".join(row[k].strip() for row in rows) for k in (0, 1))  # the cells wrap at 80 columns
+    assert "time [s]" not in labels and "time of the chosen model's fit [s]" in labels
+    assert "time of the whole refinement [s]" in labels
+    assert "(24 fits: each of 4 models on all points and in 5 cross-validation folds)" in values
+
+
+def test_refine_time_rows_name_what_was_timed():
+    from types import SimpleNamespace
+
+    from robotcal.cli.refine import time_rows
+
+    single = SimpleNamespace(wall_time_s=1.5, cross_validation=None, model_choice=None)
+    assert time_rows(single, 1.6) == [("time of the fit [s]", "1.50")]
+    validated = SimpleNamespace(wall_time_s=1.5, cross_validation=SimpleNamespace(folds=5), model_choice=None)
+    assert time_rows(validated, 9.0) == [
+        ("time of the fit [s]", "1.50"),
+        ("time of the whole refinement [s]", "9.00 (6 fits: the model on all points and in 5 cross-validation folds)"),
+    ]
+
+
 def test_compensate_round_trip_and_its_file(calibrated, tmp_path):
     folder, scenario, _, _ = calibrated
     calibrated_model = robotcal.read_parameters(folder / "ref.json", scenario.robot)

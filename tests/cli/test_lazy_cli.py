@@ -116,6 +116,32 @@ def test_run_and_demo_help_load_neither_the_pipeline_nor_numpy(command):
     assert not {m for m in modules if m.split(".")[0] in HEAVY or m.startswith("robotcal.pipeline")}
 
 
+def _help_paths_of_registry() -> list[list[str]]:
+    """Every command of the registry and the sub-commands of ``plan`` (the one command with sub-commands)."""
+    return [[name] for name in COMMANDS] + [["plan", "check"], ["plan", "optimise"]]
+
+
+@pytest.mark.parametrize("path", _help_paths_of_registry(), ids=" ".join)
+def test_every_command_help_imports_neither_numpy_nor_the_api(path):
+    """Issue 30: ``refine --help`` took 1.1-1.2 s, importing the API and all of ``robotcal.io`` to print its help.
+    What a help needs (option names, defaults, help texts) loads without numpy; the command's work imports the
+    rest when it runs (benchmarks/bench_cli_startup.py times the helps)."""
+    stdout, modules = _imported_in_subprocess(
+        f"import sys\nfrom robotcal.cli import main\nsys.argv = ['robotcal', *{path!r}, '--help']\n"
+        "try:\n    main()\nexcept SystemExit as exit:\n    assert not exit.code, exit.code\n"
+    )
+    assert f"Usage: robotcal {' '.join(path)}" in stdout
+    heavy = sorted(m for m in modules if m.split(".")[0] in HEAVY or m == "robotcal.api")
+    assert heavy == [], heavy
+
+
+def test_report_help_names_the_report_file():
+    from robotcal.cli.report import OUT_HELP
+    from robotcal.io.run_folder import REPORT_NAME
+
+    assert f"DIR/{REPORT_NAME}]" in OUT_HELP
+
+
 def test_version():
     result = runner.invoke(app, ["--version"])
     assert result.exit_code == 0, result.output

@@ -61,6 +61,25 @@ def test_predict_matches_forward_kinematics(tmp_path):
     np.testing.assert_allclose(xyz, rotated, rtol=0, atol=1e-8)
 
 
+def test_predict_says_what_it_wrote_in_a_sentence(tmp_path):
+    """Issue 30: the message was "wrote F (3 poses; given; tracker frame (given))"."""
+    params = tmp_path / "p.json"
+    write_parameters(params, ParameterSet.nominal(ROBOT))
+    poses = tmp_path / "poses.csv"
+    write_trajectory(poses, np.radians([[0.0, -90.0, 90.0, 0.0, 45.0, 0.0]] * 3))
+    out = tmp_path / "pred.csv"
+    result = invoke("predict", params, "--poses", poses, "--target", "60,40,30", "--tracker-from-base",
+                    "1000,0,0,90,0,0", "--out", out)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    assert said == (
+        f"wrote {out}: 3 poses of the flange point (60, 40, 30) mm given by --target, in the tracker frame, given by "
+        "--tracker-from-base"
+    )
+    result = invoke("predict", params, "--poses", poses, "--out", out, "--force")
+    assert " ".join(result.output.split()) == f"wrote {out}: 3 poses of the flange frame, in the robot base frame"
+
+
 def test_predict_errors(tmp_path):
     params = tmp_path / "p.json"
     write_parameters(params, ParameterSet.nominal(ROBOT))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import re
 import subprocess
 import sys
 
@@ -37,6 +38,7 @@ DATA_QUALITY_WARNINGS = pytest.mark.filterwarnings("ignore::robotcal.errors.Robo
 #: Module names whose ``__all__`` entries a sub-package does not re-export, and why.
 NOT_REEXPORTED = {
     ("io", "FORMAT"): "draws_npz.FORMAT and uncertainty_files.FORMAT are two different file formats",
+    ("io", "joints_files"): "the function is named like its module, which the import system binds on the lazy package",
 }
 
 
@@ -70,6 +72,18 @@ def test_import_robotcal_imports_nothing_heavy():
         "print(*sorted(m for m in sys.modules if m.startswith('robotcal') or m in ('numpy', 'scipy', 'pydantic')))\n"
     )
     assert loaded == ["robotcal"]
+
+
+def test_import_robotcal_io_imports_none_of_its_modules():
+    """Issue 30: robotcal.io loads its names on first use, as the robotcal package does (a command's --help
+    that names one of them stays light); a name imports its own module and that module's imports only."""
+    loaded = _fresh_modules(
+        "import sys, robotcal.io\n"
+        "print(*sorted(m for m in sys.modules if m.startswith('robotcal') or m in ('numpy', 'scipy', 'pydantic')))\n"
+        "robotcal.io.builtin_names\n"
+        "print('robotcal.io.builtins' in sys.modules, 'robotcal.io.scenario' in sys.modules)\n"
+    )
+    assert loaded == ["robotcal", "robotcal.io", "True", "False"]
 
 
 def test_a_name_imports_its_module_on_first_use():
@@ -123,6 +137,21 @@ def test_sub_package_all_is_complete_and_resolves(package):
             assert getattr(pkg, name) is getattr(module, name)
     for name in pkg.__all__:
         getattr(pkg, name)
+
+
+def test_the_api_doc_says_what_robot_accepts():
+    """Issue 30: docs/api.md said `robot` accepts a robot or scenario name and a TOML path; the code takes a
+    RobotModel or a Scenario and refuses the rest (the doc now says so, and how to read a name or path)."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "api.md").read_text(encoding="utf-8")
+    row = next(line for line in doc.splitlines() if line.startswith("| `robot` |"))
+    accepted = row.split("|")[2].split("(")[0]
+    assert re.findall(r"`(\w+)`", accepted) == ["RobotModel", "Scenario"]
+    assert "name" not in accepted and "path" not in accepted, row
+    for given in ("kr5-demo", "kuka-kr5-sixx-r650", str(robotcal.io.data_path("scenarios", "kr5-demo.toml"))):
+        with pytest.raises(InputError, match="`robot` must be a RobotModel"):
+            api.check_plan(given)
 
 
 # ----------------------------------------------------------------------------------------------- rng

@@ -217,9 +217,12 @@ def _display(kind: str, value: float) -> float:
     return math.degrees(float(value)) if kind in ANGLE_KINDS else float(value)
 
 
-def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str) -> FittedTable:
-    """Nominal / identified / difference per parameter, in mm and degrees (a :class:`FittedTable`: numbers and
-    parameter names are never broken, whatever the console's width)."""
+def parameter_table(
+    nominal: ParameterSet, identified: ParameterSet, title: str, *, reference: str = "nominal"
+) -> FittedTable:
+    """Reference / identified / difference per parameter, in mm and degrees (a :class:`FittedTable`: numbers and
+    parameter names are never broken, whatever the console's width). ``nominal`` is the reference set, headed
+    ``reference``: the nominal model for ``identify``, the start (e.g. the CPA result) for ``refine``."""
     from robotcal.cli._tables import Column, FittedTable
     from robotcal.kinematics.model import KIND_UNITS, PARAMETER_KINDS
 
@@ -228,7 +231,7 @@ def parameter_table(nominal: ParameterSet, identified: ParameterSet, title: str)
         [
             Column("parameter", "name"),
             Column("unit", "name"),
-            Column("nominal", narrow=1),
+            Column(reference, narrow=1),
             Column("identified"),
             Column("difference"),
         ],
@@ -279,17 +282,19 @@ def model_table(result) -> FittedTable:
     title = f"Model choice ({folds}-fold cross-validation by pose)" if choice else f"{folds}-fold cross-validation by pose"
     table = FittedTable(
         title,
-        [Column("model", "name"), Column("unknowns"), Column("calibration RMS [mm]"), Column("CV RMS [mm]"), Column("", "name")],
+        [Column("model", "name"), Column("unknowns"), Column("calibration RMS [mm]"), Column("CV RMS [mm]")]
+        + ([Column("chosen", "name")] if choice is not None else []),  # one model, nothing chosen: no column
     )
     for candidate in candidates:
-        mark = "chosen" if choice is not None and candidate.model == choice.chosen else ""
-        table.add_row(
+        cells = [
             candidate.model,
             str(candidate.unknowns),
             f"{candidate.calibration_rms_mm:.4f}",
             f"{candidate.cv_rms_mm:.4f}",
-            mark,
-        )
+        ]
+        if choice is not None:
+            cells.append("yes" if candidate.model == choice.chosen else "")
+        table.add_row(*cells)
     return table
 
 
@@ -332,9 +337,70 @@ def print_health(health) -> None:
         raise typer.Exit(code=1)
 
 
+#: Where the output is not a terminal (a file, a pipe, a CI log): the least time between two progress lines [s].
+PROGRESS_LINE_INTERVAL_S = 5.0
+
+
+class LineProgress:
+    """Progress as plain lines, for an output that is not a terminal (a file, a pipe, a CI log), where a Rich
+    bar shows nothing until the work ends: ``title: done of total unit after N s``, at most one line per
+    ``interval_s`` seconds of ``clock`` (at the updates: long work updates every few seconds), and a last
+    line at the end when a line was printed (a short task prints none).
+
+    The part of :class:`rich.progress.Progress` the commands use: a context manager with ``add_task`` and
+    ``update(task, completed=..., total=...)``.
+    """
+
+    def __init__(self, title: str, unit: str, *, console, interval_s: float = PROGRESS_LINE_INTERVAL_S, clock=None):
+        import time
+
+        self.title, self.unit, self.console, self.interval_s = title, unit, console, interval_s
+        self.clock = time.monotonic if clock is None else clock
+        self.tasks: list[dict] = []
+        self.lines = 0
+        self._started = self._last = None
+
+    def __enter__(self) -> LineProgress:
+        self._started = self._last = self.clock()
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        if kind is None and self.lines:
+            for task in self.tasks:
+                self._print(task, " (done)")
+
+    def add_task(self, description: str, total: float | None = None, **fields) -> int:
+        self.tasks.append({"completed": 0, "total": total})
+        return len(self.tasks) - 1
+
+    def update(self, task: int, *, completed: float | None = None, total: float | None = None, advance=None, **fields):
+        entry = self.tasks[task]
+        if total is not None:
+            entry["total"] = total
+        if completed is not None:
+            entry["completed"] = completed
+        if advance is not None:
+            entry["completed"] += advance
+        now = self.clock()
+        if now - self._last >= self.interval_s:
+            self._last = now
+            self._print(entry)
+
+    def _print(self, entry: dict, end: str = "") -> None:
+        done, total = entry["completed"], entry["total"]
+        count = f"{done:,.0f} of {total:,.0f}" if total else f"{done:,.0f}"
+        elapsed = self.clock() - self._started
+        self.console.print(f"{self.title}: {count} {self.unit} after {elapsed:.0f} s{end}", highlight=False, soft_wrap=True)
+        self.lines += 1
+
+
 def progress_bar(title: str, unit: str):
     """A transient Rich progress bar ``title [bar] done/total unit elapsed remaining``; in a narrow console
-    only the bar shrinks (the title and the counts are never cut)."""
+    only the bar shrinks (the title and the counts are never cut). Where the output is not a terminal (a
+    file, a pipe, a CI log: a bar would show nothing), a :class:`LineProgress`: a line every few seconds."""
+    console = __getattr__("console")
+    if not console.is_terminal:
+        return LineProgress(title, unit, console=console, interval_s=PROGRESS_LINE_INTERVAL_S)
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -355,6 +421,6 @@ def progress_bar(title: str, unit: str):
         TextColumn(unit, markup=False, table_column=whole()),
         TimeElapsedColumn(table_column=whole()),
         TimeRemainingColumn(table_column=whole()),
-        console=__getattr__("console"),
+        console=console,
         transient=True,
     )

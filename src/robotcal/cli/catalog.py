@@ -119,11 +119,27 @@ def scenarios() -> None:
         ],
     )
     loaded = list_scenarios()
+    both_ways = []
     for scenario in loaded:
         instrument = scenario.instrument
         terms = (
             f"{instrument.name} ({instrument.a_mm * 1e3:g} um + {instrument.b_mm_per_m * 1e3:g} um/m, "
             f"{instrument.noise})"
         )
-        table.add_row(scenario.name, scenario.robot.name, terms, str(int(scenario.plan.points.sum())), scenario.description)
+        table.add_row(scenario.name, scenario.robot.name, terms, str(captured_points(scenario.plan)), scenario.description)
+        if scenario.plan.bidirectional:
+            both_ways.append(f"{scenario.name}: 2 x {int(scenario.plan.points.sum())}")
     console.print(table)
+    if both_ways:
+        console.print(
+            f"points: every point the capture measures; a bidirectional plan sweeps each circle forward and back "
+            f"({'; '.join(both_ways)})",
+            highlight=False,
+            soft_wrap=True,
+        )
+
+
+def captured_points(plan) -> int:
+    """The points a capture of ``plan`` measures: ``points`` per circle and direction, both directions of a
+    bidirectional plan (what ``robotcal simulate`` writes)."""
+    return int(plan.points.sum()) * (2 if plan.bidirectional else 1)

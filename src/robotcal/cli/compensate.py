@@ -6,14 +6,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors, progress_bar
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
-from robotcal.io.trajectory_csv import pose_labels, read_pose_targets, write_trajectory
-from robotcal.kinematics.compensation import BLOCK_ROWS, STATUSES, CompensationSettings
 
 #: Exit status of a command that wrote its output but some of its rows or points are not ok (their status says why).
 PARTIAL_EXIT = 3
@@ -77,7 +74,11 @@ def compensate(
     targets): on the taught branch, near the taught joints, its joint model (gravity sag, harmonic errors) included.
     Every row is written under its own name with a status (ok, near_singular, large_correction, outside_limits,
     unreachable); rows without a command have empty q cells. Exit status 3 when some row is not ok."""
+    import numpy as np
+
     from robotcal import api
+    from robotcal.io.trajectory_csv import pose_labels, read_pose_targets, write_trajectory
+    from robotcal.kinematics.compensation import BLOCK_ROWS, STATUSES, CompensationSettings
 
     parameters, inputs = load_parameter_set(params, robot, scenario)
     n = parameters.robot.n_joints

@@ -6,22 +6,15 @@ import json
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
-from robotcal import api
 from robotcal.cli._common import FORCE_HELP, check_memory, command_app, console, handle_errors, pairs_bytes
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError
-from robotcal.identification.evaluation import guessed_targets
-from robotcal.io.capture_csv import read_capture
-from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.io.parameters_json import read_parameters, read_targets
-from robotcal.io.scenario import load_scenario
-from robotcal.kinematics.model import ParameterSet
 
 app = command_app()
+
 
 def _label(path: Path, used: set[str]) -> str:
     label = path.stem
@@ -37,6 +30,9 @@ def _borrow_offsets(scenario, set_targets: dict, labels, files: dict, captures: 
     evaluates points of ``captures`` with offsets it did not estimate: borrowed ones, and the unknown targets that
     no set lent it, left at their ``guess_mm`` (the library warns for those: :class:`GuessedOffsetWarning`).
     """
+    from robotcal import api
+    from robotcal.identification.evaluation import guessed_targets
+
     unknown = {t.name for t in scenario.targets if t.frame == "flange" and not t.known}
     if not unknown:
         return {}
@@ -71,6 +67,8 @@ def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
     or registered one) is used as it is; a set without one (the nominal set, a distances-criterion refinement)
     is evaluated in the scenario's ``tracker_from_base``, which the scenario must then give.
     """
+    import numpy as np
+
     bases, notes = {}, {}
     for name, provenance in provenances.items():
         recorded = (provenance or {}).get("tracker_from_base")
@@ -126,6 +124,13 @@ def evaluate(
     ] = False,
 ) -> None:
     """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
+    from robotcal import api
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
+    from robotcal.io.parameters_json import read_parameters, read_targets
+    from robotcal.io.scenario import load_scenario
+    from robotcal.kinematics.model import ParameterSet
+
     inputs = existing_inputs(scenario, *params, *capture)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)

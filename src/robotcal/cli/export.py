@@ -5,28 +5,16 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.errors import InputError
-from robotcal.io import atomic_write_text, load_robot, load_scenario, read_parameters, write_parameters
-from robotcal.io._validation import read_json_file
-from robotcal.io.builtins import builtin_names
-from robotcal.io.export import (
-    EXPORT_FORMATS,
-    dh_table,
-    joint_model_note,
-    mdh_table,
-    parameters_to_ur_yaml,
-    parameters_to_urdf,
-    table_to_csv,
-    table_to_markdown,
-    with_note,
-)
 from robotcal.io.output import check_output_file, existing_inputs, result_file
-from robotcal.kinematics.model import ParameterSet
+
+if TYPE_CHECKING:  # numpy and the model load in the commands: a fast --help (predict, compensate, filter too)
+    from robotcal.kinematics.model import ParameterSet
 
 app = command_app()
 
@@ -50,6 +38,12 @@ def parse_vector(text: str | None, option: str, count: int = 3):
 
 def load_parameter_set(params: Path, robot: str | None, scenario: str | None) -> tuple[ParameterSet, list[Path]]:
     """Read a parameter JSON for the robot of ``--robot``, ``--scenario`` or the JSON's own robot name."""
+    from robotcal.io._validation import read_json_file
+    from robotcal.io.builtins import builtin_names
+    from robotcal.io.parameters_json import read_parameters
+    from robotcal.io.robots import load_robot
+    from robotcal.io.scenario import load_scenario
+
     if robot is not None and scenario is not None:
         raise InputError("give --robot or --scenario, not both")
     inputs = existing_inputs(params, robot, scenario)
@@ -104,6 +98,22 @@ def export(
 ) -> None:
     """Write the calibrated model (or, with --nominal, a robot's nominal model) as JSON, URDF, UR calibration
     YAML or a DH / MDH table (exact, else an error)."""
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.io.export import (
+        EXPORT_FORMATS,
+        dh_table,
+        joint_model_note,
+        mdh_table,
+        parameters_to_ur_yaml,
+        parameters_to_urdf,
+        table_to_csv,
+        table_to_markdown,
+        with_note,
+    )
+    from robotcal.io.parameters_json import write_parameters
+    from robotcal.io.robots import load_robot
+    from robotcal.kinematics.model import ParameterSet
+
     if out is None:
         raise InputError("--out is required: the file to write")
     if format not in EXPORT_FORMATS:

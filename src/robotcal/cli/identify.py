@@ -7,7 +7,6 @@ from typing import Annotated
 
 import typer
 
-from robotcal import api
 from robotcal.cli._common import (
     FORCE_HELP,
     circle_table,
@@ -17,16 +16,7 @@ from robotcal.cli._common import (
     parameter_table,
     print_health,
 )
-from robotcal.identification.cpa import point_rows
-from robotcal.identification.plausibility import OUTLIER_MAD, OUTLIER_U
-from robotcal.identification.plausibility import reject_outliers as drop_outliers
-from robotcal.identification.refine import wrap_angles
-from robotcal.io.capture_csv import read_capture
 from robotcal.io.output import check_output_file, existing_inputs, result_file
-from robotcal.io.parameters_json import write_parameters
-from robotcal.io.provenance import cpa_provenance
-from robotcal.io.scenario import load_scenario
-from robotcal.kinematics.model import ParameterSet
 
 app = command_app()
 
@@ -59,6 +49,17 @@ def identify(
     ] = False,
 ) -> None:
     """Identify the kinematic parameters by Circle Point Analysis and print nominal / identified / difference."""
+    from robotcal import api
+    from robotcal.identification.cpa import point_rows
+    from robotcal.identification.plausibility import OUTLIER_MAD, OUTLIER_U
+    from robotcal.identification.plausibility import reject_outliers as drop_outliers
+    from robotcal.identification.refine import wrap_angles
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.parameters_json import write_parameters
+    from robotcal.io.provenance import cpa_provenance
+    from robotcal.io.scenario import load_scenario
+    from robotcal.kinematics.model import ParameterSet
+
     inputs = existing_inputs(capture, scenario)
     check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)

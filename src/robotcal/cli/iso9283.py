@@ -6,29 +6,19 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
-from robotcal.diagnostics.iso9283 import (
-    ISO_CYCLES,
-    ORIENTATION_AXES,
-    IsoModel,
-    iso_cube_plan,
-    iso_from_capture,
-    scenario_flange_point,
-)
 from robotcal.errors import InputError
-from robotcal.io import atomic_write_text, load_scenario, read_capture, read_parameters
-from robotcal.io.iso9283_files import iso_to_csv
 from robotcal.io.output import check_output_file, existing_inputs, result_file
-from robotcal.io.parameters_json import read_targets, read_tracker_from_base
-from robotcal.io.trajectory_csv import write_trajectory
-from robotcal.kinematics.model import ParameterSet
+from robotcal.limits import ISO_CYCLES
+
+if TYPE_CHECKING:  # numpy and the diagnostics load in the commands: a fast --help
+    import numpy as np
 
 app = command_app()
 
@@ -36,12 +26,18 @@ PROGRAM_SUFFIX = {"krl": ".src", "rapid": ".mod", "urscript": ".script"}
 
 
 def _tracker_from_base(path: Path, default: np.ndarray) -> np.ndarray:
+    from robotcal.io.parameters_json import read_tracker_from_base
+
     matrix = read_tracker_from_base(path)
     return default if matrix is None else matrix
 
 
 def flange_target(scenario, target: str | None) -> np.ndarray:
     """The measured flange point [mm]: ``--target``, else :func:`scenario_flange_point`."""
+    import numpy as np
+
+    from robotcal.diagnostics.iso9283 import scenario_flange_point
+
     if target is not None:
         return np.asarray(parse_vector(target, "--target"), dtype=float)
     return scenario_flange_point(scenario)
@@ -49,6 +45,8 @@ def flange_target(scenario, target: str | None) -> np.ndarray:
 
 def parse_targets_mm(text: str) -> dict:
     """``"name=x,y,z;name=x,y,z"`` -> ``{name: (3,) offset [mm]}`` (``--targets-mm``)."""
+    import numpy as np
+
     out = {}
     for item in (part.strip() for part in text.split(";")):
         if not item:
@@ -72,6 +70,10 @@ def scenario_offsets(scenario) -> dict:
 
 def _model_offsets(path: Path) -> dict | None:
     """The flange target offsets a parameter JSON carries (a refinement's ``targets``: estimates of unknown ones)."""
+    import numpy as np
+
+    from robotcal.io.parameters_json import read_targets
+
     return {name: np.asarray(v, dtype=float) for name, v in read_targets(path).items()} or None
 
 
@@ -105,6 +107,16 @@ def iso9283(
     """ISO 9283 pose accuracy (AP, APa/b/c) and repeatability (RP, RPa/b/c), distance accuracy (AD) and
     repeatability (RD). With three or more flange targets per pose (a `target` column) the flange
     orientation is measured too."""
+    import numpy as np
+
+    from robotcal.diagnostics.iso9283 import ORIENTATION_AXES, IsoModel, iso_from_capture
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.iso9283_files import iso_to_csv
+    from robotcal.io.parameters_json import read_parameters
+    from robotcal.io.scenario import load_scenario
+    from robotcal.kinematics.model import ParameterSet
+
     if orientation_axes not in ORIENTATION_AXES:
         raise InputError(f"--orientation-axes must be one of {', '.join(ORIENTATION_AXES)}; got {orientation_axes!r}")
     pair = parse_vector(distance_poses, "--distance-poses", 2)
@@ -209,6 +221,13 @@ def iso9283_plan(
 ) -> None:
     """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
     with --program also as a robot program (a joint move and a dwell per pose)."""
+    import numpy as np
+
+    from robotcal.diagnostics.iso9283 import iso_cube_plan
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.io.scenario import load_scenario
+    from robotcal.io.trajectory_csv import write_trajectory
+    from robotcal.kinematics.model import ParameterSet
     from robotcal.planning.program import LANGUAGES, program_name
 
     loaded = load_scenario(scenario)
@@ -264,7 +283,7 @@ def iso_program(
 ) -> str:
     """The ISO 9283 plan (readings of the scenario's robot, cycle-major P1..P5) as a robot program:
     one joint move per test pose, a dwell for the measurement and a comment "cycle c Pk"."""
-    from robotcal.io import load_robot
+    from robotcal.io.robots import load_robot
     from robotcal.planning.program import controller_readings, write_program
 
     target = None if controller is None else load_robot(controller)

@@ -4,19 +4,16 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
-from robotcal import api
 from robotcal.cli._common import FORCE_HELP, command_app, console, error_console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
-from robotcal.diagnostics import JointDiagnostics
-from robotcal.io.capture_csv import read_capture
-from robotcal.io.joints_files import write_joints_folder
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.io.scenario import load_scenario
+
+if TYPE_CHECKING:  # numpy and the diagnostics load in the command: a fast --help
+    from robotcal.diagnostics import JointDiagnostics
 
 app = command_app()
 
@@ -37,11 +34,13 @@ def _table(diagnostics: JointDiagnostics) -> FittedTable:
     def um(value):
         return "-" if not math.isfinite(value) else f"{value * 1000:.2f}"
 
+    def degrees(value):
+        return "-" if not math.isfinite(value) else f"{math.degrees(value):+.5f}"
+
     for s in diagnostics.summary():
-        angle = "-" if not math.isfinite(s.backlash_angle_mean) else f"{np.rad2deg(s.backlash_angle_mean):+.5f}"
         table.add_row(
             f"J{s.joint}", str(s.points), str(s.pairs), um(s.plane_rms), um(s.circle_rms),
-            um(s.backlash_max), um(s.backlash_min), um(s.backlash_mean), angle,
+            um(s.backlash_max), um(s.backlash_min), um(s.backlash_mean), degrees(s.backlash_angle_mean),
         )  # fmt: skip
     return table
 
@@ -67,6 +66,11 @@ def joints(
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Backlash and axial/radial eccentricity per joint (thesis ch. 4.6), with a harmonic model."""
+    from robotcal import api
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.joints_files import write_joints_folder
+    from robotcal.io.scenario import load_scenario
+
     inputs = existing_inputs(capture, scenario)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
@@ -84,4 +88,4 @@ def joints(
     console.print(_table(diagnostics))
     for note in (*diagnostics.messages, *model.messages):
         error_console.print(f"note: {note}", highlight=False)
-    console.print(f"wrote {out}: {', '.join(files)}", highlight=False)
+    console.print(f"wrote {out}: {', '.join(files)}", highlight=False, soft_wrap=True)

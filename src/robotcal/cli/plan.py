@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._common import command_app, console, handle_errors, progress_bar
 
 if TYPE_CHECKING:  # numpy and the planning library load in the commands: a fast --help
     from robotcal.cli._tables import FittedTable
@@ -111,8 +111,9 @@ def check(
     console.print("feasible: every point passes every check")
 
 
-def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, workers: int) -> float:
-    """Workspace p95 TCP position uncertainty [mm] of ``plan`` by a Monte Carlo of ``iterations`` draws."""
+def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, workers: int, progress=None) -> float:
+    """Workspace p95 TCP position uncertainty [mm] of ``plan`` by a Monte Carlo of ``iterations`` draws
+    (``progress(draws_done, draws)`` after every block of draws)."""
     import dataclasses
 
     import numpy as np
@@ -121,7 +122,9 @@ def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, wo
     from robotcal.uncertainty.workspace import workspace_uncertainty
 
     variant = dataclasses.replace(scenario, plan=plan, joint_errors=None, joint_limits="ignore")
-    result = api.monte_carlo(variant, draws=iterations, rng=seed, workers=workers, linearised=False)
+    result = api.monte_carlo(
+        variant, draws=iterations, rng=seed, workers=workers, linearised=False, progress=progress
+    )
     workspace = workspace_uncertainty(scenario.robot, result.draws, readings=readings)
     return float(np.percentile(workspace.position_uncertainty, 95.0))
 
@@ -187,26 +190,29 @@ def optimise(
     problem, readings = PlanProblem.from_scenario(
         loaded, cell, workspace_poses=workspace_poses, seed=seed, objective=objective
     )
-    result = optimise_plan(
-        loaded.plan,
-        problem,
-        budget=budget,
-        generations=generations,
-        population=population,
-        seed=seed,
-        workers=workers,
-        scheduler=scheduler,
-    )
+    with progress_bar("plan search", "generations") as display:  # a bar, or a line every few seconds when piped
+        task = display.add_task("search", total=generations)
+        result = optimise_plan(
+            loaded.plan,
+            problem,
+            budget=budget,
+            generations=generations,
+            population=population,
+            seed=seed,
+            workers=workers,
+            scheduler=scheduler,
+            progress=lambda done, total: display.update(task, completed=done, total=total),
+        )
     feasible = check_plan(loaded.robot, result.plan, cell).feasible
     mc_workers = min(os.cpu_count() or 1, 2)
-    confirmed = {
-        "baseline": _monte_carlo_p95(
-            loaded, loaded.plan, readings, iterations=confirm_draws, seed=seed + 1, workers=mc_workers
-        ),
-        "optimised": _monte_carlo_p95(
-            loaded, result.plan, readings, iterations=confirm_draws, seed=seed + 1, workers=mc_workers
-        ),
-    }
+    confirmed = {}
+    with progress_bar("Monte Carlo of baseline and optimised plans", "draws") as display:
+        task = display.add_task("confirm", total=2 * confirm_draws)
+        for k, (name, plan) in enumerate((("baseline", loaded.plan), ("optimised", result.plan))):
+            confirmed[name] = _monte_carlo_p95(
+                loaded, plan, readings, iterations=confirm_draws, seed=seed + 1, workers=mc_workers,
+                progress=lambda done, _, before=k * confirm_draws: display.update(task, completed=before + done),
+            )  # fmt: skip
     ratio = confirmed["baseline"] / confirmed["optimised"]
     document, _, _, _ = scenario_document(scenario)
     capture = dict(document["capture"])

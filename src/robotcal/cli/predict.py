@@ -10,19 +10,17 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 from robotcal.errors import InputError
-from robotcal.geometry.euler import kuka_abc_from_matrix, matrix_from_kuka_abc
-from robotcal.io import atomic_write_text
 from robotcal.io.output import check_output_file, existing_inputs, result_file
-from robotcal.io.trajectory_csv import read_trajectory
-from robotcal.kinematics.forward import forward_kinematics
+
+if TYPE_CHECKING:  # numpy and the kinematics load in the command: a fast --help
+    import numpy as np
 
 app = command_app()
 
@@ -35,6 +33,10 @@ def predict_frames(parameters, readings, *, target=None, world_from_base=None) -
     The tool frame is the flange frame translated to ``target`` (flange-frame offset [mm], zero for
     the flange); ``world_from_base`` (4, 4) defaults to the identity (robot base = DH frame {0}).
     """
+    import numpy as np
+
+    from robotcal.kinematics.forward import forward_kinematics
+
     frames = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))
     if target is not None:
         tool = np.eye(4)
@@ -51,6 +53,8 @@ def flange_target_mm(text: str, *, params: Path, scenario=None) -> tuple[np.ndar
 
     Returns the offset [mm] and a few words on where it came from.
     """
+    import numpy as np
+
     from robotcal.io.parameters_json import read_targets
 
     parts = text.split(",")
@@ -85,6 +89,9 @@ def flange_target_mm(text: str, *, params: Path, scenario=None) -> tuple[np.ndar
 def world_from_base_of(text: str, *, params: Path, scenario=None) -> tuple[np.ndarray, str]:
     """``--tracker-from-base``: ``"x,y,z,A,B,C"`` [mm, deg KUKA], ``params`` (the JSON's
     ``provenance.tracker_from_base``) or ``scenario`` (its ``tracker_from_base``, which it must declare)."""
+    import numpy as np
+
+    from robotcal.geometry.euler import matrix_from_kuka_abc
     from robotcal.io.builtins import read_toml
     from robotcal.io.parameters_json import read_tracker_from_base
 
@@ -117,6 +124,10 @@ def world_from_base_of(text: str, *, params: Path, scenario=None) -> tuple[np.nd
 
 def predictions_to_csv(frames) -> str:
     """CSV ``pose,x,y,z,A,B,C`` (mm, KUKA deg ``R = Rz(A) Ry(B) Rx(C)``; 9 decimals)."""
+    import numpy as np
+
+    from robotcal.geometry.euler import kuka_abc_from_matrix
+
     abc = np.degrees(kuka_abc_from_matrix(frames))
     lines = [",".join(PREDICT_COLUMNS)]
     for i, (frame, angles) in enumerate(zip(frames, abc, strict=True)):
@@ -153,7 +164,9 @@ def predict(
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Forward kinematics of the flange or of any flange point at given poses, with the calibrated model."""
-    from robotcal.io import load_scenario
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.io.scenario import load_scenario
+    from robotcal.io.trajectory_csv import read_trajectory
     from robotcal.uncertainty.tcp import check_readings
 
     if target is not None and flange:
@@ -171,5 +184,25 @@ def predict(
     frames = predict_frames(parameters, readings, target=point, world_from_base=world_from_base)
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, predictions_to_csv(frames))
-    frame = f"tracker frame ({frame_from})" if world_from_base is not None else "robot base"
-    console.print(f"wrote {out} ({frames.shape[0]} poses; {point_from}; {frame})", highlight=False)
+    console.print(f"wrote {out}: {prediction_summary(frames.shape[0], point, point_from, frame_from)}", highlight=False)
+
+
+def prediction_summary(n_poses: int, point, point_from: str, frame_from: str) -> str:
+    """What ``predict`` wrote, as a sentence: ``"3 poses of the flange point (60, 40, 30) mm given by --target,
+    in the tracker frame, from the base frame recorded in refined.json"``.
+
+    ``point``: the flange point [mm] (None: the flange frame); ``point_from``, ``frame_from``: where the point and
+    the base frame come from, as :func:`flange_target_mm` and :func:`world_from_base_of` say ("given": the option's
+    numbers; ``frame_from`` empty: no base frame, the robot base).
+    """
+    poses = f"{n_poses} pose{'s' if n_poses != 1 else ''}"
+    if point is None:
+        what = "the flange frame"
+    else:
+        where = "given by --target" if point_from == "given" else f"of {point_from}"
+        what = f"the flange point ({', '.join(f'{v:g}' for v in point)}) mm {where}"
+    if not frame_from:
+        frame = "in the robot base frame"
+    else:
+        frame = "in the tracker frame, " + ("given by --tracker-from-base" if frame_from == "given" else f"from {frame_from}")
+    return f"{poses} of {what}, {frame}"

@@ -10,15 +10,19 @@ import typer
 
 from robotcal.cli._common import FORCE_HELP, _line, command_app, console, error_console, handle_errors
 from robotcal.errors import InputError
-from robotcal.io.output import result_file
-from robotcal.report.html import REPORT_NAME, build_report
 
 app = command_app()
+
+#: Help of ``--out``: the report's name is :data:`robotcal.io.run_folder.REPORT_NAME` (a module that loads numpy,
+#: so not imported for the help; tests/cli/test_lazy_cli.py checks the two agree).
+OUT_HELP = "HTML file to write [default: DIR/report.html]."
 
 
 def _run_files(run_dir: Path) -> list[Path]:
     """Every file the report may read (the inputs no ``--out`` may replace): the run folder's files and
     the targets of its links, except the folder's own ``report.html``."""
+    from robotcal.io.run_folder import REPORT_NAME
+
     if not run_dir.is_dir():
         return []
     own = run_dir / REPORT_NAME
@@ -30,11 +34,14 @@ def _run_files(run_dir: Path) -> list[Path]:
 def report(
     run_dir: Annotated[Path, typer.Argument(help="Run folder written by `robotcal run` (docs/results.md).")],
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help=f"HTML file to write [default: DIR/{REPORT_NAME}].")
+        Path | None, typer.Option("--out", "-o", help=OUT_HELP)
     ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Build the self-contained HTML calibration report of a run folder, from the saved results only."""
+    from robotcal.io.output import result_file
+    from robotcal.report.html import REPORT_NAME, build_report
+
     started = time.perf_counter()
     if not run_dir.exists():
         raise InputError(f"{run_dir}: run folder not found")  # before the lock makes the folder

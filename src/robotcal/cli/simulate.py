@@ -7,10 +7,8 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
-from robotcal import api
 from robotcal.cli._common import (
     BYTES_PER_POSE,
     FORCE_HELP,
@@ -21,10 +19,7 @@ from robotcal.cli._common import (
     handle_errors,
 )
 from robotcal.errors import InputError
-from robotcal.io import load_scenario, read_parameters, write_capture, write_parameters
 from robotcal.io.output import existing_inputs, result_file
-from robotcal.io.provenance import versions
-from robotcal.io.scenario import TruthTable, ValidationTable
 
 app = command_app()
 
@@ -90,6 +85,8 @@ def simulate(
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Simulate the scenario's capture and write it as a capture CSV."""
+    from robotcal.io.scenario import ValidationTable, load_scenario
+
     loaded = load_scenario(scenario)
     if true_params is not None and truth_out is not None:
         raise InputError("give either --true-params (an existing truth) or --truth-out (a new perturbed truth)")
@@ -124,6 +121,8 @@ def free_pose_targets(scenario, names: str | None, targets_mm: str | None, true_
     declared offset; a target declared unknown without one of the first two is an error (its guess is
     not a truth).
     """
+    import numpy as np
+
     from robotcal.cli.iso9283 import parse_targets_mm
     from robotcal.io.parameters_json import read_targets
 
@@ -170,6 +169,9 @@ def free_pose_targets(scenario, names: str | None, targets_mm: str | None, true_
 
 def _simulate_free(loaded, seed, truth, free):
     """A capture of several flange targets at random or given free poses (``--free-poses``, ``--poses``)."""
+    import numpy as np
+
+    from robotcal import api
     from robotcal.io.trajectory_csv import read_trajectory
 
     count, pose_file, names, targets_mm, true_params = free
@@ -191,6 +193,12 @@ def _simulate_free(loaded, seed, truth, free):
 
 
 def _simulate(loaded, out, seed, true_params, truth_out, validation, free=None) -> None:
+    from robotcal import api
+    from robotcal.io.capture_csv import write_capture
+    from robotcal.io.parameters_json import read_parameters, write_parameters
+    from robotcal.io.provenance import versions
+    from robotcal.io.scenario import TruthTable
+
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     if truth_out is not None:
         truth_seed = api.seed_from(None, (loaded.truth or TruthTable()).seed)
@@ -206,7 +214,7 @@ def _simulate(loaded, out, seed, true_params, truth_out, validation, free=None) 
                 "versions": versions(),
             },
         )
-        console.print(f"wrote {truth_out}: perturbed 'true' robot (seed {truth_seed})", highlight=False)
+        console.print(f"wrote {truth_out}: perturbed 'true' robot (seed {truth_seed})", highlight=False, soft_wrap=True)
     if free is not None:
         capture, kind, used_seed = _simulate_free(loaded, seed, truth, (*free, true_params))
     elif validation:
@@ -220,4 +228,5 @@ def _simulate(loaded, out, seed, true_params, truth_out, validation, free=None) 
         f"wrote {out}: {kind} "
         f"(scenario {loaded.name}, instrument {loaded.instrument.name}, noise {loaded.instrument.noise}, seed {used_seed})",
         highlight=False,
+        soft_wrap=True,  # one line, also where the console is 80 columns (piped): the seed stays on it
     )

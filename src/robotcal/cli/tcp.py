@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
-from robotcal import api
 from robotcal.cli._common import (
     BYTES_PER_POSE,
     FORCE_HELP,
@@ -22,20 +21,23 @@ from robotcal.cli._common import (
 )
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError, JointLimitWarning
-from robotcal.io.draws_npz import ParameterDraws, read_draws
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-from robotcal.io.provenance import versions
-from robotcal.io.tcp_results import write_tcp_folder
-from robotcal.io.trajectory_csv import load_trajectory
-from robotcal.uncertainty.statistics import INTERVAL_KINDS
-from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS, TCPUncertainty, check_readings
+
+if TYPE_CHECKING:  # numpy, the draws and the uncertainty library load in the command: a fast --help
+    import numpy as np
+
+    from robotcal.io.draws_npz import ParameterDraws
+    from robotcal.uncertainty.tcp import TCPUncertainty
 
 app = command_app()
 
-_DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
+#: Display factor of each TCP coordinate: X, Y, Z in mm as they are; A, B, C from rad to deg.
+_DEG = (1.0, 1.0, 1.0, *([180.0 / math.pi] * 3))
 
 
 def _numbers(text: str, option: str, count: int | None = None) -> np.ndarray:
+    import numpy as np
+
     parts = [part.strip() for part in text.replace(";", ",").split(",")]
     if any(not part for part in parts):
         raise InputError(f"{option} {text!r}: an empty field; expected comma-separated numbers")
@@ -71,6 +73,8 @@ def _subset(loaded: ParameterDraws, max_draws: int | None) -> np.ndarray:
 
 
 def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> FittedTable:
+    from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS
+
     low, high = result.summary.interval(interval)
     table = FittedTable(
         f"TCP at pose {pose + 1} ({result.n_draws} draws)",
@@ -130,6 +134,16 @@ def tcp(
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """TCP position (X, Y, Z) and KUKA orientation (A, B, C) uncertainty at a pose, along a trajectory, or over the workspace."""
+    import numpy as np
+
+    from robotcal import api
+    from robotcal.io.draws_npz import read_draws
+    from robotcal.io.provenance import versions
+    from robotcal.io.tcp_results import write_tcp_folder
+    from robotcal.io.trajectory_csv import load_trajectory
+    from robotcal.uncertainty.statistics import INTERVAL_KINDS
+    from robotcal.uncertainty.tcp import check_readings
+
     started = time.perf_counter()
     if sum(option is not None for option in (pose, trajectory, workspace)) != 1:
         raise InputError("give exactly one of --pose, --trajectory and --workspace")

@@ -33,6 +33,7 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import forward_kinematics
+from robotcal.limits import ISO_CYCLES
 
 __all__ = [
     "ISO_CYCLES",
@@ -56,8 +57,6 @@ __all__ = [
     "simulate_attained_positions",
 ]
 
-#: Cycles of the standard's pose test.
-ISO_CYCLES = 30
 _FRACTION = 0.1  # P2..P5 at 10 % of the diagonal from the corners
 
 

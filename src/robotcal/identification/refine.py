@@ -1540,8 +1540,20 @@ def _report_held(
     text = f"{setup.capture.source}: " + "; ".join(parts)
     if strict and set(gauge + held) - set(verdict.accepted):
         raise IdentifiabilityError(text, parameters=gauge + held)
-    suffix = "; they are held at their start values" if gauge or held else ""
-    warnings.warn(text + suffix, IdentifiabilityWarning, stacklevel=3)
+    warnings.warn(text + _held_clause(setup, verdict), IdentifiabilityWarning, stacklevel=3)
+
+
+def _held_clause(setup: _Setup, verdict: _Verdict) -> str:
+    """The warning's last clause: what is held at its start value, in the number its names need, and not again
+    what the flange-frame note already says it holds (joint n's parameters)."""
+    n = setup.start.robot.n_joints
+    said = {name for name in verdict.held if name.startswith(f"J{n}.")} if verdict.flange_frame else set()
+    rest = [name for name in verdict.gauge + verdict.held if name not in said]
+    if not rest:
+        return ""
+    if said:  # the note named joint n's: name the others, so that "they" means no more than these
+        return f"; {', '.join(rest)} {'is' if len(rest) == 1 else 'are'} held at {'its start value' if len(rest) == 1 else 'their start values'}"
+    return "; it is held at its start value" if len(rest) == 1 else "; they are held at their start values"
 
 
 def _covariance(jac, x_scale, residuals, noise_map) -> tuple[np.ndarray | None, float, float]:

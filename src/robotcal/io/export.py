@@ -58,6 +58,8 @@ EXPORT_FORMATS = ("json", "urdf", "ur-yaml", "dh", "mdh")
 #: Joint names of the UR calibration file, J1..J6.
 UR_JOINT_NAMES = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
 _EXACT = 1e-12  # a value is "zero" for a convention check below this [mm, rad]
+#: How every refusal of an export points to the exact forms that hold what it cannot (:func:`_instead`).
+_EXACT_INSTEAD = "exact equivalent that holds it"
 #: Where a Hayati beta (nearly parallel axes, thesis ch. 3.4.5) rules out a DH table: the exact forms that hold it.
 BETA_ALTERNATIVES = (
     "exact equivalents that hold it: --format urdf (each joint's origin as x, y, z, roll, pitch, yaw: ROS, MoveIt, "
@@ -65,6 +67,16 @@ BETA_ALTERNATIVES = (
     "--format json (the hybrid DH / Hayati model itself); `robotcal compensate` and `robotcal filter` carry the whole "
     "model to a controller that only knows its nominal DH"
 )
+
+
+def _instead(option: str, what: str) -> str:
+    """The pointer a refusal ends with, worded as :data:`BETA_ALTERNATIVES`: ``exact equivalent that holds it:
+    OPTION (what it writes)``."""
+    return f"{_EXACT_INSTEAD}: {option} ({what})"
+
+
+#: What the model-variable export writes, for the pointers of a coupled robot's refusals.
+_MODEL_VARIABLES = "the model variables as the joint values; convert readings with the robot's reading map"
 
 
 def _float(value: float) -> str:
@@ -146,8 +158,7 @@ def require_uncoupled(robot, what: str) -> None:
     if joints:
         raise InputError(
             f"robot {robot.name!r}: the readings of {', '.join(joints)} are coupled to other joints "
-            f"(`reading_coupling`), which {what} cannot express; export the model variables instead "
-            "(robotcal export --joint-variable model) and convert readings with the robot's reading map"
+            f"(`reading_coupling`), which {what} cannot express; {_instead('--joint-variable model', _MODEL_VARIABLES)}"
         )
 
 
@@ -267,7 +278,7 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
         raise InputError(
             f"robot {robot.name!r}: the readings of {', '.join(joints)} are coupled to other joints "
             "(`reading_coupling`); the UR calibration YAML turns each joint by its own reading and cannot hold a "
-            "coupled robot (export --format urdf --joint-variable model instead)"
+            f"coupled robot; {_instead('--format urdf --joint-variable model', _MODEL_VARIABLES)}"
         )
     if robot.n_joints != 6:
         raise InputError(f"the UR calibration YAML needs 6 joints; robot {robot.name!r} has {robot.n_joints}")
@@ -275,14 +286,15 @@ def parameters_to_ur_yaml(parameters: ParameterSet) -> str:
     if bad:
         raise InputError(
             f"the UR calibration YAML turns every joint about +z; {', '.join(bad)} of robot {robot.name!r} "
-            "have reading_sign = -1 (export --format urdf instead)"
+            f"{'has' if len(bad) == 1 else 'have'} reading_sign = -1; "
+            f"{_instead('--format urdf', 'each joint turning about its own axis, -z included')}"
         )
     tail = parameters.values[5, 2:]
     if np.any(np.abs(tail) > _EXACT):
         names = [f"J6.{k}" for k, v in zip(("a", "alpha", "beta"), tail, strict=True) if abs(v) > _EXACT]
         raise InputError(
-            f"the UR calibration YAML has no flange offset after wrist_3; {', '.join(names)} != 0 "
-            "(export --format urdf instead, which carries it as the fixed flange joint)"
+            f"the UR calibration YAML has no flange offset after wrist_3; {', '.join(names)} != 0; "
+            f"{_instead('--format urdf', 'the flange offset as its fixed flange joint')}"
         )
     origins, _, _ = joint_origins(parameters, joint_variable="reading")
     lines = [

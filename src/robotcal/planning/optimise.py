@@ -24,6 +24,7 @@ scored, in parallel through :mod:`robotcal.execution` when workers or a schedule
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -244,12 +245,13 @@ def optimise_plan(
     seed: int = 0,
     workers: int = 1,
     scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> OptimisationResult:
     """Search for a feasible plan of ``budget`` points (per direction) minimising ``problem.objective``.
 
     The baseline (the scenario's plan, its points re-allocated to the budget) seeds the search; a
     baseline that fails the cell check is repaired first. Deterministic for a given ``seed`` and any
-    backend.
+    backend. ``progress(generations_done, generations)``, if given, is called after every generation.
     """
     from robotcal.execution import open_executor
 
@@ -275,7 +277,7 @@ def optimise_plan(
     history = []
     with open_executor(workers=workers, scheduler=scheduler) as executor:
         kind = executor.kind
-        for _ in range(generations):
+        for generation in range(generations):
             candidates = []
             for _ in range(population):
                 mutant = _mutate(current, robot, problem.cell.capsule_radius, budget, rng)
@@ -289,6 +291,8 @@ def optimise_plan(
                 if figures[problem.objective] < best_value:
                     current, best_value, best_figures = candidate, figures[problem.objective], figures
             history.append(best_value)
+            if progress is not None:
+                progress(generation + 1, generations)
     if not np.isfinite(best_value):
         raise RobotcalError("plan optimise found no feasible plan: relax the cell (acceptance, radii) or the budget")
     return OptimisationResult(

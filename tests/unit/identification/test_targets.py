@@ -172,6 +172,32 @@ def test_strict_does_not_refuse_the_flange_frame_held_for_unknown_offsets():
     assert result.success
 
 
+def _held_warning(*args, **kwargs) -> str:
+    with pytest.warns(IdentifiabilityWarning) as caught:
+        refine_parameters(*args, **kwargs)
+    (warning,) = [w for w in caught if issubclass(w.category, IdentifiabilityWarning)]
+    return str(warning.message)
+
+
+def test_one_held_parameter_is_an_it():
+    """Issue 30: "... cannot determine J6.alpha ...; they are held at their start values"."""
+    known = Target(name="T1", frame="flange", positions=TRUE_OFFSETS[0])
+    capture, _ = _capture()
+    message = _held_warning(capture, ParameterSet.nominal(ROBOT), (known, *UNKNOWN[1:]), tracker_from_base=TRACKER)
+    assert "cannot determine J6.alpha from this capture" in message
+    assert message.endswith("; it is held at its start value")
+
+
+def test_the_flange_frame_warning_says_held_once():
+    """Issue 30: the flange-frame clause says J6's parameters are held, and "; they are held at their start
+    values" followed it again."""
+    capture, _ = _capture()
+    message = _held_warning(capture, ParameterSet.nominal(ROBOT), UNKNOWN, tracker_from_base=TRACKER)
+    assert message.count("held at their start values") == 1, message
+    assert message.endswith("J6.d, J6.theta, J6.a, J6.alpha are held at their start values and the offsets of T1, T2, "
+                            "T3 are estimated in that flange frame")  # fmt: skip
+
+
 def test_undeclared_target_name_is_an_input_error():
     capture, _ = _capture()
     with pytest.raises(InputError, match="names target 'T3', which is not declared"):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 
 import numpy as np
 import pytest
@@ -153,6 +154,43 @@ def test_ur_yaml_refuses_what_it_cannot_hold():
         parameters_to_ur_yaml(_perturbed("kuka-kr5-sixx-r650-krc", 6))
 
 
+def _refusal(export, parameters) -> str:
+    with pytest.raises(InputError) as raised:
+        export(parameters)
+    return str(raised.value)
+
+
+# Issue 30: `export --format dh` pointed to URDF with "exact equivalents that hold it: --format urdf (...)", the UR
+# YAML's and the coupled robot's refusals with "(export --format urdf instead)": every refusal now ends the same way.
+POINTER = r"; exact equivalents? that holds? it: --format urdf \("
+
+
+def test_dh_beta_refusal_points_to_the_exact_formats():
+    assert re.search(POINTER, _refusal(dh_table, _perturbed("kuka-kr5-sixx-r650-krc", 12)))
+
+
+def test_ur_yaml_reading_sign_refusal_points_the_same_way():
+    message = _refusal(parameters_to_ur_yaml, _perturbed("kuka-kr5-sixx-r650-krc", 6))
+    assert re.search(POINTER + r"each joint turning about its own axis, -z included\)$", message), message
+    assert "instead" not in message
+
+
+def test_ur_yaml_flange_offset_refusal_points_the_same_way():
+    parameters = _perturbed("kuka-kr5-sixx-r650", 6)
+    values = parameters.values.copy()
+    values[5, 2:] = [0.3, 0.0, 0.0]
+    message = _refusal(parameters_to_ur_yaml, parameters.replace(values=values))
+    assert re.search(POINTER + r"the flange offset as its fixed flange joint\)$", message), message
+
+
+def test_coupled_robot_refusals_point_the_same_way():
+    parameters = _perturbed("fanuc-style-coupled", 8, zero_beta=True)
+    message = _refusal(parameters_to_ur_yaml, parameters)
+    assert re.search(r"; exact equivalent that holds it: --format urdf --joint-variable model \(the model variables", message)
+    message = _refusal(dh_table, parameters)
+    assert re.search(r"; exact equivalent that holds it: --joint-variable model \(the model variables", message), message
+
+
 def _rows(text: str) -> list[dict]:
     return list(csv.DictReader(io.StringIO(text)))
 
@@ -219,7 +257,7 @@ def test_coupled_readings_export_the_model_variables_only(tmp_path):
         with pytest.raises(InputError, match=r"J3 are coupled.*--joint-variable model"):
             export(without_beta)
     # the UR YAML has no model-variable form: its error says so instead of suggesting an option it ignores
-    with pytest.raises(InputError, match=r"cannot hold a coupled robot \(export --format urdf --joint-variable model"):
+    with pytest.raises(InputError, match=r"cannot hold a coupled robot; exact equivalent that holds it: --format urdf --joint-variable model"):
         parameters_to_ur_yaml(without_beta)
     # dh / mdh with joint_variable="model": reading_sign 1, offset 0, and the table composes FK at q = M^-1 r + o
     readings = np.random.default_rng(21).uniform(-1.0, 1.0, (100, 6))
