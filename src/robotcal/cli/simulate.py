@@ -126,9 +126,17 @@ def free_pose_targets(scenario, names: str | None, targets_mm: str | None, true_
     from robotcal.cli.iso9283 import parse_targets_mm
     from robotcal.io.parameters_json import read_targets
 
+
     declared = {t.name: t for t in scenario.targets if t.frame == "flange"}
     if names is None:
-        chosen = list(declared)
+        # one reflector, one target: the calibration poses' "flange" target sits where [validation]'s does
+        chosen, offsets = [], []
+        for name, target in declared.items():
+            if target.known and any(np.array_equal(target.positions, seen) for seen in offsets):
+                continue
+            chosen.append(name)
+            if target.known:
+                offsets.append(target.positions)
         if not chosen:
             raise InputError(
                 f"{scenario.source}: no flange target to measure at free poses; declare [[targets]] with flange_mm "
