@@ -27,7 +27,7 @@ def import_(
     out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write (circle,direction,q1..qN,x,y,z,...).")],
     columns: Annotated[str | None, typer.Option("--columns", help=COLUMNS_HELP)] = None,
     units: Annotated[
-        str | None, typer.Option("--units", help="Unit of the export's coordinates: mm | m | in (default: its header).")
+        str | None, typer.Option("--units", help="Unit of the export's coordinates: mm | m | in | um (default: its header).")
     ] = None,
     delimiter: Annotated[
         str | None, typer.Option("--delimiter", help="Delimiter of the export: ',' | ';' | tab | space (default: detected).")
@@ -38,6 +38,14 @@ def import_(
     join: Annotated[
         str, typer.Option("--join", help="name: point names = pose names of the log | order: point k <-> row k.")
     ] = "name",
+    encoding: Annotated[
+        str,
+        typer.Option(
+            "--encoding",
+            help="Text encoding of the export and the log (e.g. cp1252, latin-1: Windows exports with '[µm]' or "
+            "'[°C]' headers).",
+        ),
+    ] = "utf-8",
     target: Annotated[
         str | None, typer.Option("--target", help="Target name for every point (when no file has a target column).")
     ] = None,
@@ -69,9 +77,10 @@ def import_(
     check_output_file(out, inputs=inputs, force=force)
     # names are checked after the join (a target column in either file may tell points apart)
     points = read_tracker_export(
-        export, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False
-    )
-    log = read_joint_log(joints, n_joints=n_joints, check_names=False)
+        export, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False,
+        encoding=encoding,
+    )  # fmt: skip
+    log = read_joint_log(joints, n_joints=n_joints, check_names=False, encoding=encoding)
     capture = join_points_to_readings(points, log, join=join, target=target)
     with result_file(out, inputs=inputs, force=force):
         write_capture(out, capture)

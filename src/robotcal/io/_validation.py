@@ -37,14 +37,25 @@ TomlFloat = Annotated[float, Strict(), AllowInfNan(False)]
 TomlBool = Annotated[bool, Strict()]
 
 
-def read_text_file(path, *, kind: str = "file") -> str:
-    """The UTF-8 text of ``path`` (a BOM is dropped); every failure is an :class:`InputError`.
+#: What a byte that is not UTF-8 most likely is, for the message: exports of Windows tools (Leica's, among them)
+#: write Latin-1 / cp1252, whose "µ" (0xb5) and "°" (0xb0) appear in their unit headers ("[µm]", "[°C]").
+_LEGACY_HINT = "cp1252"
+
+
+def read_text_file(path, *, kind: str = "file", encoding: str = "utf-8", encoding_option: str | None = None) -> str:
+    """The text of ``path`` (UTF-8 by default; a UTF-8 BOM is dropped); every failure is an :class:`InputError`.
 
     Refused with a message naming the file: a missing file, a folder, an unreadable file, a file
-    over :data:`MAX_FILE_BYTES`, bytes that are not UTF-8 and text holding NUL characters (binary).
-    ``kind`` names what was expected ("capture CSV", "scenario TOML", ...).
+    over :data:`MAX_FILE_BYTES`, bytes that are not text in ``encoding`` (the message names the byte, how it reads
+    in cp1252, and the ``--encoding`` to give) and text holding NUL characters (binary).
+    ``kind`` names what was expected ("capture CSV", "scenario TOML", ...); ``encoding`` a Python codec name;
+    ``encoding_option`` the command-line option that sets it, named in the message (readers with one).
     """
     path = Path(path)
+    try:
+        "".encode(encoding)
+    except LookupError:
+        raise InputError(f"{path}: unknown text encoding {encoding!r} (e.g. utf-8, cp1252, latin-1)") from None
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
@@ -56,11 +67,18 @@ def read_text_file(path, *, kind: str = "file") -> str:
         raise InputError(f"{path}: is a folder, not a {kind}") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    codec = "utf-8-sig" if encoding.replace("_", "-").lower() in ("utf-8", "utf8") else encoding
     try:
-        text = raw.decode("utf-8-sig")
+        text = raw.decode(codec)
     except UnicodeDecodeError as exc:
+        byte = raw[exc.start]
+        line = raw.count(b"\n", 0, exc.start) + 1
+        legacy = bytes([byte]).decode(_LEGACY_HINT, errors="replace")
+        name = "UTF-8" if codec == "utf-8-sig" else encoding
+        hint = f"; if it was written in another encoding, give it: {encoding_option} {_LEGACY_HINT}" if encoding_option else ""
         raise InputError(
-            f"{path}: not a UTF-8 text file (byte {exc.start} is 0x{raw[exc.start]:02x}); expected a {kind}"
+            f"{path}: not a {name} text file (byte {exc.start} is 0x{byte:02x}); expected a {kind}; line {line} "
+            f"holds that byte ({legacy!r} in {_LEGACY_HINT}){hint}"
         ) from None
     if "\x00" in text:
         raise InputError(f"{path}: holds NUL characters (a binary file?); expected a {kind}")

@@ -13,7 +13,7 @@ Three export layouts are read:
 
 Delimiters ``,``, ``;``, tab or runs of spaces and decimal ``.`` or ``,`` are detected (or given). A
 unit given both by ``units`` and by the header must agree; conversions are exact (1 m = 1000 mm,
-1 in = 25.4 mm). Every data row has as many fields as the header (or, without a header, as the first
+1 in = 25.4 mm, 1 um = 0.001 mm; ``µm``, written with the micro sign or the Greek mu, is ``um``). Every data row has as many fields as the header (or, without a header, as the first
 row; a plain export exactly four): a longer or shorter row is an :class:`InputError` naming the file
 and line, never read in part (a comma-delimited file with decimal commas splits its numbers into
 extra fields, which this check catches). Empty fields after the last column (a trailing delimiter)
@@ -57,8 +57,11 @@ __all__ = [
 ]
 
 #: Length units a tracker export may use, in mm per unit (exact).
-UNITS_MM = {"mm": 1.0, "m": 1000.0, "in": 25.4}
-_UNIT_ALIASES = {"mm": "mm", "m": "m", "in": "in", "inch": "in", "inches": "in", '"': "in"}
+UNITS_MM = {"mm": 1.0, "m": 1000.0, "in": 25.4, "um": 1e-3}
+_UNIT_ALIASES = {
+    "mm": "mm", "m": "m", "in": "in", "inch": "in", "inches": "in", '"': "in",
+    "um": "um", "µm": "um", "μm": "um", "micron": "um", "microns": "um",  # Leica exports: "[µm]" (micro sign or mu)
+}  # fmt: skip
 #: Header names of a point-name column (lower case).
 NAME_HEADERS = ("name", "point", "point name", "point id", "pointid", "id", "label", "pose")
 MAP_KEYS = ("x", "y", "z", "name", "u95", "target", "circle", "direction")
@@ -179,9 +182,9 @@ def _detect_decimal(rows: list[list[str]], delimiter: str, decimal: str | None, 
     return "."
 
 
-def _table(path, *, kind: str, delimiter: str | None, decimal: str | None):
+def _table(path, *, kind: str, delimiter: str | None, decimal: str | None, encoding: str = "utf-8"):
     """``(records, delimiter, decimal)``: the non-empty ``(line, cells)`` of a delimited text file."""
-    text = read_text_file(path, kind=kind)
+    text = read_text_file(path, kind=kind, encoding=encoding, encoding_option="--encoding")
     first = next((line for line in text.splitlines() if line.strip()), "")
     if not first:
         raise InputError(f"{path}: empty file; expected a {kind}")
@@ -365,6 +368,7 @@ def read_tracker_export(
     decimal: str | None = None,
     units: str | None = None,
     check_names: bool = True,
+    encoding: str = "utf-8",
 ) -> TrackerPoints:
     """Read a tracker's point export (Leica, plain ``name;x;y;z`` or a mapped generic layout), in mm.
 
@@ -383,6 +387,8 @@ def read_tracker_export(
     check_names : bool
         Refuse repeated names (repeated ``(name, target)`` with a target column). False: left to
         :func:`join_points_to_readings`, where a joint log's target column may tell the points apart.
+    encoding : str
+        The export's text encoding (default UTF-8; Windows tools often write cp1252: "[µm]", "[°C]" headers).
 
     Returns
     -------
@@ -392,7 +398,9 @@ def read_tracker_export(
     mapping = parse_column_map(columns) if isinstance(columns, str) or columns is None else dict(columns)
     if units is not None:
         units = _length_unit(units.strip().lower(), f"{source}: --units")
-    records, delimiter, decimal = _table(source, kind="tracker export", delimiter=delimiter, decimal=decimal)
+    records, delimiter, decimal = _table(
+        source, kind="tracker export", delimiter=delimiter, decimal=decimal, encoding=encoding
+    )
     first = records[0][1]
     headerless = len(first) >= 4 and all(_is_number(cell, decimal) for cell in first[1:4])
     if mapping:
@@ -543,6 +551,7 @@ def read_joint_log(
     delimiter: str | None = None,
     decimal: str | None = None,
     check_names: bool = True,
+    encoding: str = "utf-8",
 ) -> JointLog:
     """Read a joint-angle log: header with ``name`` (optional) and ``q1..qN`` [deg] (``j``/``a`` prefixes too).
 
@@ -552,7 +561,9 @@ def read_joint_log(
     :func:`join_points_to_readings` (``--join order`` does not use the names).
     """
     source = Path(path)
-    records, delimiter, decimal = _table(source, kind="joint-angle log", delimiter=delimiter, decimal=decimal)
+    records, delimiter, decimal = _table(
+        source, kind="joint-angle log", delimiter=delimiter, decimal=decimal, encoding=encoding
+    )
     header = records[0][1]
     parsed = [_split_unit(cell) for cell in header]
     joint_positions: dict[str, dict[int, int]] = {}
