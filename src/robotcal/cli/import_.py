@@ -47,7 +47,12 @@ def import_(
         ),
     ] = "utf-8",
     target: Annotated[
-        str | None, typer.Option("--target", help="Target name for every point (when no file has a target column).")
+        str | None,
+        typer.Option(
+            "--target",
+            help="Target name for every point (no target column, or one holding a single value such as a "
+            "reflector serial, which it renames); or VALUE=NAME,... to rename each value of the target column.",
+        ),
     ] = None,
     robot: Annotated[
         str | None, typer.Option("--robot", "-r", help="Robot name or TOML: checks the number of joint columns.")

@@ -679,7 +679,9 @@ def join_points_to_readings(
         one per target, may share a pose name. ``"order"``: point k takes row k (equal counts);
         names are not checked.
     target : str, optional
-        One target name for every point (when neither file has a ``target`` column).
+        ``"NAME"``: one target name for every point: when neither file has a ``target`` column, or when the column
+        holds one value (a reflector's serial number, as some exports write it), which it renames.
+        ``"SERIAL=NAME,..."``: renames each value of the ``target`` column (every value must be named).
 
     Returns
     -------
@@ -735,12 +737,8 @@ def join_points_to_readings(
     targets = _pick("target", points.target, log.target, rows, points, log)
     if join == "name":
         _check_unique_names(points.names, targets, points.lines, points.source, "name")
-    if targets is not None and target is not None:
-        raise InputError("--target names one target for every point, but the files have a `target` column")
-    if targets is None and target is not None:
-        if not target.strip():
-            raise InputError("--target must be a non-empty name")
-        targets = [target.strip()] * points.n_points
+    if target is not None:
+        targets = _renamed_targets(target, targets, points.n_points)
     circle = _pick("circle", points.circle, log.circle, rows, points, log)
     direction = _pick("direction", points.direction, log.direction, rows, points, log)
     target_index, target_names = None, ()
@@ -761,6 +759,33 @@ def join_points_to_readings(
     )
 
 
+def _renamed_targets(target: str, targets, count: int) -> list[str]:
+    """The target of every point with ``--target`` applied (:func:`join_points_to_readings`)."""
+    if "=" not in target:
+        name = target.strip()
+        if not name:
+            raise InputError("--target must be a non-empty name")
+        found = sorted(set(targets)) if targets is not None else []
+        if len(found) > 1:
+            raise InputError(
+                f"--target {name}: the files' `target` column holds {len(found)} targets ({', '.join(found[:5])}); "
+                "rename each: --target VALUE=NAME,VALUE=NAME"
+            )
+        return [name] * count
+    mapping = {}
+    for item in target.split(","):
+        old, separator, new = (part.strip() for part in item.partition("="))
+        if not separator or not old or not new or old in mapping:
+            raise InputError(f"--target must be NAME or distinct VALUE=NAME pairs separated by commas; got {target!r}")
+        mapping[old] = new
+    if targets is None:
+        raise InputError(f"--target {target}: renames the values of a `target` column, but neither file has one")
+    unnamed = sorted(set(targets) - set(mapping))
+    if unnamed:
+        raise InputError(f"--target: the `target` column's {', '.join(unnamed[:5])} {'is' if len(unnamed) == 1 else 'are'} not renamed; name every value")
+    return [mapping[value] for value in targets]
+
+
 def import_tracker_capture(
     export_path,
     joints_path,
@@ -774,17 +799,20 @@ def import_tracker_capture(
     target: str | None = None,
     log_delimiter: str | None = None,
     log_decimal: str | None = None,
+    encoding: str = "utf-8",
 ) -> Capture:
     """Read a tracker export and a joint-angle log and join them into a :class:`Capture` (mm, rad).
 
     ``delimiter``/``decimal`` apply to the export; the log's are detected unless ``log_delimiter``/
-    ``log_decimal`` are given. See :func:`read_tracker_export`, :func:`read_joint_log`,
+    ``log_decimal`` are given; ``encoding`` to both. See :func:`read_tracker_export`, :func:`read_joint_log`,
     :func:`join_points_to_readings`.
     """
     points = read_tracker_export(
-        export_path, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False
-    )
+        export_path, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False,
+        encoding=encoding,
+    )  # fmt: skip
     log = read_joint_log(
-        joints_path, n_joints=n_joints, delimiter=log_delimiter, decimal=log_decimal, check_names=False
-    )
+        joints_path, n_joints=n_joints, delimiter=log_delimiter, decimal=log_decimal, check_names=False,
+        encoding=encoding,
+    )  # fmt: skip
     return join_points_to_readings(points, log, join=join, target=target)

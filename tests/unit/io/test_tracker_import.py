@@ -190,8 +190,26 @@ def test_order_join_counts_and_conflicting_columns(tmp_path):
     log1 = _write(tmp_path, "l1.csv", "name,target,q1\nP1,T2,5\n")
     with pytest.raises(InputError, match=r"t.txt: line 2: target 'T1' disagrees with the joint-angle log .*l1.csv: line 2"):
         import_tracker_capture(both, log1)
-    with pytest.raises(InputError, match="--target names one target for every point"):
-        import_tracker_capture(both, _write(tmp_path, "l2.csv", "name,q1\nP1,5\n"), target="T9")
+    # issue 29: a target column holding one value (a reflector's serial) is renamed by --target
+    renamed = import_tracker_capture(both, _write(tmp_path, "l2.csv", "name,q1\nP1,5\n"), target="T9")
+    assert renamed.target_names == ("T9",)
+
+
+def test_target_values_renamed(tmp_path):
+    """Issue 29: an export whose target column holds reflector serials is renamed to the scenario's targets."""
+    export = _write(tmp_path, "s.txt", "Name;X [mm];Y [mm];Z [mm];Target\nP1;1;2;3;RRR-1041\nP1;4;5;6;RRR-2207\n")
+    log = _write(tmp_path, "l.csv", "name,q1\nP1,5\n")
+    capture = import_tracker_capture(export, log, target="RRR-1041=A, RRR-2207=B")
+    assert capture.target_names == ("A", "B") and capture.target.tolist() == [0, 1]
+    with pytest.raises(InputError, match="holds 2 targets .*rename each: --target VALUE=NAME"):
+        import_tracker_capture(export, log, target="A")
+    with pytest.raises(InputError, match="RRR-2207 is not renamed"):
+        import_tracker_capture(export, log, target="RRR-1041=A")
+    with pytest.raises(InputError, match="distinct VALUE=NAME pairs"):
+        import_tracker_capture(export, log, target="RRR-1041=A,RRR-1041=B")
+    plain = _write(tmp_path, "p.txt", "Name;X [mm];Y [mm];Z [mm]\nP1;1;2;3\n")
+    with pytest.raises(InputError, match="neither file has one"):
+        import_tracker_capture(plain, log, target="X=A")
 
 
 def test_a_target_column_only_in_the_joint_log_lets_points_share_a_pose_name(tmp_path):
