@@ -244,3 +244,26 @@ def test_absolute_view_without_any_base_frame_is_refused(tmp_path):
     result = invoke("evaluate", "-s", scenario, "-c", capture, "--absolute", "--params", nominal, "--out", tmp_path / "e")
     assert result.exit_code == 2 and "gives no `tracker_from_base`" in result.output.replace("\n", " ")
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")  # J6's frame held: by design
+def test_absolute_view_leaves_out_a_set_without_base_frame(tmp_path):
+    """Issue 29: a scenario without tracker_from_base no longer refuses `evaluate --absolute` when some set recorded
+    its base frame: the nominal set is left out of that view with a note, the refined one is evaluated."""
+    cell, scenario = tmp_path / "cell.toml", tmp_path / "cell-without-base.toml"
+    cell.write_text(CELL)  # the refinement estimates the base frame from where the cell's TOML starts it
+    scenario.write_text("\n".join(line for line in CELL.splitlines() if not line.startswith("tracker_from_base")))
+    cal, held_out, refined = tmp_path / "cal.csv", tmp_path / "test.csv", tmp_path / "refined.json"
+    _cell_capture(cal, 36, 1)
+    _cell_capture(held_out, 40, 2)
+    assert invoke("refine", cal, "--scenario", cell, "--out", refined).exit_code == 0
+    out = tmp_path / "eval"
+    result = invoke("evaluate", "--scenario", scenario, "--params", refined, "--capture", held_out, "--absolute",
+                    "--out", out)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    document = json.loads((out / "evaluation.json").read_text())
+    views = {(r["parameter_set"], r["view"]) for r in document["rows"]}
+    assert ("refined", "absolute") in views and ("nominal", "absolute") not in views
+    assert ("nominal", "points") in views
+    assert document["settings"]["absolute_base_frames"]["nominal"].startswith("left out: no base frame recorded")
+    assert "absolute view, nominal: left out" in " ".join(result.output.split())

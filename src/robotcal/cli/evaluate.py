@@ -65,7 +65,8 @@ def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
     ``provenances``: set name -> the parameter JSON's ``provenance`` (empty for the nominal set). The base
     frame a fit recorded (``provenance.tracker_from_base``: a refinement's estimated or held one, CPA's given
     or registered one) is used as it is; a set without one (the nominal set, a distances-criterion refinement)
-    is evaluated in the scenario's ``tracker_from_base``, which the scenario must then give.
+    is evaluated in the scenario's ``tracker_from_base``; without one it is left out of the absolute view (a note
+    says so), and no set with a base frame at all is an error.
     """
     import numpy as np
 
@@ -81,14 +82,20 @@ def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
             if (provenance or {}).get("criterion") == "distances"
             else "no base frame recorded"
         )
-        if not scenario.gives_tracker_from_base:
-            raise InputError(
-                f"--absolute: parameter set {name!r} has no base frame ({why}) and {scenario.source} gives no "
-                "`tracker_from_base`: the absolute error cannot be computed; give the scenario's tracker_from_base "
-                "or evaluate only sets that recorded their base frame (--no-nominal)"
+        if not scenario.gives_tracker_from_base:  # left out of the absolute view, said (issue 29)
+            bases[name] = None
+            notes[name] = (
+                f"left out: {why}, and {scenario.source} gives no `tracker_from_base` (the points and distances views "
+                "still compare it)"
             )
+            continue
         bases[name] = np.asarray(scenario.tracker_from_base, dtype=float)
         notes[name] = f"{why}: the scenario's tracker_from_base is used"
+    if all(base is None for base in bases.values()):
+        raise InputError(
+            f"--absolute: no parameter set recorded a base frame and {scenario.source} gives no `tracker_from_base`: "
+            "the absolute error cannot be computed; give the scenario's tracker_from_base or a set that recorded one"
+        )
     return bases, notes
 
 

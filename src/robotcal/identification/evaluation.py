@@ -199,7 +199,8 @@ def evaluate_parameters(
         The target of each capture (one for all, or per capture name).
     views : sequence of {"points", "distances", "absolute"}
     bases : mapping of str to ndarray (4, 4), optional
-        ``"absolute"`` view: the base frame of each parameter set (required for it).
+        ``"absolute"`` view: the base frame of each parameter set; a set without one (absent or None) is left out
+        of that view, whose improvements are then relative to the first set that has one.
     set_targets : mapping of str to mapping of str to (x, y, z), optional
         Per parameter set, flange offsets [mm] that replace those of same-named targets (the offsets
         a refinement estimated for targets declared unknown).
@@ -220,10 +221,8 @@ def evaluate_parameters(
     unknown = [view for view in views if view not in ALL_VIEWS]
     if unknown:
         raise InputError(f"unknown evaluation view(s) {unknown}; expected {ALL_VIEWS}")
-    if "absolute" in views:
-        missing = [name for name in parameter_sets if bases is None or bases.get(name) is None]
-        if missing:
-            raise InputError(f"the absolute view needs a base frame for every parameter set; none for {missing}")
+    if "absolute" in views and not any(bases is not None and bases.get(name) is not None for name in parameter_sets):
+        raise InputError("the absolute view needs the base frame of at least one parameter set; none was given")
 
     _warn_guessed(captures, parameter_sets, reflectors, set_targets)
 
@@ -246,6 +245,8 @@ def evaluate_parameters(
         for view in views:
             reference = None
             for set_name, parameters in parameter_sets.items():
+                if view == "absolute" and bases.get(set_name) is None:
+                    continue  # no base frame for this set: left out of the absolute view (the caller says why)
                 errors = errors_of(view, capture, set_name, parameters, reflector)
                 mean = float(errors.mean())
                 reference = mean if reference is None else reference
