@@ -21,12 +21,25 @@ without ``fork`` (Windows, macOS by default) use ``spawn``, which needs ``functi
 picklable (they must be anyway, for Dask).
 
 Stopping. Signals are the parent's business: workers ignore SIGINT, SIGTERM and SIGHUP (Ctrl-C reaches the
-whole process group) and, on Linux, are killed when the parent dies. When the parent leaves the pool's ``with``
-block by an exception (a task's error, Ctrl-C, SIGTERM turned into an exception by the CLI) it cancels the
-tasks not started and sets the pool's stop event; a running task sees it at its next :func:`check_stop` (the
-Monte Carlo checks between batches, every few tenths of a second) and ends, so the pool shuts down within a
-batch, through the public API only. A worker is never killed while it may be sending its result: that can leave
-the pool's manager thread waiting for the rest of the message for ever.
+whole process group) and, on Linux, are killed when the parent dies. They are started with the interrupt signals
+held back in the parent (:func:`robotcal.errors.interrupts_held`): a signal that arrives as a worker is forked is
+raised in the parent once the fork is done, not dropped in a fork handler, and never reaches the new worker before
+it ignores it. When the parent leaves the pool's ``with`` block by an exception (a task's error, Ctrl-C, SIGTERM
+turned into an exception by the CLI) it cancels the tasks not started and writes to the pool's stop pipe. Each
+worker then interrupts the task it runs: a thread of the worker, waiting on the pipe, signals the worker's main
+thread (SIGUSR1), whose handler raises :class:`StopRequested` in the task's code; the task's ``finally`` blocks run
+(a figure's temporary file is removed) and it ends at once, whatever it computes (a figure being drawn, a Monte
+Carlo block), on a busy machine too. A task that has not started ends at its start; :func:`check_stop`, called
+between the steps of long tasks, ends them where there is no such signal. A worker is never killed, and the
+exception is never raised once the task has returned, while the worker sends its result: a message cut short would
+leave the pool's manager thread waiting for the rest of it for ever. The stop is a pipe, not a
+:class:`multiprocessing.Event`, because nothing it involves takes a lock shared between processes: an exception
+raised in a worker as it holds such a lock (an event's) would keep it held, and the waiter of an event in a worker
+that has died makes the event's ``set`` wait for ever.
+
+In the parent, :func:`check_stop` raises an interrupt the process received whose exception Python dropped
+(:func:`robotcal.errors.check_interrupt`): it is called when a pool has started its workers and as each result
+comes back, so that the work stops even then.
 """
 
 from __future__ import annotations
@@ -36,13 +49,15 @@ import os
 import re
 import signal
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
 
 from threadpoolctl import threadpool_limits
 
-from robotcal.errors import InputError
+from robotcal.errors import INTERRUPT_SIGNALS, InputError, check_interrupt, interrupts_held
 
 __all__ = ["Executor", "StopRequested", "check_stop", "open_executor", "process_pool", "single_blas_thread", "SCHEDULER_ENV"]
 
@@ -73,12 +88,26 @@ class Executor:
         """
         items = list(items)
         if self.kind == "serial":
-            return (function(item) for item in items)
+            return _serial_results(function, items)
         if self.kind == "processes":
             futures = [self._pool.submit(function, item) for item in items]
-            return (future.result() for future in futures)
-        futures = self._client.map(function, items, pure=False)
-        return (future.result() for future in futures)
+        else:
+            futures = self._client.map(function, items, pure=False)
+        return _results(futures)
+
+
+def _serial_results(function: Callable, items: list) -> Iterator:
+    for item in items:
+        check_stop()
+        yield function(item)
+
+
+def _results(futures: list) -> Iterator:
+    """The futures' results in order, each after a :func:`check_stop`."""
+    for future in futures:
+        result = future.result()
+        check_stop()
+        yield result
 
 
 def single_blas_thread():
@@ -94,30 +123,76 @@ def single_blas_thread():
 
 
 class StopRequested(Exception):
-    """Raised in a pool worker by :func:`check_stop` when its pool is being shut down."""
+    """Raised in a pool worker's task when its pool is being shut down (by :func:`check_stop`, or by the signal the
+    worker's stop watcher sends, module docstring)."""
 
 
-#: In a pool worker: the pool's stop event (None elsewhere).
+#: In a pool worker: the read end of the pool's stop pipe, readable once the pool stops (None elsewhere).
 _STOP = None
+#: In a pool worker: whether a task is running (:func:`_task`), so that the pool's stop may interrupt it.
+_RUNNING = False
+#: The signal by which a pool worker's stop watcher interrupts its running task (None: no such signal here).
+_STOP_SIGNAL = getattr(signal, "SIGUSR1", None) if hasattr(signal, "pthread_kill") else None
+#: Seconds between two such signals while the worker lives (a task that caught the first one still ends).
+_STOP_REPEAT_S = 0.5
 
 
 def check_stop() -> None:
-    """In a pool worker whose pool is shutting down, raise :class:`StopRequested`; elsewhere do nothing.
+    """In a pool worker whose pool is shutting down, raise :class:`StopRequested`; in the main process, raise an
+    interrupt it received whose exception was dropped (:func:`robotcal.errors.check_interrupt`); else nothing.
 
     Long tasks call it between their steps so that an interrupt of the parent ends them within a step.
     """
-    if _STOP is not None and _STOP.is_set():
+    if _STOP is not None:
+        if _STOP.poll():
+            raise StopRequested("the pool is shutting down")
+        return
+    check_interrupt()
+
+
+def _task(function: Callable, /, *args, **kwargs):
+    """A pool task: ``function(*args, **kwargs)``, interrupted by the pool's stop (:func:`_stop_task`)."""
+    global _RUNNING
+    check_stop()
+    _RUNNING = True
+    try:
+        return _call(function, args, kwargs)
+    finally:
+        _RUNNING = False
+
+
+def _call(function: Callable, args: tuple, kwargs: dict):
+    # a frame of its own under _task, also for a function written in C (time.sleep): _stop_task raises there
+    return function(*args, **kwargs)
+
+
+def _stop_task(signum, frame) -> None:
+    """In a pool worker, the handler of :data:`_STOP_SIGNAL`: raise :class:`StopRequested` in the running task's code
+    (never in :func:`_task` itself, which has returned or is returning, nor between tasks)."""
+    if _RUNNING and frame is not None and frame.f_code is not _task.__code__:
         raise StopRequested("the pool is shutting down")
 
 
+def _watch_stop(stop, thread: int) -> None:
+    """In a pool worker, a daemon thread: once the pool's ``stop`` pipe is readable, signal the worker's main thread
+    ``thread``, again every :data:`_STOP_REPEAT_S` while the worker lives."""
+    stop.poll(None)
+    while True:
+        signal.pthread_kill(thread, _STOP_SIGNAL)
+        time.sleep(_STOP_REPEAT_S)
+
+
 def _start_worker(stop) -> None:
-    """Pool initializer: signals are the parent's business, the pool's stop event, one BLAS thread for the
-    worker's life, and (Linux) death with the parent."""
+    """Pool initializer: signals are the parent's business, the pool's stop pipe (its read end) and its watcher, one
+    BLAS thread for the worker's life, and (Linux) death with the parent."""
     global _STOP
     _STOP = stop
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_IGN)
+    for name in INTERRUPT_SIGNALS:
+        signal.signal(getattr(signal, name), signal.SIG_IGN)
+    if _STOP_SIGNAL is not None:
+        signal.signal(_STOP_SIGNAL, _stop_task)
+        watcher = threading.Thread(target=_watch_stop, args=(stop, threading.get_ident()), daemon=True)
+        watcher.start()
     threadpool_limits(limits=1, user_api="blas")
     if sys.platform.startswith("linux"):
         try:
@@ -187,18 +262,34 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Iterator
         yield Executor("processes", workers, pool=pool)
 
 
+class _StoppablePool(ProcessPoolExecutor):
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` whose tasks its stop interrupts (:func:`_task`) and whose
+    workers start with the interrupt signals held back (module docstring)."""
+
+    def submit(self, fn: Callable, /, *args, **kwargs) -> Future:
+        with interrupts_held():  # the workers are forked here (at the first task, for the fork start method)
+            future = super().submit(_task, fn, *args, **kwargs)
+        check_stop()
+        return future
+
+
 @contextmanager
 def process_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
     """A local :class:`~concurrent.futures.ProcessPoolExecutor` of ``workers`` processes for a ``with`` block
     (module docstring: start method, signals, stopping). Leaving the block normally waits for every task;
-    leaving it by an exception cancels the tasks not started and asks the running ones to stop."""
+    leaving it by an exception cancels the tasks not started and stops the running ones at once."""
     context = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    stop = context.Event()
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_start_worker, initargs=(stop,))
+    stop, stopping = context.Pipe(duplex=False)
     try:
-        yield pool
-    except BaseException:
-        stop.set()  # running tasks end at their next check_stop
-        pool.shutdown(wait=True, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
+        pool = _StoppablePool(max_workers=workers, mp_context=context, initializer=_start_worker, initargs=(stop,))
+        try:
+            yield pool
+            check_stop()  # an interrupt whose exception was dropped in the block
+        except BaseException:
+            stopping.send_bytes(b"stop")  # each worker interrupts its running task; one not started ends at its start
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
+    finally:
+        stop.close()
+        stopping.close()

@@ -9,16 +9,23 @@ A command module defines its own Typer application, ``app = command_app()``
 (:func:`robotcal.cli._common.command_app`), and registers its command(s) on it with ``@app.command()``;
 a command with sub-commands (``plan check|optimise``) is added with ``app.add_typer(sub_app, name=...)``.
 No command module imports :data:`app` from this package. docs/cli.md ("Adding a command") has the recipe.
+
+Importing this package imports neither Typer nor Click: :func:`main` installs the interrupt handlers before them,
+and ``app`` (the ``robotcal`` group, :mod:`robotcal.cli._app`) loads on first use.
 """
 
 from __future__ import annotations
 
 import functools
+import os
+import sys
 from importlib import import_module
-from typing import Annotated, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, NoReturn
 
-import typer
-from typer.core import TyperGroup
+if TYPE_CHECKING:
+    import typer
+
+    app: typer.Typer
 
 
 class CommandEntry(NamedTuple):
@@ -70,6 +77,9 @@ def load_command(name: str):
     command itself (a module with a single command). Raises ``KeyError`` for an unregistered name and
     ``LookupError`` when the module does not define the command it is registered for.
     """
+    import typer
+    from typer.core import TyperGroup
+
     entry = COMMANDS[name]
     module = import_module(f"{__name__}.{entry.module}")
     command = typer.main.get_command(module.app)
@@ -80,64 +90,93 @@ def load_command(name: str):
     raise LookupError(f"robotcal.cli.{entry.module}.app defines no command {name!r}")
 
 
-class LazyCommandGroup(TyperGroup):
-    """The ``robotcal`` group: lists :data:`COMMANDS` without importing them; loads the one invoked."""
+def __getattr__(name: str):
+    """``app`` (the ``robotcal`` Typer application) and ``LazyCommandGroup``, from :mod:`robotcal.cli._app`."""
+    if name in ("app", "LazyCommandGroup"):
+        from robotcal.cli import _app
 
-    def list_commands(self, ctx) -> list[str]:
-        return list(COMMANDS)
-
-    def get_command(self, ctx, cmd_name: str):
-        return load_command(cmd_name) if cmd_name in COMMANDS else None
-
-    def format_commands(self, ctx, formatter) -> None:
-        with formatter.section("Commands"):
-            formatter.write_dl([(name, entry.help) for name, entry in COMMANDS.items()])
-
-    def resolve_command(self, ctx, args):
-        if args and args[0] not in COMMANDS and not args[0].startswith("-"):
-            # "Did you mean": Typer's own suggestions look at self.commands, empty here
-            from difflib import get_close_matches
-
-            matches = get_close_matches(args[0], list(COMMANDS))
-            hint = f" Did you mean {', '.join(map(repr, matches))}?" if matches else ""
-            ctx.fail(f"No such command {args[0]!r}.{hint}")
-        return super().resolve_command(ctx, args)
+        return getattr(_app, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-app = typer.Typer(
-    name="robotcal",
-    cls=LazyCommandGroup,
-    help="Kinematic calibration of serial robots by Circle Point Analysis, with its uncertainty.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    rich_markup_mode=None,  # help texts print literally: "[validation]", "[lower, upper]", "[mm]"
-)
+#: Exit status after an interrupt: 128 + the signal's number, as shells report a command a signal ended.
+EXIT_STATUS = {"SIGINT": 130, "SIGHUP": 129, "SIGTERM": 143}
 
 
-def _print_version(asked: bool) -> None:
-    if asked:
-        from robotcal import __version__
+def _say_plain(line: str) -> None:
+    try:
+        sys.stderr.write(f"{line}\n")
+        sys.stderr.flush()
+    except (OSError, ValueError):  # a terminal that is gone, a closed stream
+        pass
 
-        typer.echo(f"robotcal {__version__}")
-        raise typer.Exit()
+
+def _silence_broken_streams() -> None:
+    """Point stdout and stderr at the null device where they can no longer be written (the terminal closed), so
+    that Python's final flush at exit neither prints a traceback nor turns the exit status into 120."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            try:
+                null = os.open(os.devnull, os.O_WRONLY)
+                try:
+                    os.dup2(null, stream.fileno())
+                finally:
+                    os.close(null)
+            except (OSError, ValueError):  # no file descriptor (a test's captured stream): nothing to protect
+                pass
 
 
-@app.callback()
-def _robotcal(
-    version: Annotated[
-        bool, typer.Option("--version", callback=_print_version, is_eager=True, help="Print the version and exit.")
-    ] = False,
-) -> None:
-    # The options of `robotcal` itself. A callback also makes Typer build a group (LazyCommandGroup)
-    # although no command is registered on this application.
-    pass
+def exit_interrupted(interrupt: KeyboardInterrupt, say=None) -> NoReturn:
+    """End the command after ``interrupt`` (its cleanup done): one line on stderr, ``interrupted`` (Ctrl-C) or
+    ``terminated (SIGTERM)`` / ``terminated (SIGHUP)``, printed by ``say`` (default: plain text), and exit status
+    130, 143 or 129. The :class:`SystemExit` raised carries ``robotcal_reported`` (:func:`main` reports no more)."""
+    name = getattr(interrupt, "signal_name", "SIGINT")
+    (say or _say_plain)("interrupted" if name == "SIGINT" else f"terminated ({name})")
+    _silence_broken_streams()
+    ending = SystemExit(EXIT_STATUS.get(name, EXIT_STATUS["SIGINT"]))
+    ending.robotcal_reported = True
+    raise ending
+
+
+def _end(ending: BaseException | None) -> None:
+    """After the command: an interrupt not reported yet (one that came before or after the command's own error
+    handling, or whose exception Python dropped) ends the process as :func:`exit_interrupted` says."""
+    from robotcal.errors import interrupt_behind, interrupt_received
+
+    if getattr(ending, "robotcal_reported", False):
+        return
+    interrupt = interrupt_behind(ending) or interrupt_received()
+    if interrupt is not None:
+        exit_interrupted(interrupt)
 
 
 def main() -> None:
-    """The ``robotcal`` command (the console script): SIGTERM and SIGHUP become clean interrupts (exit 143 /
-    129, as SIGINT's 130), with every cleanup run (:func:`~robotcal.cli._common.install_signal_handlers`)."""
-    from robotcal.cli._common import install_signal_handlers
+    """The ``robotcal`` command (the console script).
 
-    install_signal_handlers()
-    app()
+    Its first act installs the interrupt handlers (:func:`robotcal.errors.install_interrupt_handlers`), before
+    Typer, Click and the command are imported: Ctrl-C, SIGTERM and SIGHUP at any moment after that, also while the
+    command line loads, end the command with every cleanup run, one line on stderr and exit status 130, 143 or 129
+    (:func:`exit_interrupted`), never with a traceback. An interrupted command's process then ends without the
+    interpreter's final garbage collections walking every object it holds (:func:`gc.freeze`): on a busy machine
+    they took most of the time from the signal to the exit.
+    """
+    from robotcal.errors import install_interrupt_handlers
+
+    install_interrupt_handlers()
+    try:
+        try:
+            from robotcal.cli._app import app
+
+            app()
+        except BaseException as exc:
+            _end(exc)
+            raise
+        _end(None)
+    except SystemExit as ending:
+        if getattr(ending, "robotcal_reported", False):
+            import gc
+
+            gc.freeze()
+        raise

@@ -1,4 +1,4 @@
-"""Shared CLI plumbing: consoles, error and warning display, signals, limits, parameter tables.
+"""Shared CLI plumbing: consoles, error, interrupt and warning display, limits, parameter tables.
 
 User text (paths, CSV cells, robot and scenario names, exception messages) reaches the terminal
 literally: both consoles are created with ``markup=False``, so square brackets are never read as Rich
@@ -12,15 +12,13 @@ from __future__ import annotations
 
 import functools
 import math
-import os
-import signal
-import sys
 import warnings
 from typing import TYPE_CHECKING
 
 import typer
 
-from robotcal.errors import InputError, RobotcalError, Terminated, interrupt_behind
+from robotcal.cli import _silence_broken_streams, exit_interrupted
+from robotcal.errors import InputError, RobotcalError, interrupt_behind, interrupt_received
 from robotcal.limits import (  # noqa: F401  (re-exported: the commands import them from here)
     BYTES_PER_POSE,
     FALLBACK_MEMORY,
@@ -68,11 +66,6 @@ FORCE_HELP = (
     "Replace an existing output that robotcal did not write (never an input of the command, "
     "the home folder, / or the current folder)."
 )
-#: Exit status after SIGINT (Ctrl-C), SIGHUP and SIGTERM: 128 + the signal number, as shells report them.
-EXIT_INTERRUPTED = 130
-EXIT_STATUS = {"SIGHUP": 129, "SIGTERM": 143}
-
-
 def command_app(**settings) -> typer.Typer:
     """A command module's Typer application, ``app = command_app()``, on which the module registers its
     command(s) (``@app.command()``); :data:`robotcal.cli.COMMANDS` names the module for each command.
@@ -102,35 +95,6 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     _error_console().print(_line("warning:", "yellow", message), highlight=False)
 
 
-def _on_signal(signum, frame):
-    """SIGTERM or SIGHUP in the main process: raise :class:`Terminated` so that every cleanup runs (run.json
-    records the interruption, locks and temporary folders are removed); in a forked worker: die as asked."""
-    if os.getpid() != _MAIN_PID[0]:
-        signal.signal(signum, signal.SIG_DFL)
-        os.kill(os.getpid(), signum)
-        return
-    # one interrupt is enough: a second signal must not break the cleanup the first one started
-    for name in EXIT_STATUS:
-        signal.signal(getattr(signal, name), signal.SIG_IGN)
-    raise Terminated(signal.Signals(signum).name)
-
-
-_MAIN_PID = [os.getpid()]
-
-
-def install_signal_handlers() -> None:
-    """SIGTERM and SIGHUP (a closed terminal or ssh session) raise :class:`Terminated` in the main thread (exit
-    143 / 129 after cleanup); SIGINT keeps Python's :class:`KeyboardInterrupt` (exit 130). Called by
-    :func:`robotcal.cli.main`."""
-    _MAIN_PID[0] = os.getpid()
-    for name in EXIT_STATUS:
-        if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN:
-            signal.signal(getattr(signal, name), _on_signal)  # nohup's SIGHUP stays ignored
-    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        return  # started in the background with SIGINT ignored: keep it so
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
 def _say(message) -> None:
     """Print ``message`` on stderr; a terminal that is gone (closed window or ssh session: EIO, a closed pipe:
     EPIPE) is not an error of the command."""
@@ -138,23 +102,6 @@ def _say(message) -> None:
         _error_console().print(message, highlight=False)
     except (OSError, ValueError):  # ValueError: a closed stream
         pass
-
-
-def _silence_broken_streams() -> None:
-    """Point stdout and stderr at the null device where they can no longer be written (the terminal closed), so
-    that Python's final flush at exit neither prints a traceback nor turns the exit status into 120."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            try:
-                null = os.open(os.devnull, os.O_WRONLY)
-                try:
-                    os.dup2(null, stream.fileno())
-                finally:
-                    os.close(null)
-            except (OSError, ValueError):  # no file descriptor (a test's captured stream): nothing to protect
-                pass
 
 
 def _message(exc: BaseException) -> str:
@@ -172,8 +119,10 @@ def _message(exc: BaseException) -> str:
 def handle_errors(function):
     """Run a command: robotcal errors, an out-of-memory and an :class:`OSError` (a full disk: the path named, with
     what to do) become a one-line message and exit status 2, never a traceback; an interrupt exits 130 (Ctrl-C),
-    129 (SIGHUP) or 143 (SIGTERM) after the cleanup has run, also when the cleanup itself failed (a terminal
-    closed by the SIGHUP) or the interrupt surfaced as another error (:func:`robotcal.errors.interrupt_behind`)."""
+    129 (SIGHUP) or 143 (SIGTERM) after the cleanup has run (:func:`robotcal.cli.exit_interrupted`), also when the
+    cleanup itself failed (a terminal closed by the SIGHUP), the interrupt surfaced as another error
+    (:func:`robotcal.errors.interrupt_behind`) or an error followed a signal whose exception Python dropped
+    (:func:`robotcal.errors.interrupt_received`)."""
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
@@ -184,16 +133,9 @@ def handle_errors(function):
         except (SystemExit, typer.Exit, typer.Abort):
             raise
         except BaseException as exc:
-            interrupt = interrupt_behind(exc)
+            interrupt = interrupt_behind(exc) or interrupt_received()
             if interrupt is not None:
-                if isinstance(interrupt, Terminated):
-                    _say(styled(f"terminated ({interrupt.signal_name})", "red"))
-                    status = EXIT_STATUS.get(interrupt.signal_name, 143)
-                else:
-                    _say(styled("interrupted", "red"))
-                    status = EXIT_INTERRUPTED
-                _silence_broken_streams()
-                sys.exit(status)
+                exit_interrupted(interrupt, say=lambda line: _say(styled(line, "red")))
             if not isinstance(exc, (RobotcalError, MemoryError, OSError)):
                 raise  # a bug: its traceback is wanted
             _say(_line("error:", "red", _message(exc)))

@@ -40,7 +40,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_interrupt
 from robotcal.io.atomic import (
     atomic_directory,
     atomic_write_text,
@@ -301,15 +301,15 @@ def _lock_text() -> bytes:
     return f"{os.getpid()}\n{socket.gethostname()}\n{secrets.token_hex(8)}\n".encode("ascii", "replace")
 
 
-def _create_lock(lock: Path) -> None:
-    """Create ``lock`` holding :func:`_lock_text`, whole or not at all; :class:`FileExistsError` if it exists.
+def _create_lock(lock: Path, data: bytes) -> None:
+    """Create ``lock`` holding ``data`` (:func:`_lock_text`), whole or not at all; :class:`FileExistsError` if it
+    exists.
 
     The content is written to a temporary file first and hard-linked to the lock's name (``link`` fails if the
     name exists, atomically): no other process ever sees the lock empty or half written, and a full disk leaves
     nothing. Where the file system has no hard links, the lock is created with ``O_EXCL`` and then written; a
     failed write removes it.
     """
-    data = _lock_text()
     handle, temp = tempfile.mkstemp(prefix=temporary_prefix(lock.name), suffix=".tmp", dir=lock.parent)
     try:
         with os.fdopen(handle, "wb") as stream:
@@ -372,11 +372,12 @@ def _take_over(lock: Path, seen: bytes) -> None:
             aside.unlink()
 
 
-def _acquire(lock: Path, out, option: str) -> None:
-    """Take the lock file ``lock`` of the output ``out`` for this process, or raise :class:`InputError`."""
+def _acquire(lock: Path, out, option: str, data: bytes) -> None:
+    """Take the lock file ``lock`` of the output ``out`` for this process (its content ``data``), or raise
+    :class:`InputError`."""
     for _ in range(100):  # each turn takes the lock, refuses, or follows another process's move
         try:
-            _create_lock(lock)
+            _create_lock(lock, data)
             return
         except FileExistsError:
             pass
@@ -425,7 +426,8 @@ def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
     stale and taken over. Once the lock is held, the temporaries a killed robotcal process left for ``out``
     (beside it, and inside it when it is a robotcal folder) are removed
     (:func:`~robotcal.io.atomic.remove_stale_temporaries`). The lock is removed when the block ends, however it
-    ends, and so are the folders made for ``out`` (``out`` included) that the block left empty.
+    ends (an interrupt as the lock is being taken included: this process's lock is recognised by its content), and
+    so are the folders made for ``out`` (``out`` included) that the block left empty.
     """
     resolved = _resolve(out)
     lock = _lock_path(resolved)
@@ -435,10 +437,11 @@ def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
     except OSError as exc:
         _remove_empty(created)
         raise InputError(f"{option} {out}: cannot create folder {lock.parent}: {describe_os_error(exc)}") from None
+    data = _lock_text()
+    existed = True
     try:
-        _acquire(lock, out, option)
-        existed = True
         try:
+            _acquire(lock, out, option, data)
             remove_stale_temporaries(resolved.parent, names=(resolved.name, lock.name))
             if resolved.is_dir() and not resolved.is_symlink() and is_robotcal_folder(resolved):
                 remove_stale_temporaries(resolved, recursive=True)
@@ -447,10 +450,17 @@ def output_lock(out, *, option: str = "--out") -> Iterator[Path]:
         finally:
             if not existed:
                 _remove_empty([resolved])  # a folder made for the output, left empty (still under the lock)
-            with contextlib.suppress(OSError):
-                lock.unlink()
+            _release(lock, data)
     finally:
         _remove_empty(created)  # folders made for the lock, left empty
+
+
+def _release(lock: Path, data: bytes) -> None:
+    """Remove ``lock`` if it is this process's (its content is ``data``): also when an interrupt came as it was taken,
+    never another process's lock."""
+    with contextlib.suppress(OSError):
+        if lock.read_bytes() == data:
+            lock.unlink()
 
 
 def _remove_empty(folders: list[Path]) -> None:
@@ -479,7 +489,9 @@ def result_folder(out, *, inputs: Iterable = (), force: bool = False, command: s
 
     The block writes into the yielded hidden sibling; on success the marker is added and the folder is
     renamed into place, replacing the old one; on any exception (including Ctrl-C and SIGTERM) the
-    temporary folder is removed and ``out`` is left as it was.
+    temporary folder is removed and ``out`` is left as it was. So is it after an interrupt whose exception Python
+    dropped (:func:`robotcal.errors.check_interrupt`, raised before the rename): an interrupted command keeps no
+    result.
     """
     inputs = list(inputs)
     with output_lock(out, option=option):
@@ -487,6 +499,7 @@ def result_folder(out, *, inputs: Iterable = (), force: bool = False, command: s
         with atomic_directory(out) as folder:
             yield folder
             write_marker(folder, command=command)
+            check_interrupt()
 
 
 @contextmanager

@@ -6,6 +6,10 @@ imported where the figure is drawn. :class:`FigureJobs` submits each call to a
 :func:`robotcal.execution.process_pool` (or, without a pool, draws it at once) and :meth:`FigureJobs.paths`
 waits for all of them. The plot functions write their files themselves, atomically, into the stage's
 final folder (its data files are already there), and return the paths written.
+
+An interrupt or an error of the run leaves the pool's ``with`` block: the figure being drawn is interrupted there
+and then, and those not started are not drawn (:func:`robotcal.execution.process_pool`): a run stops at once,
+whatever its figures cost.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ from concurrent.futures import Executor, Future
 from importlib import import_module
 from pathlib import Path
 from typing import Any
+
+from robotcal.execution import check_stop
 
 __all__ = ["FigureJobs", "draw_figure"]
 
@@ -48,6 +54,7 @@ class FigureJobs:
             except Exception as exc:
                 exc.add_note(f"(while drawing the figure of {function})")
                 raise
+            check_stop()  # an interrupt whose exception was dropped while waiting
             if value is None:
                 continue
             written.extend([Path(value)] if isinstance(value, str | Path) else [Path(path) for path in value])

@@ -10,6 +10,11 @@ Figures are drawn by one worker process (:func:`robotcal.execution.process_pool`
 compute; the report, the last stage, waits for them (it embeds them) and is rendered once, from the
 RunResult in memory, after the final record (status, total time) is known; ``report.html`` and then
 ``run.json`` are written after it.
+
+An interrupt (Ctrl-C, or SIGTERM/SIGHUP turned into one by the command line) is recorded as the interruption of the
+stage it lands in. One whose exception Python dropped (:func:`robotcal.errors.check_interrupt`) is raised again
+when the next stage starts, when the figures are waited for, and before the report is written, so that the run
+stops all the same; the figure pool then stops its figure at once (:func:`robotcal.execution.process_pool`).
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from robotcal.errors import InputError, RobotcalError, Terminated, interrupt_behind
+from robotcal.errors import InputError, RobotcalError, Terminated, check_interrupt, interrupt_behind
 from robotcal.execution import process_pool
 from robotcal.io.atomic import atomic_write_text, describe_os_error
 from robotcal.io.output import check_output_folder, output_lock, write_marker
@@ -234,6 +239,7 @@ class _Run:
                 self.record["stages"][name]["status"] = "running"
                 self.write_record()
                 self.progress(name, 0, None, "running")
+                check_interrupt()  # one whose exception was dropped in an earlier stage
                 output: stages.StageOutput = function()
             except BaseException as exc:
                 self._fail(name, exc, started)
@@ -365,6 +371,7 @@ class _Run:
             self.record["stages"][name]["status"] = "running"
             self.write_record()
             self.progress(name, 0, None, "running")
+            check_interrupt()
             for path in self.figures.paths():
                 self.documents[path.relative_to(self.out).as_posix()] = path
             now = time.perf_counter()
@@ -383,6 +390,7 @@ class _Run:
             summary = summarise(documents[RUN_RECORD], documents)
             result = RunResult(folder=self.out, record=documents[RUN_RECORD], documents=documents, summary=summary)
             report = html.render_report(result)
+            check_interrupt()
             atomic_write_text(self.out / REPORT_NAME, report.html)
         except BaseException as exc:
             self.record["stages"][name].pop("outputs", None)

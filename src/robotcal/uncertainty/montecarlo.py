@@ -620,7 +620,7 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
     chunks = _chunks(n_draws, batch_size)
     buffer = np.empty((max((count for _, count in chunks), default=0), problem.n_points, 3))  # every batch's points
     for start, count in chunks:
-        check_stop()  # in a pool worker: end the block when the pool shuts down
+        check_stop()  # a pool worker: end the block when the pool stops; this process: an interrupt Python dropped
         if problem.joint_errors is not None:
             exact = _noisy_exact_points(problem, count, joint_rng)
         else:

@@ -283,9 +283,9 @@ def test_a_refused_writer_leaves_the_holders_new_folder(tmp_path, monkeypatch, l
     (tmp_path / f".run{LOCK_SUFFIX}").write_text(f"{live_pid}\n{socket.gethostname()}\nabc\n")
     real = output._acquire
 
-    def acquire(lock, out_, option):
+    def acquire(*args):
         out.mkdir()  # meanwhile, the holder creates its run folder
-        return real(lock, out_, option)
+        return real(*args)
 
     monkeypatch.setattr(output, "_acquire", acquire)
     with pytest.raises(InputError, match="in use"), output_lock(out):
