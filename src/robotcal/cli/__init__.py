@@ -158,25 +158,16 @@ def main() -> None:
     Its first act installs the interrupt handlers (:func:`robotcal.errors.install_interrupt_handlers`), before
     Typer, Click and the command are imported: Ctrl-C, SIGTERM and SIGHUP at any moment after that, also while the
     command line loads, end the command with every cleanup run, one line on stderr and exit status 130, 143 or 129
-    (:func:`exit_interrupted`), never with a traceback. An interrupted command's process then ends without the
-    interpreter's final garbage collections walking every object it holds (:func:`gc.freeze`): on a busy machine
-    they took most of the time from the signal to the exit.
+    (:func:`exit_interrupted`), never with a traceback.
     """
     from robotcal.errors import install_interrupt_handlers
 
     install_interrupt_handlers()
     try:
-        try:
-            from robotcal.cli._app import app
+        from robotcal.cli._app import app
 
-            app()
-        except BaseException as exc:
-            _end(exc)
-            raise
-        _end(None)
-    except SystemExit as ending:
-        if getattr(ending, "robotcal_reported", False):
-            import gc
-
-            gc.freeze()
+        app()
+    except BaseException as exc:
+        _end(exc)
         raise
+    _end(None)
