@@ -106,12 +106,11 @@ def compensate(
     else:
         result = api.compensate(parameters, **targets, tool_mm=tool_mm, settings=settings)
     counts = {status: int(np.sum(result.status == status)) for status in STATUSES if np.any(result.status == status)}
+    rows = ", ".join(f"{count} {status}" for status, count in counts.items())
     comment = (
         f"{SIGNATURE} compensate: commands with which the calibrated model {params.name} reaches the {kind} of "
-        f"{poses.name}\n"
-        f"rows: {', '.join(f'{count} {status}' for status, count in counts.items())}; only 'ok' rows are exact "
-        f"(<= 1e-6 mm, 1e-6 deg, same branch, no joint moved more than {max_change_deg:g} deg); rows without a "
-        "command have empty q cells"
+        f"{poses.name}\nrows: {rows}; only 'ok' rows are exact (<= 1e-6 mm, 1e-6 deg, same branch, no joint moved "
+        f"more than {max_change_deg:g} deg); rows without a command have empty q cells"
         + ("" if parameters.joint_model is None else "\nthe joint model (gravity compliance, harmonic errors) is applied")
     )
     columns = {
@@ -129,21 +128,25 @@ def compensate(
         if ok.any()
         else ""
     )
-    console.print(
-        f"wrote {out} ({len(labels)} pose{'s' if len(labels) != 1 else ''}, {kind}: "
-        f"{', '.join(f'{count} {status}' for status, count in counts.items())}{worst})",
-        highlight=False, soft_wrap=True, markup=False,
+    plural = "s" if len(labels) != 1 else ""
+    console.print(f"wrote {out} ({len(labels)} pose{plural}, {kind}: {rows}{worst})", highlight=False, soft_wrap=True, markup=False)
+    say_not_ok(
+        {status: [labels[k] for k in np.flatnonzero(result.status == status)] for status in STATUSES[1:]},
+        STATUS_MEANING, "row", "check the status column before running the file",
     )  # fmt: skip
-    bad = np.flatnonzero(~ok)
-    if bad.size:
-        for status in STATUSES[1:]:
-            rows = [labels[k] for k in bad if result.status[k] == status]
-            if rows:
-                shown = ", ".join(rows[:10]) + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")
-                console.print(f"  {status}: {shown} ({STATUS_MEANING[status]})", highlight=False, soft_wrap=True, markup=False)
+
+
+def say_not_ok(names_by_status: dict[str, list[str]], meaning: dict[str, str], what: str, advice: str) -> None:
+    """Name, on the console, the rows (points) of every status but ok, then exit with :data:`PARTIAL_EXIT` if any."""
+    count = 0
+    for status, names in names_by_status.items():
+        if names:
+            count += len(names)
+            shown = ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+            console.print(f"  {status}: {shown} ({meaning[status]})", highlight=False, soft_wrap=True, markup=False)
+    if count:
         console.print(
-            f"{bad.size} row{'s are' if bad.size != 1 else ' is'} not ok: check the status column before running the "
-            "file (exit status 3)",
+            f"{count} {what}{'s are' if count != 1 else ' is'} not ok: {advice} (exit status {PARTIAL_EXIT})",
             highlight=False, soft_wrap=True, markup=False,
         )  # fmt: skip
         raise typer.Exit(code=PARTIAL_EXIT)

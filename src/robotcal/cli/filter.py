@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
-from robotcal.cli.compensate import PARTIAL_EXIT
+from robotcal.cli.compensate import say_not_ok
 from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
 
 app = command_app()
@@ -126,16 +126,7 @@ def filter_command(
         f"{f'; {len(loaded.skipped)} target(s) not filtered, listed in points.csv' if loaded.skipped else ''})",
         highlight=False, soft_wrap=True, markup=False,
     )  # fmt: skip
-    bad = [p for p in result.points if p.status != "ok"]
-    for status, note in STATUS_NOTES.items():
-        where = [f"{p.point.label} (line {p.point.line})" for p in bad if p.status == status]
-        if where:
-            shown = ", ".join(where[:8]) + (f" and {len(where) - 8} more" if len(where) > 8 else "")
-            console.print(f"  {status}: {shown}: {note}", highlight=False, soft_wrap=True, markup=False)
-    if bad:
-        console.print(
-            f"{len(bad)} point{'s are' if len(bad) != 1 else ' is'} not ok: read points.csv before running the "
-            "program (exit status 3)",
-            highlight=False, soft_wrap=True, markup=False,
-        )  # fmt: skip
-        raise typer.Exit(code=PARTIAL_EXIT)
+    say_not_ok(
+        {s: [f"{p.point.label} (line {p.point.line})" for p in result.points if p.status == s] for s in STATUS_NOTES if s != "ok"},
+        STATUS_NOTES, "point", "read points.csv before running the program",
+    )  # fmt: skip

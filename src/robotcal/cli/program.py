@@ -69,33 +69,8 @@ def program(
     inputs = existing_inputs(*loaded.files)
     compensated = ""
     if compensate is not None:
-        import numpy as np
-
-        from robotcal.api import compensate as compensate_poses
-        from robotcal.errors import InputError
-        from robotcal.io.parameters_json import read_parameters
-
         inputs += existing_inputs(compensate)
-        parameters = read_parameters(compensate, loaded.robot)
-        result = compensate_poses(parameters, poses_deg=np.rad2deg(readings))
-        lost = np.flatnonzero(np.isin(result.status, ["outside_limits", "unreachable"]))
-        if lost.size:
-            raise InputError(
-                f"--compensate {compensate}: the calibrated model cannot reach {lost.size} point(s) of the plan "
-                f"inside the joint limits on their branch (point(s) {', '.join(str(k + 1) for k in lost[:10])}"
-                f"{'...' if lost.size > 10 else ''}: {', '.join(sorted(set(result.status[lost])))}); no program written"
-            )
-        damped = np.flatnonzero(result.status != "ok")
-        readings = result.readings
-        compensated = f"\ncompensated with the calibrated model {compensate} (robotcal compensate)"
-        if damped.size:
-            note = (
-                f"{damped.size} point(s) near a singularity ({', '.join(str(k + 1) for k in damped[:10])}"
-                f"{'...' if damped.size > 10 else ''}): damped commands, up to "
-                f"{np.nanmax(result.position_error_mm[damped]):.3g} mm from the target"
-            )
-            compensated += f"; {note}"
-            console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
+        readings, compensated = _compensated(compensate, loaded.robot, readings)
     angles = controller_readings(readings, loaded.robot, target)
     header = (
         f"robotcal capture program: scenario {loaded.name} ({loaded.source})\n"
@@ -108,3 +83,33 @@ def program(
         atomic_write_text(path, text)
     what = ", compensated" if compensate is not None else ""
     console.print(f"wrote {out}: {circle.size} {language} joint moves{what}, dwell {dwell:g} s", highlight=False)
+
+
+def _compensated(params: Path, robot, readings):
+    """The plan's readings compensated with the calibrated model of ``params``, and the program header's line;
+    a point it cannot reach inside the limits is an error naming it, a damped one (at a singularity) a note."""
+    import numpy as np
+
+    from robotcal.api import compensate as compensate_poses
+    from robotcal.errors import InputError
+    from robotcal.io.parameters_json import read_parameters
+
+    result = compensate_poses(read_parameters(params, robot), poses_deg=np.rad2deg(readings))
+    lost = np.flatnonzero(np.isin(result.status, ["outside_limits", "unreachable"]))
+    if lost.size:
+        raise InputError(
+            f"--compensate {params}: the calibrated model cannot reach {lost.size} point(s) of the plan inside the "
+            f"joint limits on their branch (point(s) {', '.join(str(k + 1) for k in lost[:10])}"
+            f"{'...' if lost.size > 10 else ''}: {', '.join(sorted(set(result.status[lost])))}); no program written"
+        )
+    header = f"\ncompensated with the calibrated model {params} (robotcal compensate)"
+    damped = np.flatnonzero(result.status != "ok")
+    if damped.size:
+        note = (
+            f"{damped.size} point(s) near a singularity ({', '.join(str(k + 1) for k in damped[:10])}"
+            f"{'...' if damped.size > 10 else ''}): damped commands, up to "
+            f"{np.nanmax(result.position_error_mm[damped]):.3g} mm from the target"
+        )
+        header += f"; {note}"
+        console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
+    return result.readings, header
