@@ -79,6 +79,7 @@ __all__ = [
     "FitHealthWarning",
     "Verdict",
     "assess_fit",
+    "model_advice",
     "circle_axis_uncertainty",
     "cpa_health",
     "refine_health",
@@ -191,12 +192,37 @@ class FitHealth:
         }
 
 
-_MODEL_ADVICE = (
-    "the geometric model does not hold this robot: refine with a model that holds what remains "
-    "(`robotcal refine --model compliance` for gravity sag of J2/J3, `--model harmonic` for joint-angle errors, "
-    "`--model auto` to let cross-validation choose), see the joint errors (`robotcal joints` on a bidirectional "
-    "capture), or check that the stated instrument noise is not too optimistic"
-)
+#: The models ``robotcal refine --model`` fits (identification.model_choice), each with the joint-model groups it holds.
+_MODEL_GROUPS = {
+    "geometric": (),
+    "compliance": ("compliance",),
+    "harmonic": ("harmonic",),
+    "compliance+harmonic": ("compliance", "harmonic"),
+}
+_GROUP_ADVICE = {
+    "compliance": "`--model compliance` for gravity sag of J2/J3",
+    "harmonic": "`--model harmonic` for joint-angle errors",
+}
+
+
+def model_advice(fitted_model: str | None = None) -> str:
+    """What to do when the residual of a fit of ``fitted_model`` exceeds the stated noise (MODEL ERROR): the
+    models it does not hold yet (never the one just fitted), then what no model of robotcal's holds."""
+    held = _MODEL_GROUPS.get(fitted_model or "geometric", ())
+    missing = [advice for group, advice in _GROUP_ADVICE.items() if group not in held]
+    name = f"the {fitted_model or 'geometric'} model"
+    rest = (
+        "see the joint errors that no joint model holds (axis eccentricity, backlash: `robotcal joints` on a "
+        "bidirectional capture), or check that the stated noise is not too optimistic (the instrument's alone leaves "
+        "out the robot's repeatability)"
+    )
+    if not missing:
+        return f"{name} (every joint model robotcal fits) does not hold what remains: {rest}"
+    both = "" if held else ", `--model compliance+harmonic` for both"
+    return (
+        f"{name} does not hold this robot: refine with a model that holds what remains ({', '.join(missing)}{both}, "
+        f"`--model auto` to let cross-validation choose), {rest}"
+    )
 
 
 def assess_fit(
@@ -208,6 +234,7 @@ def assess_fit(
     condition_number: float | None = None,
     converged: bool = True,
     poorly_determined=(),
+    fitted_model: str | None = None,
 ) -> FitHealth:
     """The verdict of a fit (module docstring): FAILED, MODEL ERROR, OK or NOT CHECKED.
 
@@ -226,6 +253,9 @@ def assess_fit(
         Whether the solver met its tolerance.
     poorly_determined : sequence of str
         Findings that name poorly determined parameters or circles (reported, verdict unchanged).
+    fitted_model : str, optional
+        The model fitted (``geometric``, ``compliance``, ...): a MODEL ERROR's advice names the models it lacks
+        (:func:`model_advice`), never itself.
     """
     residual = float(residual_sd_mm)
     noise = None if noise_sd_mm is None or not noise_sd_mm > 0 else float(noise_sd_mm)
@@ -259,7 +289,7 @@ def assess_fit(
         verdict: Verdict = "FAILED"
         problems, advice = failed + model, ("do not use these parameters; correct the input or the start and fit again",)
     elif model:
-        verdict, problems, advice = "MODEL ERROR", model, (_MODEL_ADVICE,)
+        verdict, problems, advice = "MODEL ERROR", model, (model_advice(fitted_model),)
     elif ratio is None:
         verdict, problems, advice = "NOT CHECKED", [], ("give the instrument (scenario [instrument]) or U(95) per point",)
     else:
@@ -373,6 +403,7 @@ def refine_health(result, capture: Capture, instrument=None) -> FitHealth:
         noise_source=noise_source,
         condition_number=result.condition_number,
         converged=bool(result.success),
+        fitted_model=getattr(result, "model", None),
     )
     if health.verdict == "FAILED":  # the u of a failed fit say nothing about the capture
         return health
