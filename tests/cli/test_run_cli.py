@@ -86,6 +86,9 @@ def test_run_writes_every_stage_and_the_report(run_folder):
     }  # fmt: skip
     assert set(record["versions"]) >= {"robotcal", "numpy", "scipy"}
     assert "report.html" in output and "how good" in output
+    # issue 30: an output that is not a terminal (CliRunner's, a pipe, a CI log) gets a line as each stage ends
+    stages = [line.split()[1] for line in output.splitlines() if line.startswith("stage ") and " done in " in line]
+    assert stages == list(STAGES)
     # no hidden temporary folders of atomic_directory are left behind
     # (only the output-policy marker), and the lock file beside the folder is gone
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == [".robotcal"]

@@ -58,6 +58,8 @@ def _progress_columns(width: int, totals: list[int]) -> tuple:
 def run_with_display(plan: RunPlan):
     """:func:`robotcal.pipeline.run_calibration` under one Rich progress display (a task per stage; draws
     for the Monte Carlo); returns its :class:`~robotcal.io.run_folder.RunResult`."""
+    import time
+
     from rich.progress import Progress
 
     from robotcal.io.run_folder import STAGES
@@ -75,14 +77,21 @@ def run_with_display(plan: RunPlan):
             unit = "draws" if name == "uncertainty" else "steps"
             tasks[name] = display.add_task(name, total=totals[name], stage=name, unit=unit, detail="", start=False)
 
+        started: dict[str, float] = {}
+        lines = not console.is_terminal  # a file, a pipe, a CI log: Rich shows the display only at the end
+
         def update(stage: str, done: int, total: int | None, detail: str = "") -> None:
             task = tasks[stage]
             if done == 0 and detail == "running":
                 display.start_task(task)
+                started[stage] = time.monotonic()
                 return
             if done < 0:  # stage finished
                 display.update(task, completed=display.tasks[task].total, detail=detail)
                 display.stop_task(task)
+                if lines:  # one line as each stage ends, so that the log shows the run advance
+                    seconds = time.monotonic() - started.get(stage, time.monotonic())
+                    display.console.print(f"stage {stage} done in {seconds:.1f} s", highlight=False, markup=False)
                 return
             display.update(task, completed=done, detail=detail if stage != "uncertainty" else "")
 
