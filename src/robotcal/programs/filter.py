@@ -35,7 +35,7 @@ import numpy as np
 from robotcal.errors import InputError
 from robotcal.kinematics.compensation import CompensationSettings, compensate_commands
 from robotcal.kinematics.forward import forward_kinematics
-from robotcal.kinematics.inverse import nominal_solutions, rotation_vector
+from robotcal.kinematics.inverse import nominal_solutions, rotation_vector, within_limits
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.programs.base import Program, ProgramPoint, replace_numbers
 from robotcal.programs.configuration import configuration
@@ -176,21 +176,28 @@ def _candidates(robot: RobotModel, readings: np.ndarray) -> np.ndarray:
 
 def _taught(
     program: Program, point: ProgramPoint, robot: RobotModel, controller: RobotModel, flange_target, previous
-) -> np.ndarray | None:
-    """The robot readings [rad] the nominal controller runs for a Cartesian point, or None (config mismatch)."""
+) -> tuple[np.ndarray | None, str]:
+    """The robot readings [rad] the nominal controller runs for a Cartesian point, or None and why: ``unreachable``
+    (the nominal model reaches the original target on no branch) or ``config_mismatch`` (no solution has the point's
+    configuration data). Without configuration data, the solution nearest ``previous`` (whole turns included),
+    inside the limits where one is."""
     solutions, exists = nominal_solutions(robot, flange_target[None], reference=previous)
-    candidates = _candidates(robot, solutions[0][exists[0]])
-    if candidates.size == 0:
-        return None
-    wanted = {key: value for key, value in point.config.items()}
+    existing = solutions[0][exists[0]]
+    if existing.size == 0:
+        return None, "unreachable"
+    wanted = dict(point.config)
     if wanted and program.language != "urscript":
+        candidates = _candidates(robot, existing)  # every whole-turn variant: the turn data pick among them
         found = configuration(program.language, controller, _to_controller(robot, controller, candidates))
-        match = np.array([all(entry.get(key) == value for key, value in wanted.items()) for entry in found])
-        candidates = candidates[match]
+        match = np.array([all(entry.get(key) == value for key, value in wanted.items()) for entry in found], dtype=bool)
+        candidates = candidates[match] if candidates.size else candidates
         if candidates.size == 0:
-            return None
+            return None, "config_mismatch"
+    else:  # nominal_solutions already took the turns nearest previous, inside the limits where they allow
+        inside = within_limits(robot, existing)
+        candidates = existing[inside] if inside.any() else existing
     distance = np.abs(candidates - previous).max(axis=1)
-    return candidates[int(np.argmin(distance))]
+    return candidates[int(np.argmin(distance))], ""
 
 
 def _to_controller(robot: RobotModel, controller: RobotModel, readings) -> np.ndarray:
@@ -261,9 +268,11 @@ def filter_program(
             target = forward_kinematics(robot.nominal, robot.model_joint_variables(readings[None]))[0] @ tool
         else:
             target = base @ point.frame_mm
-            readings = _taught(program, point, robot, controller, target @ _invert(tool), previous)
+            readings, why = _taught(program, point, robot, controller, target @ _invert(tool), previous)
         if readings is None:
-            records.append({"point": point, "status": "config_mismatch", "base": base, "tool": tool, "remark": remark})
+            if why == "unreachable":
+                remark = "; ".join(filter(None, (remark, "the nominal model reaches it on no branch either")))
+            records.append({"point": point, "status": why, "base": base, "tool": tool, "remark": remark})
             continue
         previous = readings
         records.append({"point": point, "status": None, "base": base, "tool": tool, "row": len(targets), "remark": remark})
@@ -276,9 +285,9 @@ def filter_program(
     n = robot.n_joints
     for record in records:
         point, base, tool = record["point"], record["base"], record["tool"]
-        if record["status"] == "config_mismatch":
+        if record["status"] is not None:  # no nominal solution to start from: left as written
             nan = np.full(n, np.nan)
-            filtered.append(_record(point, "config_mismatch", nan, nan, None, None, False, record["remark"]))
+            filtered.append(_record(point, record["status"], nan, nan, None, None, False, record["remark"]))
             continue
         row = record["row"]
         status = str(result.status[row])
