@@ -15,13 +15,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
 from robotcal.errors import InputError
 
-__all__ = ["NumberSpan", "ProgramPoint", "Program", "replace_numbers", "format_number"]
+__all__ = ["NumberSpan", "ProgramPoint", "Program", "replace_numbers", "format_number", "read_program_text", "joint_values"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,3 +145,36 @@ def replace_numbers(texts: Mapping[str, str], replacements: Mapping[NumberSpan, 
         pieces.append(source[cursor:])
         out[name] = "".join(pieces)
     return out
+
+
+def read_program_text(path, encoding: str, kind: str) -> str:
+    """A program file's text exactly as written (line endings and a BOM kept: the filtered file must differ in
+    numbers only), or an :class:`InputError` naming the file (and the line of a byte that is not ``encoding``)."""
+    path = Path(path)
+    try:
+        with open(path, encoding=encoding, newline="") as handle:
+            return handle.read()
+    except LookupError:
+        raise InputError(f"{path}: unknown text encoding {encoding!r} (e.g. utf-8, cp1252)") from None
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such {kind}") from None
+    except UnicodeDecodeError as exc:
+        line = exc.object[: exc.start].count(b"\n") + 1
+        raise InputError(
+            f"{path.name}, line {line}: not valid {encoding} text; give the file's encoding (--encoding cp1252: "
+            "controllers and their editors often write it)"
+        ) from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def joint_values(point: ProgramPoint, joints_deg) -> np.ndarray:
+    """``joints_deg`` as the finite axis values [deg] of the joint point ``point``, or an :class:`InputError`."""
+    where = f"point {point.label!r} ({point.file}, line {point.line})"
+    try:
+        joints = np.asarray(joints_deg, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{where}: joints_deg must be numbers") from exc
+    if joints.shape != (len(point.spans),) or not np.all(np.isfinite(joints)):
+        raise InputError(f"{where}: joints_deg must be {len(point.spans)} finite values [deg]; got {joints_deg!r}")
+    return joints

@@ -48,7 +48,7 @@ import numpy as np
 
 from robotcal.errors import InputError
 from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, matrix_from_kuka_abc
-from robotcal.programs.base import NumberSpan, Program, ProgramPoint, format_number
+from robotcal.programs.base import NumberSpan, Program, ProgramPoint, format_number, joint_values, read_program_text
 
 __all__ = ["DECIMALS", "JOINT_DECIMALS", "IntegerSpan", "read_program", "render"]
 
@@ -203,7 +203,7 @@ def read_program(src_path, *, dat_path=None, config_dat=None, encoding: str = "u
             continue
         if path.name in texts:
             raise InputError(f"{path}: two of the files read are named {path.name!r}; rename one")
-        texts[path.name] = _read_text(path, encoding)
+        texts[path.name] = read_program_text(path, encoding, "file")
         lines[role] = _split_lines(path.name, texts[path.name])
         names[role] = path.name
 
@@ -263,11 +263,7 @@ def render(point: ProgramPoint, *, frame_mm=None, joints_deg=None, config=None) 
             raise InputError(
                 f"point {point.label!r} ({point.file}, line {point.line}) is a joint point: give joints_deg, not frame_mm"
             )
-        new = np.asarray(joints_deg, dtype=float).reshape(-1)
-        if new.shape != (len(point.values),) or not np.all(np.isfinite(new)):
-            raise InputError(
-                f"point {point.label!r}: joints_deg must hold {len(point.values)} finite angles [deg]; got {new}"
-            )
+        new = joint_values(point, joints_deg)
     decimals = DECIMALS if point.kind == "cartesian" else JOINT_DECIMALS
     for span, value in zip(point.spans, new, strict=True):
         out[span] = format_number(float(value), decimals)
@@ -300,22 +296,6 @@ def _beside(src_path: Path) -> Path | None:
     if len(found) > 1 and len(exact) != 1:
         raise InputError(f"{src_path}: several data lists beside it ({', '.join(sorted(p.name for p in found))})")
     return (exact or found or [None])[0]
-
-
-def _read_text(path: Path, encoding: str) -> str:
-    try:
-        with open(path, encoding=encoding, newline="") as handle:
-            return handle.read()
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except UnicodeDecodeError as exc:
-        line = exc.object[: exc.start].count(b"\n") + 1
-        raise InputError(
-            f"{path.name}, line {line}: not valid {encoding} text; give the file's encoding (KUKA controllers often "
-            "write cp1252)"
-        ) from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
 
 
 def _split_lines(name: str, text: str) -> list[_Line]:

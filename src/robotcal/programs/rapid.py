@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.programs.base import NumberSpan, Program, ProgramPoint
+from robotcal.programs.base import NumberSpan, Program, ProgramPoint, read_program_text
 from robotcal.programs.rapid_values import CONFIG_KEYS, frame_from_pose, quaternion_from_frame, render
 
 __all__ = ["EXTENSIONS", "read_program", "render", "frame_from_pose", "quaternion_from_frame"]
@@ -172,15 +172,7 @@ def read_program(path, *, encoding: str = "utf-8") -> Program:
     path = Path(path)
     if path.suffix.lower() not in EXTENSIONS:
         raise InputError(f"{path}: not a RAPID module file (expected one of {', '.join(EXTENSIONS)})")
-    try:
-        with open(path, encoding=encoding, newline="") as stream:
-            text = stream.read()
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such RAPID module file") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not valid {encoding} text at byte {exc.start}; give the file's encoding") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    text = read_program_text(path, encoding, "RAPID module file")
     return _Reader(path.name, text, str(path)).read()
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import check_rigid_transform
-from robotcal.programs.base import NumberSpan, ProgramPoint, format_number
+from robotcal.programs.base import NumberSpan, ProgramPoint, format_number, joint_values
 
 __all__ = ["CONFIG_KEYS", "frame_from_pose", "quaternion_from_frame", "render"]
 
@@ -117,14 +117,7 @@ def render(
         raise InputError(f"{where} is a jointtarget; give its new joints_deg")
     if config:
         raise InputError(f"{where} is a jointtarget; it has no configuration data to write")
-    try:
-        joints = np.asarray(joints_deg, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{where}: joints_deg must be numbers") from exc
-    if joints.shape != (len(point.spans),) or not np.all(np.isfinite(joints)):
-        raise InputError(
-            f"{where}: joints_deg must be {len(point.spans)} finite values [deg]; got shape {joints.shape}"
-        )
+    joints = joint_values(point, joints_deg)
     return {span: format_number(value, JOINT_DECIMALS) for span, value in zip(point.spans, joints, strict=True)}
 
 

@@ -56,7 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.programs.base import NumberSpan, Program, ProgramPoint, format_number
+from robotcal.programs.base import NumberSpan, Program, ProgramPoint, format_number, joint_values, read_program_text
 
 __all__ = ["DECIMALS", "MOVES", "read_program", "render"]
 
@@ -647,15 +647,7 @@ def read_program(path, *, encoding: str = "utf-8") -> Program:
         names the file and the line.
     """
     path = Path(path)
-    try:
-        with open(path, encoding=encoding, newline="") as stream:
-            text = stream.read()
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such URScript file") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not {encoding} text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    text = read_program_text(path, encoding, "URScript file")
     reader = _Reader(text, path.name)
     reader.scan()
     reader.resolve()
@@ -740,13 +732,5 @@ def render(point: ProgramPoint, *, frame_mm=None, joints_deg=None, config=None) 
             raise InputError(f"{where}: a joint target cannot be written as a frame; give joints_deg")
         if joints_deg is None:
             raise InputError(f"{where}: a joint target needs joints_deg")
-        try:
-            joints = np.asarray(joints_deg, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{where}: joints_deg must be numeric") from exc
-        if joints.shape != (len(point.values),) or not np.all(np.isfinite(joints)):
-            raise InputError(
-                f"{where}: joints_deg must be {len(point.values)} finite values [deg]; got shape {joints.shape}"
-            )
-        numbers = np.deg2rad(joints)
+        numbers = np.deg2rad(joint_values(point, joints_deg))
     return {span: format_number(float(value), DECIMALS) for span, value in zip(point.spans, numbers, strict=True)}

@@ -602,7 +602,7 @@ def test_unreadable_files(tmp_path):
     with pytest.raises(InputError, match="no such RAPID module"):
         read_program(tmp_path / "missing.mod")
     (tmp_path / "latin.mod").write_bytes("MODULE M\n! Grüße\nENDMODULE\n".encode("latin-1"))
-    with pytest.raises(InputError, match="latin.mod: not valid utf-8"):
+    with pytest.raises(InputError, match="latin.mod, line 2: not valid utf-8"):
         read_program(tmp_path / "latin.mod")
     program = read_program(tmp_path / "latin.mod", encoding="latin-1")
     assert "Grüße" in program.texts["latin.mod"] and program.points == []

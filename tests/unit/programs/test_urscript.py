@@ -435,6 +435,8 @@ def test_unreadable_files_are_input_errors(tmp_path):
         read_program(tmp_path / "missing.script")
     path = tmp_path / "latin.script"
     path.write_bytes("# pi\xe8ce\nmovel(p[0.4, 0, 0.3, 0, 3.14, 0])\n".encode("latin-1"))
-    with pytest.raises(InputError, match="latin.script: not utf-8 text"):
+    with pytest.raises(InputError, match="latin.script, line 1: not valid utf-8 text.*--encoding"):
         read_program(path)
     assert len(read_program(path, encoding="latin-1").points) == 1
+    with pytest.raises(InputError, match="unknown text encoding 'klingon'"):
+        read_program(path, encoding="klingon")
