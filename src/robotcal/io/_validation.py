@@ -16,7 +16,7 @@ import math
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import AllowInfNan, BaseModel, Strict, ValidationError
+from pydantic import AllowInfNan, BaseModel, BeforeValidator, Strict, ValidationError
 
 from robotcal.errors import InputError
 
@@ -35,6 +35,35 @@ TomlInt = Annotated[int, Strict()]
 TomlFloat = Annotated[float, Strict(), AllowInfNan(False)]
 #: A TOML boolean: ``true`` or ``false``, never a number or a text.
 TomlBool = Annotated[bool, Strict()]
+# The JSON files (the parameter JSON) use the same three types: JSON's numbers, booleans and texts are TOML's.
+
+
+def _three_values(value):
+    if isinstance(value, list | tuple) and len(value) != 3:
+        raise ValueError(f"must be [x, y, z]; got {len(value)} values")
+    return value
+
+
+#: A position or vector [x, y, z]; a list of another length is refused with that message.
+XYZ = Annotated[tuple[TomlFloat, TomlFloat, TomlFloat], BeforeValidator(_three_values)]
+#: The same, kept as the list the file wrote (a key whose validated value is echoed as written).
+XYZList = Annotated[list[TomlFloat], BeforeValidator(_three_values)]
+
+
+def _four_values(value):
+    if isinstance(value, list | tuple) and len(value) != 4:
+        raise ValueError(f"must be a row of 4 numbers; got {len(value)} values")
+    return value
+
+
+def _four_rows(value):
+    if isinstance(value, list | tuple) and len(value) != 4:
+        raise ValueError(f"must be a 4x4 matrix; got {len(value)} rows")
+    return value
+
+
+#: A 4x4 matrix, rows of numbers (a homogeneous transform [mm]); another count of rows or columns is refused.
+Matrix4 = Annotated[list[Annotated[list[TomlFloat], BeforeValidator(_four_values)]], BeforeValidator(_four_rows)]
 
 
 #: What a byte that is not UTF-8 most likely is, for the message: exports of Windows tools (Leica's, among them)
@@ -75,7 +104,11 @@ def read_text_file(path, *, kind: str = "file", encoding: str = "utf-8", encodin
         line = raw.count(b"\n", 0, exc.start) + 1
         legacy = bytes([byte]).decode(_LEGACY_HINT, errors="replace")
         name = "UTF-8" if codec == "utf-8-sig" else encoding
-        hint = f"; if it was written in another encoding, give it: {encoding_option} {_LEGACY_HINT}" if encoding_option else ""
+        hint = (
+            f"; if it was written in another encoding, give it: {encoding_option} {_LEGACY_HINT}"
+            if encoding_option
+            else ""
+        )
         raise InputError(
             f"{path}: not a {name} text file (byte {exc.start} is 0x{byte:02x}); expected a {kind}; line {line} "
             f"holds that byte ({legacy!r} in {_LEGACY_HINT}){hint}"
@@ -185,7 +218,11 @@ def as_toml(value) -> str:
         text = "[" + ", ".join(as_toml(item) for item in value[:8]) + (", ...]" if len(value) > 8 else "]")
     elif isinstance(value, dict):
         items = list(value.items())
-        text = "{" + ", ".join(f"{key} = {as_toml(item)}" for key, item in items[:4]) + (", ...}" if len(items) > 4 else "}")
+        text = (
+            "{"
+            + ", ".join(f"{key} = {as_toml(item)}" for key, item in items[:4])
+            + (", ...}" if len(items) > 4 else "}")
+        )
     else:
         return _short(value)
     return text if len(text) <= 60 else text[:57] + "..."
@@ -199,6 +236,12 @@ _MESSAGES = {
     "bool_type": "must be true or false",
     "string_type": "must be a text",
     "list_type": "must be an array [...]",
+    "tuple_type": "must be an array [...]",
+    "dict_type": "must be a table {{...}}",
+    "model_type": "must be a table {{...}}",
+    "too_short": "must have at least {min_length} values",
+    "too_long": "must have at most {max_length} values",
+    "literal_error": "must be {expected}",
     "greater_than_equal": "must be >= {ge}",
     "greater_than": "must be > {gt}",
     "less_than_equal": "must be <= {le}",
@@ -215,8 +258,13 @@ def _problem(error) -> str:
     if kind == "missing":
         return f"{where}: missing required key"
     bounds = {key: f"{bound:g}" if isinstance(bound, float) else bound for key, bound in error.get("ctx", {}).items()}
-    message = _MESSAGES[kind].format(**bounds) if kind in _MESSAGES else error["msg"]
+    if kind == "value_error":  # a validator's own words (ValueError("must be +1 or -1"))
+        message = str(bounds.get("error", error["msg"]))
+    else:
+        message = _MESSAGES[kind].format(**bounds) if kind in _MESSAGES else error["msg"]
     value = error.get("input")
+    if kind == "float_type" and isinstance(value, int) and not isinstance(value, bool):  # past a float's range
+        message = _MESSAGES["finite_number"]
     if not error["loc"] or isinstance(value, dict) or "got " in message:  # a table-wide check says what it saw
         return f"{where}: {message}"
     return f"{where}: {message}; got {as_toml(value)}"

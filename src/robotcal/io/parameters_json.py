@@ -18,16 +18,21 @@ import json
 import math
 import warnings
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict
 
 from robotcal.errors import InputError, RobotcalWarning
-from robotcal.io._validation import _short, as_finite_float, read_json_file
+from robotcal.io._validation import XYZ, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, JointModel, largest_deflection, parse_parameter_name
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
 
 __all__ = [
+    "ParameterFile",
+    "JointValues",
+    "JointModelEntry",
     "joint_model_to_dict",
     "parameters_to_dict",
     "read_joint_model",
@@ -108,66 +113,133 @@ def joint_model_to_dict(joint_model: JointModel, uncertainty=None) -> dict:
     }
 
 
+class _JsonObject(BaseModel):
+    """An object of the parameter JSON: strict types, unknown keys ignored (the format's extensions, docs/scenario.md)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+
+class JointValues(_JsonObject):
+    """One entry of ``joints`` [mm, deg]: ``theta``, ``a`` and ``alpha`` required, ``d`` and ``beta`` 0 if absent."""
+
+    d: TomlFloat = 0.0
+    theta: TomlFloat
+    a: TomlFloat
+    alpha: TomlFloat
+    beta: TomlFloat = 0.0
+    hayati: TomlBool | None = None
+
+
+class MassesEntry(_JsonObject):
+    """``joint_model.masses``: the link masses and the payload [kg, mm]."""
+
+    mass_kg: list[TomlFloat] = []
+    com_mm: list[XYZ] = []
+    payload_kg: TomlFloat = 0.0
+    payload_com_mm: XYZ = (0.0, 0.0, 0.0)
+    source: str = ""
+
+
+class JointModelParameter(_JsonObject):
+    """One entry of ``joint_model.parameters`` (``group`` and ``u`` are written for people, not read)."""
+
+    name: str
+    value: TomlFloat
+    unit: str | None = None
+    identified: TomlBool = False
+
+
+class JointModelEntry(_JsonObject):
+    """The ``joint_model`` key (module notes)."""
+
+    parameters: list[JointModelParameter]
+    gravity_mps2: XYZ = (0.0, 0.0, -9.81)
+    masses: MassesEntry | None = None
+    lumped: dict[str, list[TomlFloat]] = {}
+    backlash_deg: list[TomlFloat] | None = None
+    backlash_source: str = ""
+
+
+class TargetEntry(_JsonObject):
+    """One entry of ``targets``: a flange target's ``flange_mm`` is read, a per-joint one is skipped."""
+
+    frame: str = "flange"
+    flange_mm: XYZ | None = None
+
+
+def _units(value):
+    if value != dict(DISPLAY_UNITS):
+        raise ValueError(f"must be {dict(DISPLAY_UNITS)}")
+    return value
+
+
+class ParameterFile(_JsonObject):
+    """The parameter JSON (docs/scenario.md): what robotcal reads of it."""
+
+    robot: str | None = None
+    units: Annotated[dict, AfterValidator(_units)] = dict(DISPLAY_UNITS)
+    joints: list[JointValues]
+    identified: list[str] = []
+    joint_model: JointModelEntry | None = None
+
+
+class _TargetsPart(_JsonObject):
+    targets: dict[str, TargetEntry] | None = None
+
+
+class _JointModelPart(_JsonObject):
+    joint_model: JointModelEntry
+
+
 def read_joint_model(data, robot: RobotModel, path) -> JointModel:
     """A ``joint_model`` document (the parameter JSON's key) back as a :class:`JointModel` (errors name ``path`` and
     the key)."""
+    part: _JointModelPart = validate_model(_JointModelPart, {"joint_model": data}, str(path))
+    return _joint_model(part.joint_model, robot, path)
+
+
+def _joint_model(entry: JointModelEntry, robot: RobotModel, path) -> JointModel:
+    """The validated ``joint_model`` key as a :class:`JointModel`: what the schema cannot say (names, units,
+    sizes that depend on the robot, the deflection bound) checked here."""
     where = f"{path}: key `joint_model"
-    if not isinstance(data, dict) or not isinstance(data.get("parameters"), list):
-        raise InputError(f"{where}` must be an object with a list `parameters`")
-    gravity = data.get("gravity_mps2", [0.0, 0.0, -9.81])
-    if not isinstance(gravity, list) or len(gravity) != 3:
-        raise InputError(f"{where}.gravity_mps2` must be [gx, gy, gz]")
-    gravity = [as_finite_float(v, f"{where}.gravity_mps2`") for v in gravity]
     masses = None
-    if data.get("masses") is not None:
-        entry = data["masses"]
-        if not isinstance(entry, dict):
-            raise InputError(f"{where}.masses` must be an object or null")
+    if entry.masses is not None:
         try:
             masses = LinkMasses(
-                mass_kg=[as_finite_float(v, f"{where}.masses.mass_kg`") for v in entry.get("mass_kg", [])],
-                com_mm=np.asarray(entry.get("com_mm", []), dtype=float),
-                payload_kg=as_finite_float(entry.get("payload_kg", 0.0), f"{where}.masses.payload_kg`"),
-                payload_com_mm=np.asarray(entry.get("payload_com_mm", [0.0, 0.0, 0.0]), dtype=float),
-                source=str(entry.get("source", "")),
+                mass_kg=list(entry.masses.mass_kg),
+                com_mm=np.asarray(entry.masses.com_mm, dtype=float),
+                payload_kg=entry.masses.payload_kg,
+                payload_com_mm=np.asarray(entry.masses.payload_com_mm, dtype=float),
+                source=entry.masses.source,
             )
         except (TypeError, ValueError, InputError) as exc:
             raise InputError(f"{where}.masses`: {exc}") from None
-    lumped = data.get("lumped", {})
-    if not isinstance(lumped, dict):
-        raise InputError(f"{where}.lumped` must be an object of term names")
-    names, values, flags = [], [], []
-    for k, entry in enumerate(data["parameters"]):
-        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
-            raise InputError(f"{where}.parameters[{k}]` must be an object with a `name`")
+    for k, parameter in enumerate(entry.parameters):
         try:
-            parse_parameter_name(entry["name"], robot.n_joints)
+            parse_parameter_name(parameter.name, robot.n_joints)
         except InputError as exc:
             raise InputError(f"{where}.parameters[{k}].name`: {exc}") from None
-        names.append(entry["name"])
-        values.append(as_finite_float(entry.get("value"), f"{where}.parameters[{k}].value`"))
-        flags.append(bool(entry.get("identified", False)))
+    names = [parameter.name for parameter in entry.parameters]
+    values = [parameter.value for parameter in entry.parameters]
     try:
         model = JointModel.assemble(
-            robot, names, np.zeros(len(names)), identified=flags, masses=masses,
-            lumped={name: np.asarray(vector, dtype=float) for name, vector in lumped.items()}, gravity=gravity,
+            robot, names, np.zeros(len(names)), identified=[parameter.identified for parameter in entry.parameters],
+            masses=masses, lumped={name: np.asarray(vector, dtype=float) for name, vector in entry.lumped.items()},
+            gravity=list(entry.gravity_mps2),
         )  # fmt: skip
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, InputError) as exc:
         raise InputError(f"{where}`: {exc}") from None
-    except InputError as exc:
-        raise InputError(f"{where}`: {exc}") from None
-    for k, (entry, unit) in enumerate(zip(data["parameters"], model.display_units, strict=True)):
-        if entry.get("unit", unit) != unit:
+    for k, (parameter, unit) in enumerate(zip(entry.parameters, model.display_units, strict=True)):
+        if parameter.unit not in (None, unit):
             raise InputError(
-                f"{where}.parameters[{k}].unit` of {entry['name']} must be {unit!r}; got {_short(entry['unit'])}"
+                f"{where}.parameters[{k}].unit` of {parameter.name} must be {unit!r}; got {as_toml(parameter.unit)}"
             )
-    lash = data.get("backlash_deg", [0.0] * robot.n_joints)
-    if not isinstance(lash, list) or len(lash) != robot.n_joints:
-        raise InputError(f"{where}.backlash_deg` must be {robot.n_joints} angles [deg]")
-    lash = np.radians([as_finite_float(v, f"{where}.backlash_deg`") for v in lash])
+    lash = [0.0] * robot.n_joints if entry.backlash_deg is None else entry.backlash_deg
+    if len(lash) != robot.n_joints:
+        raise InputError(f"{where}.backlash_deg` must be {robot.n_joints} angles [deg]; got {len(lash)}")
     model = model.with_values(model.from_display(values))
     _check_deflection(model, robot, values, where)
-    return model.with_backlash(lash, str(data.get("backlash_source", "")))
+    return model.with_backlash(np.radians(lash), entry.backlash_source)
 
 
 def _check_deflection(model: JointModel, robot: RobotModel, display_values, where: str) -> None:
@@ -238,22 +310,13 @@ def read_targets(path) -> dict:
     targets (empty when the key is absent)."""
     path = Path(path)
     data = read_json_file(path, kind="parameter JSON")
-    entries = data.get("targets") if isinstance(data, dict) else None
-    if entries is None:
-        return {}
-    if not isinstance(entries, dict):
-        raise InputError(f"{path}: key `targets` must be an object of target names")
-    out = {}
-    for name, entry in entries.items():
-        if not isinstance(entry, dict):
-            raise InputError(f"{path}: key `targets.{name}` must be an object")
-        if entry.get("frame", "flange") != "flange" or "flange_mm" not in entry:
-            continue
-        position = entry["flange_mm"]
-        if not isinstance(position, list) or len(position) != 3:
-            raise InputError(f"{path}: key `targets.{name}.flange_mm` must be [x, y, z]")
-        out[name] = tuple(as_finite_float(v, f"{path}: key `targets.{name}.flange_mm`") for v in position)
-    return out
+    part: _TargetsPart = validate_model(_TargetsPart, data if isinstance(data, dict) else {}, str(path))
+    entries = part.targets or {}
+    return {
+        name: entry.flange_mm
+        for name, entry in entries.items()
+        if entry.frame == "flange" and entry.flange_mm is not None
+    }
 
 
 def read_tracker_from_base(path) -> np.ndarray | None:
@@ -275,43 +338,31 @@ def read_tracker_from_base(path) -> np.ndarray | None:
 
 
 def read_parameters(path, robot: RobotModel) -> ParameterSet:
-    """Read a parameter JSON for ``robot``; joint count, joint types and units must match."""
+    """Read a parameter JSON for ``robot`` (schema :class:`ParameterFile`); joint count and types must match."""
     path = Path(path)
     data = read_json_file(path, kind="parameter JSON")
-    if not isinstance(data, dict) or not isinstance(data.get("joints"), list):
-        raise InputError(f"{path}: missing key `joints` (a list with one object per joint)")
-    if data.get("robot") is not None and not isinstance(data["robot"], str):
-        raise InputError(f"{path}: key `robot` must be a text; got {_short(data['robot'])}")
-    if data.get("robot") not in (None, robot.name):
+    document: ParameterFile = validate_model(ParameterFile, data, str(path))
+    if document.robot not in (None, robot.name):
         warnings.warn(
-            f"{path}: parameters written for robot {data['robot']!r} are read for robot {robot.name!r}",
+            f"{path}: parameters written for robot {document.robot!r} are read for robot {robot.name!r}",
             RobotcalWarning,
             stacklevel=2,
         )
-    units = data.get("units", dict(DISPLAY_UNITS))  # optional: robotcal's units when absent
-    if units != dict(DISPLAY_UNITS):
-        raise InputError(f"{path}: key `units` must be {dict(DISPLAY_UNITS)}; got {_short(units)}")
-    joints = data["joints"]
-    if len(joints) != robot.n_joints:
-        raise InputError(f"{path}: {len(joints)} joints but robot {robot.name!r} has {robot.n_joints}")
+    if len(document.joints) != robot.n_joints:
+        raise InputError(f"{path}: {len(document.joints)} joints but robot {robot.name!r} has {robot.n_joints}")
     values = np.zeros((robot.n_joints, 5))
-    for i, entry in enumerate(joints):
-        if not isinstance(entry, dict):
-            raise InputError(f"{path}: key `joints[{i}]` must be an object")
-        if "hayati" in entry and bool(entry["hayati"]) != bool(robot.hayati[i]):
+    for i, entry in enumerate(document.joints):
+        if entry.hayati is not None and entry.hayati != bool(robot.hayati[i]):
             raise InputError(
-                f"{path}: key `joints[{i}].hayati` is {_short(entry['hayati'])} but J{i + 1} of robot {robot.name!r} is not"
+                f"{path}: key `joints[{i}].hayati` is {as_toml(entry.hayati)} but J{i + 1} of robot {robot.name!r} "
+                "is not"
             )
         for k, kind in enumerate(PARAMETER_KINDS):
-            raw = entry.get(kind, 0.0 if kind in ("beta", "d") else None)
-            value = as_finite_float(raw, f"{path}: key `joints[{i}].{kind}`")
+            value = getattr(entry, kind)
             values[i, k] = math.radians(value) if kind in ANGLE_KINDS else value
-    listed = data.get("identified", [])
-    if not isinstance(listed, list) or not all(isinstance(n, str) for n in listed):
-        raise InputError(f'{path}: key `identified` must be a list of parameter names such as "J1.d"')
-    names = set(listed)
+    names = set(document.identified)
     identified = np.array([n in names for n in robot.parameter_names]).reshape(robot.n_joints, 5)
-    joint_model = None if data.get("joint_model") is None else read_joint_model(data["joint_model"], robot, path)
+    joint_model = None if document.joint_model is None else _joint_model(document.joint_model, robot, path)
     try:
         return ParameterSet(robot=robot, values=values, identified=identified, joint_model=joint_model)
     except InputError as exc:

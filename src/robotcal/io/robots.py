@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from robotcal.errors import InputError
-from robotcal.io._validation import TomlBool, TomlFloat, TomlInt, validate_model
+from robotcal.io._validation import XYZ, TomlBool, TomlFloat, TomlInt, validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
 from robotcal.kinematics.model import ANGLE_COLUMNS, LinkMasses, RobotModel
 
@@ -46,7 +46,7 @@ class JointEntry(BaseModel):
     capsule_radius_mm: TomlFloat | None = Field(default=None, ge=0)  # link i as a capsule F_{i-1}-F_i (planning.cell)
     reading_coupling: dict[int, TomlFloat] = Field(default_factory=dict)  # {other joint (1-based): coefficient}
     mass_kg: TomlFloat | None = Field(default=None, ge=0)  # the link joint i moves (joint_model)
-    com_mm: tuple[TomlFloat, TomlFloat, TomlFloat] | None = None  # its centre of mass in DH frame {i}
+    com_mm: XYZ | None = None  # its centre of mass in DH frame {i}
 
     @field_validator("reading_sign")
     @classmethod
@@ -57,9 +57,7 @@ class JointEntry(BaseModel):
 
     @model_validator(mode="after")
     def _consistent(self):
-        values = (self.d, self.theta, self.a, self.alpha, self.beta, self.reading_offset_deg, *self.limits_deg)
-        if not all(np.isfinite(values)):
-            raise ValueError("values must be finite")
+        """The rules between keys (every number is finite by its type)."""
         if self.hayati and self.d != 0.0:
             raise ValueError("a Hayati joint has d = 0 by definition")
         if not self.hayati and self.beta != 0.0:
@@ -68,8 +66,6 @@ class JointEntry(BaseModel):
             raise ValueError("limits_deg must be [lower, upper] with lower < upper")
         if (self.mass_kg is None) != (self.com_mm is None):
             raise ValueError("mass_kg and com_mm go together (the link's mass and its centre of mass)")
-        if self.com_mm is not None and not all(np.isfinite(self.com_mm)):
-            raise ValueError("com_mm must be finite")
         return self
 
 
@@ -84,8 +80,6 @@ def _coupling_matrix(spec: RobotFile, source: str) -> np.ndarray | None:
                 raise InputError(f"{where}: {other} is not a joint number 1..{n}")
             if other == row + 1:
                 raise InputError(f"{where}: a joint is not coupled to itself (its own coefficient is `reading_sign`)")
-            if not np.isfinite(coefficient):
-                raise InputError(f"{where}: must be a finite number; got {coefficient!r}")
             coupling[row, other - 1] = coefficient
     return coupling if np.any(coupling) else None
 

@@ -18,16 +18,16 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from robotcal.errors import InputError, RigidTransformWarning
 from robotcal.geometry.transforms import check_rigid_transform, nearest_rotation
 from robotcal.identification.cpa import CPAOptions
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io._validation import TomlBool, TomlFloat, TomlInt, validate_model
+from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, TomlInt, XYZList, validate_model
 from robotcal.io.builtins import builtin_names, data_path, read_toml
-from robotcal.io.instruments import make_instrument
+from robotcal.io.instruments import InstrumentTable, make_instrument
 from robotcal.io.robots import load_robot
 from robotcal.kinematics.joint_model import MAX_HARMONIC_ORDER
 from robotcal.kinematics.model import ReflectorMount, RobotModel
@@ -62,26 +62,8 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-def _three_values(value):
-    if isinstance(value, list | tuple) and len(value) != 3:
-        raise ValueError(f"must be [x, y, z]; got {len(value)} values")
-    return value
-
-
-#: A position [x, y, z]; a list of another length is refused with that message.
-XYZ = Annotated[tuple[TomlFloat, TomlFloat, TomlFloat], BeforeValidator(_three_values)]
-
-
 class _RunTable(_Strict):
     """A run-option table kept typed on :class:`Scenario` (read its attributes: no defaults restated)."""
-
-
-class InstrumentTable(_Strict):
-    preset: str | None = None
-    a_um: TomlFloat | None = Field(default=None, ge=0)
-    b_um_per_m: TomlFloat | None = Field(default=None, ge=0)
-    noise: Literal["uniform", "normal"] = "uniform"
-    coverage_factor: TomlFloat = Field(default=2.0, gt=0)
 
 
 class ErrorTerm(_Strict):
@@ -106,8 +88,8 @@ class CaptureTable(_Strict):
     start_deg: list[TomlFloat] | list[list[TomlFloat]] | None = None
     sweep_deg: list[TomlFloat] | None = None
     points: list[TomlInt] | None = None
-    reflector_mm: list[list[TomlFloat]] | None = None
-    flange_reflector_mm: list[TomlFloat] | None = None
+    reflector_mm: list[XYZList] | None = None  # one per joint (their count: the robot's)
+    flange_reflector_mm: XYZList | None = None
     bidirectional: TomlBool = False
     joint_limits: Literal["warn", "error", "ignore"] = "warn"
     seed: TomlInt | None = Field(default=None, ge=0)
@@ -128,9 +110,9 @@ class TargetTable(_Strict):
     """One measured target (``[[targets]]``): per-joint reflectors or a flange target, known or unknown."""
 
     name: str = Field(min_length=1)
-    flange_mm: list[TomlFloat] | Literal["unknown"] | None = None
+    flange_mm: list[TomlFloat] | Literal["unknown"] | None = None  # [x, y, z]: its length checked when read
     guess_mm: list[TomlFloat] | None = None
-    reflector_mm: list[list[TomlFloat]] | None = None
+    reflector_mm: list[XYZList] | None = None  # one per joint (their count: the robot's)
 
     @model_validator(mode="after")
     def _one_position(self):
@@ -184,7 +166,7 @@ class TruthTable(_RunTable):
     angle_sd_deg: TomlFloat = Field(default=0.05, ge=0)
     include_base: TomlBool = False
     seed: TomlInt | None = Field(default=None, ge=0)
-    compliance_rad_per_nm: tuple[TomlFloat, ...] | None = None
+    compliance_rad_per_nm: tuple[Annotated[TomlFloat, Field(ge=0)], ...] | None = None  # one per joint
 
 
 class ValidationTable(_RunTable):
@@ -252,8 +234,8 @@ class JointModelTable(_RunTable):
     """
 
     fit: Literal["geometric", "compliance", "harmonic", "compliance+harmonic", "auto"] = "geometric"
-    compliance_joints: tuple[TomlInt, ...] | None = None
-    harmonic_joints: tuple[TomlInt, ...] | None = None
+    compliance_joints: tuple[Annotated[TomlInt, Field(ge=1)], ...] | None = None  # joints of the robot: checked
+    harmonic_joints: tuple[Annotated[TomlInt, Field(ge=1)], ...] | None = None  # against it when it is loaded
     harmonic_order: TomlInt = Field(default=1, ge=1, le=MAX_HARMONIC_ORDER)
     folds: TomlInt = Field(default=5, ge=0)
     seed: TomlInt = Field(default=0, ge=0)
@@ -264,7 +246,7 @@ class JointModelTable(_RunTable):
             raise ValueError("folds must be 0 (no cross-validation) or at least 2")
         for key in ("compliance_joints", "harmonic_joints"):
             joints = getattr(self, key)
-            if joints is not None and (len(set(joints)) != len(joints) or any(j < 1 for j in joints)):
+            if joints is not None and len(set(joints)) != len(joints):
                 raise ValueError(f"{key} must list distinct 1-based joints")
         return self
 
@@ -272,7 +254,7 @@ class JointModelTable(_RunTable):
 class ScenarioFile(_Strict):
     description: str = ""
     robot: str
-    tracker_from_base: list[list[TomlFloat]] = _IDENTITY
+    tracker_from_base: Matrix4 = _IDENTITY
     instrument: InstrumentTable | None = None
     capture: CaptureTable | None = None
     targets: list[TargetTable] = []
@@ -387,12 +369,10 @@ class Scenario:
 
 
 def _rigid(matrix, source: str) -> np.ndarray:
-    rows = [len(row) for row in matrix]
-    if rows != [4, 4, 4, 4]:
-        raise InputError(f"{source}: key `tracker_from_base` must be a 4x4 matrix; got rows of lengths {rows}")
+    """``tracker_from_base`` (a 4x4 matrix by its type) as a rigid transform; a near-rotation repaired with a warning."""
     array = np.asarray(matrix, dtype=float)
     rotation = array[:3, :3]
-    deviation = float(np.max(np.abs(rotation.T @ rotation - np.eye(3)))) if np.all(np.isfinite(array)) else np.inf
+    deviation = float(np.max(np.abs(rotation.T @ rotation - np.eye(3))))
     if 1e-6 < deviation <= REPAIRABLE_DEVIATION and np.linalg.det(rotation) > 0:
         array = array.copy()
         array[:3, :3] = nearest_rotation(rotation)
@@ -460,10 +440,7 @@ def scenario_from_dict(
         "work without it, comparing their residual with the points' u95_mm when the capture has it)"
     )
     if spec.instrument is not None:
-        try:
-            instrument = make_instrument(**spec.instrument.model_dump())
-        except InputError as exc:
-            raise InputError(f"{source}: {exc}") from None
+        instrument = make_instrument(**spec.instrument.model_dump())
     validation = spec.validation
     targets = list(declared)
     taken = {target.name for target in targets}
@@ -524,28 +501,22 @@ def _joint_model_table(table: JointModelTable, truth: TruthTable | None, robot: 
             raise InputError(f"{source}: key `joint_model.{key}`: joint {max(joints)} of a {n}-joint robot")
     if truth is not None and truth.compliance_rad_per_nm is not None:
         values = truth.compliance_rad_per_nm
-        if len(values) != n or any(not np.isfinite(v) or v < 0 for v in values):
-            raise InputError(f"{source}: key `truth.compliance_rad_per_nm` must be {n} finite compliances >= 0")
+        if len(values) != n:
+            raise InputError(f"{source}: key `truth.compliance_rad_per_nm` must be {n} compliances; got {len(values)}")
     return table
 
 
 def _capture_reflector(capture: CaptureTable, n: int, source: str) -> ReflectorMount | None:
     """The ``[capture]`` reflector (per joint or flange), None when the table gives neither."""
     if capture.reflector_mm is not None:
-        try:
-            reflector_array = np.asarray(capture.reflector_mm, dtype=float)
-        except ValueError:  # rows of unequal length
-            raise InputError(f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]") from None
-        if reflector_array.shape != (n, 3):
+        if len(capture.reflector_mm) != n:
             raise InputError(
-                f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z]; got shape {reflector_array.shape}"
+                f"{source}: key `capture.reflector_mm` must be {n} positions [x, y, z] (one per joint); "
+                f"got {len(capture.reflector_mm)}"
             )
-        return ReflectorMount(frame="joint", positions=reflector_array)
+        return ReflectorMount(frame="joint", positions=np.asarray(capture.reflector_mm, dtype=float))
     if capture.flange_reflector_mm is not None:
-        flange = np.asarray(capture.flange_reflector_mm, dtype=float)
-        if flange.shape != (3,):
-            raise InputError(f"{source}: key `capture.flange_reflector_mm` must be [x, y, z]; got shape {flange.shape}")
-        return ReflectorMount(frame="flange", positions=flange)
+        return ReflectorMount(frame="flange", positions=np.asarray(capture.flange_reflector_mm, dtype=float))
     return None
 
 
@@ -597,18 +568,17 @@ def _targets(tables: list[TargetTable], n: int, source: str) -> tuple[Target, ..
         if any(t.name == table.name for t in targets):
             raise InputError(f"{source}: key `{key}.name`: target name {table.name!r} is declared twice")
         if table.reflector_mm is not None:
-            try:
-                positions = np.asarray(table.reflector_mm, dtype=float)
-            except ValueError:
-                positions = np.zeros(0)
-            if positions.shape != (n, 3):
-                raise InputError(f"{source}: key `{key}.reflector_mm` must be {n} positions [x, y, z] (one per joint)")
-            targets.append(Target(name=table.name, frame="joint", positions=positions))
+            if len(table.reflector_mm) != n:
+                raise InputError(
+                    f"{source}: key `{key}.reflector_mm` must be {n} positions [x, y, z] (one per joint); "
+                    f"got {len(table.reflector_mm)}"
+                )
+            targets.append(Target(name=table.name, frame="joint", positions=np.asarray(table.reflector_mm, dtype=float)))
             continue
         known = table.flange_mm != "unknown"
         position = table.flange_mm if known else (table.guess_mm if table.guess_mm is not None else [0.0, 0.0, 0.0])
-        what = "flange_mm" if known else "guess_mm"
-        if len(position) != 3:
+        if len(position) != 3:  # not by type: a union's error would name both of flange_mm's types
+            what = "flange_mm" if known else "guess_mm"
             raise InputError(f"{source}: key `{key}.{what}` must be [x, y, z] mm; got {len(position)} values")
         targets.append(Target(name=table.name, frame="flange", positions=position, known=known))
     return tuple(targets)

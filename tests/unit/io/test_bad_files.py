@@ -71,10 +71,10 @@ def test_a_folder_is_not_a_file(tmp_path):
 @pytest.mark.parametrize(
     ("value", "message"),
     [
-        (10**401, r"joints\[0\].d` must be a finite number; got an integer of ~402 digits"),
-        ("12", r"joints\[0\].d` must be a finite number; got '12'"),
-        ([1], r"joints\[0\].d` must be a finite number; got \[1\]"),
-        (True, r"joints\[0\].d` must be a finite number; got True"),
+        (10**401, r"key `joints\[0\].d`: must be a finite number; got an integer of ~402 digits$"),
+        ("12", r'key `joints\[0\].d`: must be a number; got "12"$'),  # the value as the JSON writes it
+        ([1], r"key `joints\[0\].d`: must be a number; got \[1\]$"),
+        (True, r"key `joints\[0\].d`: must be a number; got true$"),
     ],
 )
 def test_parameter_json_wrong_values(tmp_path, value, message):

@@ -138,9 +138,9 @@ def test_the_builtin_files_still_read():
 
 def test_instrument_terms_must_be_numbers():
     """The instrument reader takes its terms from a preset or the caller: a boolean is refused there too."""
-    with pytest.raises(InputError, match=r"`a_um` must be a finite number; got True"):
+    with pytest.raises(InputError, match=r"^instrument: key `a_um`: must be a number; got true$"):
         make_instrument(a_um=True, b_um_per_m=1.0)
-    with pytest.raises(InputError, match=r"`coverage_factor` must be a finite number; got 'x'"):
+    with pytest.raises(InputError, match=r"key `coverage_factor`: must be a number; got \"x\"$"):
         make_instrument(preset="thesis-laser-tracker", coverage_factor="x")
 
 
