@@ -573,7 +573,9 @@ def _targets(tables: list[TargetTable], n: int, source: str) -> tuple[Target, ..
                     f"{source}: key `{key}.reflector_mm` must be {n} positions [x, y, z] (one per joint); "
                     f"got {len(table.reflector_mm)}"
                 )
-            targets.append(Target(name=table.name, frame="joint", positions=np.asarray(table.reflector_mm, dtype=float)))
+            targets.append(
+                Target(name=table.name, frame="joint", positions=np.asarray(table.reflector_mm, dtype=float))
+            )
             continue
         known = table.flange_mm != "unknown"
         position = table.flange_mm if known else (table.guess_mm if table.guess_mm is not None else [0.0, 0.0, 0.0])
