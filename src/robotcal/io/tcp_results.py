@@ -93,6 +93,44 @@ def tcp_to_dict(
     provenance: dict | None = None,
 ) -> dict:
     """Everything of a result as JSON-ready data in mm and degrees (``tcp.json``)."""
+    ellipsoid = result.ellipsoid
+    data = {
+        "robot": result.robot_name,
+        "draws": result.n_draws,
+        "coverage": result.coverage,
+        "interval": interval,
+        "tool_mm": result.tool.tolist(),
+        "units": dict(DISPLAY_UNITS),
+        "coordinates": list(TCP_COORDINATES),
+        "orientation": ORIENTATION_CONVENTION,
+        "covariance_order": "X, Y, Z [mm], A, B, C [deg]",
+        "ellipsoid": (
+            f"{result.coverage:g} coverage region (x - mean)^T V^-1 (x - mean) <= k^2 of the position, "
+            f"k^2 = chi2.ppf({result.coverage:g}, 3) = {ellipsoid.gaussian_scale**2:.6g} (JCGM 102 6.5.3); "
+            "directions: one unit vector per semi-axis, base frame; monte_carlo_semi_axes: k_p from the "
+            "draws (JCGM 102 7.7.2)"
+        ),
+        "poses": _pose_entries(result, interval),
+    }
+    if workspace is not None:
+        data["workspace"] = {
+            "seed": workspace.seed,
+            "poses": result.n_poses,
+            "percentiles": list(workspace.percentiles),
+            "position_uncertainty_mm": workspace.position_uncertainty_percentiles.tolist(),
+            "max_semi_axis_mm": workspace.max_semi_axis_percentiles.tolist(),
+            "std_uncertainty": {
+                name: (workspace.std_uncertainty_percentiles[:, k] * _DEG[k]).tolist()
+                for k, name in enumerate(TCP_COORDINATES)
+            },
+        }
+    if provenance:
+        data["provenance"] = provenance
+    return data
+
+
+def _pose_entries(result: TCPUncertainty, interval: str) -> list[dict]:
+    """The ``poses`` of ``tcp.json``: per pose its readings, coordinates, covariances and ellipsoid."""
     low, high = result.summary.interval(interval)
     ellipsoid = result.ellipsoid
     summary = result.summary
@@ -148,39 +186,7 @@ def tcp_to_dict(
                 },
             }
         )
-    data = {
-        "robot": result.robot_name,
-        "draws": result.n_draws,
-        "coverage": result.coverage,
-        "interval": interval,
-        "tool_mm": result.tool.tolist(),
-        "units": dict(DISPLAY_UNITS),
-        "coordinates": list(TCP_COORDINATES),
-        "orientation": ORIENTATION_CONVENTION,
-        "covariance_order": "X, Y, Z [mm], A, B, C [deg]",
-        "ellipsoid": (
-            f"{result.coverage:g} coverage region (x - mean)^T V^-1 (x - mean) <= k^2 of the position, "
-            f"k^2 = chi2.ppf({result.coverage:g}, 3) = {ellipsoid.gaussian_scale**2:.6g} (JCGM 102 6.5.3); "
-            "directions: one unit vector per semi-axis, base frame; monte_carlo_semi_axes: k_p from the "
-            "draws (JCGM 102 7.7.2)"
-        ),
-        "poses": poses,
-    }
-    if workspace is not None:
-        data["workspace"] = {
-            "seed": workspace.seed,
-            "poses": result.n_poses,
-            "percentiles": list(workspace.percentiles),
-            "position_uncertainty_mm": workspace.position_uncertainty_percentiles.tolist(),
-            "max_semi_axis_mm": workspace.max_semi_axis_percentiles.tolist(),
-            "std_uncertainty": {
-                name: (workspace.std_uncertainty_percentiles[:, k] * _DEG[k]).tolist()
-                for k, name in enumerate(TCP_COORDINATES)
-            },
-        }
-    if provenance:
-        data["provenance"] = provenance
-    return data
+    return poses
 
 
 def _finite_or_none(value) -> float | None:

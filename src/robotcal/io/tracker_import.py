@@ -254,6 +254,21 @@ def _number(cell: str, decimal: str, where: str) -> float:
     return value
 
 
+def _cell(key: str, cell: str, decimal: str, where: str):
+    """A cell of column ``key``: a number (``x``, ``y``, ``z``, ``u95``, joint readings), a whole number
+    (``circle``, ``direction``) or a non-empty text (``name``, ``target``)."""
+    if key in ("circle", "direction"):
+        number = _number(cell, decimal, where)
+        if number != round(number):
+            raise InputError(f"{where}: must be a whole number; got {cell!r}")
+        return int(number)
+    if key in ("name", "target"):
+        if not cell:
+            raise InputError(f"{where}: empty {key}")
+        return cell
+    return _number(cell, decimal, where)
+
+
 def _is_number(cell: str, decimal: str) -> bool:
     try:
         _number(cell, decimal, "")
@@ -401,85 +416,22 @@ def read_tracker_export(
     records, delimiter, decimal = _table(
         source, kind="tracker export", delimiter=delimiter, decimal=decimal, encoding=encoding
     )
-    first = records[0][1]
-    headerless = len(first) >= 4 and all(_is_number(cell, decimal) for cell in first[1:4])
-    if mapping:
-        by_position = all(value.isdigit() and int(value) >= 1 for value in mapping.values())
-        if by_position and all(
-            int(mapping[key]) <= len(first) and _is_number(first[int(mapping[key]) - 1], decimal) for key in "xyz"
-        ):
-            header, data = None, records
-        else:
-            header, data = first, records[1:]
-        positions, layout = _mapped_columns(header, mapping, len(first), records[0][0], source), "generic"
-        first_line = records[0][0]
-        width, of = (
-            len(first),
-            (f"in the header (line {first_line})" if header is not None else f"on line {first_line}"),
-        )
-    elif headerless:
-        header, data, layout = None, records, "plain"
-        positions = {"name": 0, "x": 1, "y": 2, "z": 3}
-        width, of = 4, "in a plain name;x;y;z export (map a wider file with --columns)"
-    else:
-        header, data = first, records[1:]
-        positions, layout = _auto_columns(header)
-        width, of = len(header), f"in the header (line {records[0][0]})"
-        missing = [key for key in ("x", "y", "z") if key not in positions]
-        if missing:
-            raise InputError(
-                f"{source}: no column {', '.join(missing)} in the header ({', '.join(header)}); "
-                'name the columns with --columns x="...",y="...",z="..."'
-            )
-    if not data:
+    layout = _export_layout(records, mapping, decimal, source)
+    header, positions = layout.header, layout.positions
+    if not layout.data:
         raise InputError(f"{source}: no data rows")
 
     def column_name(key: str) -> str:
         return header[positions[key]] if header is not None else f"{key} (column {positions[key] + 1})"
 
-    # units: from the header's brackets of x, y, z (must agree) and/or --units
-    header_unit = None
-    if header is not None:
-        found = {}
-        for key in ("x", "y", "z"):
-            unit = _split_unit(header[positions[key]])[1]
-            if unit is not None:
-                found[key] = _length_unit(unit, f"{source}: column `{header[positions[key]]}`")
-        if len(set(found.values())) > 1:
-            raise InputError(f"{source}: the coordinate columns disagree on the unit: {found}")
-        header_unit = next(iter(found.values()), None)
-    if units is not None and header_unit is not None and units != header_unit:
-        raise InputError(
-            f"{source}: --units {units} contradicts the header, whose coordinates are in {header_unit} "
-            f"(column `{column_name('x')}`)"
-        )
-    unit = units or header_unit
-    if unit is None:
-        raise InputError(f"{source}: the export does not state its unit; give --units {'|'.join(UNITS_MM)}")
-    u95_unit = unit
-    if "u95" in positions and header is not None:
-        stated = _split_unit(header[positions["u95"]])[1]
-        if stated is not None:
-            u95_unit = _length_unit(stated, f"{source}: column `{header[positions['u95']]}`")
+    unit, u95_unit = _export_units(header, positions, units, source, column_name("x"))
     values = {key: [] for key in positions}
     lines = []
-    for line, row in data:
-        row = _check_width(row, line, width, source, of=of, delimiter=delimiter)
+    for line, row in layout.data:
+        row = _check_width(row, line, layout.width, source, of=layout.of, delimiter=delimiter)
         lines.append(line)
         for key, position in positions.items():
-            cell = row[position]
-            where = f"{source}: line {line}, column `{column_name(key)}`"
-            if key in ("x", "y", "z", "u95"):
-                values[key].append(_number(cell, decimal, where))
-            elif key in ("circle", "direction"):
-                number = _number(cell, decimal, where)
-                if number != round(number):
-                    raise InputError(f"{where}: must be a whole number; got {cell!r}")
-                values[key].append(int(number))
-            else:
-                if not cell:
-                    raise InputError(f"{where}: empty {key}")
-                values[key].append(cell)
+            values[key].append(_cell(key, row[position], decimal, f"{source}: line {line}, column `{column_name(key)}`"))
     points = np.column_stack([values[key] for key in ("x", "y", "z")]) * UNITS_MM[unit]
     u95 = None
     if "u95" in values:
@@ -498,7 +450,7 @@ def read_tracker_export(
         points=points,
         names=names,
         lines=np.asarray(lines),
-        layout=layout,
+        layout=layout.name,
         unit=unit,
         source=str(source),
         u95=u95,
@@ -506,6 +458,80 @@ def read_tracker_export(
         circle=np.asarray(values["circle"]) if "circle" in values else None,
         direction=np.asarray(values["direction"]) if "direction" in values else None,
     )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Layout:
+    """Where an export's columns are: ``header`` (None: none), the data records, the column of each key, the
+    layout's name, and the width every row must have (``of``: where that width comes from, for the message)."""
+
+    header: list[str] | None
+    data: list
+    positions: dict[str, int]
+    name: str
+    width: int
+    of: str
+
+
+def _export_layout(records, mapping: dict[str, str], decimal: str, source) -> _Layout:
+    """The export's layout: mapped by ``--columns``, a headerless ``name;x;y;z``, or recognised from its header."""
+    first_line, first = records[0]
+    if mapping:
+        by_position = all(value.isdigit() and int(value) >= 1 for value in mapping.values())
+        if by_position and all(
+            int(mapping[key]) <= len(first) and _is_number(first[int(mapping[key]) - 1], decimal) for key in "xyz"
+        ):
+            header, data = None, records
+        else:
+            header, data = first, records[1:]
+        of = f"in the header (line {first_line})" if header is not None else f"on line {first_line}"
+        positions = _mapped_columns(header, mapping, len(first), first_line, source)
+        return _Layout(header=header, data=data, positions=positions, name="generic", width=len(first), of=of)
+    if len(first) >= 4 and all(_is_number(cell, decimal) for cell in first[1:4]):
+        return _Layout(
+            header=None, data=records, positions={"name": 0, "x": 1, "y": 2, "z": 3}, name="plain", width=4,
+            of="in a plain name;x;y;z export (map a wider file with --columns)",
+        )  # fmt: skip
+    positions, name = _auto_columns(first)
+    missing = [key for key in ("x", "y", "z") if key not in positions]
+    if missing:
+        raise InputError(
+            f"{source}: no column {', '.join(missing)} in the header ({', '.join(first)}); "
+            'name the columns with --columns x="...",y="...",z="..."'
+        )
+    return _Layout(
+        header=first, data=records[1:], positions=positions, name=name, width=len(first),
+        of=f"in the header (line {first_line})",
+    )  # fmt: skip
+
+
+def _export_units(header, positions: dict[str, int], units: str | None, source, x_column: str) -> tuple[str, str]:
+    """The unit of the coordinates and of U(95): from the header's ``[mm]`` of x, y, z (which must agree) and/or
+    ``--units`` (which must agree with the header)."""
+    header_unit = None
+    if header is not None:
+        found = {}
+        for key in ("x", "y", "z"):
+            unit = _split_unit(header[positions[key]])[1]
+            if unit is not None:
+                found[key] = _length_unit(unit, f"{source}: column `{header[positions[key]]}`")
+        if len(set(found.values())) > 1:
+            raise InputError(f"{source}: the coordinate columns disagree on the unit: {found}")
+        header_unit = next(iter(found.values()), None)
+    if units is not None and header_unit is not None and units != header_unit:
+        raise InputError(
+            f"{source}: --units {units} contradicts the header, whose coordinates are in {header_unit} "
+            f"(column `{x_column}`)"
+        )
+    unit = units or header_unit
+    if unit is None:
+        raise InputError(f"{source}: the export does not state its unit; give --units {'|'.join(UNITS_MM)}")
+    u95_unit = unit
+    if "u95" in positions and header is not None:
+        stated = _split_unit(header[positions["u95"]])[1]
+        if stated is not None:
+            u95_unit = _length_unit(stated, f"{source}: column `{header[positions['u95']]}`")
+    return unit, u95_unit
 
 
 def _check_unique_names(names, target, lines, source, column: str) -> None:
@@ -565,6 +591,53 @@ def read_joint_log(
         source, kind="joint-angle log", delimiter=delimiter, decimal=decimal, encoding=encoding
     )
     header = records[0][1]
+    joints, scale = _joint_columns(header, n_joints, source)
+    count = len(joints)
+    bases = [_split_unit(cell)[0] for cell in header]
+    optional = {
+        key: bases.index(alias)
+        for key, aliases in (
+            ("name", NAME_HEADERS),
+            ("circle", ("circle",)),
+            ("direction", ("direction",)),
+            ("target", ("target",)),
+        )
+        for alias in aliases
+        if alias in bases
+    }
+    data = records[1:]
+    if not data:
+        raise InputError(f"{source}: no data rows")
+    readings = np.empty((len(data), count))
+    extra = {key: [] for key in optional}
+    lines = []
+    for row_index, (line, row) in enumerate(data):
+        row = _check_width(
+            row, line, len(header), source, of=f"in the header (line {records[0][0]})", delimiter=delimiter
+        )
+        lines.append(line)
+        for k, position in enumerate(joints):
+            where = f"{source}: line {line}, column `{header[position]}`"
+            readings[row_index, k] = _number(row[position], decimal, where) * scale[k]
+        for key, position in optional.items():
+            extra[key].append(_cell(key, row[position], decimal, f"{source}: line {line}, column `{header[position]}`"))
+    names = tuple(extra["name"]) if "name" in extra else None
+    if names is not None and check_names:
+        _check_pose_names(names, extra.get("target"), lines, source, header[optional["name"]])
+    return JointLog(
+        readings=readings,
+        names=names,
+        lines=np.asarray(lines),
+        source=str(source),
+        circle=np.asarray(extra["circle"]) if "circle" in extra else None,
+        direction=np.asarray(extra["direction"]) if "direction" in extra else None,
+        target=tuple(extra["target"]) if "target" in extra else None,
+    )
+
+
+def _joint_columns(header: list[str], n_joints: int | None, source) -> tuple[list[int], list[float]]:
+    """The positions of a log's joint columns ``q1..qN`` (or ``j``/``a``), in joint order, and each one's scale
+    to radians (``[rad]`` in the header, else degrees)."""
     parsed = [_split_unit(cell) for cell in header]
     joint_positions: dict[str, dict[int, int]] = {}
     for position, (base, _) in enumerate(parsed):
@@ -589,56 +662,7 @@ def read_joint_log(
         if unit not in (None, "deg", "°", "degree", "degrees", "rad"):
             raise InputError(f"{source}: column `{header[joints[k]]}`: unknown angle unit {unit!r}; known: deg, rad")
         scale.append(1.0 if unit == "rad" else np.pi / 180.0)
-    bases = [base for base, _ in parsed]
-    optional = {
-        key: bases.index(alias)
-        for key, aliases in (
-            ("name", NAME_HEADERS),
-            ("circle", ("circle",)),
-            ("direction", ("direction",)),
-            ("target", ("target",)),
-        )
-        for alias in aliases
-        if alias in bases
-    }
-    data = records[1:]
-    if not data:
-        raise InputError(f"{source}: no data rows")
-    readings = np.empty((len(data), count))
-    extra = {key: [] for key in optional}
-    lines = []
-    for row_index, (line, row) in enumerate(data):
-        row = _check_width(
-            row, line, len(header), source, of=f"in the header (line {records[0][0]})", delimiter=delimiter
-        )
-        lines.append(line)
-        for k in range(1, count + 1):
-            where = f"{source}: line {line}, column `{header[joints[k]]}`"
-            readings[row_index, k - 1] = _number(row[joints[k]], decimal, where) * scale[k - 1]
-        for key, position in optional.items():
-            cell = row[position]
-            where = f"{source}: line {line}, column `{header[position]}`"
-            if key in ("circle", "direction"):
-                number = _number(cell, decimal, where)
-                if number != round(number):
-                    raise InputError(f"{where}: must be a whole number; got {cell!r}")
-                extra[key].append(int(number))
-            elif not cell:
-                raise InputError(f"{where}: empty {key}")
-            else:
-                extra[key].append(cell)
-    names = tuple(extra["name"]) if "name" in extra else None
-    if names is not None and check_names:
-        _check_pose_names(names, extra.get("target"), lines, source, header[optional["name"]])
-    return JointLog(
-        readings=readings,
-        names=names,
-        lines=np.asarray(lines),
-        source=str(source),
-        circle=np.asarray(extra["circle"]) if "circle" in extra else None,
-        direction=np.asarray(extra["direction"]) if "direction" in extra else None,
-        target=tuple(extra["target"]) if "target" in extra else None,
-    )
+    return [joints[k] for k in range(1, count + 1)], scale
 
 
 # --------------------------------------------------------------------------------------------------
