@@ -431,7 +431,8 @@ def read_tracker_export(
         row = _check_width(row, line, layout.width, source, of=layout.of, delimiter=delimiter)
         lines.append(line)
         for key, position in positions.items():
-            values[key].append(_cell(key, row[position], decimal, f"{source}: line {line}, column `{column_name(key)}`"))
+            where = f"{source}: line {line}, column `{column_name(key)}`"
+            values[key].append(_cell(key, row[position], decimal, where))
     points = np.column_stack([values[key] for key in ("x", "y", "z")]) * UNITS_MM[unit]
     u95 = None
     if "u95" in values:
