@@ -39,6 +39,11 @@ def _number(value) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def _count(value) -> int | None:
+    """A JSON integer, else None (a boolean is not a count)."""
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
 def _text(value) -> str | None:
     return value if isinstance(value, str) and value else None
 
@@ -251,7 +256,7 @@ def _circles(documents: Mapping) -> dict:
     circle, rms = max(fits, key=lambda fit: fit[1])
     return {
         "circle_rms_mm": rms,
-        "circle_rms_circle": circle if isinstance(circle, int) and not isinstance(circle, bool) else None,
+        "circle_rms_circle": _count(circle),
         "circles": len(circles),
     }
 
@@ -294,12 +299,11 @@ def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUnce
                 aside[unit] = (u, name, reasons[name])
         elif unit not in largest or u > largest[unit][0]:
             largest[unit] = (u, name)
-    draws = data.get("draws")
     length, angle = largest.get("mm", (None, None)), largest.get("deg", (None, None))
     return ModelUncertainty(
         folder=folder,
         label=label,
-        draws=draws if isinstance(draws, int) and not isinstance(draws, bool) else None,
+        draws=_count(data.get("draws")),
         length_mm=length[0],
         length_name=length[1],
         angle_deg=angle[0],
@@ -340,9 +344,8 @@ def _consistency(documents: Mapping) -> Consistency | None:
     expected, observed, ratio = (_number(data.get(key)) for key in ("expected_rms_mm", "observed_rms_mm", "ratio"))
     if expected is None or observed is None or ratio is None:
         return None
-    poses = data.get("poses")
     return Consistency(
-        poses=poses if isinstance(poses, int) and not isinstance(poses, bool) else None,
+        poses=_count(data.get("poses")),
         model=_text(data.get("model")),
         base_frame=_text(data.get("base_frame")),
         predicted_rms_mm=_number(data.get("predicted_rms_mm")),
