@@ -126,8 +126,7 @@ def joint_origins(
     flange : ndarray, shape (4, 4)
         ``link_n_from_flange = S_n`` [mm]; the flange is DH frame {n}.
     """
-    if joint_variable not in ("reading", "model"):
-        raise InputError(f"`joint_variable` must be 'reading' or 'model'; got {joint_variable!r}")
+    _check_joint_variable(joint_variable)
     robot = parameters.robot
     if joint_variable == "reading":
         require_uncoupled(robot, "a URDF or UR YAML joint whose value is the controller reading")
