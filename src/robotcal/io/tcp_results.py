@@ -93,7 +93,7 @@ def tcp_to_dict(
     provenance: dict | None = None,
 ) -> dict:
     """Everything of a result as JSON-ready data in mm and degrees (``tcp.json``)."""
-    ellipsoid = result.ellipsoid
+    k_squared = result.ellipsoid.gaussian_scale**2
     data = {
         "robot": result.robot_name,
         "draws": result.n_draws,
@@ -106,7 +106,7 @@ def tcp_to_dict(
         "covariance_order": "X, Y, Z [mm], A, B, C [deg]",
         "ellipsoid": (
             f"{result.coverage:g} coverage region (x - mean)^T V^-1 (x - mean) <= k^2 of the position, "
-            f"k^2 = chi2.ppf({result.coverage:g}, 3) = {ellipsoid.gaussian_scale**2:.6g} (JCGM 102 6.5.3); "
+            f"k^2 = chi2.ppf({result.coverage:g}, 3) = {k_squared:.6g} (JCGM 102 6.5.3); "
             "directions: one unit vector per semi-axis, base frame; monte_carlo_semi_axes: k_p from the "
             "draws (JCGM 102 7.7.2)"
         ),
