@@ -170,19 +170,6 @@ def read_json_file(path, *, kind: str = "JSON file"):
     return parse_json_text(read_text_file(path, kind=kind), str(path))
 
 
-def as_finite_float(value, where: str) -> float:
-    """A JSON/TOML number as a finite float (bool, text, huge integers refused), naming ``where``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"{where} must be a finite number; got {_short(value)}")
-    try:
-        result = float(value)
-    except OverflowError:
-        raise InputError(f"{where} must be a finite number; got an integer of ~{_digits(value)} digits") from None
-    if not math.isfinite(result):
-        raise InputError(f"{where} must be a finite number; got {_short(value)}")
-    return result
-
-
 def _digits(value: int) -> int:
     return int(abs(value).bit_length() * math.log10(2)) + 1
 
