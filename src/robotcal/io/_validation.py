@@ -301,3 +301,11 @@ def parse_finite(cell: str, where: str) -> float:
     if not math.isfinite(value):
         raise InputError(f"{where}: {text!r} is not a finite number")
     return value
+
+
+def parse_whole(cell: str, where: str) -> int:
+    """A CSV cell as a whole number (``3`` or ``3.0``; ``2.5`` is refused, never truncated), naming ``where``."""
+    value = parse_finite(cell, where)
+    if value != round(value):
+        raise InputError(f"{where}: must be a whole number; got {cell.strip()!r}")
+    return int(value)

@@ -152,7 +152,7 @@ def read_backlash(path, n_joints: int) -> np.ndarray:
     """The angular backlash [deg] per joint from a joints stage's ``summary.csv``: ``backlash_angle_mean_deg`` of the
     joints whose backlash exceeds the noise (``backlash_exceeds_noise`` 1), 0 for the others and for joints the
     capture has no circle of. Errors name the file, the line and the column."""
-    from robotcal.io._validation import csv_rows, parse_finite, read_text_file
+    from robotcal.io._validation import csv_rows, parse_finite, parse_whole, read_text_file
 
     path = Path(path)
     rows = [row for _, row in csv_rows(read_text_file(path, kind="joints summary CSV"), path) if any(row)]
@@ -166,7 +166,7 @@ def read_backlash(path, n_joints: int) -> np.ndarray:
     out = np.zeros(n_joints)
     for line, row in enumerate(rows[1:], start=2):
         cells = dict(zip(header, row, strict=False))
-        joint = int(parse_finite(cells["joint"], f"{path}: line {line}, column `joint`"))
+        joint = parse_whole(cells["joint"], f"{path}: line {line}, column `joint`")
         if not 1 <= joint <= n_joints:
             raise InputError(f"{path}: line {line}: joint {joint} of a {n_joints}-joint robot")
         if cells["backlash_exceeds_noise"].strip() in ("1", "true", "True"):

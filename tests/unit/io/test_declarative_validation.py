@@ -122,3 +122,15 @@ def test_parameter_json_targets(tmp_path):
     path.write_text(json.dumps({"targets": {"T": {"flange_mm": [1.0, 2.0]}}}))
     with pytest.raises(InputError, match=r"key `targets\.T\.flange_mm`: must be \[x, y, z\]; got 2 values"):
         read_targets(path)
+
+
+def test_a_joint_number_is_whole(tmp_path):
+    from robotcal.io.joints_files import read_backlash
+
+    path = tmp_path / "summary.csv"
+    header = "joint,backlash_angle_mean_deg,backlash_exceeds_noise\n"
+    path.write_text(header + "2,0.01,1\n")
+    assert read_backlash(path, 6)[1] == 0.01
+    path.write_text(header + "2.5,0.01,1\n")  # read as joint 2 before
+    with pytest.raises(InputError, match=r"line 2, column `joint`: must be a whole number; got '2\.5'$"):
+        read_backlash(path, 6)
