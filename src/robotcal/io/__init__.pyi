@@ -42,6 +42,8 @@ from .export import rpy_from_matrix as rpy_from_matrix
 from .export import table_to_csv as table_to_csv
 from .export import table_to_markdown as table_to_markdown
 from .export import with_note as with_note
+from .instruments import InstrumentPreset as InstrumentPreset
+from .instruments import InstrumentTable as InstrumentTable
 from .instruments import instrument_presets as instrument_presets
 from .instruments import make_instrument as make_instrument
 from .iso9283_files import ISO_COLUMNS as ISO_COLUMNS
@@ -66,6 +68,9 @@ from .output import output_lock as output_lock
 from .output import result_file as result_file
 from .output import result_folder as result_folder
 from .output import write_marker as write_marker
+from .parameters_json import JointModelEntry as JointModelEntry
+from .parameters_json import JointValues as JointValues
+from .parameters_json import ParameterFile as ParameterFile
 from .parameters_json import joint_model_to_dict as joint_model_to_dict
 from .parameters_json import parameters_to_dict as parameters_to_dict
 from .parameters_json import read_joint_model as read_joint_model
