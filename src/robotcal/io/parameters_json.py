@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict
 
 from robotcal.errors import InputError, RobotcalWarning
-from robotcal.io._validation import XYZ, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
+from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, JointModel, largest_deflection, parse_parameter_name
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
@@ -187,6 +187,16 @@ class _TargetsPart(_JsonObject):
     targets: dict[str, TargetEntry] | None = None
 
 
+class _ProvenanceEntry(_JsonObject):
+    """What robotcal reads of ``provenance``: the base frame a fit recorded (null: none)."""
+
+    tracker_from_base: Matrix4 | None = None
+
+
+class _ProvenancePart(_JsonObject):
+    provenance: _ProvenanceEntry | None = None
+
+
 class _JointModelPart(_JsonObject):
     joint_model: JointModelEntry
 
@@ -327,13 +337,13 @@ def read_tracker_from_base(path) -> np.ndarray | None:
 
     path = Path(path)
     data = read_json_file(path, kind="parameter JSON")
-    provenance = data.get("provenance") if isinstance(data, dict) else None
-    matrix = provenance.get("tracker_from_base") if isinstance(provenance, dict) else None
+    part: _ProvenancePart = validate_model(_ProvenancePart, data if isinstance(data, dict) else {}, str(path))
+    matrix = None if part.provenance is None else part.provenance.tracker_from_base
     if matrix is None:
         return None
-    try:
+    try:  # a 4x4 matrix of numbers by its type: the rigidity is the core's check
         return check_rigid_transform(np.asarray(matrix, dtype=float), f"{path}: provenance.tracker_from_base")
-    except (TypeError, ValueError) as exc:
+    except InputError as exc:
         raise InputError(f"{path}: key `provenance.tracker_from_base` must be a 4x4 rigid transform ({exc})") from None
 
 

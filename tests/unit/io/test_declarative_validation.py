@@ -134,3 +134,14 @@ def test_a_joint_number_is_whole(tmp_path):
     path.write_text(header + "2.5,0.01,1\n")  # read as joint 2 before
     with pytest.raises(InputError, match=r"line 2, column `joint`: must be a whole number; got '2\.5'$"):
         read_backlash(path, 6)
+
+
+def test_recorded_base_frame_is_a_4x4_matrix_by_type(tmp_path):
+    from robotcal.io.parameters_json import read_tracker_from_base
+
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps({"provenance": {"tracker_from_base": [[1.0, 0.0, 0.0, 0.0]] * 3, "points": 40}}))
+    with pytest.raises(InputError, match=r"key `provenance\.tracker_from_base`: must be a 4x4 matrix; got 3 rows$"):
+        read_tracker_from_base(path)
+    path.write_text(json.dumps({"provenance": {"tracker_from_base": None}}))
+    assert read_tracker_from_base(path) is None
