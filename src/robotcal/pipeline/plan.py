@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robotcal.api import TCPTargets, seed_from, tcp_targets, validation_target
+from robotcal.resolve import TCPTargets, seed_from, tcp_targets, validation_target
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_folder, existing_inputs
 from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES
