@@ -98,19 +98,9 @@ def export(
 ) -> None:
     """Write the calibrated model (or, with --nominal, a robot's nominal model) as JSON, URDF, UR calibration
     YAML or a DH / MDH table (exact, else an error)."""
+    from robotcal import api
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.export import (
-        EXPORT_FORMATS,
-        dh_table,
-        joint_model_note,
-        mdh_table,
-        parameters_to_ur_yaml,
-        parameters_to_urdf,
-        table_to_csv,
-        table_to_markdown,
-        with_note,
-    )
-    from robotcal.io.parameters_json import write_parameters
+    from robotcal.io.export import EXPORT_FORMATS, joint_model_note
     from robotcal.io.robots import load_robot
     from robotcal.kinematics.model import ParameterSet
 
@@ -133,33 +123,19 @@ def export(
         parameters, inputs = load_parameter_set(params, robot, scenario)
         provenance = None
     check_output_file(out, inputs=inputs, force=force)
+    if format == "json" and provenance is None:
+        provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
     markdown = Path(out).suffix.lower() in (".md", ".markdown")
-    if format == "urdf":
-        text = parameters_to_urdf(parameters, tool=tool_mm, joint_variable=joint_variable)
-    elif format == "ur-yaml":
-        if joint_variable != "reading":
-            raise InputError("--joint-variable model is written only by --format urdf, dh and mdh")
-        text = parameters_to_ur_yaml(parameters)
-    elif format in ("dh", "mdh"):
-        table = dh_table if format == "dh" else mdh_table
-        rows = table(parameters, joint_variable=joint_variable)
-        title = f"{'DH' if format == 'dh' else 'Modified DH'} table of {parameters.robot.name} [mm, deg]"
-        if joint_variable == "model":
-            title += "; joint value = model variable q (reading_sign 1, reading_offset_deg 0)"
-        text = table_to_markdown(rows, title=title) if markdown else table_to_csv(rows)
-    else:
-        text = None
-    note = joint_model_note(parameters)
-    if text is not None and note is not None:
-        text = with_note(text, note, "markdown" if markdown and format in ("dh", "mdh") else format)
+    if format == "ur-yaml" and joint_variable != "reading":
+        raise InputError("--joint-variable model is written only by --format urdf, dh and mdh")
+    text = api.export_model(
+        parameters, format, tool_mm=tool_mm, joint_variable=joint_variable, markdown=markdown,
+        provenance=provenance if isinstance(provenance, dict) else {},
+    )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):
-        if text is None:
-            if provenance is None:
-                provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
-            write_parameters(out, parameters, provenance if isinstance(provenance, dict) else {})
-        else:
-            atomic_write_text(out, text)
+        atomic_write_text(out, text)
+    note = None if format == "json" else joint_model_note(parameters)
     what = f", nominal model of {parameters.robot.name}" if nominal is not None else ""
     console.print(f"wrote {out} ({format}{what})", highlight=False)
-    if text is not None and note is not None:
+    if note is not None:
         console.print(f"note: {note}", highlight=False, soft_wrap=True)

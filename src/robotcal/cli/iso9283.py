@@ -109,13 +109,13 @@ def iso9283(
     orientation is measured too."""
     import numpy as np
 
-    from robotcal.diagnostics.iso9283 import ORIENTATION_AXES, IsoModel, iso_from_capture
+    from robotcal import api
+    from robotcal.diagnostics.iso9283 import ORIENTATION_AXES, IsoModel
     from robotcal.io.atomic import atomic_write_text
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.iso9283_files import iso_to_csv
     from robotcal.io.parameters_json import read_parameters
     from robotcal.io.scenario import load_scenario
-    from robotcal.kinematics.model import ParameterSet
 
     if orientation_axes not in ORIENTATION_AXES:
         raise InputError(f"--orientation-axes must be one of {', '.join(ORIENTATION_AXES)}; got {orientation_axes!r}")
@@ -128,34 +128,20 @@ def iso9283(
     loaded = load_scenario(scenario)
     check_output_file(out, inputs=inputs, force=force)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
-    sets = {}
-    if nominal:
-        sets["nominal"] = IsoModel(
-            parameters=ParameterSet.nominal(loaded.robot), tracker_from_base=loaded.tracker_from_base
-        )
+    models = {}
     for path in params:
-        label = path.stem if path.stem not in sets else str(path)
-        sets[label] = IsoModel(
+        models[path.stem if path.stem not in models and (path.stem != "nominal" or not nominal) else str(path)] = IsoModel(
             parameters=read_parameters(path, loaded.robot),
             tracker_from_base=_tracker_from_base(path, loaded.tracker_from_base),
             target_offsets=None if given_offsets is not None else _model_offsets(path),
         )
-    if not sets:
+    if not models and not nominal:
         raise InputError("nothing to evaluate: give --params or leave --nominal on")
-    if measured.target is None:
-        point, offsets = flange_target(loaded, target), None
-    else:
-        point = None if target is None else np.asarray(parse_vector(target, "--target"), dtype=float)
-        offsets = given_offsets if given_offsets is not None else scenario_offsets(loaded)
-    results = iso_from_capture(
-        measured,
-        sets,
-        point=point,
-        targets=offsets,
-        n_test_poses=poses_per_cycle,
-        distance_pair=(int(pair[0]) - 1, int(pair[1]) - 1),
+    results = api.iso9283(
+        measured, loaded, models, nominal=nominal, point_mm=None if target is None else parse_vector(target, "--target"),
+        targets_mm=given_offsets, poses_per_cycle=poses_per_cycle, distance_poses=(int(pair[0]), int(pair[1])),
         orientation_axes=orientation_axes,
-    )
+    )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, iso_to_csv(results))
     first = next(iter(results.values()))

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from robotcal.resolve import TCPTargets, seed_from, tcp_targets, validation_target
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_folder, existing_inputs
 from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES
@@ -29,6 +28,7 @@ from robotcal.limits import (
     monte_carlo_bytes,
     pairs_bytes,
 )
+from robotcal.resolve import TCPTargets, seed_from, tcp_targets, validation_target
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
 __all__ = [
