@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -23,7 +23,7 @@ from robotcal.errors import InputError, JointLimitWarning
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.robots import load_robot
-from robotcal.io.scenario import Scenario, TCPTable
+from robotcal.io.scenario import CalibrationPosesTable, Scenario, TCPTable, ValidationTable
 from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
 from robotcal.kinematics.model import LinkMasses, ParameterSet, ReflectorMount, RobotModel
 from robotcal.limits import SEED_BOUND
@@ -46,6 +46,7 @@ __all__ = [
     "capture_targets",
     "compensation_targets",
     "convert_readings",
+    "free_pose_table",
     "link_masses",
     "monte_carlo_settings",
     "needed",
@@ -56,6 +57,7 @@ __all__ = [
     "split_robot",
     "target_name",
     "tcp_targets",
+    "true_offsets",
     "validation_target",
 ]
 
@@ -553,3 +555,39 @@ def monte_carlo_settings(
     values["iterations"] = int(values.get("iterations", table.iterations if table else 10_000))
     values["coverage"] = float(values.get("coverage", table.coverage if table else 0.95))
     return MonteCarloSettings(**values)
+
+
+def free_pose_table(
+    scenario: Scenario | None, kind: str, targets: ReflectorMount | Sequence[Target] | None
+) -> tuple[ValidationTable | CalibrationPosesTable, ReflectorMount | Sequence[Target]]:
+    """The table (poses, margin, height, seed) and the target(s) of a capture at free poses of ``kind``:
+    ``"validation"`` (the scenario's ``[validation]``, else its defaults; the validation target) or
+    ``"calibration"`` (the scenario's ``[calibration_poses]`` and its target)."""
+    if kind == "calibration":
+        if scenario is None or scenario.calibration_poses is None:
+            raise InputError("calibration poses are a scenario's [calibration_poses] table: give a scenario with one")
+        table: ValidationTable | CalibrationPosesTable = scenario.calibration_poses
+        targets = (scenario.target(scenario.poses_target),) if targets is None else targets
+    elif kind == "validation":
+        table = ValidationTable() if scenario is None or scenario.validation is None else scenario.validation
+    else:
+        raise InputError(f"`kind` must be 'validation' or 'calibration'; got {kind!r}")
+    return table, needed(targets, "targets", scenario, validation_target)
+
+
+def true_offsets(
+    targets: ReflectorMount | Sequence[Target], offsets_mm: Mapping[str, Any] | None
+) -> tuple[ReflectorMount | tuple[Target, ...], np.ndarray]:
+    """The target(s) of a simulated capture at free poses and their true offsets [mm]: a ReflectorMount's positions,
+    else each Target's entry of ``offsets_mm`` or its declared (known) position."""
+    if isinstance(targets, ReflectorMount):
+        return targets, targets.positions
+    targets = tuple(targets)
+    offsets = np.array([(offsets_mm or {}).get(t.name, t.positions) for t in targets], dtype=float)
+    guessed = [t.name for t in targets if not t.known and t.name not in (offsets_mm or {})]
+    if guessed:
+        raise InputError(
+            f"target(s) {', '.join(guessed)}: declared with an unknown offset, whose guess is no truth; give "
+            "their true offsets (`offsets_mm`)"
+        )
+    return targets, offsets
