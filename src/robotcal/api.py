@@ -165,7 +165,7 @@ def simulate(
     tracker_from_base: np.ndarray | None = None,
     true_parameters: Any = None,
     joint_errors: JointErrorModel | None = None,
-    joint_limits: Literal["warn", "error", "ignore"] | None = None,
+    joint_limits: str | None = None,
     rng: np.random.Generator | int | None = None,
 ) -> Capture:
     """Simulate a Circle Point capture of ``plan`` (thesis ch. 5.2.1) on the robot ``true_parameters`` (default
@@ -240,7 +240,6 @@ def simulate_poses(
     if tracker_from_base is None:
         tracker_from_base = np.eye(4) if scenario is None else scenario.tracker_from_base
     truth = _parameters(true_parameters, robot, "true_parameters")
-    single = isinstance(targets, ReflectorMount)
     targets, offsets = true_offsets(targets, offsets_mm)
     seed = seed_from(rng, table.seed)
     generator = np.random.default_rng(seed)
@@ -263,7 +262,7 @@ def simulate_poses(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, true_offsets=offsets,
             rng=generator,
         )  # fmt: skip
-    what = "validation capture" if single else f"capture of {len(targets)} target(s) at free poses"
+    what = "validation capture" if isinstance(targets, ReflectorMount) else f"capture of {len(targets)} target(s) at free poses"
     if kind == "calibration":
         what = "calibration poses"
     source = f"{what} simulated" + (f" from {scenario.name}" if scenario is not None else "")
@@ -621,7 +620,7 @@ def monte_carlo_problem(
     parameters: Any = None,
     options: CPAOptions | None = None,
     joint_errors: JointErrorModel | None = None,
-    joint_limits: Literal["warn", "error", "ignore"] | None = None,
+    joint_limits: str | None = None,
     model: Literal["cpa", "refined"] = "cpa",
     criterion: Criterion = "points",
     poses: Capture | PathLike | None = None,
@@ -675,7 +674,7 @@ def monte_carlo(
     parameters: Any = None,
     options: CPAOptions | None = None,
     joint_errors: JointErrorModel | None = None,
-    joint_limits: Literal["warn", "error", "ignore"] | None = None,
+    joint_limits: str | None = None,
     draws: int | None = None,
     model: Literal["cpa", "refined"] = "cpa",
     criterion: Criterion = "points",

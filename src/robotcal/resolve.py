@@ -14,7 +14,7 @@ import os
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
 
@@ -103,7 +103,7 @@ def seed_from(rng: np.random.Generator | int | None, default: int | None = None)
     if rng is None:
         if default is not None:
             return seed_from(default)
-        return int(np.random.SeedSequence().entropy % SEED_BOUND)
+        return int(cast(int, np.random.SeedSequence().entropy) % SEED_BOUND)
     if isinstance(rng, np.random.Generator):
         return int(rng.integers(SEED_BOUND))
     if isinstance(rng, bool) or not isinstance(rng, int | np.integer):
@@ -193,7 +193,7 @@ def validation_target(scenario: Scenario) -> ReflectorMount:
     plan's (or ``[capture]``'s) reflector when it is a flange one, else the only known flange target of
     ``[[targets]]``."""
     if scenario.validation is not None:
-        return ReflectorMount(frame="flange", positions=scenario.validation.flange_reflector_mm)
+        return ReflectorMount(frame="flange", positions=np.asarray(scenario.validation.flange_reflector_mm))
     reflector = scenario.plan.reflector if scenario.has_plan else scenario.reflector
     if reflector is not None and reflector.frame == "flange":
         return reflector
@@ -255,6 +255,7 @@ def target_name(scenario: Scenario, capture: Capture) -> str:
     target = capture_targets(scenario, capture)
     if isinstance(target, Target):
         return target.name
+    target = cast(ReflectorMount, target)  # a capture without a target column has one target
     for declared in scenario.targets:
         if declared.frame == target.frame and np.array_equal(
             np.reshape(declared.positions, (-1, 3)), np.reshape(target.positions, (-1, 3))
@@ -266,8 +267,8 @@ def target_name(scenario: Scenario, capture: Capture) -> str:
 def link_masses(robot: RobotModel | Scenario, scenario: Scenario | None = None) -> LinkMasses | None:
     """The link masses of the extended model: the robot file's, with the scenario's ``[payload]`` on the flange
     (None when the robot file gives no masses: the compliance is then the lumped form)."""
-    robot, scenario = split_robot(robot) if scenario is None else (robot, scenario)
-    masses = robot.masses
+    model, scenario = split_robot(robot) if scenario is None else (cast(RobotModel, robot), scenario)
+    masses = model.masses
     payload = None if scenario is None else scenario.payload
     if masses is None or payload is None:
         return masses
@@ -567,12 +568,12 @@ def free_pose_table(
         if scenario is None or scenario.calibration_poses is None:
             raise InputError("calibration poses are a scenario's [calibration_poses] table: give a scenario with one")
         table: ValidationTable | CalibrationPosesTable = scenario.calibration_poses
-        targets = (scenario.target(scenario.poses_target),) if targets is None else targets
+        targets = (scenario.target(str(scenario.poses_target)),) if targets is None else targets
     elif kind == "validation":
         table = ValidationTable() if scenario is None or scenario.validation is None else scenario.validation
     else:
         raise InputError(f"`kind` must be 'validation' or 'calibration'; got {kind!r}")
-    return table, needed(targets, "targets", scenario, validation_target)
+    return table, cast("ReflectorMount | Sequence[Target]", needed(targets, "targets", scenario, validation_target))
 
 
 def true_offsets(

@@ -83,7 +83,7 @@ def diagnose_joints(
     robot: RobotModel | Scenario | None = None,
     *,
     backlash: bool = True,
-    circle_fit: Literal["geometric", "algebraic"] | None = None,
+    circle_fit: str | None = None,
     order: int = 2,
     match_tolerance_deg: float = 1e-3,
 ) -> JointAnalysis:
