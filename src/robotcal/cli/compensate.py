@@ -8,8 +8,16 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors, progress_bar
-from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
+from robotcal.cli._common import (
+    Force,
+    ParamsRobot,
+    ParamsScenario,
+    command_app,
+    console,
+    handle_errors,
+    progress_bar,
+)
+from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
 
 #: Exit status of a command that wrote its output but some of its rows or points are not ok (their status says why).
@@ -66,9 +74,9 @@ def compensate(
             "another branch.",
         ),
     ] = 2.0,
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
+    force: Force = False,
 ) -> None:
     """Joint commands with which the calibrated robot reaches the poses taught on the nominal model (or Cartesian
     targets): on the taught branch, near the taught joints, its joint model (gravity sag, harmonic errors) included.

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, check_memory, command_app, console, handle_errors, pairs_bytes
+from robotcal.cli._common import Force, check_memory, command_app, console, handle_errors, pairs_bytes
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
@@ -120,7 +120,7 @@ def evaluate(
     nominal: Annotated[
         bool, typer.Option("--nominal/--no-nominal", help="Include the nominal parameters first, as the reference.")
     ] = True,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
     absolute: Annotated[
         bool,
         typer.Option(

@@ -9,7 +9,16 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import (  # noqa: F401  (ROBOT_HELP, SCENARIO_HELP: imported from here by other commands)
+    ROBOT_HELP,
+    SCENARIO_HELP,
+    Force,
+    ParamsRobot,
+    ParamsScenario,
+    command_app,
+    console,
+    handle_errors,
+)
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
@@ -18,8 +27,6 @@ if TYPE_CHECKING:  # numpy and the model load in the commands: a fast --help (pr
 
 app = command_app()
 
-ROBOT_HELP = "Robot name or TOML of the parameters (default: the robot named in PARAMS, if built-in)."
-SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (instead of --robot)."
 
 
 def parse_vector(text: str | None, option: str, count: int = 3):
@@ -82,8 +89,8 @@ def export(
         ),
     ] = None,
     format: Annotated[str, typer.Option("--format", "-f", help="json | urdf | ur-yaml | dh | mdh.")] = "json",
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
     tool: Annotated[str | None, typer.Option("--tool", help='URDF tool0 frame on the flange "x,y,z" [mm].')] = None,
     joint_variable: Annotated[
         str,
@@ -94,7 +101,7 @@ def export(
             "robot).",
         ),
     ] = "reading",
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Write the calibrated model (or, with --nominal, a robot's nominal model) as JSON, URDF, UR calibration
     YAML or a DH / MDH table (exact, else an error)."""

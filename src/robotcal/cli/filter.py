@@ -9,9 +9,9 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
 from robotcal.cli.compensate import say_not_ok
-from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
+from robotcal.cli.export import load_parameter_set, parse_vector
 
 app = command_app()
 
@@ -91,9 +91,9 @@ def filter_command(
         ),
     ] = None,
     encoding: Annotated[str, typer.Option(help="Text encoding of the program files (e.g. cp1252).")] = "utf-8",
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
+    force: Force = False,
 ) -> None:
     """Filter a robot program with the calibrated model: every target solved on the nominal controller's branch
     (its S/T or cf configuration data, or nearest the previous point), compensated on the calibrated model, and

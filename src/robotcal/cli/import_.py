@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, command_app, console, handle_errors
 
 app = command_app()
 
@@ -60,7 +60,7 @@ def import_(
     scenario: Annotated[
         str | None, typer.Option("--scenario", "-s", help="Scenario whose robot checks the joint columns.")
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Convert a tracker export and a joint-angle log into a capture CSV (mm, deg; U(95) kept as u95_mm)."""
     from robotcal import api

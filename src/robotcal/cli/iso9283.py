@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, command_app, console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.errors import InputError
@@ -102,7 +102,7 @@ def iso9283(
     orientation_axes: Annotated[
         str, typer.Option("--orientation-axes", help="Axes of APa/b/c, RPa/b/c: base (ISO) or flange (commanded).")
     ] = "base",
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """ISO 9283 pose accuracy (AP, APa/b/c) and repeatability (RP, RPa/b/c), distance accuracy (AD) and
     repeatability (RD). With three or more flange targets per pose (a `target` column) the flange
@@ -203,7 +203,7 @@ def iso9283_plan(
             "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
     with --program also as a robot program (a joint move and a dwell per pose)."""

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
-from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
+from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
@@ -139,9 +139,9 @@ def predict(
             "provenance.tracker_from_base) or scenario (--scenario's tracker_from_base); default: none, the robot base.",
         ),
     ] = None,
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
+    force: Force = False,
 ) -> None:
     """Forward kinematics of the flange or of any flange point at given poses, with the calibrated model."""
     import warnings

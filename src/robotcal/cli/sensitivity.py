@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._common import Scheduler, command_app, console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
 
 app = command_app()
@@ -37,9 +37,7 @@ def sensitivity(
         float, typer.Option("--angle-limit-deg", help="Cpk limits for angles [deg] (0.1 mm at 573 mm).")
     ] = 0.01,
     workers: Annotated[int, typer.Option(min=1, help="Local worker processes for the cases.")] = 1,
-    scheduler: Annotated[
-        str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
-    ] = None,
+    scheduler: Scheduler = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a folder not written by robotcal.")] = False,
 ) -> None:
     """Mean, u and Cpk (eq. 5-5) of every parameter against the varied capture conditions (Figs 5.14-5.16)."""

@@ -11,8 +11,8 @@ import typer
 
 from robotcal.cli._common import (
     BYTES_PER_POSE,
-    FORCE_HELP,
     SEED_BOUND,
+    Force,
     check_memory,
     command_app,
     console,
@@ -82,7 +82,7 @@ def simulate(
             'flange_mm = "unknown" (unless --true-params has them), else the declared offsets.',
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Simulate the scenario's capture and write it as a capture CSV."""
     from robotcal.io.scenario import ValidationTable, load_scenario
