@@ -33,6 +33,47 @@ STATUS_MEANING = {
 app = command_app()
 
 
+def _targets(cartesian, readings, start) -> tuple[dict, str]:
+    """:func:`robotcal.api.compensate`'s targets from a pose CSV read by ``read_pose_targets`` (joint poses, or
+    Cartesian targets and their seeds, else ``--start-deg``) [deg, mm], and what they are, in words."""
+    import numpy as np
+
+    if cartesian is None:
+        return {"poses_deg": np.rad2deg(readings)}, "joint targets taught on the nominal model"
+    seeds = np.rad2deg(readings) if readings is not None else start
+    targets = {"cartesian": np.c_[cartesian[:, :3], np.rad2deg(cartesian[:, 3:])], "start_deg": seeds}
+    return targets, "Cartesian targets in the robot base frame"
+
+
+def _write_commands(
+    out: Path, result, labels, params: str, poses: str, kind: str, max_change_deg: float, extended: bool, inputs, force: bool
+) -> str:
+    """Write the commands, every row under its own name with its status and errors; returns the status counts
+    as words ("3 ok, 1 unreachable")."""
+    import numpy as np
+
+    from robotcal.io.trajectory_csv import write_trajectory
+    from robotcal.kinematics.compensation import STATUSES
+
+    counts = {status: int(np.sum(result.status == status)) for status in STATUSES if np.any(result.status == status)}
+    rows = ", ".join(f"{count} {status}" for status, count in counts.items())
+    comment = (
+        f"{SIGNATURE} compensate: commands with which the calibrated model {params} reaches the {kind} of "
+        f"{poses}\nrows: {rows}; only 'ok' rows are exact (<= 1e-6 mm, 1e-6 deg, same branch, no joint moved "
+        f"more than {max_change_deg:g} deg); rows without a command have empty q cells"
+        + ("" if not extended else "\nthe joint model (gravity compliance, harmonic errors) is applied")
+    )
+    columns = {
+        "status": result.status,
+        "position_error_mm": result.position_error_mm,
+        "orientation_error_deg": result.orientation_error_deg,
+        "largest_change_deg": result.largest_change_deg,
+    }
+    with result_file(out, inputs=inputs, force=force):
+        write_trajectory(out, result.readings, comment=comment, labels=labels, columns=columns)
+    return rows
+
+
 @app.command()
 @handle_errors
 def compensate(
@@ -85,7 +126,7 @@ def compensate(
     import numpy as np
 
     from robotcal import api
-    from robotcal.io.trajectory_csv import pose_labels, read_pose_targets, write_trajectory
+    from robotcal.io.trajectory_csv import pose_labels, read_pose_targets
     from robotcal.kinematics.compensation import BLOCK_ROWS, STATUSES, CompensationSettings
 
     parameters, inputs = load_parameter_set(params, robot, scenario)
@@ -97,13 +138,7 @@ def compensate(
     tool_mm = None if tool is None else parse_vector(tool, "--tool")
     start = None if start_deg is None else parse_vector(start_deg, "--start-deg", n)
     settings = CompensationSettings(max_change_deg=max_change_deg)
-    if cartesian is None:
-        targets = {"poses_deg": np.rad2deg(readings)}
-        kind = "joint targets taught on the nominal model"
-    else:
-        seeds = np.rad2deg(readings) if readings is not None else start
-        targets = {"cartesian": np.c_[cartesian[:, :3], np.rad2deg(cartesian[:, 3:])], "start_deg": seeds}
-        kind = "Cartesian targets in the robot base frame"
+    targets, kind = _targets(cartesian, readings, start)
     if len(labels) > BLOCK_ROWS:  # more than one block: show the blocks go by
         with progress_bar("compensate", "poses") as display:
             task = display.add_task("compensate", total=len(labels))
@@ -113,22 +148,8 @@ def compensate(
             )  # fmt: skip
     else:
         result = api.compensate(parameters, **targets, tool_mm=tool_mm, settings=settings)
-    counts = {status: int(np.sum(result.status == status)) for status in STATUSES if np.any(result.status == status)}
-    rows = ", ".join(f"{count} {status}" for status, count in counts.items())
-    comment = (
-        f"{SIGNATURE} compensate: commands with which the calibrated model {params.name} reaches the {kind} of "
-        f"{poses.name}\nrows: {rows}; only 'ok' rows are exact (<= 1e-6 mm, 1e-6 deg, same branch, no joint moved "
-        f"more than {max_change_deg:g} deg); rows without a command have empty q cells"
-        + ("" if parameters.joint_model is None else "\nthe joint model (gravity compliance, harmonic errors) is applied")
-    )
-    columns = {
-        "status": result.status,
-        "position_error_mm": result.position_error_mm,
-        "orientation_error_deg": result.orientation_error_deg,
-        "largest_change_deg": result.largest_change_deg,
-    }
-    with result_file(out, inputs=inputs, force=force):
-        write_trajectory(out, result.readings, comment=comment, labels=labels, columns=columns)
+    extended = parameters.joint_model is not None
+    rows = _write_commands(out, result, labels, params.name, poses.name, kind, max_change_deg, extended, inputs, force)
     ok = result.status == "ok"
     worst = (
         f"; ok rows: largest remaining error {np.max(result.position_error_mm[ok]):.2g} mm, "

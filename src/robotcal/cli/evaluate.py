@@ -110,6 +110,54 @@ def _convergence(path: Path) -> dict | None:
     return None
 
 
+def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dict, dict, dict, dict]:
+    """The named sets of ``--params`` (after the nominal one), with each file's provenance, flange targets, path
+    and convergence history (of the sets that record one)."""
+    from robotcal.io.parameters_json import read_parameters, read_targets
+    from robotcal.kinematics.model import ParameterSet
+
+    used: set[str] = set()
+    sets: dict[str, ParameterSet] = {}
+    if nominal:
+        sets["nominal"] = ParameterSet.nominal(robot)
+        used.add("nominal")
+    histories = {}
+    provenances: dict = {"nominal": {}} if nominal else {}
+    set_targets: dict = {}
+    files: dict[str, Path] = {}
+    for path in params:
+        label = _label(path, used)
+        files[label] = path
+        sets[label] = read_parameters(path, robot)
+        provenances[label] = (json.loads(path.read_text(encoding="utf-8")) or {}).get("provenance") or {}
+        set_targets[label] = read_targets(path)
+        history = _convergence(path)
+        if history is not None:
+            histories[label] = history
+    return sets, provenances, set_targets, files, histories
+
+
+def _print_tables(rows, captures: dict, views: tuple[str, ...]) -> None:
+    """One table per capture and view: mean, max, RMS and improvement of every set."""
+    for capture_name in captures:
+        for view in views:
+            headers = ("mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]")
+            table = FittedTable(
+                f"{capture_name}: {view} view",
+                [Column("parameter set", "name"), *(Column(header) for header in headers)],
+            )
+            for row in rows:
+                if row.capture == capture_name and row.view == view:
+                    table.add_row(
+                        row.parameter_set,
+                        f"{row.mean_error_mm:.4f}",
+                        f"{row.max_error_mm:.4f}",
+                        f"{row.rms_error_mm:.4f}",
+                        f"{row.improvement_pct:.2f}",
+                    )
+            console.print(table)
+
+
 @app.command()
 @handle_errors
 def evaluate(
@@ -134,33 +182,14 @@ def evaluate(
     from robotcal import api
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
-    from robotcal.io.parameters_json import read_parameters, read_targets
     from robotcal.io.scenario import load_scenario
-    from robotcal.kinematics.model import ParameterSet
 
     inputs = existing_inputs(scenario, *params, *capture)
     check_output_folder(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
     inputs += existing_inputs(*loaded.files)
     robot = loaded.robot
-    used: set[str] = set()
-    sets: dict[str, ParameterSet] = {}
-    if nominal:
-        sets["nominal"] = ParameterSet.nominal(robot)
-        used.add("nominal")
-    histories = {}
-    provenances: dict = {"nominal": {}} if nominal else {}
-    set_targets: dict = {}
-    files: dict[str, Path] = {}
-    for path in params:
-        label = _label(path, used)
-        files[label] = path
-        sets[label] = read_parameters(path, robot)
-        provenances[label] = (json.loads(path.read_text(encoding="utf-8")) or {}).get("provenance") or {}
-        set_targets[label] = read_targets(path)
-        history = _convergence(path)
-        if history is not None:
-            histories[label] = history
+    sets, provenances, set_targets, files, histories = _parameter_sets(params, robot, nominal)
     if not sets:
         raise InputError("nothing to evaluate: give --params or keep --nominal")
     captures = {}
@@ -198,23 +227,7 @@ def evaluate(
             from robotcal.plots.refine import plot_convergence
 
             plot_convergence(convergence_of(document), folder / "convergence.png")
-    for capture_name in captures:
-        for view in views:
-            headers = ("mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]")
-            table = FittedTable(
-                f"{capture_name}: {view} view",
-                [Column("parameter set", "name"), *(Column(header) for header in headers)],
-            )
-            for row in rows:
-                if row.capture == capture_name and row.view == view:
-                    table.add_row(
-                        row.parameter_set,
-                        f"{row.mean_error_mm:.4f}",
-                        f"{row.max_error_mm:.4f}",
-                        f"{row.rms_error_mm:.4f}",
-                        f"{row.improvement_pct:.2f}",
-                    )
-            console.print(table)
+    _print_tables(rows, captures, views)
     for label, note in base_notes.items():
         console.print(f"absolute view, {label}: {note}", highlight=False, markup=False)
     for label, note in target_notes.items():
