@@ -74,47 +74,55 @@ def _write_commands(
     return rows
 
 
+# The options of `compensate` that take several lines, declared once here (the command reads as a list of its options).
+_Poses = Annotated[
+    Path,
+    typer.Option(
+        "--poses",
+        help="Targets: a pose CSV pose,q1..qN [deg] taught on the nominal model, or Cartesian targets "
+        "pose,x,y,z,A,B,C [mm, deg KUKA] in the robot base frame (predict's format), optionally with q1..qN seeds.",
+    ),
+]
+_Out = Annotated[
+    Path,
+    typer.Option(
+        "--out",
+        "-o",
+        help="Pose CSV to write: pose,q1..qN [deg],status,position_error_mm,orientation_error_deg,"
+        "largest_change_deg; every input row under its own name.",
+    ),
+]
+_Tool = Annotated[
+    str | None, typer.Option("--tool", help='Tool point "x,y,z" in the flange frame [mm] (default: the flange).')
+]
+_StartDeg = Annotated[
+    str | None,
+    typer.Option(
+        "--start-deg",
+        help="Cartesian targets without seeds: readings q1,..,qN [deg] near the wanted solution (default: the "
+        "middle of the joint limits).",
+    ),
+]
+_MaxChangeDeg = Annotated[
+    float,
+    typer.Option(
+        "--max-change-deg",
+        min=0.001,
+        help="Largest joint change from the taught reading in an ok row [deg]; more means a singularity or "
+        "another branch.",
+    ),
+]
+
+
 @app.command()
 @handle_errors
 def compensate(
     params: Annotated[Path, typer.Argument(help="Parameter JSON of the calibrated model (refined, extended or not).")],
-    poses: Annotated[
-        Path,
-        typer.Option(
-            "--poses",
-            help="Targets: a pose CSV pose,q1..qN [deg] taught on the nominal model, or Cartesian targets "
-            "pose,x,y,z,A,B,C [mm, deg KUKA] in the robot base frame (predict's format), optionally with q1..qN seeds.",
-        ),
-    ],
-    out: Annotated[
-        Path,
-        typer.Option(
-            "--out",
-            "-o",
-            help="Pose CSV to write: pose,q1..qN [deg],status,position_error_mm,orientation_error_deg,"
-            "largest_change_deg; every input row under its own name.",
-        ),
-    ],
-    tool: Annotated[
-        str | None, typer.Option("--tool", help='Tool point "x,y,z" in the flange frame [mm] (default: the flange).')
-    ] = None,
-    start_deg: Annotated[
-        str | None,
-        typer.Option(
-            "--start-deg",
-            help="Cartesian targets without seeds: readings q1,..,qN [deg] near the wanted solution (default: the "
-            "middle of the joint limits).",
-        ),
-    ] = None,
-    max_change_deg: Annotated[
-        float,
-        typer.Option(
-            "--max-change-deg",
-            min=0.001,
-            help="Largest joint change from the taught reading in an ok row [deg]; more means a singularity or "
-            "another branch.",
-        ),
-    ] = 2.0,
+    poses: _Poses,
+    out: _Out,
+    tool: _Tool = None,
+    start_deg: _StartDeg = None,
+    max_change_deg: _MaxChangeDeg = 2.0,
     robot: ParamsRobot = None,
     scenario: ParamsScenario = None,
     force: Force = False,

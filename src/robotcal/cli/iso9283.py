@@ -162,47 +162,57 @@ def iso9283(
     console.print(f"wrote {out}", highlight=False)
 
 
+# The options of `iso9283_plan` that take several lines, declared once here (the command reads as a list of its options).
+_PlanCenter = Annotated[
+    str | None,
+    typer.Option("--center", help='Cube centre "x,y,z" in the base frame [mm] (default: the point at --start).'),
+]
+_PlanSide = Annotated[
+    float | None, typer.Option("--side", help="Cube side [mm] (default: 20 % of the reach, halved to fit).")
+]
+_PlanStart = Annotated[
+    str | None,
+    typer.Option("--start", help='Start readings "q1,...,qN" [deg]; sets the orientation (default: the best '
+                 "conditioned of a grid in the limits)."),
+]
+_PlanProgram = Annotated[
+    str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
+]
+_PlanProgramOut = Annotated[
+    Path | None,
+    typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
+]
+_PlanController = Annotated[
+    str | None,
+    typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
+                 "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
+]
+_PlanName = Annotated[
+    str | None,
+    typer.Option(
+        "--name",
+        help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
+        "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
+    ),
+]
+
+
 @app.command("iso9283-plan")
 @handle_errors
 def iso9283_plan(
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot and flange target.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Pose CSV to write (q1..qN in deg).")],
-    center: Annotated[
-        str | None,
-        typer.Option("--center", help='Cube centre "x,y,z" in the base frame [mm] (default: the point at --start).'),
-    ] = None,
-    side: Annotated[
-        float | None, typer.Option("--side", help="Cube side [mm] (default: 20 % of the reach, halved to fit).")
-    ] = None,
-    start: Annotated[
-        str | None,
-        typer.Option("--start", help='Start readings "q1,...,qN" [deg]; sets the orientation (default: the best '
-                     "conditioned of a grid in the limits)."),
-    ] = None,
+    center: _PlanCenter = None,
+    side: _PlanSide = None,
+    start: _PlanStart = None,
     cycles: Annotated[int, typer.Option("--cycles", min=2, help="Cycles through P1..P5.")] = ISO_CYCLES,
     target: Annotated[str | None, typer.Option("--target", help='Flange point placed on P1..P5 "x,y,z" [mm].')] = None,
-    program: Annotated[
-        str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
-    ] = None,
-    program_out: Annotated[
-        Path | None,
-        typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
-    ] = None,
+    program: _PlanProgram = None,
+    program_out: _PlanProgramOut = None,
     dwell: Annotated[float, typer.Option("--dwell", help="Dwell at every test pose in the program [s].")] = 2.0,
-    controller: Annotated[
-        str | None,
-        typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
-                     "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
-    ] = None,
+    controller: _PlanController = None,
     speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
-    name: Annotated[
-        str | None,
-        typer.Option(
-            "--name",
-            help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
-            "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
-        ),
-    ] = None,
+    name: _PlanName = None,
     force: Force = False,
 ) -> None:
     """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
