@@ -62,6 +62,7 @@ from robotcal.resolve import (
     link_masses,
     needed,
     seed_from,
+    simulation_inputs,
     target_name,
     tcp_targets,
     true_offsets,
@@ -648,12 +649,10 @@ def monte_carlo_problem(
                 raise InputError(f"{poses.source}: calibration poses on one flange target; got {', '.join(sorted(names))}")
             pose_target = scenario.target(names.pop())
     if scenario is not None:
-        plan = scenario.plan if plan is None else plan
-        instrument = scenario.instrument if instrument is None else instrument
-        tracker_from_base = scenario.tracker_from_base if tracker_from_base is None else tracker_from_base
-        options = scenario.identification if options is None else options
-        joint_errors = scenario.joint_errors if joint_errors is None else joint_errors
-        joint_limits = scenario.joint_limits if joint_limits is None else joint_limits
+        plan, instrument, tracker_from_base, options, joint_errors, joint_limits = simulation_inputs(
+            scenario, plan=plan, instrument=instrument, tracker_from_base=tracker_from_base, options=options,
+            joint_errors=joint_errors, joint_limits=joint_limits,
+        )  # fmt: skip
     if plan is None or instrument is None:
         raise InputError("`plan` and `instrument` are needed (or give a Scenario in place of the robot)")
     return prepare_monte_carlo(

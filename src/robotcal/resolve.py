@@ -53,6 +53,7 @@ __all__ = [
     "parameter_draws",
     "program_tcp_uncertainty",
     "scenario_instrument",
+    "simulation_inputs",
     "seed_from",
     "split_robot",
     "target_name",
@@ -592,3 +593,10 @@ def true_offsets(
             "their true offsets (`offsets_mm`)"
         )
     return targets, offsets
+
+
+def simulation_inputs(scenario: Scenario, **given: Any) -> tuple[Any, ...]:
+    """The inputs of a simulated capture, in the order given: each keyword's value, else the scenario's (``plan``,
+    ``instrument``, ``tracker_from_base``, ``options``: its ``[identification]``, ``joint_errors``, ``joint_limits``)."""
+    fields = {"options": "identification"}
+    return tuple(getattr(scenario, fields.get(key, key)) if value is None else value for key, value in given.items())

@@ -34,6 +34,7 @@ from robotcal.resolve import (
     parameter_draws,
     scenario_instrument,
     seed_from,
+    simulation_inputs,
     split_robot,
     tcp_targets,
     validation_target,
@@ -432,11 +433,10 @@ def coverage_study(
     robot, scenario = split_robot(robot)
     readings = None if tcp_readings_deg is None else np.deg2rad(np.asarray(tcp_readings_deg, dtype=float))
     if scenario is not None:
-        plan = scenario.plan if plan is None else plan
-        instrument = scenario.instrument if instrument is None else instrument
-        tracker_from_base = scenario.tracker_from_base if tracker_from_base is None else tracker_from_base
-        options = scenario.identification if options is None else options
-        joint_errors = scenario.joint_errors if joint_errors is None else joint_errors
+        plan, instrument, tracker_from_base, options, joint_errors = simulation_inputs(
+            scenario, plan=plan, instrument=instrument, tracker_from_base=tracker_from_base, options=options,
+            joint_errors=joint_errors,
+        )  # fmt: skip
         readings = tcp_targets(scenario).pose if readings is None else readings
     if plan is None or instrument is None:
         raise InputError("`plan` and `instrument` are needed (or give a Scenario in place of the robot)")

@@ -8,15 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import (
-    Force,
-    ParamsRobot,
-    ParamsScenario,
-    command_app,
-    console,
-    handle_errors,
-    progress_bar,
-)
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors, progress_bar
 from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
 

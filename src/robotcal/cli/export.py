@@ -9,16 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import (  # noqa: F401  (ROBOT_HELP, SCENARIO_HELP: imported from here by other commands)
-    ROBOT_HELP,
-    SCENARIO_HELP,
-    Force,
-    ParamsRobot,
-    ParamsScenario,
-    command_app,
-    console,
-    handle_errors,
-)
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
