@@ -4,7 +4,9 @@ Every function takes the objects a user already has, explicitly, or a :class:`~r
 place of the robot, which supplies the robot and every keyword the call leaves out (its targets, base frame,
 instrument, capture plan, joint errors, options and seeds), as ``robotcal run`` uses it. Each call resolves its
 defaults once (:mod:`robotcal.resolve`) and calls the core; the command line and the pipeline call these same
-functions. These functions never print; only the ``import``/``export`` ones read or write the files they name.
+functions. This module holds the calibration (simulate, identify, refine, evaluate, Monte Carlo) and re-exports the
+studies of :mod:`robotcal.studies` and the calls of :mod:`robotcal.deploy`. They never print and never write files
+(:func:`import_capture` and :func:`sensitivity` read the files they are given).
 
 Arguments shared by the functions below, described once:
 
@@ -774,7 +776,9 @@ def plan_tcp_p95(
     from robotcal.planning.optimise import workspace_readings
     from robotcal.uncertainty.workspace import workspace_uncertainty as workspace
 
-    variant = dataclasses.replace(scenario, plan=plan or scenario.plan, joint_errors=None, joint_limits="ignore")
+    variant = dataclasses.replace(
+        scenario, plan=scenario.plan if plan is None else plan, joint_errors=None, joint_limits="ignore"
+    )
     workers = min(os.cpu_count() or 1, 2) if workers is None else workers
     result = monte_carlo(variant, draws=draws, rng=rng, workers=workers, linearised=False, progress=progress)
     readings = workspace_readings(scenario.robot, workspace_poses, workspace_seed)
