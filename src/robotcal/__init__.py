@@ -5,9 +5,10 @@ module that defines each, for type checkers and IDEs, and they load on first use
 (SPEC 1, ``lazy_loader``): ``import robotcal`` imports neither numpy nor anything else until a name is
 used, so the command line and scripts that need one corner of the package start fast.
 
-Lengths are in millimetres and angles in degrees wherever these functions take numbers (``rng=``
-accepts None, an int seed or a ``numpy.random.Generator``); the result objects they return hold the
-core's units, mm and radians, as their docstrings say.
+Units, one rule (docs/api.md): a number or array given to these functions is in millimetres and degrees, and
+its name says so (``poses_deg``, ``tool_mm``); a value object (RobotModel, ParameterSet, Capture, CapturePlan,
+ReflectorMount, the results) holds the core's units, mm and radians, whichever function takes or returns it.
+``rng=`` accepts None, an int seed or a ``numpy.random.Generator``.
 
 ==========================  =====================================================================
 robots, captures, files     :func:`load_robot`, :func:`read_capture`, :func:`write_capture`,
@@ -15,8 +16,11 @@ robots, captures, files     :func:`load_robot`, :func:`read_capture`, :func:`wri
 one step at a time          :func:`perturb`, :func:`simulate`, :func:`simulate_poses`,
                             :func:`identify`, :func:`refine`, :func:`evaluate`, :func:`diagnose_joints`
 uncertainty                 :func:`monte_carlo`, :func:`tcp_uncertainty`, :func:`workspace_uncertainty`,
-                            :func:`validation_consistency`
-planning                    :func:`check_plan`, :func:`change_plan`
+                            :func:`validation_consistency`, :func:`measured_monte_carlo`, :func:`coverage_study`
+planning                    :func:`check_plan`, :func:`change_plan`, :func:`optimise_plan`,
+                            :func:`plan_tcp_p95`, :func:`sensitivity`
+the calibrated model        :func:`compensate`, :func:`filter_program`, :func:`predict`, :func:`export_model`,
+                            :func:`iso9283`, :func:`import_capture`
 the whole calibration run   :func:`plan_run`, :func:`run_calibration`, :func:`read_run`,
                             :func:`render_report`, :class:`RunResult`
 values                      :class:`RobotModel`, :class:`ParameterSet`, :class:`Capture`, :class:`Target`,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -66,6 +66,17 @@ FORCE_HELP = (
     "Replace an existing output that robotcal did not write (never an input of the command, "
     "the home folder, / or the current folder)."
 )
+#: Help of ``--robot`` / ``--scenario`` of the commands that read a parameter JSON.
+ROBOT_HELP = "Robot name or TOML of the parameters (default: the robot named in PARAMS, if built-in)."
+SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (instead of --robot)."
+
+# Options several commands share, declared once: a command's parameter reads ``force: Force = False``.
+Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
+ParamsRobot = Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)]
+ParamsScenario = Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)]
+Scheduler = Annotated[
+    str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
+]
 def command_app(**settings) -> typer.Typer:
     """A command module's Typer application, ``app = command_app()``, on which the module registers its
     command(s) (``@app.command()``); :data:`robotcal.cli.COMMANDS` names the module for each command.

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, handle_errors
+from robotcal.cli._common import SEED_BOUND, Force, command_app, handle_errors
 from robotcal.cli.run import _command_line, run_and_print
 from robotcal.limits import SEED_OFFSETS
 
@@ -31,7 +31,7 @@ def demo(
     draws: Annotated[
         int | None, typer.Option("--draws", min=1, help="Monte Carlo draws (default: 100,000, the scenario's).")
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """The whole calibration of a simulated KUKA KR 5 sixx R650 with a perturbed "true" robot: writes
     OUT/report.html (run `robotcal run kr5-demo --out OUT`)."""

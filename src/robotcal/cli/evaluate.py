@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, check_memory, command_app, console, handle_errors, pairs_bytes
+from robotcal.cli._common import Force, check_memory, command_app, console, handle_errors, pairs_bytes
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
@@ -110,39 +110,12 @@ def _convergence(path: Path) -> dict | None:
     return None
 
 
-@app.command()
-@handle_errors
-def evaluate(
-    scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot and targets.")],
-    params: Annotated[list[Path], typer.Option("--params", "-p", help="Parameter JSON to evaluate (repeatable).")],
-    capture: Annotated[list[Path], typer.Option("--capture", "-c", help="Capture CSV to evaluate on (repeatable).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write.")],
-    nominal: Annotated[
-        bool, typer.Option("--nominal/--no-nominal", help="Include the nominal parameters first, as the reference.")
-    ] = True,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
-    absolute: Annotated[
-        bool,
-        typer.Option(
-            "--absolute",
-            help="Add the absolute view: |T p - m| with each set's own base frame (the one its parameter JSON "
-            "records, else the scenario's tracker_from_base), no re-registration.",
-        ),
-    ] = False,
-) -> None:
-    """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
-    from robotcal import api
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
+def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dict, dict, dict, dict]:
+    """The named sets of ``--params`` (after the nominal one), with each file's provenance, flange targets, path
+    and convergence history (of the sets that record one)."""
     from robotcal.io.parameters_json import read_parameters, read_targets
-    from robotcal.io.scenario import load_scenario
     from robotcal.kinematics.model import ParameterSet
 
-    inputs = existing_inputs(scenario, *params, *capture)
-    check_output_folder(out, inputs=inputs, force=force)
-    loaded = load_scenario(scenario)
-    inputs += existing_inputs(*loaded.files)
-    robot = loaded.robot
     used: set[str] = set()
     sets: dict[str, ParameterSet] = {}
     if nominal:
@@ -161,6 +134,62 @@ def evaluate(
         history = _convergence(path)
         if history is not None:
             histories[label] = history
+    return sets, provenances, set_targets, files, histories
+
+
+def _print_tables(rows, captures: dict, views: tuple[str, ...]) -> None:
+    """One table per capture and view: mean, max, RMS and improvement of every set."""
+    for capture_name in captures:
+        for view in views:
+            headers = ("mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]")
+            table = FittedTable(
+                f"{capture_name}: {view} view",
+                [Column("parameter set", "name"), *(Column(header) for header in headers)],
+            )
+            for row in rows:
+                if row.capture == capture_name and row.view == view:
+                    table.add_row(
+                        row.parameter_set,
+                        f"{row.mean_error_mm:.4f}",
+                        f"{row.max_error_mm:.4f}",
+                        f"{row.rms_error_mm:.4f}",
+                        f"{row.improvement_pct:.2f}",
+                    )
+            console.print(table)
+
+
+@app.command()
+@handle_errors
+def evaluate(
+    scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot and targets.")],
+    params: Annotated[list[Path], typer.Option("--params", "-p", help="Parameter JSON to evaluate (repeatable).")],
+    capture: Annotated[list[Path], typer.Option("--capture", "-c", help="Capture CSV to evaluate on (repeatable).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write.")],
+    nominal: Annotated[
+        bool, typer.Option("--nominal/--no-nominal", help="Include the nominal parameters first, as the reference.")
+    ] = True,
+    force: Force = False,
+    absolute: Annotated[
+        bool,
+        typer.Option(
+            "--absolute",
+            help="Add the absolute view: |T p - m| with each set's own base frame (the one its parameter JSON "
+            "records, else the scenario's tracker_from_base), no re-registration.",
+        ),
+    ] = False,
+) -> None:
+    """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
+    from robotcal import api
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
+    from robotcal.io.scenario import load_scenario
+
+    inputs = existing_inputs(scenario, *params, *capture)
+    check_output_folder(out, inputs=inputs, force=force)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(*loaded.files)
+    robot = loaded.robot
+    sets, provenances, set_targets, files, histories = _parameter_sets(params, robot, nominal)
     if not sets:
         raise InputError("nothing to evaluate: give --params or keep --nominal")
     captures = {}
@@ -198,23 +227,7 @@ def evaluate(
             from robotcal.plots.refine import plot_convergence
 
             plot_convergence(convergence_of(document), folder / "convergence.png")
-    for capture_name in captures:
-        for view in views:
-            headers = ("mean [mm]", "max [mm]", "RMS [mm]", "improvement [%]")
-            table = FittedTable(
-                f"{capture_name}: {view} view",
-                [Column("parameter set", "name"), *(Column(header) for header in headers)],
-            )
-            for row in rows:
-                if row.capture == capture_name and row.view == view:
-                    table.add_row(
-                        row.parameter_set,
-                        f"{row.mean_error_mm:.4f}",
-                        f"{row.max_error_mm:.4f}",
-                        f"{row.rms_error_mm:.4f}",
-                        f"{row.improvement_pct:.2f}",
-                    )
-            console.print(table)
+    _print_tables(rows, captures, views)
     for label, note in base_notes.items():
         console.print(f"absolute view, {label}: {note}", highlight=False, markup=False)
     for label, note in target_notes.items():

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
@@ -18,8 +18,6 @@ if TYPE_CHECKING:  # numpy and the model load in the commands: a fast --help (pr
 
 app = command_app()
 
-ROBOT_HELP = "Robot name or TOML of the parameters (default: the robot named in PARAMS, if built-in)."
-SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (instead of --robot)."
 
 
 def parse_vector(text: str | None, option: str, count: int = 3):
@@ -82,8 +80,8 @@ def export(
         ),
     ] = None,
     format: Annotated[str, typer.Option("--format", "-f", help="json | urdf | ur-yaml | dh | mdh.")] = "json",
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
     tool: Annotated[str | None, typer.Option("--tool", help='URDF tool0 frame on the flange "x,y,z" [mm].')] = None,
     joint_variable: Annotated[
         str,
@@ -94,23 +92,13 @@ def export(
             "robot).",
         ),
     ] = "reading",
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Write the calibrated model (or, with --nominal, a robot's nominal model) as JSON, URDF, UR calibration
     YAML or a DH / MDH table (exact, else an error)."""
+    from robotcal import api
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.export import (
-        EXPORT_FORMATS,
-        dh_table,
-        joint_model_note,
-        mdh_table,
-        parameters_to_ur_yaml,
-        parameters_to_urdf,
-        table_to_csv,
-        table_to_markdown,
-        with_note,
-    )
-    from robotcal.io.parameters_json import write_parameters
+    from robotcal.io.export import EXPORT_FORMATS, joint_model_note
     from robotcal.io.robots import load_robot
     from robotcal.kinematics.model import ParameterSet
 
@@ -133,33 +121,19 @@ def export(
         parameters, inputs = load_parameter_set(params, robot, scenario)
         provenance = None
     check_output_file(out, inputs=inputs, force=force)
+    if format == "json" and provenance is None:
+        provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
     markdown = Path(out).suffix.lower() in (".md", ".markdown")
-    if format == "urdf":
-        text = parameters_to_urdf(parameters, tool=tool_mm, joint_variable=joint_variable)
-    elif format == "ur-yaml":
-        if joint_variable != "reading":
-            raise InputError("--joint-variable model is written only by --format urdf, dh and mdh")
-        text = parameters_to_ur_yaml(parameters)
-    elif format in ("dh", "mdh"):
-        table = dh_table if format == "dh" else mdh_table
-        rows = table(parameters, joint_variable=joint_variable)
-        title = f"{'DH' if format == 'dh' else 'Modified DH'} table of {parameters.robot.name} [mm, deg]"
-        if joint_variable == "model":
-            title += "; joint value = model variable q (reading_sign 1, reading_offset_deg 0)"
-        text = table_to_markdown(rows, title=title) if markdown else table_to_csv(rows)
-    else:
-        text = None
-    note = joint_model_note(parameters)
-    if text is not None and note is not None:
-        text = with_note(text, note, "markdown" if markdown and format in ("dh", "mdh") else format)
+    if format == "ur-yaml" and joint_variable != "reading":
+        raise InputError("--joint-variable model is written only by --format urdf, dh and mdh")
+    text = api.export_model(
+        parameters, format, tool_mm=tool_mm, joint_variable=joint_variable, markdown=markdown,
+        provenance=provenance if isinstance(provenance, dict) else {},
+    )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):
-        if text is None:
-            if provenance is None:
-                provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
-            write_parameters(out, parameters, provenance if isinstance(provenance, dict) else {})
-        else:
-            atomic_write_text(out, text)
+        atomic_write_text(out, text)
+    note = None if format == "json" else joint_model_note(parameters)
     what = f", nominal model of {parameters.robot.name}" if nominal is not None else ""
     console.print(f"wrote {out} ({format}{what})", highlight=False)
-    if text is not None and note is not None:
+    if note is not None:
         console.print(f"note: {note}", highlight=False, soft_wrap=True)

@@ -9,9 +9,9 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
 from robotcal.cli.compensate import say_not_ok
-from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
+from robotcal.cli.export import load_parameter_set, parse_vector
 
 app = command_app()
 
@@ -37,63 +37,73 @@ def _frames(items: list[str] | None) -> dict:
     return frames
 
 
+# The options of `filter`, declared once here (the command reads as a list of its options).
+_Out = Annotated[
+    Path,
+    typer.Option(
+        "--out",
+        "-o",
+        help="Folder to write: the filtered program files under their own names, points.csv (every point's "
+        "status and correction) and filter.html.",
+    ),
+]
+_Controller = Annotated[
+    str | None,
+    typer.Option(
+        help="Robot file of the same arm with the controller's reading signs and flange frame (e.g. "
+        "kuka-kr5-sixx-r650-krc); default: the parameters' robot."
+    ),
+]
+_Frame = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--frame",
+        help="A tool or base the program uses, NAME=x,y,z,A,B,C [mm, deg KUKA] (e.g. TOOL_DATA[1]=..., tool1=..., "
+        "wobj1=...); replaces the program's own declaration. Repeat for several.",
+    ),
+]
+_ConfigDat = Annotated[
+    Path | None, typer.Option("--config-dat", help="KRL: the cell's $config.dat with TOOL_DATA and BASE_DATA.")
+]
+_StartDeg = Annotated[
+    str | None,
+    typer.Option(
+        "--start-deg",
+        help="Controller readings q1,..,qN [deg] where the robot stands before the program: the first point "
+        "without configuration data takes the solution nearest them (default: mid-limits).",
+    ),
+]
+_MaxChangeDeg = Annotated[
+    float, typer.Option("--max-change-deg", min=0.001, help="Largest joint change in an ok point [deg].")
+]
+_Draws = Annotated[
+    Path | None,
+    typer.Option(
+        "--draws",
+        help="The deployed model's Monte Carlo draws (a run's uncertainty-refined/draws.npz): each point's tool "
+        "position uncertainty at its command, column tcp_u_mm.",
+    ),
+]
+
+
 @app.command("filter")
 @handle_errors
 def filter_command(
     program: Annotated[Path, typer.Argument(help="The robot program: KRL .src (its .dat beside it), RAPID .mod, URScript .script.")],
     params: Annotated[Path, typer.Option("--params", "-p", help="Parameter JSON of the calibrated model.")],
-    out: Annotated[
-        Path,
-        typer.Option(
-            "--out",
-            "-o",
-            help="Folder to write: the filtered program files under their own names, points.csv (every point's "
-            "status and correction) and filter.html.",
-        ),
-    ],
-    controller: Annotated[
-        str | None,
-        typer.Option(
-            help="Robot file of the same arm with the controller's reading signs and flange frame (e.g. "
-            "kuka-kr5-sixx-r650-krc); default: the parameters' robot."
-        ),
-    ] = None,
-    frame: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--frame",
-            help="A tool or base the program uses, NAME=x,y,z,A,B,C [mm, deg KUKA] (e.g. TOOL_DATA[1]=..., tool1=..., "
-            "wobj1=...); replaces the program's own declaration. Repeat for several.",
-        ),
-    ] = None,
+    out: _Out,
+    controller: _Controller = None,
+    frame: _Frame = None,
     language: Annotated[str | None, typer.Option(help="krl | rapid | urscript (default: from the suffix).")] = None,
     dat: Annotated[Path | None, typer.Option("--dat", help="KRL: the .dat (default: beside the .src).")] = None,
-    config_dat: Annotated[
-        Path | None, typer.Option("--config-dat", help="KRL: the cell's $config.dat with TOOL_DATA and BASE_DATA.")
-    ] = None,
-    start_deg: Annotated[
-        str | None,
-        typer.Option(
-            "--start-deg",
-            help="Controller readings q1,..,qN [deg] where the robot stands before the program: the first point "
-            "without configuration data takes the solution nearest them (default: mid-limits).",
-        ),
-    ] = None,
-    max_change_deg: Annotated[
-        float, typer.Option("--max-change-deg", min=0.001, help="Largest joint change in an ok point [deg].")
-    ] = 2.0,
-    draws: Annotated[
-        Path | None,
-        typer.Option(
-            "--draws",
-            help="The deployed model's Monte Carlo draws (a run's uncertainty-refined/draws.npz): each point's tool "
-            "position uncertainty at its command, column tcp_u_mm.",
-        ),
-    ] = None,
+    config_dat: _ConfigDat = None,
+    start_deg: _StartDeg = None,
+    max_change_deg: _MaxChangeDeg = 2.0,
+    draws: _Draws = None,
     encoding: Annotated[str, typer.Option(help="Text encoding of the program files (e.g. cp1252).")] = "utf-8",
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
+    force: Force = False,
 ) -> None:
     """Filter a robot program with the calibrated model: every target solved on the nominal controller's branch
     (its S/T or cf configuration data, or nearest the previous point), compensated on the calibrated model, and

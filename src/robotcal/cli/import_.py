@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, command_app, console, handle_errors
 
 app = command_app()
 
@@ -60,33 +60,29 @@ def import_(
     scenario: Annotated[
         str | None, typer.Option("--scenario", "-s", help="Scenario whose robot checks the joint columns.")
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Convert a tracker export and a joint-angle log into a capture CSV (mm, deg; U(95) kept as u95_mm)."""
+    from robotcal import api
     from robotcal.errors import InputError
     from robotcal.io import load_robot, load_scenario
     from robotcal.io.capture_csv import write_capture
     from robotcal.io.output import check_output_file, existing_inputs, result_file
-    from robotcal.io.tracker_import import join_points_to_readings, read_joint_log, read_tracker_export
 
     if robot is not None and scenario is not None:
         raise InputError("give --robot or --scenario, not both")
     inputs = existing_inputs(export, joints, robot, scenario)
-    n_joints = None
+    model = None
     if scenario is not None:
-        loaded = load_scenario(scenario)
-        n_joints = loaded.robot.n_joints
-        inputs += existing_inputs(*loaded.files)
+        model = load_scenario(scenario)
+        inputs += existing_inputs(*model.files)
     elif robot is not None:
-        n_joints = load_robot(robot).n_joints
+        model = load_robot(robot)
     check_output_file(out, inputs=inputs, force=force)
-    # names are checked after the join (a target column in either file may tell points apart)
-    points = read_tracker_export(
-        export, columns=columns, delimiter=delimiter, decimal=decimal, units=units, check_names=False,
-        encoding=encoding,
+    capture, points = api.import_capture(
+        export, joints, model, columns=columns, units=units, delimiter=delimiter, decimal=decimal, join=join,
+        encoding=encoding, target=target,
     )  # fmt: skip
-    log = read_joint_log(joints, n_joints=n_joints, check_names=False, encoding=encoding)
-    capture = join_points_to_readings(points, log, join=join, target=target)
     with result_file(out, inputs=inputs, force=force):
         write_capture(out, capture)
     poses = len({tuple(row) for row in capture.readings.tolist()})

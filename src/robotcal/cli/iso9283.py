@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
+from robotcal.cli._common import Force, command_app, console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.errors import InputError
@@ -102,20 +102,20 @@ def iso9283(
     orientation_axes: Annotated[
         str, typer.Option("--orientation-axes", help="Axes of APa/b/c, RPa/b/c: base (ISO) or flange (commanded).")
     ] = "base",
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """ISO 9283 pose accuracy (AP, APa/b/c) and repeatability (RP, RPa/b/c), distance accuracy (AD) and
     repeatability (RD). With three or more flange targets per pose (a `target` column) the flange
     orientation is measured too."""
     import numpy as np
 
-    from robotcal.diagnostics.iso9283 import ORIENTATION_AXES, IsoModel, iso_from_capture
+    from robotcal import api
+    from robotcal.diagnostics.iso9283 import ORIENTATION_AXES, IsoModel
     from robotcal.io.atomic import atomic_write_text
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.iso9283_files import iso_to_csv
     from robotcal.io.parameters_json import read_parameters
     from robotcal.io.scenario import load_scenario
-    from robotcal.kinematics.model import ParameterSet
 
     if orientation_axes not in ORIENTATION_AXES:
         raise InputError(f"--orientation-axes must be one of {', '.join(ORIENTATION_AXES)}; got {orientation_axes!r}")
@@ -128,34 +128,20 @@ def iso9283(
     loaded = load_scenario(scenario)
     check_output_file(out, inputs=inputs, force=force)
     measured = read_capture(capture, n_joints=loaded.robot.n_joints)
-    sets = {}
-    if nominal:
-        sets["nominal"] = IsoModel(
-            parameters=ParameterSet.nominal(loaded.robot), tracker_from_base=loaded.tracker_from_base
-        )
+    models = {}
     for path in params:
-        label = path.stem if path.stem not in sets else str(path)
-        sets[label] = IsoModel(
+        models[path.stem if path.stem not in models and (path.stem != "nominal" or not nominal) else str(path)] = IsoModel(
             parameters=read_parameters(path, loaded.robot),
             tracker_from_base=_tracker_from_base(path, loaded.tracker_from_base),
             target_offsets=None if given_offsets is not None else _model_offsets(path),
         )
-    if not sets:
+    if not models and not nominal:
         raise InputError("nothing to evaluate: give --params or leave --nominal on")
-    if measured.target is None:
-        point, offsets = flange_target(loaded, target), None
-    else:
-        point = None if target is None else np.asarray(parse_vector(target, "--target"), dtype=float)
-        offsets = given_offsets if given_offsets is not None else scenario_offsets(loaded)
-    results = iso_from_capture(
-        measured,
-        sets,
-        point=point,
-        targets=offsets,
-        n_test_poses=poses_per_cycle,
-        distance_pair=(int(pair[0]) - 1, int(pair[1]) - 1),
+    results = api.iso9283(
+        measured, loaded, models, nominal=nominal, point_mm=None if target is None else parse_vector(target, "--target"),
+        targets_mm=given_offsets, poses_per_cycle=poses_per_cycle, distance_poses=(int(pair[0]), int(pair[1])),
         orientation_axes=orientation_axes,
-    )
+    )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, iso_to_csv(results))
     first = next(iter(results.values()))
@@ -176,48 +162,58 @@ def iso9283(
     console.print(f"wrote {out}", highlight=False)
 
 
+# The options of `iso9283_plan` that take several lines, declared once here (the command reads as a list of its options).
+_PlanCenter = Annotated[
+    str | None,
+    typer.Option("--center", help='Cube centre "x,y,z" in the base frame [mm] (default: the point at --start).'),
+]
+_PlanSide = Annotated[
+    float | None, typer.Option("--side", help="Cube side [mm] (default: 20 % of the reach, halved to fit).")
+]
+_PlanStart = Annotated[
+    str | None,
+    typer.Option("--start", help='Start readings "q1,...,qN" [deg]; sets the orientation (default: the best '
+                 "conditioned of a grid in the limits)."),
+]
+_PlanProgram = Annotated[
+    str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
+]
+_PlanProgramOut = Annotated[
+    Path | None,
+    typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
+]
+_PlanController = Annotated[
+    str | None,
+    typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
+                 "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
+]
+_PlanName = Annotated[
+    str | None,
+    typer.Option(
+        "--name",
+        help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
+        "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
+    ),
+]
+
+
 @app.command("iso9283-plan")
 @handle_errors
 def iso9283_plan(
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot and flange target.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Pose CSV to write (q1..qN in deg).")],
-    center: Annotated[
-        str | None,
-        typer.Option("--center", help='Cube centre "x,y,z" in the base frame [mm] (default: the point at --start).'),
-    ] = None,
-    side: Annotated[
-        float | None, typer.Option("--side", help="Cube side [mm] (default: 20 % of the reach, halved to fit).")
-    ] = None,
-    start: Annotated[
-        str | None,
-        typer.Option("--start", help='Start readings "q1,...,qN" [deg]; sets the orientation (default: the best '
-                     "conditioned of a grid in the limits)."),
-    ] = None,
+    center: _PlanCenter = None,
+    side: _PlanSide = None,
+    start: _PlanStart = None,
     cycles: Annotated[int, typer.Option("--cycles", min=2, help="Cycles through P1..P5.")] = ISO_CYCLES,
     target: Annotated[str | None, typer.Option("--target", help='Flange point placed on P1..P5 "x,y,z" [mm].')] = None,
-    program: Annotated[
-        str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
-    ] = None,
-    program_out: Annotated[
-        Path | None,
-        typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
-    ] = None,
+    program: _PlanProgram = None,
+    program_out: _PlanProgramOut = None,
     dwell: Annotated[float, typer.Option("--dwell", help="Dwell at every test pose in the program [s].")] = 2.0,
-    controller: Annotated[
-        str | None,
-        typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
-                     "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
-    ] = None,
+    controller: _PlanController = None,
     speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
-    name: Annotated[
-        str | None,
-        typer.Option(
-            "--name",
-            help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
-            "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
-        ),
-    ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    name: _PlanName = None,
+    force: Force = False,
 ) -> None:
     """The ISO 9283 test poses P1..P5 (cube's diagonal plane) as controller readings, repeated per cycle;
     with --program also as a robot program (a joint move and a dwell per pose)."""

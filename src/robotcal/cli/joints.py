@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, error_console, handle_errors
+from robotcal.cli._common import Force, command_app, console, error_console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 
@@ -63,7 +63,7 @@ def joints(
     match_tolerance_deg: Annotated[
         float, typer.Option(min=0.0, help="Largest reading difference of a forward/return pair [deg].")
     ] = 1e-3,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Backlash and axial/radial eccentricity per joint (thesis ch. 4.6), with a harmonic model."""
     from robotcal import api

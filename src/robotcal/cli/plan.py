@@ -6,7 +6,6 @@ Exit status of ``plan check``: 0 feasible, 1 infeasible (a point fails a check),
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -37,6 +36,9 @@ _NoAcceptance = Annotated[
 ]
 _Aim = Annotated[str, typer.Option(help="Where each circle's target faces the tracker: middle | start.")]
 _Force = Annotated[bool, typer.Option("--force", help="Replace an output not written by robotcal.")]
+_Scheduler = Annotated[
+    str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
+]
 
 
 def check_table(check) -> FittedTable:
@@ -81,14 +83,15 @@ def check(
     force: _Force = False,
 ) -> None:
     """Check every capture point: joint limits, measuring range, reflector acceptance, line of sight."""
+    from robotcal import api
     from robotcal.io import load_scenario
     from robotcal.io.output import existing_inputs
-    from robotcal.planning.cell import REASONS, check_plan
+    from robotcal.planning.cell import REASONS
     from robotcal.planning.scenario import cell_from_scenario
 
     loaded = load_scenario(scenario)
     cell, notes = cell_from_scenario(loaded, acceptance_deg=acceptance_deg, no_acceptance=no_acceptance, aim=aim)
-    result = check_plan(loaded.robot, loaded.plan, cell)
+    result = api.check_plan(loaded, cell=cell)
     console.print(check_table(result))
     for note in notes:
         console.print(f"note: {note}", highlight=False)
@@ -111,24 +114,6 @@ def check(
     console.print("feasible: every point passes every check")
 
 
-def _monte_carlo_p95(scenario, plan, readings, *, iterations: int, seed: int, workers: int, progress=None) -> float:
-    """Workspace p95 TCP position uncertainty [mm] of ``plan`` by a Monte Carlo of ``iterations`` draws
-    (``progress(draws_done, draws)`` after every block of draws)."""
-    import dataclasses
-
-    import numpy as np
-
-    from robotcal import api
-    from robotcal.uncertainty.workspace import workspace_uncertainty
-
-    variant = dataclasses.replace(scenario, plan=plan, joint_errors=None, joint_limits="ignore")
-    result = api.monte_carlo(
-        variant, draws=iterations, rng=seed, workers=workers, linearised=False, progress=progress
-    )
-    workspace = workspace_uncertainty(scenario.robot, result.draws, readings=readings)
-    return float(np.percentile(workspace.position_uncertainty, 95.0))
-
-
 def optimise_summary(baseline: float, optimised: float, *, draws: int, evaluations: int, executor: str) -> str:
     """The last line of ``plan optimise``: the Monte Carlo's workspace p95 TCP uncertainty [mm] of the baseline and
     the optimised plan, and how they compare: "2.4x lower" (or "5.0 % lower" under 1.1x), "24 % higher: no better
@@ -146,6 +131,82 @@ def optimise_summary(baseline: float, optimised: float, *, draws: int, evaluatio
     return (
         f"Monte Carlo ({draws} draws): workspace p95 TCP position uncertainty {baseline:.4f} -> {optimised:.4f} mm "
         f"({change}); {evaluations} candidates on {executor}"
+    )
+
+
+def _optimised_document(scenario: str, loaded, plan, objective: str) -> dict:
+    """The scenario document with the optimised plan in ``[capture]`` (rounded as written; the robot path made
+    absolute when it was relative to the scenario file)."""
+    import numpy as np
+
+    from robotcal.planning.scenario import scenario_document
+
+    document, _, _, _ = scenario_document(scenario)
+    capture = dict(document["capture"])
+    capture.update(
+        start_deg=[round(float(v), 6) for v in np.rad2deg(plan.start)],
+        sweep_deg=[round(float(v), 6) for v in np.rad2deg(plan.sweep)],
+        points=[int(v) for v in plan.points],
+        reflector_mm=[[round(float(v), 4) for v in row] for row in plan.reflector.positions],
+        joint_limits="error",
+    )
+    capture.pop("flange_reflector_mm", None)
+    optimised = dict(document, capture=capture)
+    optimised["description"] = f"Plan optimised by robotcal plan optimise ({objective}) from {loaded.name}"
+    if "robot" in optimised and not Path(str(document["robot"])).is_absolute():
+        candidate = Path(loaded.source).parent / str(document["robot"])
+        if candidate.exists():
+            optimised["robot"] = str(candidate.resolve())
+    return optimised
+
+
+def _optimise_table(objective: str, loaded, result, feasible: bool, confirmed: dict) -> FittedTable:
+    """Baseline and optimised plan side by side: feasibility, linearised and Monte Carlo p95, max u, points."""
+    from robotcal.cli._tables import Column, FittedTable
+
+    headers = ("p95 TCP lin. (mm)", "p95 TCP MC (mm)", "max u", "points")
+    table = FittedTable(
+        f"Plan optimisation ({objective})",
+        [Column("plan", "name", justify="right"), Column("feasible", "name", justify="right")]
+        + [Column(header) for header in headers],
+    )
+    for name, ok, figures, plan in (
+        ("baseline", result.baseline_feasible, result.baseline_figures, loaded.plan),
+        ("optimised", feasible, result.best, result.plan),
+    ):
+        table.add_row(
+            name, str(ok), f"{figures['p95-tcp']:.4f}", f"{confirmed[name]:.4f}", f"{figures['max-u']:.4g}",
+            str(int(plan.points.sum())),
+        )  # fmt: skip
+    return table
+
+
+def _write_optimised(folder: Path, header: str, document: dict, comparison: dict, result, objective: str) -> None:
+    """``optimised.toml``, ``comparison.json``/``.csv`` and ``optimisation.png`` of ``plan optimise``."""
+    from robotcal.io.atomic import atomic_write_text
+    from robotcal.planning.scenario import dump_toml
+    from robotcal.plots.planning import plot_optimisation
+
+    confirmed = comparison["monte_carlo_p95_tcp_mm"]
+    atomic_write_text(folder / "optimised.toml", dump_toml(document, header))
+    atomic_write_text(folder / "comparison.json", json.dumps(comparison, indent=2, default=float) + "\n")
+    rows = ["plan,feasible,p95_tcp_linearised_mm,p95_tcp_monte_carlo_mm,max_u"]
+    rows.append(
+        f"baseline,{result.baseline_feasible},{result.baseline_figures['p95-tcp']:.6g},{confirmed['baseline']:.6g},"
+        f"{result.baseline_figures['max-u']:.6g}"
+    )
+    rows.append(
+        f"optimised,{comparison['optimised_feasible']},{result.best['p95-tcp']:.6g},{confirmed['optimised']:.6g},"
+        f"{result.best['max-u']:.6g}"
+    )
+    atomic_write_text(folder / "comparison.csv", "\n".join(rows) + "\n")
+    baseline_and_optimised = {k: confirmed[k] for k in ("baseline", "optimised")}
+    plot_optimisation(
+        result.history,
+        result.baseline_figures[objective],
+        baseline_and_optimised if objective == "p95-tcp" else {},
+        folder / "optimisation.png",
+        objective=objective,
     )
 
 
@@ -167,70 +228,36 @@ def optimise(
     no_acceptance: _NoAcceptance = False,
     aim: _Aim = "middle",
     workers: Annotated[int, typer.Option(min=1, help="Local worker processes for the candidates.")] = 1,
-    scheduler: Annotated[
-        str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
-    ] = None,
+    scheduler: _Scheduler = None,
     force: _Force = False,
 ) -> None:
     """Search start angles, sweeps, points per circle and reflector positions for a lower uncertainty,
     within the cell check; confirm baseline and winner by Monte Carlo; write the optimised scenario."""
-    import numpy as np
-
-    from robotcal.cli._tables import Column, FittedTable
+    from robotcal import api
     from robotcal.io import load_scenario
     from robotcal.io.output import check_output_folder, existing_inputs
-    from robotcal.planning.cell import check_plan
-    from robotcal.planning.optimise import PlanProblem, optimise_plan
-    from robotcal.planning.scenario import cell_from_scenario, dump_toml, scenario_document
+    from robotcal.planning.scenario import cell_from_scenario
 
     loaded = load_scenario(scenario)
     inputs = existing_inputs(*loaded.files)
     check_output_folder(out, inputs=inputs, force=force)
     cell, notes = cell_from_scenario(loaded, acceptance_deg=acceptance_deg, no_acceptance=no_acceptance, aim=aim)
-    problem, readings = PlanProblem.from_scenario(
-        loaded, cell, workspace_poses=workspace_poses, seed=seed, objective=objective
-    )
     with progress_bar("plan search", "generations") as display:  # a bar, or a line every few seconds when piped
         task = display.add_task("search", total=generations)
-        result = optimise_plan(
-            loaded.plan,
-            problem,
-            budget=budget,
-            generations=generations,
-            population=population,
-            seed=seed,
-            workers=workers,
-            scheduler=scheduler,
+        result = api.optimise_plan(
+            loaded, cell, objective=objective, budget=budget, generations=generations, population=population,
+            seed=seed, workspace_poses=workspace_poses, workers=workers, scheduler=scheduler,
             progress=lambda done, total: display.update(task, completed=done, total=total),
-        )
-    feasible = check_plan(loaded.robot, result.plan, cell).feasible
-    mc_workers = min(os.cpu_count() or 1, 2)
+        )  # fmt: skip
+    feasible = api.check_plan(loaded, result.plan, cell=cell).feasible
     confirmed = {}
     with progress_bar("Monte Carlo of baseline and optimised plans", "draws") as display:
         task = display.add_task("confirm", total=2 * confirm_draws)
         for k, (name, plan) in enumerate((("baseline", loaded.plan), ("optimised", result.plan))):
-            confirmed[name] = _monte_carlo_p95(
-                loaded, plan, readings, iterations=confirm_draws, seed=seed + 1, workers=mc_workers,
+            confirmed[name] = api.plan_tcp_p95(
+                loaded, plan, draws=confirm_draws, rng=seed + 1, workspace_poses=workspace_poses, workspace_seed=seed,
                 progress=lambda done, _, before=k * confirm_draws: display.update(task, completed=before + done),
             )  # fmt: skip
-    ratio = confirmed["baseline"] / confirmed["optimised"]
-    document, _, _, _ = scenario_document(scenario)
-    capture = dict(document["capture"])
-    capture.update(
-        start_deg=[round(float(v), 6) for v in np.rad2deg(result.plan.start)],
-        sweep_deg=[round(float(v), 6) for v in np.rad2deg(result.plan.sweep)],
-        points=[int(v) for v in result.plan.points],
-        reflector_mm=[[round(float(v), 4) for v in row] for row in result.plan.reflector.positions],
-        joint_limits="error",
-    )
-    capture.pop("flange_reflector_mm", None)
-    optimised_document = dict(document, capture=capture)
-    optimised_document["description"] = f"Plan optimised by robotcal plan optimise ({objective}) from {loaded.name}"
-    if "robot" in optimised_document and not Path(str(document["robot"])).is_absolute():
-        robot_text = str(document["robot"])
-        candidate = Path(loaded.source).parent / robot_text
-        if candidate.exists():
-            optimised_document["robot"] = str(candidate.resolve())
     comparison = {
         "scenario": loaded.source,
         "objective": objective,
@@ -242,58 +269,17 @@ def optimise(
         "baseline_feasible": result.baseline_feasible,
         "optimised_feasible": feasible,
         "linearised": {"baseline": result.baseline_figures, "optimised": result.best},
-        "monte_carlo_p95_tcp_mm": confirmed | {"draws": confirm_draws, "improvement": ratio},
+        "monte_carlo_p95_tcp_mm": confirmed
+        | {"draws": confirm_draws, "improvement": confirmed["baseline"] / confirmed["optimised"]},
         "notes": notes,
     }
-    headers = ("p95 TCP lin. (mm)", "p95 TCP MC (mm)", "max u", "points")
-    table = FittedTable(
-        f"Plan optimisation ({objective})",
-        [Column("plan", "name", justify="right"), Column("feasible", "name", justify="right")]
-        + [Column(header) for header in headers],
-    )
-    table.add_row(
-        "baseline",
-        str(result.baseline_feasible),
-        f"{result.baseline_figures['p95-tcp']:.4f}",
-        f"{confirmed['baseline']:.4f}",
-        f"{result.baseline_figures['max-u']:.4g}",
-        str(int(loaded.plan.points.sum())),
-    )
-    table.add_row(
-        "optimised",
-        str(feasible),
-        f"{result.best['p95-tcp']:.4f}",
-        f"{confirmed['optimised']:.4f}",
-        f"{result.best['max-u']:.4g}",
-        str(int(result.plan.points.sum())),
-    )
-
-    def write(folder: Path) -> None:
-        from robotcal.io.atomic import atomic_write_text
-        from robotcal.plots.planning import plot_optimisation
-
-        header = f"robotcal plan optimise {loaded.name} --objective {objective} --seed {seed}"
-        atomic_write_text(folder / "optimised.toml", dump_toml(optimised_document, header))
-        atomic_write_text(folder / "comparison.json", json.dumps(comparison, indent=2, default=float) + "\n")
-        rows = ["plan,feasible,p95_tcp_linearised_mm,p95_tcp_monte_carlo_mm,max_u"]
-        rows.append(
-            f"baseline,{result.baseline_feasible},{result.baseline_figures['p95-tcp']:.6g},{confirmed['baseline']:.6g},"
-            f"{result.baseline_figures['max-u']:.6g}"
-        )
-        rows.append(
-            f"optimised,{feasible},{result.best['p95-tcp']:.6g},{confirmed['optimised']:.6g},{result.best['max-u']:.6g}"
-        )
-        atomic_write_text(folder / "comparison.csv", "\n".join(rows) + "\n")
-        plot_optimisation(
-            result.history,
-            result.baseline_figures[objective],
-            confirmed if objective == "p95-tcp" else {},
-            folder / "optimisation.png",
-            objective=objective,
-        )
-
-    _write_folder(out, inputs, force, "robotcal plan optimise", write)
-    console.print(table)
+    document = _optimised_document(scenario, loaded, result.plan, objective)
+    header = f"robotcal plan optimise {loaded.name} --objective {objective} --seed {seed}"
+    _write_folder(
+        out, inputs, force, "robotcal plan optimise",
+        lambda folder: _write_optimised(folder, header, document, comparison, result, objective),
+    )  # fmt: skip
+    console.print(_optimise_table(objective, loaded, result, feasible, confirmed))
     console.print(
         optimise_summary(
             confirmed["baseline"], confirmed["optimised"], draws=confirm_draws, evaluations=result.evaluations,

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, command_app, console, handle_errors
-from robotcal.cli.export import ROBOT_HELP, SCENARIO_HELP, load_parameter_set, parse_vector
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
+from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
@@ -25,26 +25,6 @@ if TYPE_CHECKING:  # numpy and the kinematics load in the command: a fast --help
 app = command_app()
 
 PREDICT_COLUMNS = ("pose", "x", "y", "z", "A", "B", "C")
-
-
-def predict_frames(parameters, readings, *, target=None, world_from_base=None) -> np.ndarray:
-    """``world_from_tool`` frames [mm] at controller ``readings (n_poses, n_joints)`` [rad].
-
-    The tool frame is the flange frame translated to ``target`` (flange-frame offset [mm], zero for
-    the flange); ``world_from_base`` (4, 4) defaults to the identity (robot base = DH frame {0}).
-    """
-    import numpy as np
-
-    from robotcal.kinematics.forward import forward_kinematics
-
-    frames = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))
-    if target is not None:
-        tool = np.eye(4)
-        tool[:3, 3] = target
-        frames = frames @ tool
-    if world_from_base is not None:
-        frames = world_from_base @ frames
-    return frames
 
 
 def flange_target_mm(text: str, *, params: Path, scenario=None) -> tuple[np.ndarray, str]:
@@ -159,11 +139,17 @@ def predict(
             "provenance.tracker_from_base) or scenario (--scenario's tracker_from_base); default: none, the robot base.",
         ),
     ] = None,
-    robot: Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)] = None,
-    scenario: Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    robot: ParamsRobot = None,
+    scenario: ParamsScenario = None,
+    force: Force = False,
 ) -> None:
     """Forward kinematics of the flange or of any flange point at given poses, with the calibrated model."""
+    import warnings
+
+    import numpy as np
+
+    from robotcal import api
+    from robotcal.errors import JointLimitWarning
     from robotcal.io.atomic import atomic_write_text
     from robotcal.io.scenario import load_scenario
     from robotcal.io.trajectory_csv import read_trajectory
@@ -181,7 +167,9 @@ def predict(
     check_output_file(out, inputs=inputs, force=force)
     readings = read_trajectory(poses, n_joints=parameters.robot.n_joints)
     readings = check_readings(parameters.robot, readings, name="--poses", source=str(poses))  # limits: warning
-    frames = predict_frames(parameters, readings, target=point, world_from_base=world_from_base)
+    with warnings.catch_warnings():  # the readings were checked above, naming --poses and its file
+        warnings.simplefilter("ignore", JointLimitWarning)
+        frames = api.predict(parameters, np.rad2deg(readings), tool_mm=point, world_from_base=world_from_base)
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, predictions_to_csv(frames))
     console.print(f"wrote {out}: {prediction_summary(frames.shape[0], point, point_from, frame_from)}", highlight=False)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, _line, command_app, console, error_console, handle_errors
+from robotcal.cli._common import Force, _line, command_app, console, error_console, handle_errors
 from robotcal.errors import InputError
 
 app = command_app()
@@ -36,7 +36,7 @@ def report(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help=OUT_HELP)
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Build the self-contained HTML calibration report of a run folder, from the saved results only."""
     from robotcal.io.output import result_file

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import FORCE_HELP, SEED_BOUND, command_app, console, error_console, handle_errors
+from robotcal.cli._common import SEED_BOUND, Force, command_app, console, error_console, handle_errors
 from robotcal.errors import RobotcalError
 from robotcal.limits import REFINED_DRAWS, SEED_OFFSETS
 
@@ -203,7 +203,7 @@ def run(
             f"else {REFINED_DRAWS:,}; at most --draws).",
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: Force = False,
 ) -> None:
     """Run the whole pipeline (simulate, CPA, joints, refine, evaluate, Monte Carlo, TCP, plan, ISO 9283) and write
     DIR/report.html."""

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._common import Scheduler, command_app, console, handle_errors
 from robotcal.cli._tables import Column, FittedTable
 
 app = command_app()
@@ -37,32 +37,22 @@ def sensitivity(
         float, typer.Option("--angle-limit-deg", help="Cpk limits for angles [deg] (0.1 mm at 573 mm).")
     ] = 0.01,
     workers: Annotated[int, typer.Option(min=1, help="Local worker processes for the cases.")] = 1,
-    scheduler: Annotated[
-        str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
-    ] = None,
+    scheduler: Scheduler = None,
     force: Annotated[bool, typer.Option("--force", help="Replace a folder not written by robotcal.")] = False,
 ) -> None:
     """Mean, u and Cpk (eq. 5-5) of every parameter against the varied capture conditions (Figs 5.14-5.16)."""
+    from robotcal import api
     from robotcal.io.output import check_output_folder, existing_inputs, result_folder
     from robotcal.planning.scenario import scenario_document
-    from robotcal.planning.sensitivity import parse_vary, run_sensitivity, study_rows
+    from robotcal.planning.sensitivity import study_rows
 
-    document, base_dir, name, source = scenario_document(scenario)
+    source = scenario_document(scenario)[3]
     inputs = existing_inputs(source)
     check_output_folder(out, inputs=inputs, force=force)
-    study = run_sensitivity(
-        document,
-        base_dir,
-        name,
-        source,
-        parse_vary(vary),
-        seed=seed,
-        iterations=iterations,
-        length_limit_mm=length_limit,
-        angle_limit_deg=angle_limit,
-        workers=workers,
-        scheduler=scheduler,
-    )
+    study = api.sensitivity(
+        scenario, vary, seed=seed, iterations=iterations, length_limit_mm=length_limit, angle_limit_deg=angle_limit,
+        workers=workers, scheduler=scheduler,
+    )  # fmt: skip
     rows = study_rows(study)
     summary = {
         "scenario": source,

@@ -11,8 +11,8 @@ import typer
 
 from robotcal.cli._common import (
     BYTES_PER_POSE,
-    FORCE_HELP,
     SEED_BOUND,
+    Force,
     check_memory,
     command_app,
     console,
@@ -24,65 +24,76 @@ from robotcal.io.output import existing_inputs, result_file
 app = command_app()
 
 
+# The options of `simulate` that take several lines, declared once here (the command reads as a list of its options).
+_Seed = Annotated[
+    int | None,
+    typer.Option(
+        min=0,
+        max=SEED_BOUND - 1,
+        help="Seed of the random draws (default: the scenario's capture.seed, or validation.seed).",
+    ),
+]
+_TrueParams = Annotated[
+    Path | None, typer.Option("--true-params", help="Parameter JSON of the 'real' robot (default: nominal).")
+]
+_TruthOut = Annotated[
+    Path | None,
+    typer.Option(
+        "--truth-out",
+        help="Perturb the nominal robot per the scenario's [truth] table, simulate that robot and write it here.",
+    ),
+]
+_Validation = Annotated[
+    bool,
+    typer.Option(
+        "--validation", help="Simulate a validation capture at random poses ([validation] table) instead."
+    ),
+]
+_FreePoses = Annotated[
+    int | None,
+    typer.Option(
+        "--free-poses",
+        min=1,
+        help="Simulate this many random poses (within the joint limits less [validation].margin_deg), each "
+        "measured on every target of --targets: a capture with a target column, no circles.",
+    ),
+]
+_Poses = Annotated[
+    Path | None,
+    typer.Option("--poses", help="Like --free-poses, at the poses of this pose CSV (q1..qN, controller deg)."),
+]
+_Targets = Annotated[
+    str | None,
+    typer.Option(
+        "--targets",
+        help='Flange targets measured at each free pose, "T1,T2,T3" (default: every flange target the scenario '
+        "declares: [[targets]], then [validation]'s as 'validation').",
+    ),
+]
+_TargetsMm = Annotated[
+    str | None,
+    typer.Option(
+        "--targets-mm",
+        help='True flange offsets "T1=x,y,z;T2=x,y,z" [mm] of the simulated robot: needed for targets declared '
+        'flange_mm = "unknown" (unless --true-params has them), else the declared offsets.',
+    ),
+]
+
+
 @app.command()
 @handle_errors
 def simulate(
     scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write.")],
-    seed: Annotated[
-        int | None,
-        typer.Option(
-            min=0,
-            max=SEED_BOUND - 1,
-            help="Seed of the random draws (default: the scenario's capture.seed, or validation.seed).",
-        ),
-    ] = None,
-    true_params: Annotated[
-        Path | None, typer.Option("--true-params", help="Parameter JSON of the 'real' robot (default: nominal).")
-    ] = None,
-    truth_out: Annotated[
-        Path | None,
-        typer.Option(
-            "--truth-out",
-            help="Perturb the nominal robot per the scenario's [truth] table, simulate that robot and write it here.",
-        ),
-    ] = None,
-    validation: Annotated[
-        bool,
-        typer.Option(
-            "--validation", help="Simulate a validation capture at random poses ([validation] table) instead."
-        ),
-    ] = False,
-    free_poses: Annotated[
-        int | None,
-        typer.Option(
-            "--free-poses",
-            min=1,
-            help="Simulate this many random poses (within the joint limits less [validation].margin_deg), each "
-            "measured on every target of --targets: a capture with a target column, no circles.",
-        ),
-    ] = None,
-    poses: Annotated[
-        Path | None,
-        typer.Option("--poses", help="Like --free-poses, at the poses of this pose CSV (q1..qN, controller deg)."),
-    ] = None,
-    targets: Annotated[
-        str | None,
-        typer.Option(
-            "--targets",
-            help='Flange targets measured at each free pose, "T1,T2,T3" (default: every flange target the scenario '
-            "declares: [[targets]], then [validation]'s as 'validation').",
-        ),
-    ] = None,
-    targets_mm: Annotated[
-        str | None,
-        typer.Option(
-            "--targets-mm",
-            help='True flange offsets "T1=x,y,z;T2=x,y,z" [mm] of the simulated robot: needed for targets declared '
-            'flange_mm = "unknown" (unless --true-params has them), else the declared offsets.',
-        ),
-    ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    seed: _Seed = None,
+    true_params: _TrueParams = None,
+    truth_out: _TruthOut = None,
+    validation: _Validation = False,
+    free_poses: _FreePoses = None,
+    poses: _Poses = None,
+    targets: _Targets = None,
+    targets_mm: _TargetsMm = None,
+    force: Force = False,
 ) -> None:
     """Simulate the scenario's capture and write it as a capture CSV."""
     from robotcal.io.scenario import ValidationTable, load_scenario

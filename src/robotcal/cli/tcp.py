@@ -12,8 +12,8 @@ import typer
 
 from robotcal.cli._common import (
     BYTES_PER_POSE,
-    FORCE_HELP,
     SEED_BOUND,
+    Force,
     check_memory,
     command_app,
     console,
@@ -105,100 +105,32 @@ def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> FittedTa
     return table
 
 
-@app.command()
-@handle_errors
-def tcp(
-    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (tcp.csv, tcp.json, figures).")],
-    draws: Annotated[
-        Path | None, typer.Option("--draws", help="draws.npz of `robotcal uncertainty --save-draws`.")
-    ] = None,
-    run: Annotated[
-        Path | None, typer.Option("--run", help="Uncertainty folder (DIR/draws.npz) or run folder (DIR/uncertainty/).")
-    ] = None,
-    pose: Annotated[str | None, typer.Option("--pose", help='Joint readings in deg, "q1,...,qN".')] = None,
-    trajectory: Annotated[
-        str | None, typer.Option("--trajectory", help="Pose CSV (q1..qN in deg) or built-in name (kr5-sweep-75).")
-    ] = None,
-    workspace: Annotated[
-        int | None, typer.Option("--workspace", min=1, help="Number of random poses within the joint limits.")
-    ] = None,
-    tool: Annotated[str | None, typer.Option("--tool", help='TCP offset on the flange "x,y,z" [mm].')] = None,
-    coverage: Annotated[float, typer.Option("--coverage", help="Coverage probability.")] = 0.95,
-    interval: Annotated[str, typer.Option("--interval", help="Coverage interval: symmetric | shortest.")] = "symmetric",
-    seed: Annotated[
-        int, typer.Option("--seed", min=0, max=SEED_BOUND - 1, help="Seed of the --workspace pose sample.")
-    ] = 0,
-    max_draws: Annotated[
-        int | None, typer.Option("--max-draws", min=2, help="Use only the first N draws (quicker maps).")
-    ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
-) -> None:
-    """TCP position (X, Y, Z) and KUKA orientation (A, B, C) uncertainty at a pose, along a trajectory, or over the workspace."""
+def _readings(robot, pose: str | None, trajectory: str | None, provenance: dict) -> tuple[str, np.ndarray | None]:
+    """The mode (pose, trajectory, workspace) and its readings [rad], checked against the joint limits (a
+    warning naming the option or file); a trajectory's path goes into ``provenance``."""
     import numpy as np
 
-    from robotcal import api
-    from robotcal.io.draws_npz import read_draws
-    from robotcal.io.provenance import versions
-    from robotcal.io.tcp_results import write_tcp_folder
     from robotcal.io.trajectory_csv import load_trajectory
-    from robotcal.uncertainty.statistics import INTERVAL_KINDS
     from robotcal.uncertainty.tcp import check_readings
 
-    started = time.perf_counter()
-    if sum(option is not None for option in (pose, trajectory, workspace)) != 1:
-        raise InputError("give exactly one of --pose, --trajectory and --workspace")
-    if interval not in INTERVAL_KINDS:
-        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
-    if workspace is not None:
-        check_memory(
-            f"--workspace {workspace}",
-            workspace * float(BYTES_PER_POSE),
-            "ask for fewer workspace poses (a map of 10^3-10^4 poses is usually enough)",
-        )
-    inputs = existing_inputs(draws, run, trajectory)
-    check_output_folder(out, inputs=inputs, force=force)
-    source = _draws_path(draws, run)
-    inputs += existing_inputs(source)
-    loaded = read_draws(source)
-    robot = loaded.robot
-    values = _subset(loaded, max_draws)
-    tool_mm = None if tool is None else _numbers(tool, "--tool", 3)
-    provenance = {
-        "draws_file": str(source),
-        "draws_seed": loaded.seed,
-        "draws_in_file": loaded.n_draws,
-        "versions": versions(),
-    }
     if pose is not None:
         readings = _numbers(pose, "--pose")
         if readings.size != robot.n_joints:
             raise InputError(
                 f"--pose {pose!r}: {readings.size} joint readings but robot {robot.name!r} has {robot.n_joints} joints"
             )
-        mode, readings = "pose", check_readings(robot, np.deg2rad(readings)[None], name="--pose")
-    elif trajectory is not None:
+        return "pose", check_readings(robot, np.deg2rad(readings)[None], name="--pose")
+    if trajectory is not None:
         readings, path = load_trajectory(trajectory, n_joints=robot.n_joints)
-        mode, readings = "trajectory", check_readings(robot, readings, name="trajectory", source=path)
         provenance["trajectory"] = path
-    else:
-        mode, readings = "workspace", None
-    ws = None
-    if mode == "workspace":
-        ws = api.workspace_uncertainty(robot, values, workspace, tool_mm=tool_mm, coverage=coverage, rng=seed)
-        result = ws.tcp
-    else:
-        with warnings.catch_warnings():  # the readings were checked above, naming the option or file
-            warnings.simplefilter("ignore", JointLimitWarning)
-            result = api.tcp_uncertainty(
-                robot, values, np.rad2deg(readings), tool_mm=tool_mm, coverage=coverage, keep_draws=mode == "pose"
-            )
-    provenance["mode"] = mode
-    provenance["seconds"] = round(time.perf_counter() - started, 3)
-    with result_folder(out, inputs=inputs, force=force, command="robotcal tcp") as folder:
-        write_tcp_folder(folder, result, interval=interval, workspace=ws, provenance=provenance)
-        from robotcal.plots.tcp import write_tcp_figures
+        return "trajectory", check_readings(robot, readings, name="trajectory", source=path)
+    return "workspace", None
 
-        write_tcp_figures(result, folder, mode, workspace=ws)
+
+def _print_summary(result, ws, mode: str, interval: str) -> None:
+    """The console summary of ``robotcal tcp``: the pose's table and ellipsoid, or the range of the position
+    uncertainty over the poses (and the workspace percentiles)."""
+    import numpy as np
 
     if mode == "pose":
         console.print(_summary_table(result, 0, interval))
@@ -228,4 +160,88 @@ def tcp(
         "orientation: KUKA A (about Z), B (about Y), C (about X); thesis Table 5.8 lists them as C, B, A",
         highlight=False,
     )
+
+
+@app.command()
+@handle_errors
+def tcp(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (tcp.csv, tcp.json, figures).")],
+    draws: Annotated[
+        Path | None, typer.Option("--draws", help="draws.npz of `robotcal uncertainty --save-draws`.")
+    ] = None,
+    run: Annotated[
+        Path | None, typer.Option("--run", help="Uncertainty folder (DIR/draws.npz) or run folder (DIR/uncertainty/).")
+    ] = None,
+    pose: Annotated[str | None, typer.Option("--pose", help='Joint readings in deg, "q1,...,qN".')] = None,
+    trajectory: Annotated[
+        str | None, typer.Option("--trajectory", help="Pose CSV (q1..qN in deg) or built-in name (kr5-sweep-75).")
+    ] = None,
+    workspace: Annotated[
+        int | None, typer.Option("--workspace", min=1, help="Number of random poses within the joint limits.")
+    ] = None,
+    tool: Annotated[str | None, typer.Option("--tool", help='TCP offset on the flange "x,y,z" [mm].')] = None,
+    coverage: Annotated[float, typer.Option("--coverage", help="Coverage probability.")] = 0.95,
+    interval: Annotated[str, typer.Option("--interval", help="Coverage interval: symmetric | shortest.")] = "symmetric",
+    seed: Annotated[
+        int, typer.Option("--seed", min=0, max=SEED_BOUND - 1, help="Seed of the --workspace pose sample.")
+    ] = 0,
+    max_draws: Annotated[
+        int | None, typer.Option("--max-draws", min=2, help="Use only the first N draws (quicker maps).")
+    ] = None,
+    force: Force = False,
+) -> None:
+    """TCP position (X, Y, Z) and KUKA orientation (A, B, C) uncertainty at a pose, along a trajectory, or over the workspace."""
+    import numpy as np
+
+    from robotcal import api
+    from robotcal.io.draws_npz import read_draws
+    from robotcal.io.provenance import versions
+    from robotcal.io.tcp_results import write_tcp_folder
+    from robotcal.uncertainty.statistics import INTERVAL_KINDS
+
+    started = time.perf_counter()
+    if sum(option is not None for option in (pose, trajectory, workspace)) != 1:
+        raise InputError("give exactly one of --pose, --trajectory and --workspace")
+    if interval not in INTERVAL_KINDS:
+        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
+    if workspace is not None:
+        check_memory(
+            f"--workspace {workspace}",
+            workspace * float(BYTES_PER_POSE),
+            "ask for fewer workspace poses (a map of 10^3-10^4 poses is usually enough)",
+        )
+    inputs = existing_inputs(draws, run, trajectory)
+    check_output_folder(out, inputs=inputs, force=force)
+    source = _draws_path(draws, run)
+    inputs += existing_inputs(source)
+    loaded = read_draws(source)
+    robot = loaded.robot
+    values = _subset(loaded, max_draws)
+    tool_mm = None if tool is None else _numbers(tool, "--tool", 3)
+    provenance = {
+        "draws_file": str(source),
+        "draws_seed": loaded.seed,
+        "draws_in_file": loaded.n_draws,
+        "versions": versions(),
+    }
+    mode, readings = _readings(robot, pose, trajectory, provenance)
+    ws = None
+    if mode == "workspace":
+        ws = api.workspace_uncertainty(robot, values, workspace, tool_mm=tool_mm, coverage=coverage, rng=seed)
+        result = ws.tcp
+    else:
+        with warnings.catch_warnings():  # the readings were checked above, naming the option or file
+            warnings.simplefilter("ignore", JointLimitWarning)
+            result = api.tcp_uncertainty(
+                robot, values, np.rad2deg(readings), tool_mm=tool_mm, coverage=coverage, keep_draws=mode == "pose"
+            )
+    provenance["mode"] = mode
+    provenance["seconds"] = round(time.perf_counter() - started, 3)
+    with result_folder(out, inputs=inputs, force=force, command="robotcal tcp") as folder:
+        write_tcp_folder(folder, result, interval=interval, workspace=ws, provenance=provenance)
+        from robotcal.plots.tcp import write_tcp_figures
+
+        write_tcp_figures(result, folder, mode, workspace=ws)
+
+    _print_summary(result, ws, mode, interval)
     console.print(f"wrote {out} in {time.perf_counter() - started:.1f} s ({result.n_draws} draws)", highlight=False)

@@ -235,7 +235,7 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
     from robotcal.io.scenario import load_scenario
     from robotcal.io.uncertainty_files import write_uncertainty_folder
     from robotcal.plots.montecarlo import write_histograms
-    from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
     if poses is not None and model != "refined":
         raise InputError("--poses are refined with the circles: give --model refined")
@@ -270,16 +270,12 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     run_seed = api.seed_from(seed, table.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")  # checked before any draw
-    problem = api.monte_carlo_problem(loaded, parameters=truth, model=model, criterion=criterion, poses=poses)
     with progress_bar("Monte Carlo", "draws") as display:
         task = display.add_task("draws", total=None if settings.adaptive else settings.iterations)
-        result = run_monte_carlo(
-            problem,
-            settings,
-            seed=run_seed,
-            linearised=model == "cpa",
+        result = api.monte_carlo(
+            loaded, settings=settings, parameters=truth, model=model, criterion=criterion, poses=poses, rng=run_seed,
             progress=lambda done, expected: display.update(task, completed=done, total=expected),
-        )
+        )  # fmt: skip
     with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty") as folder:
         write_uncertainty_folder(folder, result, scenario=loaded, save_draws=save_draws)
         write_histograms(result, folder)

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from robotcal.api import TCPTargets, seed_from, tcp_targets, validation_target
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_folder, existing_inputs
 from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES
@@ -29,6 +28,7 @@ from robotcal.limits import (
     monte_carlo_bytes,
     pairs_bytes,
 )
+from robotcal.resolve import TCPTargets, seed_from, tcp_targets, validation_target
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
 __all__ = [
@@ -170,6 +170,33 @@ def plan_run(
         )
     if np.any(robot.limits[:, 1] - robot.limits[:, 0] <= 2 * np.deg2rad(validation.margin_deg)):
         raise InputError(f"{loaded.source}: key `validation.margin_deg` leaves no room within the joint limits")
+    seeds = _seeds(loaded, seed, validation)
+    targets = tcp_targets(loaded)
+    if seeds["workspace"] is None:
+        seeds["workspace"] = targets.workspace_seed
+    if workspace is not None:
+        if workspace < 1:
+            raise InputError(f"--workspace must be a positive number of poses; got {workspace}")
+        targets = dataclasses.replace(targets, workspace_poses=workspace)
+    settings, refined_settings = _monte_carlo_settings(loaded, draws, workers, refined_draws)
+    _check_tcp(loaded, targets, settings)
+    _check_memory(loaded, targets, settings, validation)  # the refined Monte Carlo has at most as many draws
+    return RunPlan(
+        scenario=loaded,
+        out=out,
+        seeds=seeds,
+        montecarlo=settings,
+        refined_montecarlo=refined_settings,
+        tcp=targets,
+        backlash=bool(loaded.plan.bidirectional),
+        command=command,
+        force=force,
+        inputs=tuple(inputs),
+    )
+
+
+def _seeds(loaded: Scenario, seed: int | None, validation: ValidationTable) -> dict[str, int | None]:
+    """The seed of every stage: ``seed`` plus each stage's offset (:data:`SEED_OFFSETS`), else the scenario's."""
     if seed is not None:
         seeds = {name: seed + offset for name, offset in SEED_OFFSETS.items()}
     else:
@@ -191,13 +218,14 @@ def plan_run(
     for name, value in seeds.items():
         if value is not None and not 0 <= value < SEED_BOUND:
             raise InputError(f"{loaded.source}: the {name} seed {value} is outside [0, 2^63)")
-    targets = tcp_targets(loaded)
-    if seeds["workspace"] is None:
-        seeds["workspace"] = targets.workspace_seed
-    if workspace is not None:
-        if workspace < 1:
-            raise InputError(f"--workspace must be a positive number of poses; got {workspace}")
-        targets = dataclasses.replace(targets, workspace_poses=workspace)
+    return seeds
+
+
+def _monte_carlo_settings(
+    loaded: Scenario, draws: int | None, workers: int | None, refined_draws: int | None
+) -> tuple[MonteCarloSettings, MonteCarloSettings]:
+    """The settings of the CPA-model and of the refined-model Monte Carlo, built once here and passed unchanged to
+    :func:`robotcal.api.monte_carlo` by the uncertainty stage; an error names the option or the scenario key."""
     iterations = loaded.montecarlo.iterations if draws is None else draws
     try:
         settings = MonteCarloSettings(
@@ -220,20 +248,7 @@ def plan_run(
     except InputError as exc:
         where = "--refined-draws" if refined_draws is not None else f"{loaded.source}: montecarlo.refined_iterations"
         raise InputError(f"{where}: {exc}") from None
-    _check_tcp(loaded, targets, settings)
-    _check_memory(loaded, targets, settings, validation)  # the refined Monte Carlo has at most as many draws
-    return RunPlan(
-        scenario=loaded,
-        out=out,
-        seeds=seeds,
-        montecarlo=settings,
-        refined_montecarlo=refined_settings,
-        tcp=targets,
-        backlash=bool(loaded.plan.bidirectional),
-        command=command,
-        force=force,
-        inputs=tuple(inputs),
-    )
+    return settings, refined_settings
 
 
 def _check_tcp(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings) -> None:

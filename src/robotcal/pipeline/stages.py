@@ -287,12 +287,10 @@ def uncertainty_stage(
     ):
         results[model] = api.monte_carlo(
             scenario,
+            settings=settings,
             parameters=parameters,
             model=model,
             criterion=DEPLOYED,
-            draws=settings.iterations,
-            coverage=settings.coverage,
-            workers=settings.workers,
             rng=seed,
             progress=lambda count, expected, done=done: step(done + count, total, "draws"),
             **({"poses": poses} if model == "refined" and poses is not None else {}),

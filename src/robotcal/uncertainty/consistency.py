@@ -1,0 +1,104 @@
+"""Does the stated uncertainty explain the error observed at the validation points? (docs/uncertainty.md)
+
+The check a metrologist asks for: at every validation pose the Monte Carlo draws of the model give the
+covariance ``V_p`` of the predicted target position, so the RMS position uncertainty predicted by the
+calibration is ``sqrt(mean_p tr V_p)``; the instrument adds ``3 sigma_p^2`` per point (sigma from its U(L),
+uniform: U/sqrt(3), normal: U/k). If the model explains the data, the RMS of the observed errors
+``|T p(estimate) - m|`` is close to ``sqrt(mean_p (tr V_p + 3 sigma_p^2))``; a larger observed RMS points to
+what the model does not hold (joint errors such as backlash, eccentricity, gravity sag, or a wrong instrument
+level). Front door: :func:`robotcal.api.validation_consistency`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from robotcal.geometry.registration import register_points
+from robotcal.kinematics.forward import target_positions
+from robotcal.uncertainty.tcp import position_covariance
+
+if TYPE_CHECKING:
+    from robotcal.capture import Capture
+    from robotcal.instruments import Instrument
+    from robotcal.kinematics.joint_model import JointModel
+    from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
+
+__all__ = ["check_validation_consistency"]
+
+METHOD = (
+    "predicted = sqrt(mean over poses of tr V_p), V_p the covariance of the validation target position "
+    "over the Monte Carlo draws; instrument = sqrt(mean of 3 sigma_p^2) from U(L); expected = "
+    "sqrt(predicted^2 + instrument^2); observed = RMS of |T p(estimate) - measured|"
+)
+
+
+def check_validation_consistency(
+    validation: Capture,
+    estimate: ParameterSet,
+    robot: RobotModel,
+    values: np.ndarray,
+    target: ReflectorMount,
+    instrument: Instrument,
+    *,
+    tracker_from_base: np.ndarray | None = None,
+    joint_model: JointModel | None = None,
+    extra_draws: np.ndarray | None = None,
+    model: str = "refined",
+) -> dict[str, Any]:
+    """Predicted, instrument, expected and observed RMS errors at the validation points [mm].
+
+    Parameters
+    ----------
+    validation : Capture
+        Free poses (circle = 0) measured with the flange ``target`` [mm].
+    estimate : ParameterSet
+        The deployed parameters [mm, rad].
+    robot : RobotModel
+        The robot whose readings the capture holds.
+    values : ndarray, shape (n_draws, n_joints, 5)
+        Monte Carlo draws of the same model [mm, rad]; ``joint_model`` and ``extra_draws`` for an extended one.
+    target : ReflectorMount
+    instrument : Instrument
+    tracker_from_base : ndarray, shape (4, 4), optional
+        The base frame [mm]; None: a Horn registration of the predictions on the measurements (which absorbs part
+        of the error).
+    model : str
+        Name of the model, recorded.
+
+    Returns
+    -------
+    dict
+        JSON-ready figures in mm (``predicted_rms_mm``, ``instrument_rms_mm``, ``expected_rms_mm``,
+        ``observed_rms_mm``, ``ratio``), the base-frame mode and the counts.
+    """
+    q = estimate.model_joint_variables(validation.readings)
+    measured = np.asarray(validation.points, dtype=float)
+    predicted = target_positions(estimate.values, q, np.zeros(validation.n_points, dtype=int), target)
+    if tracker_from_base is not None:
+        tracker, base = np.asarray(tracker_from_base, dtype=float), "given"
+    else:
+        tracker, base = register_points(predicted, measured).transform, "registered"
+    observed = np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - measured, axis=1)
+    # the Monte Carlo covariance of the target position at every validation pose (positions only)
+    covariance = position_covariance(
+        robot, values, validation.readings, tool=target.positions[0], joint_model=joint_model, extra_draws=extra_draws
+    )
+    traces = np.trace(covariance, axis1=1, axis2=2)
+    noise = 3.0 * instrument.standard_uncertainty(measured) ** 2
+    expected = float(np.sqrt(np.mean(traces + noise)))
+    observed_rms = float(np.sqrt(np.mean(observed**2)))
+    return {
+        "model": model,
+        "poses": int(validation.n_points),
+        "draws": int(values.shape[0]),
+        "base_frame": base,
+        "predicted_rms_mm": float(np.sqrt(np.mean(traces))),
+        "instrument_rms_mm": float(np.sqrt(np.mean(noise))),
+        "expected_rms_mm": expected,
+        "observed_rms_mm": observed_rms,
+        "observed_mean_mm": float(observed.mean()),
+        "ratio": observed_rms / expected if expected > 0 else None,
+        "method": METHOD,
+    }
