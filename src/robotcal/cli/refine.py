@@ -185,7 +185,7 @@ def refine(
     provenance = refine_provenance(result, measured, source, scenario=loaded)
     with result_file(out, inputs=inputs, force=force):
         write_parameters(
-            out, result.parameters, provenance, refined_targets(result), joint_model_u=result.joint_model_uncertainty
+            out, result.parameters, provenance, refined_targets(result), joint_model_u=result.uncertainty.joint_model_uncertainty
         )
     console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
         parameter_table(
@@ -203,26 +203,26 @@ def refine(
     summary.add_row("weights", provenance["weights"])
     summary.add_row("iterations (Jacobian evaluations)", str(result.njev))
     summary.add_row("residual evaluations", str(result.nfev))
-    summary.add_row("residuals", str(result.n_residuals))
-    summary.add_row("RMS residual start -> end [mm]", f"{result.rms_history[0]:.4g} -> {result.rms_history[-1]:.4g}")
-    summary.add_row("mean / max residual [mm]", f"{result.residual_mean:.4g} / {result.residual_max:.4g}")
-    summary.add_row("noise per coordinate sigma [mm]", f"{result.sigma:.3g}")
-    summary.add_row("condition number (scaled)", f"{result.condition_number:.4g}")
+    summary.add_row("residuals", str(result.fit.n_residuals))
+    summary.add_row("RMS residual start -> end [mm]", f"{result.fit.rms_history[0]:.4g} -> {result.fit.rms_history[-1]:.4g}")
+    summary.add_row("mean / max residual [mm]", f"{result.fit.residual_mean:.4g} / {result.fit.residual_max:.4g}")
+    summary.add_row("noise per coordinate sigma [mm]", f"{result.uncertainty.sigma:.3g}")
+    summary.add_row("condition number (scaled)", f"{result.identifiability.condition_number:.4g}")
     if result.tracker_from_base is not None:
-        summary.add_row("base frame", "estimated" if result.base_free.any() else "held (scenario's tracker_from_base)")
-    summary.add_row("held (gauge: a base motion)", ", ".join(result.gauge) or "-")
-    summary.add_row("held (not determined)", ", ".join(result.held) or "-")
-    summary.add_row("free, tied to held ones", ", ".join(result.confounded) or "-")
+        summary.add_row("base frame", "estimated" if result.identifiability.base_free.any() else "held (scenario's tracker_from_base)")
+    summary.add_row("held (gauge: a base motion)", ", ".join(result.identifiability.gauge) or "-")
+    summary.add_row("held (not determined)", ", ".join(result.identifiability.held) or "-")
+    summary.add_row("free, tied to held ones", ", ".join(result.identifiability.confounded) or "-")
     for k, target in enumerate(result.targets):
         if not target.known:
-            u = result.target_uncertainty[k]
+            u = result.uncertainty.target_uncertainty[k]
             shown = ", ".join(f"{v:.4f} ± {e:.4f}" for v, e in zip(target.positions, u, strict=True))
             summary.add_row(f"target {target.name} offset [mm] (± u)", shown)
     for label, value in time_rows(result, refinement_s):
         summary.add_row(label, value)
     console.print(summary)
     if result.parameters.joint_model is not None:
-        console.print(joint_model_table(result.parameters.joint_model, result.joint_model_uncertainty))
+        console.print(joint_model_table(result.parameters.joint_model, result.uncertainty.joint_model_uncertainty))
     if result.cross_validation is not None:
         console.print(model_table(result))
         if result.model_choice is not None:

@@ -1,6 +1,7 @@
-"""Identification: Circle Point Analysis (:mod:`.cpa`), least-squares refinement (:mod:`.refine`),
-evaluation on validation captures (:mod:`.evaluation`), observability, capture plausibility, targets,
-fit health.
+"""Identification: Circle Point Analysis (:mod:`.cpa`), least-squares refinement (:mod:`.refine`, with its
+problem and rank test in private modules, records :mod:`.records` and settings :mod:`.settings`), the
+model choice (:mod:`.model_choice`), evaluation on validation captures (:mod:`.evaluation`), observability,
+capture plausibility, targets, fit health.
 
 The names of :mod:`.cpa` load with the package; the others on first use (the refinement pulls
 ``scipy.optimize``). Scenario-level wrappers: :func:`robotcal.identify`, :func:`robotcal.refine`,
@@ -61,13 +62,14 @@ from robotcal.identification.model_choice import (
     DEFAULT_FOLDS,
     MODEL_CHOICES,
     MODELS,
-    CrossValidation,
-    ModelChoice,
+    FitTask,
+    candidate_joint_model,
     choose_model,
-    cross_validate,
     default_compliance_joints,
     joint_model_for,
     pose_folds,
+    refine_model,
+    run_fit,
 )
 from robotcal.identification.observability import (
     Conditioning,
@@ -85,10 +87,17 @@ from robotcal.identification.plausibility import (
     check_capture,
     reject_outliers,
 )
+from robotcal.identification.records import (
+    CrossValidation,
+    FitStatistics,
+    Identifiability,
+    ModelChoice,
+    RefinementResult,
+    RefinementUncertainty,
+)
 from robotcal.identification.refine import (
     BASE_NAMES,
     CRITERIA,
-    RefinementResult,
     base_correction,
     capture_target_index,
     capture_turning_joints,
@@ -97,6 +106,7 @@ from robotcal.identification.refine import (
     refine_parameters,
     wrap_angles,
 )
+from robotcal.identification.settings import ModelChoiceSettings, RefinementSettings
 from robotcal.identification.targets import Target, point_target_index, resolve_targets
 
 __all__ = [
@@ -139,10 +149,14 @@ __all__ = [
     "COMPLIANCE_TORQUE_FRACTION",
     "CrossValidation",
     "ModelChoice",
+    "ModelChoiceSettings",
+    "FitTask",
     "default_compliance_joints",
     "joint_model_for",
+    "candidate_joint_model",
     "pose_folds",
-    "cross_validate",
+    "run_fit",
+    "refine_model",
     "choose_model",
     "Conditioning",
     "select_identifiable",
@@ -159,6 +173,10 @@ __all__ = [
     "CRITERIA",
     "BASE_NAMES",
     "RefinementResult",
+    "FitStatistics",
+    "Identifiability",
+    "RefinementUncertainty",
+    "RefinementSettings",
     "refine_parameters",
     "capture_turning_joints",
     "capture_target_index",
