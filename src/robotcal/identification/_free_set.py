@@ -141,43 +141,10 @@ def select_free(
     keep[order] = select_identifiable(scaled[:, order], chosen[order], tolerance=tolerance)
     held_all = chosen & ~keep
 
-    # free quantities whose estimate depends on a held one: the support of the null space, taken at
-    # a generic point near the probe's point (every candidate moved by up to one scale unit, a fixed seed):
-    # at that point itself special values (alpha = 0, a target on an axis) can hide a coupling that
-    # is of second order there but still moves the free parameter once the held one is off its truth
-    norms = np.linalg.norm(scaled, axis=0)
-    live = chosen & (norms > tolerance * max(float(norms[chosen].max(initial=0.0)), 1e-300))  # as the selection
-    confounded = np.zeros(chosen.size, dtype=bool)
-    n_null = int(live.sum() - keep.sum())
-    if n_null > 0:
-        generic = probe.x0() + np.where(chosen, np.random.default_rng(0).uniform(-1.0, 1.0, chosen.size), 0.0) * scale
-        # (a strided sample of the pairs: the null space of a few thousand generic rows is that of all)
-        moved = triangular_factor(probe.jacobian_sample(generic, _SAMPLE_ROWS) * scale)[:, live]
-        # the generic point keeps the structural dependencies but can lose those of the probe's own geometry
-        # (a fitted target on axis n): its null space is at most n_null wide, as wide as its rank says, and the
-        # null space at the probe point itself is taken too
-        n_generic = min(
-            n_null,
-            int(live.sum()) - int(select_identifiable(moved, np.ones(moved.shape[1], bool), tolerance=tolerance).sum()),
-        )
-        support = _null_support(moved, n_generic) | _null_support(scaled[:, live], n_null)
-        confounded[np.flatnonzero(live)[support]] = True
-        confounded &= keep
-
-    # gauge: held parameters whose effect is a (non-zero) rigid motion of the whole point cloud,
-    # which a free base frame absorbs and pairwise distances do not see
-    gauge = np.zeros((n, 5), dtype=bool)
+    confounded = _confounded(probe, scaled, scale, chosen, keep, tolerance)
     held = held_all[: 5 * n].reshape(n, 5)
-    if np.any(held) and (n_base or probe.criterion == "distances"):
-        state = probe.unpack_all(probe.x0())
-        points, point_jac = probe.base_jacobian(state)
-        kind_scale = all_scale[:5]
-        columns = point_jac[:, :, : 5 * n].reshape(-1, 5 * n) * all_scale[: 5 * n]
-        basis = _rigid_motion_fields(points, float(kind_scale[1]))
-        size = np.linalg.norm(columns, axis=0)
-        outside = np.linalg.norm(columns - basis @ (basis.T @ columns), axis=0)
-        rigid = (size > 1e-12 * max(float(size.max()), 1e-300)) & (outside <= tolerance * size)
-        gauge = held & rigid.reshape(n, 5)
+    rigid_blind = n_base or probe.criterion == "distances"  # a free base frame or distances: a rigid motion is unseen
+    gauge = _gauge(probe, held, all_scale, tolerance) if rigid_blind else np.zeros((n, 5), dtype=bool)
     base_keep = np.zeros(6, dtype=bool)
     base_keep[probe.base_free] = keep[own + n_off :]
     base_held = probe.base_free & ~base_keep
@@ -196,6 +163,46 @@ def select_free(
         confounded=np.r_[confounded[: own + n_off], base_confounded],
     )
 
+
+def _confounded(probe: Problem, scaled, scale, chosen, keep, tolerance: float) -> np.ndarray:
+    """Free quantities whose estimate depends on a held one: the support of the null space of the scaled candidate
+    columns ``scaled``, taken at the probe's point and at a generic point near it (every candidate moved by up to
+    one scale unit, a fixed seed): at the point itself special values (alpha = 0, a target on an axis) can hide a
+    coupling that is of second order there but still moves the free parameter once the held one is off its truth."""
+    norms = np.linalg.norm(scaled, axis=0)
+    live = chosen & (norms > tolerance * max(float(norms[chosen].max(initial=0.0)), 1e-300))  # as the selection
+    confounded = np.zeros(chosen.size, dtype=bool)
+    n_null = int(live.sum() - keep.sum())
+    if n_null <= 0:
+        return confounded
+    generic = probe.x0() + np.where(chosen, np.random.default_rng(0).uniform(-1.0, 1.0, chosen.size), 0.0) * scale
+    # (a strided sample of the pairs: the null space of a few thousand generic rows is that of all)
+    moved = triangular_factor(probe.jacobian_sample(generic, _SAMPLE_ROWS) * scale)[:, live]
+    # the generic point keeps the structural dependencies but can lose those of the probe's own geometry
+    # (a fitted target on axis n): its null space is at most n_null wide, as wide as its rank says, and the
+    # null space at the probe point itself is taken too
+    n_generic = min(
+        n_null,
+        int(live.sum()) - int(select_identifiable(moved, np.ones(moved.shape[1], bool), tolerance=tolerance).sum()),
+    )
+    support = _null_support(moved, n_generic) | _null_support(scaled[:, live], n_null)
+    confounded[np.flatnonzero(live)[support]] = True
+    return confounded & keep
+
+
+def _gauge(probe: Problem, held: np.ndarray, all_scale: np.ndarray, tolerance: float) -> np.ndarray:
+    """Held parameters ``(n, 5)`` whose effect is a (non-zero) rigid motion of the whole point cloud, which a free
+    base frame absorbs and pairwise distances do not see."""
+    n = held.shape[0]
+    if not np.any(held):
+        return np.zeros((n, 5), dtype=bool)
+    points, point_jac = probe.base_jacobian(probe.unpack_all(probe.x0()))
+    columns = point_jac[:, :, : 5 * n].reshape(-1, 5 * n) * all_scale[: 5 * n]
+    basis = _rigid_motion_fields(points, float(all_scale[1]))
+    size = np.linalg.norm(columns, axis=0)
+    outside = np.linalg.norm(columns - basis @ (basis.T @ columns), axis=0)
+    rigid = (size > 1e-12 * max(float(size.max()), 1e-300)) & (outside <= tolerance * size)
+    return held & rigid.reshape(n, 5)
 
 
 @dataclass(frozen=True, slots=True)
