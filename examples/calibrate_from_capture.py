@@ -162,7 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     # 5. the deployed parameters, as a parameter JSON (mm, deg) other tools and `robotcal export` read
     robotcal.write_parameters(args.out / "cpa.json", cpa.parameters)
     path = robotcal.write_parameters(
-        args.out / "refined.json", refined["points"].parameters, joint_model_u=refined["points"].uncertainty.joint_model_uncertainty
+        args.out / "refined.json",
+        refined["points"].parameters,
+        joint_model_u=refined["points"].uncertainty.joint_model_uncertainty,
     )
     print(f"wrote {path}")
     return 0

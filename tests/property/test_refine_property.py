@@ -154,7 +154,10 @@ def test_noise_free_refinement_is_exact_from_nominal_and_cpa(case):
             start,
             reflector,
             tracker_from_base=tracker if case["criterion"] == "points" else None,
-            settings=RefinementSettings(criterion=case["criterion"], estimate_base=case["estimate_base"] if case["criterion"] == "points" else None),
+            settings=RefinementSettings(
+                criterion=case["criterion"],
+                estimate_base=case["estimate_base"] if case["criterion"] == "points" else None,
+            ),
         )
     assert result.success, result.message
     assert result.fit.cost_history[-1] <= result.fit.start_cost
