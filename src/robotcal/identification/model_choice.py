@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, is_dataclass, replace
 
 import numpy as np
 
@@ -335,7 +335,7 @@ def refine_model(
             if isinstance(outcome, _Refused):
                 raise IdentifiabilityError(outcome.message, parameters=outcome.parameters)
             if task.fold is None:
-                fits[task.model] = outcome.result
+                fits[task.model] = _read_only(outcome.result)
                 emitted[task.model] = list(outcome.warnings)
             else:
                 held_out[task.model].append((outcome.success, outcome.held_out))
@@ -351,6 +351,24 @@ def refine_model(
     for found in emitted[chosen]:  # only the chosen model's warnings are shown
         warnings.warn_explicit(*found)
     return replace(fits[chosen], cross_validation=validations.get(chosen), model_choice=model_choice)
+
+
+def _read_only(value, seen=None):
+    """``value`` with every array in it, through its dataclasses and tuples, read-only again (as made: a result that
+    comes back from a worker process is unpickled with writable arrays)."""
+    seen = set() if seen is None else seen
+    if id(value) in seen:
+        return value
+    seen.add(id(value))
+    if isinstance(value, np.ndarray):
+        value.setflags(write=False)
+    elif isinstance(value, tuple | list):
+        for item in value:
+            _read_only(item, seen)
+    elif is_dataclass(value) and not isinstance(value, type):
+        for entry in fields(value):
+            _read_only(getattr(value, entry.name), seen)
+    return value
 
 
 def _validation(model: str, full: RefinementResult, folds: list, choice: ModelChoiceSettings) -> CrossValidation:

@@ -150,6 +150,8 @@ def test_auto_gives_the_same_result_whatever_the_number_of_workers(small_extende
     assert serial.cross_validation.to_dict() == pooled.cross_validation.to_dict()
     assert serial.health == pooled.health and serial.message == pooled.message
     assert caught[0] == caught[1]  # the chosen model's warnings, and those alone, once
+    # what came back from a worker is as frozen as what was made here
+    assert not pooled.parameters.values.flags.writeable and not pooled.uncertainty.covariance.flags.writeable
 
 
 def test_api_refine_takes_the_settings_whole_or_as_keywords(small_extended):
