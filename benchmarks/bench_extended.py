@@ -72,8 +72,9 @@ def main() -> None:
         warnings.simplefilter("ignore", IdentifiabilityWarning)
         seconds, result = _best(lambda: refine_parameters(capture, start, TARGETS, tracker_from_base=TRACKER), args.repeat)
     print(
-        f"extended refine (compliance+harmonic, {len(result.free_names)} unknowns) from nominal: {seconds:.3f} s, "
-        f"{result.njev} Jacobian evaluations, residual RMS {result.residual_rms * 1e3:.1f} um"
+        f"extended refine (compliance+harmonic, {len(result.identifiability.free_names)} unknowns) from nominal: "
+        f"{seconds:.3f} s, "
+        f"{result.njev} Jacobian evaluations, residual RMS {result.fit.residual_rms * 1e3:.1f} um"
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)

@@ -33,6 +33,7 @@ from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification import identify_cpa
 from robotcal.identification.evaluation import point_errors
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot
 from robotcal.kinematics.model import ParameterSet
@@ -71,11 +72,16 @@ def main() -> None:
                 began = time.perf_counter()
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", IdentifiabilityWarning)
-                    result = refine_parameters(capture, start, plan.reflector, criterion=criterion)
+                    result = refine_parameters(
+                        capture,
+                        start,
+                        plan.reflector,
+                        settings=RefinementSettings(criterion=criterion),
+                    )
                 times.append(time.perf_counter() - began)
             error = point_errors(validation, result.parameters, plan.reflector).mean()
             print(
-                f"{criterion:<10} {label:<8} {result.n_residuals:>9} {result.njev:>5} {result.nfev:>5} "
+                f"{criterion:<10} {label:<8} {result.fit.n_residuals:>9} {result.njev:>5} {result.nfev:>5} "
                 f"{min(times):>7.2f} {error:>11.4f} {100 * (1 - error / nominal_error):>8.2f}"
             )
 

@@ -87,6 +87,7 @@ from robotcal.api import monte_carlo_problem
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.io import load_scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, run_monte_carlo
@@ -116,7 +117,7 @@ def per_draw_loop(problem, n_draws: int, cpu: dict | None = None) -> float:
                 ParameterSet(robot=problem.robot, values=cpa.values[k]),
                 problem.structure.reflector,
                 tracker_from_base=problem.tracker_from_base,
-                estimate_base=False,
+                settings=RefinementSettings(estimate_base=False),
             )
     if cpu is not None:
         cpu["loop_cpu_ms_per_draw"] = round((_cpu() - cpu_start) / n_draws * 1e3, 2)

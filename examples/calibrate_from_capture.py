@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         result = refined[criterion]
         print(
             f"refined ({criterion}): success {result.success}, model {result.model}, {result.nfev} evaluations, "
-            f"residual RMS {result.residual_rms * 1000:.1f} um"
+            f"residual RMS {result.fit.residual_rms * 1000:.1f} um"
         )
     if refined["points"].model_choice is not None:
         print(f"model: {refined['points'].model_choice.reason}")
@@ -162,7 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     # 5. the deployed parameters, as a parameter JSON (mm, deg) other tools and `robotcal export` read
     robotcal.write_parameters(args.out / "cpa.json", cpa.parameters)
     path = robotcal.write_parameters(
-        args.out / "refined.json", refined["points"].parameters, joint_model_u=refined["points"].joint_model_uncertainty
+        args.out / "refined.json",
+        refined["points"].parameters,
+        joint_model_u=refined["points"].uncertainty.joint_model_uncertainty,
     )
     print(f"wrote {path}")
     return 0

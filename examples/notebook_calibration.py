@@ -72,11 +72,11 @@ print(refined.health.line())
 print(f"calibration RMS {refined.cross_validation.calibration_rms_mm * 1e3:.1f} um, "
       f"cross-validated {refined.cross_validation.cv_rms_mm * 1e3:.1f} um")  # fmt: skip
 # the columns of a parameter table are d, theta, a, alpha, beta: lengths [mm] in 0 and 2, angles [rad] in 1, 3, 4
-LENGTHS = np.zeros(refined.free.shape, dtype=bool)
+LENGTHS = np.zeros(refined.identifiability.free.shape, dtype=bool)
 LENGTHS[:, [0, 2]] = True
 error = np.abs(refined.parameters.difference(truth))
-print(f"largest error against the truth: {error[refined.free & LENGTHS].max():.4f} mm (lengths), "
-      f"{np.degrees(error[refined.free & ~LENGTHS]).max():.5f} deg (angles)")  # fmt: skip
+print(f"largest error against the truth: {error[refined.identifiability.free & LENGTHS].max():.4f} mm (lengths), "
+      f"{np.degrees(error[refined.identifiability.free & ~LENGTHS]).max():.5f} deg (angles)")  # fmt: skip
 
 # %% Monte Carlo (GUM Supplement 1) of the deployed model, simulated at its estimate, and the TCP at a pose
 draws = 500 if args.quick else 5000

@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     largest = np.unravel_index(np.argmax(u[:, [0, 2]]), (u.shape[0], 2))
     name = refined.parameters.robot.parameter_names[largest[0] * 5 + (0, 2)[largest[1]]]
     print(
-        f"refined parameters: residual RMS {refined.residual_rms * 1000:.1f} um; "
+        f"refined parameters: residual RMS {refined.fit.residual_rms * 1000:.1f} um; "
         f"largest length u of the deployed model {name} = {u[:, [0, 2]].max() * 1000:.2f} um "
         f"({montecarlo.n_draws} draws)"
     )

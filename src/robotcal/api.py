@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -41,10 +40,11 @@ from robotcal.deploy import compensate, export_model, filter_program, import_cap
 from robotcal.errors import InputError
 from robotcal.identification.cpa import CPAOptions, CPAResult, identify_cpa
 from robotcal.identification.evaluation import EvaluationRow, evaluate_parameters
-from robotcal.identification.health import cpa_health, refine_health, report_health
-from robotcal.identification.model_choice import MODEL_CHOICES, MODELS, choose_model, cross_validate, joint_model_for
+from robotcal.identification.health import cpa_health, report_health
+from robotcal.identification.model_choice import refine_model
 from robotcal.identification.plausibility import check_capture
-from robotcal.identification.refine import RefinementResult, refine_parameters
+from robotcal.identification.records import RefinementResult
+from robotcal.identification.settings import ModelChoiceSettings, RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.scenario import JointModelTable, Scenario, TruthTable
@@ -323,21 +323,6 @@ def _backlash(backlash, robot: RobotModel) -> tuple[np.ndarray | None, str]:
     return np.deg2rad(values), "given"
 
 
-def _joint_model(model: str, robot: RobotModel, scenario) -> JointModel | None:
-    """The (zero) joint model of ``model`` with the scenario's ``[joint_model]`` joints and order, 0-based."""
-    settings = scenario.joint_model if scenario is not None else JointModelTable()
-
-    def joints(values):
-        return None if values is None else [j - 1 for j in values]
-
-    return joint_model_for(
-        model,
-        robot,
-        masses=link_masses(robot, scenario),
-        compliance_joints=joints(settings.compliance_joints),
-        harmonic_joints=joints(settings.harmonic_joints),
-        harmonic_order=settings.harmonic_order,
-    )
 
 
 # ------------------------------------------------------------------------------------ identification
@@ -438,7 +423,9 @@ def refine(
     model: ModelName | None = None,
     folds: int | None = None,
     backlash_deg=None,
+    workers: int = 1,
     progress: Callable[[int, int | None, str], None] | None = None,
+    settings: RefinementSettings | None = None,
     **options,
 ) -> RefinementResult:
     """Least-squares refinement over every measured point (thesis ch. 4.5.7), geometric or extended (issue 22).
@@ -473,18 +460,25 @@ def refine(
     backlash_deg : array_like, shape (n_joints,), or JointAnalysis, optional
         The angular lash of every joint [deg] (or :func:`diagnose_joints`' analysis: the joints whose backlash
         exceeds the noise), a fixed correction of the circle points by their direction, whatever the model.
+    workers : int
+        Processes running the fits and the cross-validation folds (``auto``: 4 models x (1 + folds) fits); the
+        result does not depend on it.
     progress : callable, optional
         ``progress(done, total, what)`` after every fit.
+    settings : RefinementSettings, optional
+        The refinement's settings whole (then ``criterion`` and ``**options`` are not given).
     **options
-        Passed to :func:`robotcal.identification.refine.refine_parameters` (``free``, ``estimate_base``,
-        ``method``, ``max_nfev``, ``tolerance``, ``weights``, ``on_unidentifiable``...).
+        The other fields of :class:`~robotcal.identification.settings.RefinementSettings` (``free``,
+        ``estimate_base``, ``method``, ``max_nfev``, ``tolerance``, ``rank_tolerance``, ``weights``,
+        ``on_unidentifiable``).
 
     Returns
     -------
     RefinementResult
-        ``.parameters`` [mm, rad] (with its joint model for an extended fit), ``success``, residual statistics
-        [mm], convergence history, linearised covariance and ``standard_uncertainty`` [mm, rad],
-        ``joint_model_uncertainty``, ``health``, ``cross_validation`` and, for ``auto``, ``model_choice``.
+        ``.parameters`` [mm, rad] (with its joint model for an extended fit), ``success``, ``fit`` (residual
+        statistics [mm], convergence history), ``identifiability``, ``uncertainty`` (linearised covariance,
+        ``standard_uncertainty`` [mm, rad], ``joint_model_uncertainty``), ``health``, ``cross_validation`` and,
+        for ``auto``, ``model_choice``.
 
     Examples
     --------
@@ -495,66 +489,45 @@ def refine(
     >>> result = robotcal.refine(capture, scenario, robotcal.identify(capture, scenario), criterion="distances")
     >>> bool(result.success), result.criterion
     (True, 'distances')
-    >>> bool(result.residual_rms < 0.05)  # mm: laser-tracker noise and the backlash the model does not hold
+    >>> bool(result.fit.residual_rms < 0.05)  # mm: laser-tracker noise and the backlash the model does not hold
     True
     """
     robot, scenario = _split(robot)
     capture = _capture(capture, robot)
-    settings = scenario.joint_model if scenario is not None else JointModelTable()
-    model = settings.fit if model is None else model
-    folds = settings.folds if folds is None else folds
-    if model not in MODEL_CHOICES:
-        raise InputError(f"unknown model {model!r}; expected one of {', '.join(MODEL_CHOICES)}")
-    if isinstance(folds, bool) or not isinstance(folds, int) or folds < 0 or folds == 1:
-        raise InputError(f"`folds` must be 0 (no cross-validation) or at least 2; got {folds!r}")
-    if model == "auto" and not folds:
-        raise InputError("model 'auto' chooses by cross-validation: give at least 2 folds")
+    choice = _model_choice(scenario, model, folds)
+    if settings is None:
+        settings = RefinementSettings(criterion=criterion, **options)
+    elif options or criterion != "points":
+        raise InputError("give `settings` or `criterion` and the options, not both")
     if scenario is not None:
-        if targets is None:
-            targets = capture_targets(scenario, capture)
+        targets = capture_targets(scenario, capture) if targets is None else targets
         if tracker_from_base is None and scenario.identification.base_frame == "given":
             tracker_from_base = scenario.tracker_from_base
     if targets is None:
         raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
-    instrument = _instrument(instrument, scenario)
-    start = _parameters(start, robot, "start")
     lash, lash_source = _backlash(backlash_deg, robot)
-    names = MODELS if model == "auto" else (model,)
-    total = len(names) * (1 + folds)
-    fits, validations, caught = {}, {}, {}
-    for name in names:
-        structure = _joint_model(name, robot, scenario)
-        if structure is not None and start.joint_model is not None and start.joint_model.names == structure.names:
-            structure = start.joint_model
-        if lash is not None:
-            structure = (structure or JointModel.build(robot)).with_backlash(lash, lash_source)
-
-        def fit(part, structure=structure):
-            return refine_parameters(
-                part, start.geometric(), targets, criterion=criterion, tracker_from_base=tracker_from_base,
-                joint_model=structure, **options,
-            )  # fmt: skip
-
-        with warnings.catch_warnings(record=True) as caught[name]:  # only the chosen model's warnings are shown
-            warnings.simplefilter("always")
-            fits[name] = fit(capture)
-        done = len(fits) + len(fits) * folds - folds
-        if progress is not None:
-            progress(done, total, name)
-        if folds:
-            validations[name] = cross_validate(
-                capture, fit, fits[name], targets, model=name, folds=folds, seed=settings.seed,
-                progress=None if progress is None else lambda k, _, d=done, n=name: progress(d + k, total, f"{n} CV"),
-            )  # fmt: skip
-    choice = choose_model(tuple(validations.values())) if model == "auto" else None
-    chosen = choice.chosen if choice is not None else model
-    result = fits[chosen]
-    for found in caught[chosen]:
-        warnings.warn_explicit(found.message, found.category, found.filename, found.lineno)
-    verdict = refine_health(result, capture, instrument)
+    result = refine_model(
+        capture, _parameters(start, robot, "start"), targets, settings=settings, choice=choice,
+        tracker_from_base=tracker_from_base, masses=link_masses(robot, scenario), backlash=lash,
+        backlash_source=lash_source, instrument=_instrument(instrument, scenario), workers=workers, progress=progress,
+    )  # fmt: skip
     if health != "off":
-        report_health(verdict, source=capture.source, strict=health == "strict")
-    return dataclasses.replace(result, health=verdict, cross_validation=validations.get(chosen), model_choice=choice)
+        report_health(result.health, source=capture.source, strict=health == "strict")
+    return result
+
+
+def _model_choice(scenario: Scenario | None, model: str | None, folds: int | None) -> ModelChoiceSettings:
+    """The model-choice settings: the arguments, else the scenario's ``[joint_model]`` (joints made 0-based)."""
+    table = scenario.joint_model if scenario is not None else JointModelTable()
+
+    def joints(values):
+        return None if values is None else tuple(j - 1 for j in values)
+
+    return ModelChoiceSettings(
+        model=table.fit if model is None else model, folds=table.folds if folds is None else folds, seed=table.seed,
+        compliance_joints=joints(table.compliance_joints), harmonic_joints=joints(table.harmonic_joints),
+        harmonic_order=table.harmonic_order,
+    )  # fmt: skip
 
 
 def evaluate(

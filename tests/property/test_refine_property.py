@@ -23,6 +23,7 @@ from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.identification import identify_cpa
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.instruments import Instrument
 from robotcal.kinematics import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
@@ -152,30 +153,32 @@ def test_noise_free_refinement_is_exact_from_nominal_and_cpa(case):
             capture,
             start,
             reflector,
-            criterion=case["criterion"],
             tracker_from_base=tracker if case["criterion"] == "points" else None,
-            estimate_base=case["estimate_base"] if case["criterion"] == "points" else None,
+            settings=RefinementSettings(
+                criterion=case["criterion"],
+                estimate_base=case["estimate_base"] if case["criterion"] == "points" else None,
+            ),
         )
     assert result.success, result.message
-    assert result.cost_history[-1] <= result.start_cost
+    assert result.fit.cost_history[-1] <= result.fit.start_cost
 
     # every parameter the data determine on their own is the truth
     names = np.array(ROBOT.parameter_names).reshape(6, 5)
-    determined = result.free & ~np.isin(names, result.confounded)
+    determined = result.identifiability.free & ~np.isin(names, result.identifiability.confounded)
     error = np.abs(result.parameters.difference(truth))
     bound = np.broadcast_to(TOLERANCE, error.shape)
     assert np.all(error[determined] <= bound[determined]), names[determined][
         np.argmax(error[determined] / bound[determined])
     ]
     # held parameters need not be the truth, but the capture is fitted exactly (noise-free data)
-    assert result.residual_max < 1e-9
+    assert result.fit.residual_max < 1e-9
 
     # and the rank test holds no more than the layout requires (module notes of refine): where CPA
     # identifies its 20 parameters (every circle a proper circle), the refinement determines them too
     if case["flange"] and not given_base:
-        assert set(result.gauge) == {"J1.d", "J1.theta"}
+        assert set(result.identifiability.gauge) == {"J1.d", "J1.theta"}
     else:
-        assert result.gauge == ()
+        assert result.identifiability.gauge == ()
     if case["joint6_moves"]:
         try:
             identify_cpa(capture, ROBOT, reflector, tracker_from_base=tracker)

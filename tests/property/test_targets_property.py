@@ -18,8 +18,10 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
+import refine_options
 from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.robots import load_robot
@@ -100,13 +102,13 @@ def test_unknown_offsets_and_parameters_are_recovered_exactly(case):
     base = {"tracker_from_base": tracker} if case["base"] == "given" and case["criterion"] == "points" else {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        result = refine_parameters(capture, ParameterSet.nominal(ROBOT), targets, criterion=case["criterion"], **base)
-    free = result.free
+        result = refine_options.refine(capture, ParameterSet.nominal(ROBOT), targets, criterion=case["criterion"], **base)
+    free = result.identifiability.free
     error = np.abs(result.parameters.values - truth.values)
     assert np.all(error[free] <= np.broadcast_to(TOLERANCE, error.shape)[free]), error[free].max()
     estimated = np.array([target.positions for target in result.targets])
     np.testing.assert_allclose(estimated, case["offsets"], rtol=0, atol=1e-9)
-    assert result.residual_max < 1e-9 and result.cost_history[-1] <= result.start_cost
+    assert result.fit.residual_max < 1e-9 and result.fit.cost_history[-1] <= result.fit.start_cost
 
 
 def test_two_targets_at_one_place_are_refused_by_the_distances_criterion():
@@ -123,4 +125,9 @@ def test_two_targets_at_one_place_are_refused_by_the_distances_criterion():
     )
     with warnings.catch_warnings(), pytest.raises(InputError, match="coincide at different poses or targets"):
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        refine_parameters(capture, ParameterSet.nominal(ROBOT), targets, criterion="distances")
+        refine_parameters(
+            capture,
+            ParameterSet.nominal(ROBOT),
+            targets,
+            settings=RefinementSettings(criterion="distances"),
+        )

@@ -1,8 +1,9 @@
 """``robotcal refine CAPTURE.csv --scenario S --start PARAMS.json --criterion points|distances --out REFINED.json
-[--estimate-base] [--model geometric|compliance|harmonic|compliance+harmonic|auto] [--folds K]``."""
+[--estimate-base] [--model geometric|compliance|harmonic|compliance+harmonic|auto] [--folds K] [--workers N]``."""
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -25,7 +26,7 @@ from robotcal.cli._tables import Column, FittedTable
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
 if TYPE_CHECKING:  # numpy, the API and the model load in the command: a fast --help
-    from robotcal.identification.refine import RefinementResult
+    from robotcal.identification.records import RefinementResult
     from robotcal.kinematics.model import ParameterSet
 
 app = command_app()
@@ -58,82 +59,98 @@ def time_rows(result: RefinementResult, refinement_s: float) -> list[tuple[str, 
     ]
 
 
+CaptureArg = Annotated[Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z[,target][,u95_mm]).")]
+ScenarioOpt = Annotated[str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot, target, base frame.")]
+OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Parameter JSON to write.")]
+StartOpt = Annotated[
+    Path | None, typer.Option("--start", help="Parameter JSON to start from (e.g. the CPA result; default nominal).")
+]
+CriterionOpt = Annotated[str, typer.Option("--criterion", "-c", help="points (eq. 4-101) or distances (eq. 4-102).")]
+StrictOpt = Annotated[
+    bool,
+    typer.Option(
+        "--strict",
+        help="Fail (no file written) instead of holding parameters the data cannot determine, and unless the fit "
+        "health is OK or NOT CHECKED (a MODEL ERROR, residual > 3 x the stated noise, fails too).",
+    ),
+]
+WeightsOpt = Annotated[
+    str,
+    typer.Option(
+        "--weights",
+        help="auto: weight each point by 1/u^2 from its u95_mm column (u = U(95)/2, k = 2, normal), when "
+        "present; none: equal weights.",
+    ),
+]
+EstimateBaseOpt = Annotated[
+    bool,
+    typer.Option(
+        "--estimate-base",
+        help="Points criterion: estimate tracker_from_base with the parameters even when the scenario "
+        'gives it (base_frame = "given" holds it by default).',
+    ),
+]
+ModelOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--model",
+        help="geometric (the DH/Hayati chain), compliance (+ gravity sag of the loaded joints), harmonic (+ "
+        "a sin q + b cos q per joint), compliance+harmonic, or auto (each fitted, chosen by cross-validation). "
+        "Default: the scenario's [joint_model] fit, geometric when it has none.",
+    ),
+]
+FoldsOpt = Annotated[
+    int | None,
+    typer.Option("--folds", help="k-fold cross-validation by pose reported for the fit (0: none; default 5)."),
+]
+PosesOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--poses",
+        help="Calibration poses (capture CSV at free poses on a flange target) refined with CAPTURE: what an "
+        "extended model learns the gravity sag from.",
+    ),
+]
+BacklashOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--backlash",
+        help="The joints stage's summary.csv (robotcal joints): the angular backlash of the joints whose backlash "
+        "exceeds the noise corrects the circle points by their order of motion.",
+    ),
+]
+WorkersOpt = Annotated[
+    int | None,
+    typer.Option(
+        "--workers",
+        min=1,
+        help="Worker processes for the fits and cross-validation folds (default: CPU count, at most 4); the result "
+        "does not depend on it.",
+    ),
+]
+
+
 @app.command()
 @handle_errors
 def refine(
-    capture: Annotated[
-        Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z[,target][,u95_mm]).")
-    ],
-    scenario: Annotated[
-        str, typer.Option("--scenario", "-s", help="Scenario name or TOML: robot, target, base frame.")
-    ],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Parameter JSON to write.")],
-    start: Annotated[
-        Path | None,
-        typer.Option("--start", help="Parameter JSON to start from (e.g. the CPA result; default nominal)."),
-    ] = None,
-    criterion: Annotated[
-        str, typer.Option("--criterion", "-c", help="points (eq. 4-101) or distances (eq. 4-102).")
-    ] = "points",
-    strict: Annotated[
-        bool,
-        typer.Option(
-            "--strict",
-            help="Fail (no file written) instead of holding parameters the data cannot determine, and unless the fit "
-            "health is OK or NOT CHECKED (a MODEL ERROR, residual > 3 x the stated noise, fails too).",
-        ),
-    ] = False,
-    weights: Annotated[
-        str,
-        typer.Option(
-            "--weights",
-            help="auto: weight each point by 1/u^2 from its u95_mm column (u = U(95)/2, k = 2, normal), when "
-            "present; none: equal weights.",
-        ),
-    ] = "auto",
-    estimate_base: Annotated[
-        bool,
-        typer.Option(
-            "--estimate-base",
-            help="Points criterion: estimate tracker_from_base with the parameters even when the scenario "
-            'gives it (base_frame = "given" holds it by default).',
-        ),
-    ] = False,
-    model: Annotated[
-        str | None,
-        typer.Option(
-            "--model",
-            help="geometric (the DH/Hayati chain), compliance (+ gravity sag of the loaded joints), harmonic (+ "
-            "a sin q + b cos q per joint), compliance+harmonic, or auto (each fitted, chosen by cross-validation). "
-            "Default: the scenario's [joint_model] fit, geometric when it has none.",
-        ),
-    ] = None,
-    folds: Annotated[
-        int | None,
-        typer.Option("--folds", help="k-fold cross-validation by pose reported for the fit (0: none; default 5)."),
-    ] = None,
-    poses: Annotated[
-        Path | None,
-        typer.Option(
-            "--poses",
-            help="Calibration poses (capture CSV at free poses on a flange target) refined with CAPTURE: what an "
-            "extended model learns the gravity sag from.",
-        ),
-    ] = None,
-    backlash: Annotated[
-        Path | None,
-        typer.Option(
-            "--backlash",
-            help="The joints stage's summary.csv (robotcal joints): the angular backlash of the joints whose backlash "
-            "exceeds the noise corrects the circle points by their order of motion.",
-        ),
-    ] = None,
+    capture: CaptureArg,
+    scenario: ScenarioOpt,
+    out: OutOpt,
+    start: StartOpt = None,
+    criterion: CriterionOpt = "points",
+    strict: StrictOpt = False,
+    weights: WeightsOpt = "auto",
+    estimate_base: EstimateBaseOpt = False,
+    model: ModelOpt = None,
+    folds: FoldsOpt = None,
+    poses: PosesOpt = None,
+    backlash: BacklashOpt = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    workers: WorkersOpt = None,
 ) -> None:
     """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7), with the geometric
     or an extended model (gravity compliance, harmonic joint errors), each cross-validated by pose."""
     from robotcal import api
-    from robotcal.identification.model_choice import MODEL_CHOICES
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.joints_files import read_backlash
     from robotcal.io.parameters_json import read_parameters, refined_targets, write_parameters
@@ -141,16 +158,7 @@ def refine(
     from robotcal.io.scenario import load_scenario
     from robotcal.kinematics.model import ParameterSet
 
-    if criterion not in ("points", "distances"):
-        raise typer.BadParameter(f"must be 'points' or 'distances'; got {criterion!r}", param_hint="--criterion")
-    if weights not in ("auto", "none"):
-        raise typer.BadParameter(f"must be 'auto' or 'none'; got {weights!r}", param_hint="--weights")
-    if estimate_base and criterion != "points":
-        raise typer.BadParameter("applies to the points criterion only", param_hint="--estimate-base")
-    if model is not None and model not in MODEL_CHOICES:
-        raise typer.BadParameter(f"must be one of {', '.join(MODEL_CHOICES)}; got {model!r}", param_hint="--model")
-    if folds is not None and (folds < 0 or folds == 1):
-        raise typer.BadParameter(f"must be 0 (none) or at least 2; got {folds}", param_hint="--folds")
+    _check_options(criterion, weights, estimate_base, model, folds)
     inputs = existing_inputs(capture, scenario, start, poses, backlash)
     check_output_file(out, inputs=inputs, force=force)
     loaded = load_scenario(scenario)
@@ -168,33 +176,49 @@ def refine(
     initial = read_parameters(start, loaded.robot) if start is not None else ParameterSet.nominal(loaded.robot)
     began = time.perf_counter()
     result = api.refine(
-        measured,
-        loaded,
-        initial,
-        criterion=criterion,
-        on_unidentifiable="raise" if strict else "fix",
-        health="strict" if strict else "warn",
-        weights=weights,
-        model=model,
-        folds=folds,
-        backlash_deg=lash,
+        measured, loaded, initial, criterion=criterion, on_unidentifiable="raise" if strict else "fix",
+        health="strict" if strict else "warn", weights=weights, model=model, folds=folds, backlash_deg=lash,
+        workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
         **({"estimate_base": True} if estimate_base else {}),
-    )
+    )  # fmt: skip
     refinement_s = time.perf_counter() - began
-    source = str(start) if start is not None else "nominal"
-    provenance = refine_provenance(result, measured, source, scenario=loaded)
+    provenance = refine_provenance(result, measured, str(start) if start is not None else "nominal", scenario=loaded)
     with result_file(out, inputs=inputs, force=force):
-        write_parameters(
-            out, result.parameters, provenance, refined_targets(result), joint_model_u=result.joint_model_uncertainty
-        )
+        joint_model_u = result.uncertainty.joint_model_uncertainty
+        write_parameters(out, result.parameters, provenance, refined_targets(result), joint_model_u=joint_model_u)
+    _print_result(result, initial, start is not None, provenance, refinement_s)
+    console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
+    print_health(result.health)
+
+
+def _check_options(criterion: str, weights: str, estimate_base: bool, model: str | None, folds: int | None) -> None:
+    """The options' values, named as the command line spells them."""
+    from robotcal.identification.settings import MODEL_CHOICES
+
+    if criterion not in ("points", "distances"):
+        raise typer.BadParameter(f"must be 'points' or 'distances'; got {criterion!r}", param_hint="--criterion")
+    if weights not in ("auto", "none"):
+        raise typer.BadParameter(f"must be 'auto' or 'none'; got {weights!r}", param_hint="--weights")
+    if estimate_base and criterion != "points":
+        raise typer.BadParameter("applies to the points criterion only", param_hint="--estimate-base")
+    if model is not None and model not in MODEL_CHOICES:
+        raise typer.BadParameter(f"must be one of {', '.join(MODEL_CHOICES)}; got {model!r}", param_hint="--model")
+    if folds is not None and (folds < 0 or folds == 1):
+        raise typer.BadParameter(f"must be 0 (none) or at least 2; got {folds}", param_hint="--folds")
+
+
+def _print_result(result: RefinementResult, initial: ParameterSet, given: bool, provenance: dict, refinement_s) -> None:
+    """The parameter table, the refinement's summary, the joint model and the model choice."""
+    criterion = result.criterion
     console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
         parameter_table(
             _wrapped(initial),
             _wrapped(result.parameters),
             f"Refined parameters ({criterion}) vs start",
-            reference="start" if start is not None else "start (nominal)",
+            reference="start" if given else "start (nominal)",
         )
     )
+    fit, identifiability, uncertainty = result.fit, result.identifiability, result.uncertainty
     summary = FittedTable("Refinement", [Column("", "text"), Column("", "text")], show_header=False)
     summary.add_row("criterion", criterion)
     summary.add_row("solver", f"least_squares, method={result.method}")
@@ -203,29 +227,28 @@ def refine(
     summary.add_row("weights", provenance["weights"])
     summary.add_row("iterations (Jacobian evaluations)", str(result.njev))
     summary.add_row("residual evaluations", str(result.nfev))
-    summary.add_row("residuals", str(result.n_residuals))
-    summary.add_row("RMS residual start -> end [mm]", f"{result.rms_history[0]:.4g} -> {result.rms_history[-1]:.4g}")
-    summary.add_row("mean / max residual [mm]", f"{result.residual_mean:.4g} / {result.residual_max:.4g}")
-    summary.add_row("noise per coordinate sigma [mm]", f"{result.sigma:.3g}")
-    summary.add_row("condition number (scaled)", f"{result.condition_number:.4g}")
+    summary.add_row("residuals", str(fit.n_residuals))
+    summary.add_row("RMS residual start -> end [mm]", f"{fit.rms_history[0]:.4g} -> {fit.rms_history[-1]:.4g}")
+    summary.add_row("mean / max residual [mm]", f"{fit.residual_mean:.4g} / {fit.residual_max:.4g}")
+    summary.add_row("noise per coordinate sigma [mm]", f"{uncertainty.sigma:.3g}")
+    summary.add_row("condition number (scaled)", f"{identifiability.condition_number:.4g}")
     if result.tracker_from_base is not None:
-        summary.add_row("base frame", "estimated" if result.base_free.any() else "held (scenario's tracker_from_base)")
-    summary.add_row("held (gauge: a base motion)", ", ".join(result.gauge) or "-")
-    summary.add_row("held (not determined)", ", ".join(result.held) or "-")
-    summary.add_row("free, tied to held ones", ", ".join(result.confounded) or "-")
+        base = "estimated" if identifiability.base_free.any() else "held (scenario's tracker_from_base)"
+        summary.add_row("base frame", base)
+    summary.add_row("held (gauge: a base motion)", ", ".join(identifiability.gauge) or "-")
+    summary.add_row("held (not determined)", ", ".join(identifiability.held) or "-")
+    summary.add_row("free, tied to held ones", ", ".join(identifiability.confounded) or "-")
     for k, target in enumerate(result.targets):
         if not target.known:
-            u = result.target_uncertainty[k]
+            u = uncertainty.target_uncertainty[k]
             shown = ", ".join(f"{v:.4f} ± {e:.4f}" for v, e in zip(target.positions, u, strict=True))
             summary.add_row(f"target {target.name} offset [mm] (± u)", shown)
     for label, value in time_rows(result, refinement_s):
         summary.add_row(label, value)
     console.print(summary)
     if result.parameters.joint_model is not None:
-        console.print(joint_model_table(result.parameters.joint_model, result.joint_model_uncertainty))
+        console.print(joint_model_table(result.parameters.joint_model, uncertainty.joint_model_uncertainty))
     if result.cross_validation is not None:
         console.print(model_table(result))
         if result.model_choice is not None:
             console.print(f"model: {result.model_choice.reason}", highlight=False, soft_wrap=True)
-    console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
-    print_health(result.health)

@@ -1,9 +1,11 @@
-"""Identification: Circle Point Analysis (:mod:`.cpa`), least-squares refinement (:mod:`.refine`),
-evaluation on validation captures (:mod:`.evaluation`), observability, capture plausibility, targets,
-fit health.
+"""Identification: Circle Point Analysis (:mod:`.cpa`), least-squares refinement (:mod:`.refine`, with its
+problem and rank test in private modules, records :mod:`.records` and settings :mod:`.settings`), the
+model choice (:mod:`.model_choice`), evaluation on validation captures (:mod:`.evaluation`), observability,
+capture plausibility, targets, fit health.
 
-The names of :mod:`.cpa` load with the package; the others on first use (the refinement pulls
-``scipy.optimize``). Scenario-level wrappers: :func:`robotcal.identify`, :func:`robotcal.refine`,
+The names below load on first use (``lazy_loader``, as :mod:`robotcal.io` does): ``__init__.pyi`` lists each
+with the module that defines it, so ``import robotcal.identification`` imports none of its modules (the
+refinement pulls ``scipy.optimize``). Scenario-level wrappers: :func:`robotcal.identify`, :func:`robotcal.refine`,
 :func:`robotcal.evaluate`.
 
 Examples
@@ -24,149 +26,6 @@ CPA of a noise-free simulated capture returns the parameters it was simulated wi
 True
 """
 
-from robotcal.identification.cpa import CPABatch, CPAOptions, CPAResult, identify_cpa, identify_cpa_batch, prepare_cpa
-from robotcal.identification.evaluation import (
-    ALL_VIEWS,
-    VIEWS,
-    EvaluationRow,
-    GuessedOffsetWarning,
-    absolute_errors,
-    distance_errors,
-    distinct_pairs,
-    evaluate_parameters,
-    guessed_targets,
-    point_errors,
-    predicted_points,
-)
-from robotcal.identification.health import (
-    AXIS_LIMIT_DEG,
-    CONDITION_LIMIT,
-    PHYSICAL_RESIDUAL_MM,
-    RESIDUAL_RATIO_LIMIT,
-    VERDICTS,
-    FitHealth,
-    FitHealthError,
-    FitHealthWarning,
-    Verdict,
-    assess_fit,
-    circle_axis_uncertainty,
-    cpa_health,
-    model_advice,
-    refine_health,
-    report_health,
-    stated_noise,
-)
-from robotcal.identification.model_choice import (
-    COMPLIANCE_TORQUE_FRACTION,
-    DEFAULT_FOLDS,
-    MODEL_CHOICES,
-    MODELS,
-    CrossValidation,
-    ModelChoice,
-    choose_model,
-    cross_validate,
-    default_compliance_joints,
-    joint_model_for,
-    pose_folds,
-)
-from robotcal.identification.observability import (
-    Conditioning,
-    conditioning,
-    correlation_from_covariance,
-    select_identifiable,
-    triangular_factor,
-)
-from robotcal.identification.plausibility import (
-    OUTLIER_MAD,
-    OUTLIER_U,
-    RESIDUAL_FLOOR_MM,
-    PlausibilityReport,
-    PlausibilityWarning,
-    check_capture,
-    reject_outliers,
-)
-from robotcal.identification.refine import (
-    BASE_NAMES,
-    CRITERIA,
-    RefinementResult,
-    base_correction,
-    capture_target_index,
-    capture_turning_joints,
-    measurement_pairs,
-    point_sigmas,
-    refine_parameters,
-    wrap_angles,
-)
-from robotcal.identification.targets import Target, point_target_index, resolve_targets
+import lazy_loader
 
-__all__ = [
-    "CPAOptions",
-    "CPAResult",
-    "CPABatch",
-    "identify_cpa",
-    "identify_cpa_batch",
-    "prepare_cpa",
-    "VIEWS",
-    "ALL_VIEWS",
-    "EvaluationRow",
-    "point_errors",
-    "predicted_points",
-    "distinct_pairs",
-    "distance_errors",
-    "absolute_errors",
-    "evaluate_parameters",
-    "guessed_targets",
-    "GuessedOffsetWarning",
-    "AXIS_LIMIT_DEG",
-    "CONDITION_LIMIT",
-    "PHYSICAL_RESIDUAL_MM",
-    "RESIDUAL_RATIO_LIMIT",
-    "VERDICTS",
-    "FitHealth",
-    "FitHealthError",
-    "FitHealthWarning",
-    "Verdict",
-    "assess_fit",
-    "model_advice",
-    "circle_axis_uncertainty",
-    "cpa_health",
-    "refine_health",
-    "report_health",
-    "stated_noise",
-    "MODELS",
-    "MODEL_CHOICES",
-    "DEFAULT_FOLDS",
-    "COMPLIANCE_TORQUE_FRACTION",
-    "CrossValidation",
-    "ModelChoice",
-    "default_compliance_joints",
-    "joint_model_for",
-    "pose_folds",
-    "cross_validate",
-    "choose_model",
-    "Conditioning",
-    "select_identifiable",
-    "conditioning",
-    "correlation_from_covariance",
-    "triangular_factor",
-    "PlausibilityWarning",
-    "PlausibilityReport",
-    "check_capture",
-    "reject_outliers",
-    "OUTLIER_U",
-    "OUTLIER_MAD",
-    "RESIDUAL_FLOOR_MM",
-    "CRITERIA",
-    "BASE_NAMES",
-    "RefinementResult",
-    "refine_parameters",
-    "capture_turning_joints",
-    "capture_target_index",
-    "measurement_pairs",
-    "base_correction",
-    "wrap_angles",
-    "point_sigmas",
-    "Target",
-    "resolve_targets",
-    "point_target_index",
-]
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

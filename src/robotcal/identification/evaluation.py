@@ -38,7 +38,7 @@ import numpy as np
 from robotcal.capture import Capture
 from robotcal.errors import InputError, RobotcalWarning
 from robotcal.geometry.registration import register_points
-from robotcal.identification.refine import capture_target_index, capture_turning_joints, measurement_pairs, pdist
+from robotcal.identification._problem import capture_target_index, capture_turning_joints, measurement_pairs, pdist
 from robotcal.identification.targets import Target, resolve_targets
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount

@@ -47,7 +47,7 @@ stay below 0.25 deg; the thesis iGPS capture reaches 2.6 deg on circle 4, rightl
 own Monte Carlo (Table 5.7) gives u(J4.a) = 12.6 mm for it.
 
 Poorly determined refined quantities are named the same way: ``u_k e_k``, with ``e_k`` the RMS displacement of
-the points per unit of quantity k (the norm of its Jacobian column over the points, ``RefinementResult.effect``),
+the points per unit of quantity k (the norm of its Jacobian column over the points, ``RefinementResult.identifiability.effect``),
 is what one standard uncertainty of that quantity alone does to the points [mm]. Above
 :data:`U_EFFECT_LIMIT_MM` = 0.1 mm (several times a laser tracker's noise, the size of the errors a calibration
 is there to remove) the quantity is named with its u and what would determine it better. The demo's refined
@@ -388,40 +388,49 @@ def cpa_health(result, capture: Capture, instrument=None) -> FitHealth:
     )
 
 
-def refine_health(result, capture: Capture, instrument=None) -> FitHealth:
-    """Fit health of a refinement: its residual standard deviation per coordinate (``sigma``, weighted by the
-    points' U(95) when given; the RMS residual when no degree of freedom is left) against the stated noise,
-    its convergence, and the condition number of its scaled Jacobian."""
+def refine_health(
+    fit, identifiability, uncertainty, *, criterion: str, converged: bool, model: str | None, capture: Capture,
+    instrument=None,
+) -> FitHealth:  # fmt: skip
+    """Fit health of a refinement: its residual standard deviation per coordinate (``uncertainty.sigma``, weighted
+    by the points' U(95) when given; the RMS residual ``fit.residual_rms_coordinate`` when no degree of freedom is
+    left) against the stated noise, its convergence, and the condition number of its scaled Jacobian.
+
+    ``fit``, ``identifiability``, ``uncertainty``: the sub-records of the refinement
+    (:class:`robotcal.identification.records.RefinementResult`), from which the result is then made.
+    """
     noise, noise_source = stated_noise(capture, instrument)
-    residual = float(result.sigma) if np.isfinite(result.sigma) else float(result.residual_rms_coordinate)
-    if result.criterion == "distances" and not np.isfinite(result.sigma):
+    sigma = uncertainty.sigma
+    residual = float(sigma) if np.isfinite(sigma) else float(fit.residual_rms_coordinate)
+    if criterion == "distances" and not np.isfinite(sigma):
         residual /= np.sqrt(2.0)  # a distance's error has the noise of two points
     health = assess_fit(
-        f"refinement ({result.criterion} criterion)",
+        f"refinement ({criterion} criterion)",
         residual,
         noise,
         noise_source=noise_source,
-        condition_number=result.condition_number,
-        converged=bool(result.success),
-        fitted_model=getattr(result, "model", None),
+        condition_number=identifiability.condition_number,
+        converged=bool(converged),
+        fitted_model=model,
     )
     if health.verdict == "FAILED":  # the u of a failed fit say nothing about the capture
         return health
-    return dataclasses.replace(health, poorly_determined=tuple(_poorly_refined(result)))
+    return dataclasses.replace(health, poorly_determined=tuple(_poorly_refined(identifiability, uncertainty)))
 
 
-def _poorly_refined(result) -> list[str]:
+def _poorly_refined(identifiability, uncertainty) -> list[str]:
     """The refined quantities whose standard uncertainty moves the points by more than :data:`U_EFFECT_LIMIT_MM`
     (module notes), worst first, each with its u and what would determine it better."""
-    if result.covariance is None or result.effect is None:
+    covariance = uncertainty.covariance
+    if covariance is None or identifiability.effect is None:
         return []
-    effect = np.sqrt(np.clip(np.diag(result.covariance), 0.0, None)) * np.asarray(result.effect, dtype=float)
+    effect = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) * np.asarray(identifiability.effect, dtype=float)
     found = []
     for k in np.argsort(-effect):
         if effect[k] <= U_EFFECT_LIMIT_MM:
             break
-        name = result.free_names[k]
-        u = math.sqrt(max(float(result.covariance[k, k]), 0.0))
+        name = identifiability.free_names[k]
+        u = math.sqrt(max(float(covariance[k, k]), 0.0))
         if name.startswith("target."):
             shown, where = f"{u:.3g} mm", "measure the target at more poses, turning the flange"
         elif name.startswith("base."):

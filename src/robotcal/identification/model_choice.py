@@ -22,24 +22,39 @@ unknowns whose CV mean squared error is within one standard error of the smalles
 of Hastie, Tibshirani and Friedman, *The Elements of Statistical Learning*, 2nd ed., 2009, sec. 7.10): a model
 with more parameters must earn them by more than the folds' own scatter. The standard error is that of the mean
 of the fold MSEs, ``sd / sqrt(folds)``.
+
+**Running the fits.** :func:`refine_model` is the whole of it: every candidate's fit on all points and its
+``folds`` fold fits (``auto``: 4 models x (1 + 5 folds) = 24 fits) are independent, each described by a picklable
+:class:`FitTask`, and run in the process pool of :mod:`robotcal.execution` (``workers``); the results do not depend
+on the number of workers. Only the chosen model's warnings reach the caller, as if it alone had been fitted.
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass, replace
 
 import numpy as np
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
-from robotcal.errors import IdentifiabilityWarning, InputError
+from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
+from robotcal.execution import open_executor
+from robotcal.identification._problem import pdist
 from robotcal.identification.evaluation import distinct_pairs, predicted_points
-from robotcal.identification.refine import pdist
+from robotcal.identification.records import CrossValidation, ModelChoice, RefinementResult
+from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import (
+    DEFAULT_FOLDS,
+    MODEL_CHOICES,
+    MODELS,
+    ModelChoiceSettings,
+    RefinementSettings,
+)
 from robotcal.identification.targets import Target
 from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques
-from robotcal.kinematics.model import LinkMasses, RobotModel
+from robotcal.kinematics.model import LinkMasses, ParameterSet, RobotModel
 
 __all__ = [
     "MODELS",
@@ -48,22 +63,22 @@ __all__ = [
     "COMPLIANCE_TORQUE_FRACTION",
     "CrossValidation",
     "ModelChoice",
+    "ModelChoiceSettings",
+    "FitTask",
     "default_compliance_joints",
     "joint_model_for",
+    "candidate_joint_model",
     "pose_folds",
-    "cross_validate",
+    "run_fit",
+    "refine_model",
     "choose_model",
 ]
 
-#: The models, simplest first.
-MODELS = ("geometric", "compliance", "harmonic", "compliance+harmonic")
-#: What ``refine --model`` accepts.
-MODEL_CHOICES = (*MODELS, "auto")
-#: Folds of the cross-validation by pose.
-DEFAULT_FOLDS = 5
 #: A joint is compliant by default when its largest gravity torque over the workspace reaches this fraction of
 #: the largest joint's (on a floor-mounted KR 5: J2 and J3; J1's axis is vertical, the wrist joints carry little).
 COMPLIANCE_TORQUE_FRACTION = 0.1
+_DEFAULT_SETTINGS = RefinementSettings()
+_DEFAULT_CHOICE = ModelChoiceSettings()
 
 
 def _proxy_masses(robot: RobotModel) -> LinkMasses:
@@ -126,76 +141,6 @@ def joint_model_for(
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class CrossValidation:
-    """k-fold cross-validation by pose of one model (module notes) [mm, mm^2].
-
-    Attributes
-    ----------
-    model : str
-    unknowns : int
-        Free unknowns of the full fit (parameters, joint-model values, offsets, base corrections).
-    folds : int
-    seed : int
-        Seed of the deal of poses into folds.
-    calibration_rms_mm : float
-        The full fit's residual RMS on its own data.
-    cv_rms_mm : float
-        RMS of every held-out residual over the folds.
-    fold_mse_mm2 : ndarray, shape (folds,)
-        Mean squared held-out residual of each fold.
-    se_mm2 : float
-        Standard error of the CV mean squared error, ``sd(fold_mse) / sqrt(folds)``.
-    failed_folds : int
-        Folds whose refit did not converge (their held-out residuals still count: a model that cannot be refitted
-        on part of the data predicts it badly).
-    """
-
-    model: str
-    unknowns: int
-    folds: int
-    seed: int
-    calibration_rms_mm: float
-    cv_rms_mm: float
-    fold_mse_mm2: np.ndarray
-    se_mm2: float
-    failed_folds: int = 0
-
-    @property
-    def cv_mse_mm2(self) -> float:
-        return self.cv_rms_mm**2
-
-    def to_dict(self) -> dict:
-        return {
-            "model": self.model,
-            "unknowns": self.unknowns,
-            "folds": self.folds,
-            "seed": self.seed,
-            "calibration_rms_mm": self.calibration_rms_mm,
-            "cv_rms_mm": self.cv_rms_mm,
-            "fold_rms_mm": [float(v) for v in np.sqrt(self.fold_mse_mm2)],
-            "cv_se_mm2": self.se_mm2,
-            "failed_folds": self.failed_folds,
-        }
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class ModelChoice:
-    """The candidates of ``auto`` with their cross-validation, the chosen model and why."""
-
-    candidates: tuple[CrossValidation, ...]
-    chosen: str
-    reason: str
-
-    def to_dict(self) -> dict:
-        return {
-            "rule": "fewest unknowns within one standard error of the smallest CV mean squared error",
-            "chosen": self.chosen,
-            "reason": self.reason,
-            "candidates": [candidate.to_dict() for candidate in self.candidates],
-        }
-
-
 def pose_folds(capture: Capture, folds: int, seed: int) -> np.ndarray:
     """The fold ``(n_points,)`` of every point: poses (the same readings, on a 1e-7 deg grid) dealt at random
     (seeded) into ``folds`` groups as equal as the number of poses allows."""
@@ -233,56 +178,213 @@ def _held_out_residuals(capture: Capture, held: np.ndarray, fit, targets) -> np.
     return (pdist(predicted) - pdist(capture.points))[keep][involved]
 
 
-def cross_validate(
+def candidate_joint_model(
+    model: str,
+    start: ParameterSet,
+    choice: ModelChoiceSettings,
+    *,
+    masses: LinkMasses | None = None,
+    backlash=None,
+    backlash_source: str = "",
+) -> JointModel | None:
+    """The joint model a candidate ``model`` is fitted with: :func:`joint_model_for` with ``choice``'s joints and
+    order (every value 0), or the start's own joint model when it has the same parameters (its values are then the
+    start); with ``backlash`` [rad] (n_joints,) the lash correction of the circles, whatever the model."""
+    robot = start.robot
+    structure = joint_model_for(
+        model, robot, masses=masses, compliance_joints=choice.compliance_joints,
+        harmonic_joints=choice.harmonic_joints, harmonic_order=choice.harmonic_order,
+    )  # fmt: skip
+    if structure is not None and start.joint_model is not None and start.joint_model.names == structure.names:
+        structure = start.joint_model
+    if backlash is not None:
+        structure = (structure or JointModel.build(robot)).with_backlash(backlash, backlash_source)
+    return structure
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FitTask:
+    """One fit of :func:`refine_model`, everything it needs and nothing else (picklable: it may run in a worker).
+
+    ``fold`` None: the fit on the whole capture (its result comes back); else the fit on the points whose
+    ``fold_of`` is not ``fold``, predicting those that are (its held-out residuals come back).
+    """
+
+    model: str
+    capture: Capture
+    start: ParameterSet
+    targets: object
+    settings: RefinementSettings
+    tracker_from_base: np.ndarray | None
+    joint_model: JointModel | None
+    instrument: object = None
+    fold: int | None = None
+    fold_of: np.ndarray | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class _Refused:
+    """An :class:`~robotcal.errors.IdentifiabilityError` of a task, carried back whole (its ``parameters`` would not
+    survive the pickling of the exception)."""
+
+    message: str
+    parameters: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Outcome:
+    """What a task sends back: the full fit's result, or a fold's success and held-out residuals [mm]; the warnings
+    it raised, as ``(message, category, filename, lineno)``, for the parent to re-emit."""
+
+    result: RefinementResult | None = None
+    success: bool = True
+    held_out: np.ndarray | None = None
+    warnings: tuple = ()
+
+
+def run_fit(task: FitTask) -> _Outcome | _Refused:
+    """Run one :class:`FitTask` (module notes), recording its warnings; a fold's quantities the fold cannot determine
+    are not reported (the full fit reports them)."""
+    capture = task.capture if task.fold is None else task.capture.select(np.flatnonzero(task.fold_of != task.fold))
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = refine_parameters(
+                capture, task.start, task.targets, settings=task.settings, tracker_from_base=task.tracker_from_base,
+                joint_model=task.joint_model, instrument=task.instrument,
+            )  # fmt: skip
+    except IdentifiabilityError as error:
+        return _Refused(str(error), tuple(error.parameters))
+    if task.fold is not None:
+        caught = [found for found in caught if not issubclass(found.category, IdentifiabilityWarning)]
+    found = tuple((w.message, w.category, w.filename, w.lineno) for w in caught)
+    if task.fold is None:
+        return _Outcome(result=result, warnings=found)
+    held = np.flatnonzero(task.fold_of == task.fold)
+    residuals = _held_out_residuals(task.capture, held, result, task.targets)
+    return _Outcome(success=bool(result.success), held_out=residuals, warnings=found)
+
+
+def _tasks(capture, start, targets, settings, choice, tracker_from_base, structures, instrument) -> list[FitTask]:
+    """Every candidate's full fit followed by its folds, in that order (the order of the progress and the warnings)."""
+    fold_of = pose_folds(capture, choice.folds, choice.seed) if choice.folds else None
+    tasks = []
+    for name in choice.candidates:
+        common = dict(
+            model=name, capture=capture, start=start.geometric(), targets=targets, settings=settings,
+            tracker_from_base=tracker_from_base, joint_model=structures[name],
+        )  # fmt: skip
+        tasks.append(FitTask(**common, instrument=instrument))
+        tasks.extend(FitTask(**common, fold=fold, fold_of=fold_of) for fold in range(choice.folds))
+    return tasks
+
+
+def refine_model(
     capture: Capture,
-    fit: Callable[[Capture], object],
-    full,
+    start: ParameterSet,
     targets,
     *,
-    model: str,
-    folds: int = DEFAULT_FOLDS,
-    seed: int = 0,
-    progress: Callable[[int, int], None] | None = None,
-) -> CrossValidation:
-    """k-fold cross-validation by pose (module notes) of the refinement ``fit(capture) -> RefinementResult``.
+    settings: RefinementSettings = _DEFAULT_SETTINGS,
+    choice: ModelChoiceSettings = _DEFAULT_CHOICE,
+    tracker_from_base=None,
+    masses: LinkMasses | None = None,
+    backlash=None,
+    backlash_source: str = "",
+    instrument=None,
+    workers: int = 1,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> RefinementResult:
+    """Refine with the model ``choice`` names (``auto``: each candidate, the one cross-validation chooses), every
+    fit cross-validated by pose; module notes.
 
     Parameters
     ----------
-    capture : Capture
-    fit : callable
-        Refines a part of the capture with the model's options, from the same start as ``full`` (warnings about
-        quantities a fold cannot determine are silenced: the full fit reports them).
-    full : RefinementResult
-        The fit on the whole capture (its residual RMS is the calibration error).
-    targets : ReflectorMount, Target or sequence of Target
-        As given to the refinement.
-    model : str
-        The model's name, recorded.
+    capture, start, targets, tracker_from_base
+        As for :func:`robotcal.identification.refine.refine_parameters` (every fit starts from ``start``'s
+        geometry; its joint model, if any, is the start of a candidate with the same parameters).
+    settings : RefinementSettings
+        Of every fit.
+    choice : ModelChoiceSettings
+        The model, the folds and their seed, the joint-model structure.
+    masses : LinkMasses, optional
+        Of the compliance terms (payload included); None: the robot's, else the lumped form.
+    backlash : ndarray, shape (n_joints,), optional
+        Angular lash of every joint [rad], a fixed correction of the circle points (``backlash_source`` says
+        where it comes from).
+    instrument : Instrument, optional
+        The stated noise of the fit health.
+    workers : int
+        Processes running the fits (1: in this process); the result does not depend on it.
+    progress : callable, optional
+        ``progress(done, total, what)`` after every fit, in the order of the fits.
+
+    Returns
+    -------
+    RefinementResult
+        The chosen model's fit with its ``health``, ``cross_validation`` (None without folds) and, for ``auto``,
+        ``model_choice``. Its warnings, and those alone, are re-emitted here.
     """
-    fold_of = pose_folds(capture, folds, seed)
-    squares, fold_mse, failed = [], np.zeros(folds), 0
-    for fold in range(folds):
-        held = np.flatnonzero(fold_of == fold)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", IdentifiabilityWarning)
-            result = fit(capture.select(np.flatnonzero(fold_of != fold)))
-        failed += int(not result.success)
-        residuals = _held_out_residuals(capture, held, result, targets)
-        squares.append(residuals**2)
-        fold_mse[fold] = float(np.mean(residuals**2))
-        if progress is not None:
-            progress(fold + 1, folds)
-    pooled = np.concatenate(squares)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InputError(f"`workers` must be a positive integer; got {workers!r}")
+    lash = dict(masses=masses, backlash=backlash, backlash_source=backlash_source)
+    structures = {name: candidate_joint_model(name, start, choice, **lash) for name in choice.candidates}
+    tasks = _tasks(capture, start, targets, settings, choice, tracker_from_base, structures, instrument)
+    fits, held_out, emitted = {}, {name: [] for name in choice.candidates}, {}
+    with open_executor(workers=min(workers, len(tasks))) as executor:
+        for done, (task, outcome) in enumerate(zip(tasks, executor.map(run_fit, tasks), strict=True), start=1):
+            if isinstance(outcome, _Refused):
+                raise IdentifiabilityError(outcome.message, parameters=outcome.parameters)
+            if task.fold is None:
+                fits[task.model] = _read_only(outcome.result)
+                emitted[task.model] = list(outcome.warnings)
+            else:
+                held_out[task.model].append((outcome.success, outcome.held_out))
+                for found in outcome.warnings:  # what a fold raises besides what it cannot determine, as it comes
+                    warnings.warn_explicit(*found)
+            if progress is not None:
+                progress(done, len(tasks), task.model if task.fold is None else f"{task.model} CV")
+    validations = {
+        name: _validation(name, fits[name], held_out[name], choice) for name in choice.candidates if choice.folds
+    }
+    model_choice = choose_model(tuple(validations.values())) if choice.model == "auto" else None
+    chosen = model_choice.chosen if model_choice is not None else choice.model
+    for found in emitted[chosen]:  # only the chosen model's warnings are shown
+        warnings.warn_explicit(*found)
+    return replace(fits[chosen], cross_validation=validations.get(chosen), model_choice=model_choice)
+
+
+def _read_only(value, seen=None):
+    """``value`` with every array in it, through its dataclasses and tuples, read-only again (as made: a result that
+    comes back from a worker process is unpickled with writable arrays)."""
+    seen = set() if seen is None else seen
+    if id(value) in seen:
+        return value
+    seen.add(id(value))
+    if isinstance(value, np.ndarray):
+        value.setflags(write=False)
+    elif isinstance(value, tuple | list):
+        for item in value:
+            _read_only(item, seen)
+    elif is_dataclass(value) and not isinstance(value, type):
+        for entry in fields(value):
+            _read_only(getattr(value, entry.name), seen)
+    return value
+
+
+def _validation(model: str, full: RefinementResult, folds: list, choice: ModelChoiceSettings) -> CrossValidation:
+    """The cross-validation record of ``model`` from its full fit and its folds' ``(success, held-out residuals)``."""
+    fold_mse = np.array([float(np.mean(residuals**2)) for _, residuals in folds])
+    pooled = np.concatenate([residuals**2 for _, residuals in folds])
     return CrossValidation(
         model=model,
-        unknowns=len(full.free_names),
-        folds=folds,
-        seed=int(seed),
-        calibration_rms_mm=float(full.residual_rms),
+        unknowns=len(full.identifiability.free_names),
+        folds=choice.folds,
+        seed=int(choice.seed),
+        calibration_rms_mm=float(full.fit.residual_rms),
         cv_rms_mm=float(np.sqrt(pooled.mean())),
         fold_mse_mm2=_frozen(fold_mse),
-        se_mm2=float(fold_mse.std(ddof=1) / np.sqrt(folds)),
-        failed_folds=failed,
+        se_mm2=float(fold_mse.std(ddof=1) / np.sqrt(choice.folds)),
+        failed_folds=sum(not success for success, _ in folds),
     )
 
 

@@ -384,4 +384,4 @@ def refined_targets(result) -> dict | None:
     uncertainty), None when it used the historical single mount."""
     if not result.targets:
         return None
-    return targets_to_dict(result.targets, result.target_uncertainty)
+    return targets_to_dict(result.targets, result.uncertainty.target_uncertainty)

@@ -85,12 +85,13 @@ def refine_provenance(result, capture, start_source: str, *, scenario=None) -> d
     history included."""
     names = result.parameters.robot.parameter_names
     sd = {}
-    for name, value in zip(names, result.standard_uncertainty.ravel(), strict=True):
+    for name, value in zip(names, result.uncertainty.standard_uncertainty.ravel(), strict=True):
         if np.isfinite(value):
             sd[name] = float(np.rad2deg(value)) if name.split(".")[1] in ANGLE_KINDS else float(value)
     joint_model = result.parameters.joint_model
-    if joint_model is not None and result.joint_model_uncertainty is not None:  # k in rad/(N m), the others in deg
-        for name, value in zip(joint_model.names, joint_model.to_display(result.joint_model_uncertainty), strict=True):
+    extra_u = result.uncertainty.joint_model_uncertainty
+    if joint_model is not None and extra_u is not None:  # k in rad/(N m), the others in deg
+        for name, value in zip(joint_model.names, joint_model.to_display(extra_u), strict=True):
             if np.isfinite(value):
                 sd[name] = float(value)
     return {
@@ -102,16 +103,16 @@ def refine_provenance(result, capture, start_source: str, *, scenario=None) -> d
         "capture": capture.source,
         "capture_seed": capture.seed,
         "points": int(capture.n_points),
-        "residuals": result.n_residuals,
+        "residuals": result.fit.n_residuals,
         "scenario": scenario_echo(scenario),
-        "free": list(result.free_names),
+        "free": list(result.identifiability.free_names),
         "base_frame": None
         if result.tracker_from_base is None
-        else ("estimated" if bool(np.any(result.base_free)) else "held"),
-        "gauge": list(result.gauge),
-        "held": list(result.held),
-        "confounded": list(result.confounded),
-        "still_joints": list(result.still_joints),
+        else ("estimated" if bool(np.any(result.identifiability.base_free)) else "held"),
+        "gauge": list(result.identifiability.gauge),
+        "held": list(result.identifiability.held),
+        "confounded": list(result.identifiability.confounded),
+        "still_joints": list(result.identifiability.still_joints),
         "success": result.success,
         "message": result.message,
         "nfev": result.nfev,
@@ -119,27 +120,27 @@ def refine_provenance(result, capture, start_source: str, *, scenario=None) -> d
         "wall_time_s": result.wall_time_s,
         "convergence": {
             "criterion": result.criterion,
-            "cost_mm2": result.cost_history.tolist(),
-            "rms_mm": result.rms_history.tolist(),
+            "cost_mm2": result.fit.cost_history.tolist(),
+            "rms_mm": result.fit.rms_history.tolist(),
         },
-        "residual_rms_mm": result.residual_rms,
-        "residual_mean_mm": result.residual_mean,
-        "residual_max_mm": result.residual_max,
-        "sigma_mm": _finite_or_none(result.sigma),
-        "condition_number": _finite_or_none(result.condition_number),
-        "singular_values": [_finite_or_none(v) for v in result.singular_values],
+        "residual_rms_mm": result.fit.residual_rms,
+        "residual_mean_mm": result.fit.residual_mean,
+        "residual_max_mm": result.fit.residual_max,
+        "sigma_mm": _finite_or_none(result.uncertainty.sigma),
+        "condition_number": _finite_or_none(result.identifiability.condition_number),
+        "singular_values": [_finite_or_none(v) for v in result.identifiability.singular_values],
         "standard_uncertainty": sd,
         "correlation": None
-        if result.correlation is None
+        if result.uncertainty.correlation is None
         else {
-            "names": list(result.free_names),
-            "matrix": [[round(float(v), 12) for v in row] for row in result.correlation],
+            "names": list(result.identifiability.free_names),
+            "matrix": [[round(float(v), 12) for v in row] for row in result.uncertainty.correlation],
         },
         "tracker_from_base": None if result.tracker_from_base is None else result.tracker_from_base.tolist(),
         "base_frame_note": None
         if result.tracker_from_base is not None
         else "the distances criterion has no base frame (pairwise distances do not depend on it)",
-        "weights": "1/u^2 per point, u = U(95) / 2 (k = 2, normal)" if result.weighted else "equal",
+        "weights": "1/u^2 per point, u = U(95) / 2 (k = 2, normal)" if result.fit.weighted else "equal",
         "targets": {
             target.name: {
                 "frame": target.frame,

@@ -408,7 +408,7 @@ def write_measured_folder(
     document["capture"] = {"source": capture, "params": params, "points": n_points}
     document["noise"] = result.noise_source
     document["targets"] = measured_target_rows(result)
-    document["free"] = list(result.reference.free_names)
+    document["free"] = list(result.reference.identifiability.free_names)
     atomic_write_text(folder / "parameters.json", json.dumps(document, indent=2, allow_nan=False) + "\n")
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")

@@ -198,10 +198,10 @@ def refine_stage(
         for name, result in named:
             provenance = refine_provenance(result, fitted, "cpa/parameters.json", scenario=scenario)
             document = parameters_to_dict(
-                result.parameters, provenance, refined_targets(result), result.joint_model_uncertainty
+                result.parameters, provenance, refined_targets(result), result.uncertainty.joint_model_uncertainty
             )
             documents[name] = write_json(folder / name, document)
-    detail = ", ".join(f"{c} RMS {r.rms_history[-1] * 1e3:.1f} um" for c, r in results.items()) + f", model {chosen}"
+    detail = ", ".join(f"{c} RMS {r.fit.rms_history[-1] * 1e3:.1f} um" for c, r in results.items()) + f", model {chosen}"
     value = dict(results)
     if geometric is not None:
         value["geometric"] = geometric
@@ -222,7 +222,7 @@ def evaluate_stage(
     sets = {"nominal": ParameterSet.nominal(scenario.robot), "cpa": cpa, **{c: r.parameters for c, r in refined.items()}}
     rows = api.evaluate({"validation": validation, "capture": capture}, sets, scenario)
     histories = {
-        c: {"criterion": r.criterion, "cost_mm2": r.cost_history.tolist(), "rms_mm": r.rms_history.tolist()}
+        c: {"criterion": r.criterion, "cost_mm2": r.fit.cost_history.tolist(), "rms_mm": r.fit.rms_history.tolist()}
         for c, r in refined.items()
     }
     document = evaluation_document(

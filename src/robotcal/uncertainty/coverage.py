@@ -230,7 +230,7 @@ def coverage_study(
     """
     with single_blas_thread():
         from robotcal.identification.cpa import identify_cpa
-        from robotcal.identification.refine import refine_parameters
+        from robotcal.identification.refine import RefinementSettings, refine_parameters
         from robotcal.simulation.generator import simulate_capture
         from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
         from robotcal.uncertainty.tcp import tcp_coordinates
@@ -292,9 +292,10 @@ def coverage_study(
                     capture, robot, plan.reflector, tracker_from_base=held_base, options=options
                 ).parameters
                 refined = refine_parameters(
-                    capture, cpa, plan.reflector, criterion=criterion, tracker_from_base=held_base
-                )
-            mask = cpa.identified & refined.free
+                    capture, cpa, plan.reflector, tracker_from_base=held_base,
+                    settings=RefinementSettings(criterion=criterion),
+                )  # fmt: skip
+            mask = cpa.identified & refined.identifiability.free
             if checked is None:
                 checked = mask
             elif not np.array_equal(mask, checked):
@@ -312,7 +313,7 @@ def coverage_study(
             truth_values = truth.values[checked]
             for method in methods:
                 if method == "refined-linearised":
-                    u = refined.standard_uncertainty
+                    u = refined.uncertainty.standard_uncertainty
                     low, high = refined.parameters.values - z * u, refined.parameters.values + z * u
                     result = None
                 else:
@@ -489,7 +490,7 @@ def extended_coverage_study(
                     joint_model=structure,
                 )  # fmt: skip
                 result = run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
-            mask = np.r_[(result.identified & refined.free).ravel(), result.extra_identified]
+            mask = np.r_[(result.identified & refined.identifiability.free).ravel(), result.extra_identified]
             if checked is None:
                 checked = mask
             elif not np.array_equal(mask, checked):

@@ -69,6 +69,7 @@ from robotcal.geometry.transforms import apply_transform
 from robotcal.identification.refine import (
     CRITERIA,
     RefinementResult,
+    RefinementSettings,
     capture_turning_joints,
     point_sigmas,
     refine_parameters,
@@ -294,18 +295,16 @@ def prepare_measured(
         )
     noise_sd, instrument, source = _noise_model(capture, instrument)
     reflector = _with_offsets(reflector, offsets)
-    options: dict = {"criterion": criterion, "weights": weights}
-    if criterion == "points":
-        options["tracker_from_base"] = tracker_from_base
-        if estimate_base:
-            options["estimate_base"] = True
+    base = True if criterion == "points" and estimate_base else None
+    settings = RefinementSettings(criterion=criterion, weights=weights, estimate_base=base)
+    options: dict = {"settings": settings, "tracker_from_base": tracker_from_base if criterion == "points" else None}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)  # the user saw them when refining
         reference = refine_parameters(capture, estimate, reflector, **options)
     if not reference.success:
         raise RobotcalError(f"{capture.source}: the refinement from the estimate did not converge: {reference.message}")
-    shift = np.abs(wrap_angles(reference.parameters.values - estimate.values))[reference.free]
-    scale = np.asarray(reference.standard_uncertainty)[reference.free]
+    shift = np.abs(wrap_angles(reference.parameters.values - estimate.values))[reference.identifiability.free]
+    scale = np.asarray(reference.uncertainty.standard_uncertainty)[reference.identifiability.free]
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = shift / scale
     moved = float(ratio[np.isfinite(ratio)].max()) if np.isfinite(ratio).any() else 0.0
@@ -323,7 +322,7 @@ def prepare_measured(
         tracker = reference.tracker_from_base
         # every draw starts from the reference's base frame; estimated again where the reference estimated it
         options["tracker_from_base"] = tracker
-        options["estimate_base"] = bool(np.any(reference.base_free))
+        options["settings"] = replace(settings, estimate_base=bool(np.any(reference.identifiability.base_free)))
     else:  # distances: no base frame; any rigid placement gives the same distances
         tracker = register_points(predicted, capture.points).transform
     exact = apply_transform(tracker, predicted)
@@ -361,7 +360,7 @@ def _refine_draw(problem: MeasuredProblem, points: np.ndarray) -> tuple[np.ndarr
             )
     except (RobotcalError, np.linalg.LinAlgError, ValueError):
         return None
-    if not result.success or result.free_names != reference.free_names:
+    if not result.success or result.identifiability.free_names != reference.identifiability.free_names:
         return None
     offsets = np.array([t.positions for t in result.targets if not t.known], dtype=float).reshape(-1, 3)
     return result.parameters.values, offsets
@@ -401,7 +400,7 @@ def stated_point_u(problem: MeasuredProblem) -> float:
 
 def _noise_rescale(problem: MeasuredProblem) -> float:
     """``u_stated / sigma_hat``: the factor on the reference's linearised u (module notes); 1 without sigma-hat."""
-    sigma = float(problem.reference.sigma)
+    sigma = float(problem.reference.uncertainty.sigma)
     if not np.isfinite(sigma) or sigma <= 0.0:
         return 1.0
     return stated_point_u(problem) / sigma
@@ -412,12 +411,12 @@ def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: Mont
     embedded joint-major, with the JCGM 101 §8.2 comparison."""
     reference = problem.reference
     n = problem.robot.n_joints
-    free = np.asarray(reference.free).reshape(-1)
+    free = np.asarray(reference.identifiability.free).reshape(-1)
     index = np.flatnonzero(free)
     covariance = np.zeros((5 * n, 5 * n))
-    if reference.covariance is not None:
+    if reference.uncertainty.covariance is not None:
         covariance[np.ix_(index, index)] = (
-            reference.covariance[: index.size, : index.size] * _noise_rescale(problem) ** 2
+            reference.uncertainty.covariance[: index.size, : index.size] * _noise_rescale(problem) ** 2
         )
     else:
         covariance[np.ix_(index, index)] = np.nan
@@ -428,7 +427,7 @@ def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: Mont
     tolerance = numerical_tolerance(np.nan_to_num(std), COMPARISON_NDIG)
     mc_low, mc_high = summary.interval(settings.interval)
     difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
-    agrees = (difference <= tolerance) | ~np.asarray(reference.free)
+    agrees = (difference <= tolerance) | ~np.asarray(reference.identifiability.free)
     return LinearisedResult(
         estimate=estimate,
         covariance=covariance,
@@ -494,7 +493,7 @@ def measured_monte_carlo(
             if offsets is None and estimate.targets:
                 offsets = {t.name: t.positions for t in estimate.targets if not t.known}
             if estimate.tracker_from_base is not None and tracker_from_base is not None:
-                estimate_base = estimate_base or bool(np.any(estimate.base_free))
+                estimate_base = estimate_base or bool(np.any(estimate.identifiability.base_free))
             estimate = estimate.parameters
         criterion = "points" if criterion is None else criterion
         started = time.perf_counter()
@@ -529,7 +528,7 @@ def measured_monte_carlo(
             raise RobotcalError(f"only {draws.shape[0]} of {good.size} draws converged: no statistics can be made")
         draw_time = time.perf_counter() - started
         reference = problem.reference
-        identified = np.asarray(reference.free, dtype=bool)
+        identified = np.asarray(reference.identifiability.free, dtype=bool)
         summary = summarize_draws(draws, settings.coverage)
         covariance, correlation = draw_covariance(draws, identified)
         linear = _linearised(problem, summary, settings)
@@ -562,8 +561,8 @@ def measured_monte_carlo(
         unknown = problem.unknown_targets
         rows = [k for k, t in enumerate(reference.targets) if not t.known]
         target_u = (
-            np.asarray(reference.target_uncertainty)[rows] * _noise_rescale(problem)
-            if reference.target_uncertainty is not None
+            np.asarray(reference.uncertainty.target_uncertainty)[rows] * _noise_rescale(problem)
+            if reference.uncertainty.target_uncertainty is not None
             else np.zeros((0, 3))
         )
         return MeasuredMonteCarloResult(
@@ -576,7 +575,7 @@ def measured_monte_carlo(
             noise_source=problem.noise_source,
             reference=reference,
             stated_u_mm=stated_point_u(problem),
-            residual_sigma_mm=float(reference.sigma),
+            residual_sigma_mm=float(reference.uncertainty.sigma),
         )
 
 

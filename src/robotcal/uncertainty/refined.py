@@ -70,6 +70,7 @@ from robotcal.geometry._vectors import cross as _cross
 from robotcal.geometry.transforms import rot_z
 from robotcal.identification.refine import (
     CRITERIA,
+    RefinementSettings,
     base_correction,
     capture_target_index,
     capture_turning_joints,
@@ -243,9 +244,8 @@ def prepare_refined_model(
             capture,
             start.geometric(),
             reflector,
-            criterion=criterion,
+            settings=RefinementSettings(criterion=criterion, estimate_base=estimate_base),
             tracker_from_base=tracker_from_base if criterion == "points" else None,
-            estimate_base=estimate_base,
             joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
         )
     commanded = start.robot.model_joint_variables(capture.readings)
@@ -272,9 +272,9 @@ def prepare_refined_model(
     extra_free = np.zeros(0, dtype=bool) if fitted is None else np.array(fitted.identified, dtype=bool)
     return RefinedModel(
         criterion=criterion,
-        free=_frozen(result.free, bool),
-        base_free=_frozen(result.base_free, bool),
-        x_scale=_frozen(result.x_scale),
+        free=_frozen(result.identifiability.free, bool),
+        base_free=_frozen(result.identifiability.base_free, bool),
+        x_scale=_frozen(result.identifiability.x_scale),
         q=_frozen(q),
         carrier=_frozen(carrier, int),
         vectors=_frozen(vectors),
@@ -282,8 +282,8 @@ def prepare_refined_model(
         pair_j=None if pair_j is None else _frozen(pair_j, int),
         reference_values=_frozen(result.parameters.values),
         reference_tracker=None if result.tracker_from_base is None else _frozen(result.tracker_from_base),
-        held=tuple(result.held),
-        free_names=tuple(result.free_names),
+        held=tuple(result.identifiability.held),
+        free_names=tuple(result.identifiability.free_names),
         groups=groups,
         sorted_i=sorted_i,
         sorted_j=sorted_j,

@@ -157,9 +157,9 @@ def test_round_trip_simulate_identify_refine(tmp_path, truth, start_deg, bidirec
         warnings.simplefilter("ignore")  # J6's d, theta, a, alpha are not seen by per-circle reflectors (held)
         refined = refine_parameters(capture, cpa.parameters, reflector, tracker_from_base=scenario.tracker_from_base)
     assert refined.success, refined.message
-    assert refined.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")
+    assert refined.identifiability.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")
     difference = np.abs(refined.parameters.values - truth.values)
-    assert difference[refined.free].max() <= REFINE_TOL
+    assert difference[refined.identifiability.free].max() <= REFINE_TOL
 
 
 def test_cpa_refuses_a_circle_of_j2_that_sweeps_its_reading_alone(tmp_path, truth):

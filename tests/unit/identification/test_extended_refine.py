@@ -77,7 +77,7 @@ def test_noise_free_recovery_of_compliance_and_harmonics(kr5):
     with warnings.catch_warnings():
         warnings.simplefilter("error", IdentifiabilityWarning)  # every parameter is determined
         result = refine_parameters(capture, start, TARGETS, tracker_from_base=TRACKER)
-    assert result.success and result.model == "compliance+harmonic" and result.held == ()
+    assert result.success and result.model == "compliance+harmonic" and result.identifiability.held == ()
     difference = result.parameters.difference(truth)
     difference[:, 1:] = np.rad2deg(difference[:, 1:])
     assert np.abs(difference).max() <= 1e-8  # mm, deg

@@ -9,10 +9,13 @@ import warnings
 import numpy as np
 import pytest
 
+import refine_options
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.identification import identify_cpa
-from robotcal.identification.refine import _Problem, measurement_pairs, refine_parameters
+from robotcal.identification._problem import Problem, measurement_pairs
+from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot, load_scenario
 from robotcal.io.provenance import refine_provenance
@@ -55,7 +58,7 @@ def _capture(plan, truth=TRUTH, instrument=EXACT, seed=1):
 def _refine(*args, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        return refine_parameters(*args, **kwargs)
+        return refine_options.refine(*args, **kwargs)
 
 
 def _problem(capture, start, criterion, free=None, base_free=True):
@@ -64,7 +67,7 @@ def _problem(capture, start, criterion, free=None, base_free=True):
     if criterion == "distances":
         pair_i, pair_j, keep = measurement_pairs(capture.readings)
         distances = np.linalg.norm(capture.points[pair_i] - capture.points[pair_j], axis=1)
-    return _Problem(
+    return Problem(
         start=start.values.copy(),
         free=free,
         base_start=TRACKER if criterion == "points" else None,
@@ -126,15 +129,15 @@ def test_noise_free_recovery_of_every_identifiable_parameter(criterion, start_ki
     else:
         start = identify_cpa(capture, ROBOT, plan.reflector, tracker_from_base=TRACKER).parameters
     with pytest.warns(IdentifiabilityWarning, match="J6.alpha"):
-        result = refine_parameters(capture, start, plan.reflector, criterion=criterion)
+        result = refine_parameters(capture, start, plan.reflector, settings=RefinementSettings(criterion=criterion))
     assert result.success, result.message
     assert result.njev <= 50
-    assert result.gauge == ("J1.d", "J1.theta")
-    assert result.held == ("J6.alpha",)  # flange target: one of J6's d, theta, a, alpha is not seen
+    assert result.identifiability.gauge == ("J1.d", "J1.theta")
+    assert result.identifiability.held == ("J6.alpha",)  # flange target: one of J6's d, theta, a, alpha is not seen
     difference = np.abs(result.parameters.difference(TRUTH))
-    assert np.all(difference[result.free] <= np.broadcast_to(TOLERANCE, difference.shape)[result.free])
-    assert result.cost_history[-1] < 1e-16
-    assert result.cost_history[0] >= result.cost_history[-1]
+    assert np.all((difference <= np.broadcast_to(TOLERANCE, difference.shape))[result.identifiability.free])
+    assert result.fit.cost_history[-1] < 1e-16
+    assert result.fit.cost_history[0] >= result.fit.cost_history[-1]
     if criterion == "points":
         np.testing.assert_allclose(result.tracker_from_base, TRACKER, atol=1e-8)
 
@@ -151,7 +154,7 @@ def test_noise_free_recovery_with_perturbed_joint6(criterion):
     capture = _capture(plan, truth=truth)
     result = _refine(capture, ParameterSet.nominal(ROBOT), plan.reflector, criterion=criterion)
     assert result.success, result.message
-    assert result.held == ("J6.alpha",)
+    assert result.identifiability.held == ("J6.alpha",)
     q = ROBOT.model_joint_variables(random_poses(ROBOT, 50, rng=5))
     turning = np.zeros(50, int)
     predicted = target_positions(result.parameters.values, q, turning, plan.reflector)
@@ -171,15 +174,15 @@ def test_noise_free_recovery_with_per_joint_reflectors(criterion):
     capture = _capture(JOINT_PLAN, truth=truth)
     result = _refine(capture, ParameterSet.nominal(ROBOT), JOINT_PLAN.reflector, criterion=criterion)
     assert result.success, result.message
-    assert result.gauge == () and result.confounded == ()
-    assert result.free[0, 0] and result.free[0, 1]
+    assert result.identifiability.gauge == () and result.identifiability.confounded == ()
+    assert result.identifiability.free[0, 0] and result.identifiability.free[0, 1]
     # circle 6's target turns with q6 in frame {5}: J6's own d, theta, a, alpha never enter
-    assert result.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")
+    assert result.identifiability.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")
     difference = np.abs(result.parameters.difference(truth))
-    assert np.all(difference[result.free] <= np.broadcast_to(TOLERANCE, difference.shape)[result.free])
+    assert np.all((difference <= np.broadcast_to(TOLERANCE, difference.shape))[result.identifiability.free])
     if criterion == "distances":
         # no pair is left out: no point is measured twice on the same target
-        assert result.n_residuals == capture.n_points * (capture.n_points - 1) // 2
+        assert result.fit.n_residuals == capture.n_points * (capture.n_points - 1) // 2
 
 
 def test_pairs_of_different_targets_at_the_same_readings_are_kept():
@@ -213,11 +216,11 @@ def test_no_degrees_of_freedom_left_gives_nan_sigma_and_no_covariance(criterion)
     readings = random_poses(ROBOT, 6, rng=4)
     capture, _ = simulate_poses(ROBOT, readings, FULL_PLAN.reflector, EXACT, TRACKER, true_parameters=TRUTH)
     result = _refine(capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector, criterion=criterion)
-    assert np.isnan(result.sigma)
-    assert result.covariance is None and result.correlation is None
-    assert np.all(np.isnan(result.standard_uncertainty))
+    assert np.isnan(result.uncertainty.sigma)
+    assert result.uncertainty.covariance is None and result.uncertainty.correlation is None
+    assert np.all(np.isnan(result.uncertainty.standard_uncertainty))
     assert result.message.startswith("no degrees of freedom left to estimate the noise")
-    assert f"{result.n_residuals} residuals" in result.message
+    assert f"{result.fit.n_residuals} residuals" in result.message
     # the parameter JSON's provenance turns the undefined figures into null instead of failing
     scenario = load_scenario("thesis-laser-tracker")
     provenance = refine_provenance(result, capture, "nominal", scenario=scenario)
@@ -231,9 +234,10 @@ def test_points_criterion_with_known_base_frees_d1_theta1():
     result = _refine(
         capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector, tracker_from_base=TRACKER, estimate_base=False
     )
-    assert result.gauge == () and result.free[0, 0] and result.free[0, 1]
+    free = result.identifiability.free
+    assert result.identifiability.gauge == () and free[0, 0] and free[0, 1]
     difference = np.abs(result.parameters.difference(truth))
-    assert np.all(difference[result.free] <= np.broadcast_to(TOLERANCE, difference.shape)[result.free])
+    assert np.all((difference <= np.broadcast_to(TOLERANCE, difference.shape))[result.identifiability.free])
 
 
 def test_points_criterion_base_absorbs_the_d1_theta1_gauge():
@@ -262,10 +266,10 @@ def test_joint_that_never_moves_is_named_and_its_parameters_held():
     capture = _still_joint_capture()
     with pytest.warns(IdentifiabilityWarning, match=r"never move in the capture: J4") as record:
         result = refine_parameters(capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector)
-    assert result.still_joints == ("J4",)
-    assert any(name.startswith(("J3.", "J4.", "J5.")) for name in result.held)
-    assert all(name in str(record[0].message) for name in result.held)
-    assert np.isfinite(result.condition_number)
+    assert result.identifiability.still_joints == ("J4",)
+    assert any(name.startswith(("J3.", "J4.", "J5.")) for name in result.identifiability.held)
+    assert all(name in str(record[0].message) for name in result.identifiability.held)
+    assert np.isfinite(result.identifiability.condition_number)
 
 
 def test_rank_deficiency_raises_when_free_set_is_explicit_or_strict():
@@ -273,24 +277,39 @@ def test_rank_deficiency_raises_when_free_set_is_explicit_or_strict():
     free = ~ROBOT.structurally_fixed
     free[0, :2] = False
     with pytest.raises(IdentifiabilityError, match="J4") as info:
-        refine_parameters(capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector, free=free)
+        refine_parameters(
+            capture,
+            ParameterSet.nominal(ROBOT),
+            FULL_PLAN.reflector,
+            settings=RefinementSettings(free=free),
+        )
     assert "J6.alpha" in info.value.parameters and len(info.value.parameters) >= 3
     with pytest.raises(IdentifiabilityError):
-        refine_parameters(capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector, on_unidentifiable="raise")
+        refine_parameters(
+            capture,
+            ParameterSet.nominal(ROBOT),
+            FULL_PLAN.reflector,
+            settings=RefinementSettings(on_unidentifiable="raise"),
+        )
 
 
 def test_gauge_parameter_cannot_be_freed():
     capture = _capture(SMALL_PLAN)
     with pytest.raises(IdentifiabilityError, match="rigid motion of the base") as info:
-        refine_parameters(capture, TRUTH, SMALL_PLAN.reflector, criterion="distances", free=["J1.d", "J2.a"])
+        refine_parameters(
+            capture,
+            TRUTH,
+            SMALL_PLAN.reflector,
+            settings=RefinementSettings(criterion="distances", free=["J1.d", "J2.a"]),
+        )
     assert info.value.parameters == ("J1.d",)
 
 
 def test_free_by_name_refines_only_those():
     capture = _capture(SMALL_PLAN)
     start = TRUTH.replace(values=TRUTH.values + np.where(np.arange(5) == 2, 0.1, 0.0) * (np.arange(6) == 2)[:, None])
-    result = refine_parameters(capture, start, SMALL_PLAN.reflector, free=["J3.a"])
-    assert result.free_names[0] == "J3.a" and result.free.sum() == 1
+    result = refine_parameters(capture, start, SMALL_PLAN.reflector, settings=RefinementSettings(free=["J3.a"]))
+    assert result.identifiability.free_names[0] == "J3.a" and result.identifiability.free.sum() == 1
     np.testing.assert_allclose(result.parameters.values, TRUTH.values, atol=1e-9)
 
 
@@ -308,7 +327,7 @@ def test_free_by_name_refines_only_those():
 def test_refine_validation(kwargs, message):
     capture = _capture(SMALL_PLAN)
     with pytest.raises(InputError, match=message):
-        refine_parameters(capture, TRUTH, SMALL_PLAN.reflector, **kwargs)
+        refine_options.refine(capture, TRUTH, SMALL_PLAN.reflector, **kwargs)
 
 
 def test_free_poses_need_a_flange_target():
@@ -340,10 +359,11 @@ def _check_noise(plan, seed):
         result = _refine(capture, start, plan.reflector, criterion=criterion)
         refined_error = point_errors(validation, result.parameters, plan.reflector).mean()
         assert refined_error <= 0.2 * nominal_error  # >= 80 % better than nominal
-        z = result.parameters.difference(TRUTH)[result.free] / result.standard_uncertainty[result.free]
+        free = result.identifiability.free
+        z = result.parameters.difference(TRUTH)[free] / result.uncertainty.standard_uncertainty[free]
         assert np.all(np.abs(z) < 3.0), (criterion, np.abs(z).max())
         # uniform noise +-(10 + 2.5 L) um with L ~ 2 m: sigma = 15 um / sqrt(3) ~ 8.7 um per coordinate
-        assert 0.006 < result.sigma < 0.012
+        assert 0.006 < result.uncertainty.sigma < 0.012
 
 
 def test_noise_small_capture_improves_and_truth_within_3_sigma():
@@ -359,7 +379,7 @@ def test_noise_thesis_test2_capture_improves_and_truth_within_3_sigma():
 def test_noise_free_recovery_distances_on_580_points():
     capture = _capture(FULL_PLAN)
     result = _refine(capture, ParameterSet.nominal(ROBOT), FULL_PLAN.reflector, criterion="distances")
-    assert result.n_residuals == 580 * 579 // 2 - 290  # forward/return twins at one pose carry no information
+    assert result.fit.n_residuals == 580 * 579 // 2 - 290  # forward/return twins at one pose carry no information
     assert result.njev <= 50
     difference = np.abs(result.parameters.difference(TRUTH))
-    assert np.all(difference[result.free] <= np.broadcast_to(TOLERANCE, difference.shape)[result.free])
+    assert np.all((difference <= np.broadcast_to(TOLERANCE, difference.shape))[result.identifiability.free])

@@ -16,12 +16,14 @@ import pytest
 from scipy.optimize import OptimizeResult
 from typer.testing import CliRunner
 
+import refine_options
 import robotcal.identification.refine as refine_module
 from robotcal.api import identify, refine, simulate
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.identification import identify_cpa
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot, load_scenario
 from robotcal.io.provenance import refine_provenance
@@ -79,13 +81,13 @@ def _capture(reflector, truth, *, drop_circle=None):
 def _refine(*args, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
-        return refine_parameters(*args, **kwargs)
+        return refine_options.refine(*args, **kwargs)
 
 
 def _determined(result):
     """Free parameters whose value the data fix on their own (not tied to a held one)."""
     names = np.array(ROBOT.parameter_names).reshape(6, 5)
-    return result.free & ~np.isin(names, result.confounded)
+    return result.identifiability.free & ~np.isin(names, result.identifiability.confounded)
 
 
 def _assert_exact(result, truth):
@@ -106,12 +108,12 @@ def test_per_joint_reflectors_base_given_recover_all_20_from_nominal(criterion):
     assert np.abs(cpa.difference(truth))[perturbable_mask(ROBOT, include_base=True)].max() < 1e-9
     result = _refine(capture, ParameterSet.nominal(ROBOT), JOINT, criterion=criterion, tracker_from_base=TRACKER)
     assert result.success, result.message
-    assert result.gauge == () and result.confounded == ()
-    assert result.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")  # behind their own reflector: no column
-    assert not result.base_free.any()  # base given: held (points), absent (distances)
+    assert result.identifiability.gauge == () and result.identifiability.confounded == ()
+    assert result.identifiability.held == ("J6.d", "J6.theta", "J6.a", "J6.alpha")  # behind their own reflector: no column
+    assert not result.identifiability.base_free.any()  # base given: held (points), absent (distances)
     _assert_exact(result, truth)
-    assert result.free[0, 0] and result.free[0, 1]
-    assert result.residual_max < 1e-9  # noise-free: the residual vanishes (it was 3 um with the old gauge)
+    assert result.identifiability.free[0, 0] and result.identifiability.free[0, 1]
+    assert result.fit.residual_max < 1e-9  # noise-free: the residual vanishes (it was 3 um with the old gauge)
 
 
 # -- flange target: the gauge depends on the base-frame mode, found from the data ----------------------
@@ -121,26 +123,26 @@ def test_flange_target_free_base_holds_d1_theta1_as_gauge_and_keeps_the_base():
     truth = _truth(2)
     capture = _capture(FLANGE, truth)
     result = _refine(capture, ParameterSet.nominal(ROBOT), FLANGE)  # no tracker given: estimated
-    assert result.base_free.all()
-    assert result.gauge == ("J1.d", "J1.theta")
-    assert result.held == ("J6.alpha",)  # the flange target is 3 numbers for J6's d, theta, a, alpha
+    assert result.identifiability.base_free.all()
+    assert result.identifiability.gauge == ("J1.d", "J1.theta")
+    assert result.identifiability.held == ("J6.alpha",)  # the flange target is 3 numbers for J6's d, theta, a, alpha
     # the base takes up the held d1/theta1 (translation along, rotation about z0); J6's d, theta, a alpha6
-    assert set(result.confounded) == {"J6.d", "J6.theta", "J6.a", "base.tx", "base.ty", "base.tz"} | {
+    assert set(result.identifiability.confounded) == {"J6.d", "J6.theta", "J6.a", "base.tx", "base.ty", "base.tz"} | {
         "base.rx",
         "base.ry",
         "base.rz",
     }
     _assert_exact(result, truth)
     np.testing.assert_array_equal(result.parameters.values[0, :2], ROBOT.nominal[0, :2])  # held at the start
-    assert result.residual_max < 1e-9  # the predicted cloud still matches
+    assert result.fit.residual_max < 1e-9  # the predicted cloud still matches
 
 
 def test_flange_target_with_given_base_frees_d1_theta1():
     truth = _truth(2)
     capture = _capture(FLANGE, truth)
     result = _refine(capture, ParameterSet.nominal(ROBOT), FLANGE, tracker_from_base=TRACKER)
-    assert not result.base_free.any() and result.gauge == ()
-    assert result.free[0, 0] and result.free[0, 1]
+    assert not result.identifiability.base_free.any() and result.identifiability.gauge == ()
+    assert result.identifiability.free[0, 0] and result.identifiability.free[0, 1]
     _assert_exact(result, truth)
     np.testing.assert_array_equal(result.tracker_from_base, TRACKER)  # held exactly
 
@@ -149,9 +151,14 @@ def test_flange_target_distances_cannot_see_d1_theta1():
     truth = _truth(2)
     capture = _capture(FLANGE, truth)
     with pytest.warns(IdentifiabilityWarning, match=r"J1\.d, J1\.theta move the whole point cloud rigidly"):
-        result = refine_parameters(capture, ParameterSet.nominal(ROBOT), FLANGE, criterion="distances")
-    assert result.gauge == ("J1.d", "J1.theta") and result.held == ("J6.alpha",)
-    assert set(result.confounded) == {"J6.d", "J6.theta", "J6.a"}
+        result = refine_parameters(
+            capture,
+            ParameterSet.nominal(ROBOT),
+            FLANGE,
+            settings=RefinementSettings(criterion="distances"),
+        )
+    assert result.identifiability.gauge == ("J1.d", "J1.theta") and result.identifiability.held == ("J6.alpha",)
+    assert set(result.identifiability.confounded) == {"J6.d", "J6.theta", "J6.a"}
     _assert_exact(result, truth)
 
 
@@ -162,9 +169,9 @@ def test_joint6_never_moving_behind_per_joint_reflectors():
     truth = _truth(3)
     capture = _capture(JOINT, truth, drop_circle=6)
     result = _refine(capture, ParameterSet.nominal(ROBOT), JOINT, criterion="points", tracker_from_base=TRACKER)
-    assert result.still_joints == ("J6",)
+    assert result.identifiability.still_joints == ("J6",)
     # J5's d, theta, a, alpha only move circle 6's target; J6's never enter
-    assert result.held == tuple(f"J{j}.{p}" for j in (5, 6) for p in ("d", "theta", "a", "alpha"))
+    assert result.identifiability.held == tuple(f"J{j}.{p}" for j in (5, 6) for p in ("d", "theta", "a", "alpha"))
     _assert_exact(result, truth)
 
 
@@ -174,21 +181,26 @@ def test_joint6_never_moving_behind_a_flange_target():
     with pytest.warns(IdentifiabilityWarning, match="never move in the capture: J6"):
         result = refine_parameters(capture, ParameterSet.nominal(ROBOT), FLANGE, tracker_from_base=TRACKER)
     # frame 5 carries a fixed point: 3 numbers for J5's d, theta, a, alpha and J6's four
-    assert result.held == ("J5.alpha", "J6.d", "J6.theta", "J6.a", "J6.alpha")
-    assert set(result.confounded) == {"J5.d", "J5.theta", "J5.a"}
+    assert result.identifiability.held == ("J5.alpha", "J6.d", "J6.theta", "J6.a", "J6.alpha")
+    assert set(result.identifiability.confounded) == {"J5.d", "J5.theta", "J5.a"}
     _assert_exact(result, truth)
-    assert result.residual_max < 1e-9
+    assert result.fit.residual_max < 1e-9
 
 
 def test_joint1_never_moving_behind_a_flange_target_with_free_base_is_all_gauge():
     truth = _truth(4)
     capture = _capture(FLANGE, truth, drop_circle=1)
     result = _refine(capture, ParameterSet.nominal(ROBOT), FLANGE)
-    assert result.still_joints == ("J1",)
-    assert {"J1.d", "J1.theta", "J1.a", "J1.alpha"} <= set(result.gauge)  # frame 1 is a base motion
-    assert result.residual_max < 1e-9
+    assert result.identifiability.still_joints == ("J1",)
+    assert {"J1.d", "J1.theta", "J1.a", "J1.alpha"} <= set(result.identifiability.gauge)  # frame 1 is a base motion
+    assert result.fit.residual_max < 1e-9
     with pytest.raises(IdentifiabilityError, match="rigid motion of the base") as info:
-        refine_parameters(capture, ParameterSet.nominal(ROBOT), FLANGE, on_unidentifiable="raise")
+        refine_parameters(
+            capture,
+            ParameterSet.nominal(ROBOT),
+            FLANGE,
+            settings=RefinementSettings(on_unidentifiable="raise"),
+        )
     assert info.value.parameters[:4] == ("J1.d", "J1.theta", "J1.a", "J1.alpha")
 
 
@@ -206,11 +218,15 @@ def test_base_correction_the_data_cannot_determine_is_held():
     )
     with pytest.warns(IdentifiabilityWarning, match="base.rx, base.ry, base.rz"):
         result = refine_parameters(
-            single, ParameterSet.nominal(ROBOT), on_axis, tracker_from_base=TRACKER, estimate_base=True
+            single,
+            ParameterSet.nominal(ROBOT),
+            on_axis,
+            tracker_from_base=TRACKER,
+            settings=RefinementSettings(estimate_base=True),
         )
-    np.testing.assert_array_equal(result.base_free, [True, True, True, False, False, False])
-    assert result.held[-3:] == ("base.rx", "base.ry", "base.rz")
-    assert result.residual_max < 1e-9
+    np.testing.assert_array_equal(result.identifiability.base_free, [True, True, True, False, False, False])
+    assert result.identifiability.held[-3:] == ("base.rx", "base.ry", "base.rz")
+    assert result.fit.residual_max < 1e-9
 
 
 # -- the scenario's base frame ------------------------------------------------------------------------
@@ -231,18 +247,18 @@ def test_given_base_frame_is_held_unless_estimation_is_asked(seed7):
     scenario, capture, cpa = seed7
     assert scenario.identification.base_frame == "given"
     held = _scenario_refine(capture, scenario, cpa)
-    assert not held.base_free.any()
+    assert not held.identifiability.base_free.any()
     np.testing.assert_array_equal(held.tracker_from_base, scenario.tracker_from_base)
-    assert "base." not in " ".join(held.free_names)
+    assert "base." not in " ".join(held.identifiability.free_names)
     estimated = _scenario_refine(capture, scenario, cpa, estimate_base=True)
-    assert estimated.base_free.all() and not np.array_equal(estimated.tracker_from_base, scenario.tracker_from_base)
+    assert estimated.identifiability.base_free.all() and not np.array_equal(estimated.tracker_from_base, scenario.tracker_from_base)
     provenance = refine_provenance(held, capture, "cpa", scenario=scenario)
     assert provenance["base_frame"] == "held" and provenance["gauge"] == [] and provenance["confounded"] == []
     assert refine_provenance(estimated, capture, "cpa", scenario=scenario)["base_frame"] == "estimated"
     registered = dataclasses.replace(
         scenario, identification=dataclasses.replace(scenario.identification, base_frame="registered")
     )
-    assert _scenario_refine(capture, registered, cpa).base_free.all()
+    assert _scenario_refine(capture, registered, cpa).identifiability.base_free.all()
 
 
 def _scenario_refine(capture, scenario, start, **options):
@@ -263,13 +279,13 @@ def test_seed7_cpa_start_is_no_worse_than_nominal_start(seed7, criterion, option
     )
     assert from_cpa.success and from_nominal.success
     # the same minimum: costs equal to rounding, parameters to 1e-6 (mm, rad)
-    assert from_cpa.cost_history[-1] <= from_nominal.cost_history[-1] * (1 + 1e-9)
+    assert from_cpa.fit.cost_history[-1] <= from_nominal.fit.cost_history[-1] * (1 + 1e-9)
     np.testing.assert_allclose(from_cpa.parameters.values, from_nominal.parameters.values, rtol=0, atol=1e-6)
     # the true parameters (nominal) fit the capture no better than the refined ones
     truth_fit = _scenario_refine(capture, scenario, ParameterSet.nominal(scenario.robot), criterion=criterion, **options)
-    assert from_cpa.cost_history[-1] <= truth_fit.start_cost
+    assert from_cpa.fit.cost_history[-1] <= truth_fit.fit.start_cost
     error = ParameterSet.nominal(scenario.robot).difference(from_cpa.parameters)[0, 2]
-    assert abs(error) < 3.0 * from_cpa.standard_uncertainty[0, 2]  # J1.a within 3 u of the truth
+    assert abs(error) < 3.0 * from_cpa.uncertainty.standard_uncertainty[0, 2]  # J1.a within 3 u of the truth
 
 
 @pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")  # J6 behind its own target
@@ -315,9 +331,9 @@ def test_cli_estimate_base_flag(tmp_path):
 def test_estimate_base_validation():
     capture = _capture(JOINT, _truth(6))
     with pytest.raises(InputError, match="give `tracker_from_base`"):
-        refine_parameters(capture, ParameterSet.nominal(ROBOT), JOINT, estimate_base=False)
+        refine_parameters(capture, ParameterSet.nominal(ROBOT), JOINT, settings=RefinementSettings(estimate_base=False))
     with pytest.raises(InputError, match="`estimate_base` must be"):
-        refine_parameters(capture, ParameterSet.nominal(ROBOT), JOINT, estimate_base="yes")
+        refine_parameters(capture, ParameterSet.nominal(ROBOT), JOINT, settings=RefinementSettings(estimate_base="yes"))
 
 
 # -- never worse than the start -----------------------------------------------------------------------
@@ -338,4 +354,4 @@ def test_a_solver_ending_above_the_start_cost_returns_the_start(monkeypatch):
     assert not result.success
     assert result.message.startswith("the solver ended at a higher cost")
     np.testing.assert_array_equal(result.parameters.values, start.values)
-    assert result.cost_history[-1] == result.start_cost
+    assert result.fit.cost_history[-1] == result.fit.start_cost

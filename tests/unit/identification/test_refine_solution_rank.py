@@ -21,9 +21,11 @@ import warnings
 import numpy as np
 import pytest
 
+import refine_options
 import robotcal.identification.refine as refine_module
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot
@@ -65,13 +67,13 @@ def _circles(reflector, truth):
 
 
 def _determined(result):
-    return result.free & ~np.isin(NAMES, result.confounded)
+    return result.identifiability.free & ~np.isin(NAMES, result.identifiability.confounded)
 
 
 def _refine(*args, **kwargs):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentifiabilityWarning)
-        result = refine_parameters(*args, **kwargs)
+        result = refine_options.refine(*args, **kwargs)
     return result, [str(w.message) for w in caught if issubclass(w.category, IdentifiabilityWarning)]
 
 
@@ -84,17 +86,17 @@ def test_a_parameter_held_at_the_nominal_and_determined_at_the_truth_is_freed_at
     # the construction: the rank test at the nominal start alone holds J5 and leaves a noise-free residual
     monkeypatch.setattr(refine_module, "_MAX_REFITS", 0)
     at_start, _ = _refine(capture, ParameterSet.nominal(ROBOT), ON_AXIS6, criterion=criterion, **base)
-    assert {"J5.a", "J5.alpha"} <= set(at_start.held)
-    assert at_start.residual_max > 1e-4  # (measured: 7.6e-4 mm points, 1.0e-3 mm distances)
+    assert {"J5.a", "J5.alpha"} <= set(at_start.identifiability.held)
+    assert at_start.fit.residual_max > 1e-4  # (measured: 7.6e-4 mm points, 1.0e-3 mm distances)
     monkeypatch.undo()
 
     result, messages = _refine(capture, ParameterSet.nominal(ROBOT), ON_AXIS6, criterion=criterion, **base)
     assert result.success, result.message
-    assert result.refits == 1
-    assert not {"J5.d", "J5.theta", "J5.a", "J5.alpha"} & set(result.held + result.confounded)
+    assert result.fit.refits == 1
+    assert not {"J5.d", "J5.theta", "J5.a", "J5.alpha"} & set(result.identifiability.held + result.identifiability.confounded)
     # joint 6 keeps one of d, theta, a, alpha held (the target is 3 numbers in frame 6): the others confounded
-    assert len([name for name in result.held if name.startswith("J6.")]) == 1
-    assert result.residual_max < 1e-9
+    assert len([name for name in result.identifiability.held if name.startswith("J6.")]) == 1
+    assert result.fit.residual_max < 1e-9
     error = np.abs(result.parameters.difference(truth))
     determined = _determined(result)
     expected = ~ROBOT.structurally_fixed
@@ -118,17 +120,17 @@ def test_a_parameter_not_determined_at_the_truth_is_reported_held_at_its_start_v
     start = ParameterSet.nominal(ROBOT)
     result, messages = _refine(capture, start, targets, tracker_from_base=TRACKER)
     assert result.success, result.message
-    assert result.refits >= 1
+    assert result.fit.refits >= 1
     # the target is a fixed point of frame 5: J5's d, theta, a, alpha and the offset place one circle about
     # axis 5 (3 numbers, x and y of the offset are fixed by joint 6 turning): a and alpha are held (the offset
     # comes first in the order: its guess is rough, the nominal parameters are not) at their start values
-    assert {"J5.a", "J5.alpha"} <= set(result.held)
-    held = np.isin(NAMES, result.held)
+    assert {"J5.a", "J5.alpha"} <= set(result.identifiability.held)
+    held = np.isin(NAMES, result.identifiability.held)
     np.testing.assert_array_equal(result.parameters.values[held], start.values[held])
-    assert {"J5.d", "J5.theta", "target.T0.z"} <= set(result.confounded)
-    assert np.all(np.isnan(result.standard_uncertainty[held]))
+    assert {"J5.d", "J5.theta", "target.T0.z"} <= set(result.identifiability.confounded)
+    assert np.all(np.isnan(result.uncertainty.standard_uncertainty[held]))
     # what the data determine is fitted exactly: the capture to 1e-9 mm, joints 1-4 to the truth
-    assert result.residual_max < 1e-9
+    assert result.fit.residual_max < 1e-9
     error = np.abs(result.parameters.difference(truth))
     determined = _determined(result)
     assert np.all(determined[:4][~ROBOT.structurally_fixed[:4]])
@@ -137,11 +139,17 @@ def test_a_parameter_not_determined_at_the_truth_is_reported_held_at_its_start_v
     # the held values differ from the truth's (J5.a moved), so the offset along the axis takes up the difference
     assert abs(truth.values[4, 2] - start.values[4, 2]) > 1e-3
     assert abs(result.targets[0].positions[2] - true_offset[0, 2]) > 1e-6
-    assert result.condition_number < 1e8  # the free set is well determined at the solution
+    assert result.identifiability.condition_number < 1e8  # the free set is well determined at the solution
     assert any("J5.a, J5.alpha" in text and "at the solution" in text for text in messages), messages
 
     with pytest.raises(IdentifiabilityError, match="at the solution") as info:
-        refine_parameters(capture, start, targets, tracker_from_base=TRACKER, on_unidentifiable="raise")
+        refine_parameters(
+            capture,
+            start,
+            targets,
+            tracker_from_base=TRACKER,
+            settings=RefinementSettings(on_unidentifiable="raise"),
+        )
     assert {"J5.a", "J5.alpha"} <= set(info.value.parameters)
 
 
@@ -149,15 +157,15 @@ def test_a_capture_whose_start_decision_holds_at_the_solution_is_fitted_once():
     truth = _truth(7)
     reflector = ReflectorMount(frame="flange", positions=[60.0, 40.0, 30.0])
     result, messages = _refine(_circles(reflector, truth), ParameterSet.nominal(ROBOT), reflector)
-    assert result.refits == 0
-    assert result.held == ("J6.alpha",) and result.residual_max < 1e-9
+    assert result.fit.refits == 0
+    assert result.identifiability.held == ("J6.alpha",) and result.fit.residual_max < 1e-9
     assert messages and all("at the solution" in text and "refit" not in text for text in messages)
 
 
 def test_a_free_set_that_does_not_settle_returns_the_last_fit_and_says_so(monkeypatch):
     """The rounds stop on a free set seen before (forced here: the test at the first solution is made to swap
     J6.a and J6.alpha, the one at the second to return the start's decision)."""
-    real = refine_module._select_free
+    real = refine_module.select_free
     calls = []
 
     def swapping(*args, **kwargs):
@@ -169,15 +177,15 @@ def test_a_free_set_that_does_not_settle_returns_the_last_fit_and_says_so(monkey
             return dataclasses.replace(chosen, free=free, held=held)
         return calls[0] if len(calls) == 3 else chosen
 
-    monkeypatch.setattr(refine_module, "_select_free", swapping)
+    monkeypatch.setattr(refine_module, "select_free", swapping)
     truth = _truth(7)
     reflector = ReflectorMount(frame="flange", positions=[60.0, 40.0, 30.0])
     result, messages = _refine(_circles(reflector, truth), ParameterSet.nominal(ROBOT), reflector)
-    assert len(calls) == 3 and result.refits == 1
-    assert result.held == ("J6.a",)  # the last fit's free set
+    assert len(calls) == 3 and result.fit.refits == 1
+    assert result.identifiability.held == ("J6.a",)  # the last fit's free set
     assert "the free set did not settle" in result.message
     assert any("did not settle" in text and "returns to an earlier free set" in text for text in messages)
-    assert result.residual_max < 1e-9  # J6 is nominal in this truth: holding J6.a there is exact too
+    assert result.fit.residual_max < 1e-9  # J6 is nominal in this truth: holding J6.a there is exact too
 
 
 @pytest.mark.parametrize("failure", ["stops", "stalls"])
@@ -187,7 +195,7 @@ def test_a_refit_that_fails_returns_the_fit_it_started_from(failure, monkeypatch
     reported, and the message says the refit failed."""
     from scipy.optimize import OptimizeResult
 
-    real_select, real_solve = refine_module._select_free, refine_module.least_squares
+    real_select, real_solve = refine_module.select_free, refine_module.least_squares
     selections, solves = [], []
 
     def swapping(*args, **kwargs):
@@ -208,15 +216,15 @@ def test_a_refit_that_fails_returns_the_fit_it_started_from(failure, monkeypatch
         start = fun(x0)
         return OptimizeResult(x=x0.copy(), cost=0.5 * float(start @ start), status=2, nfev=1, njev=1, message="stalled")
 
-    monkeypatch.setattr(refine_module, "_select_free", swapping)
+    monkeypatch.setattr(refine_module, "select_free", swapping)
     monkeypatch.setattr(refine_module, "least_squares", failing_refit)
     truth = _truth(7, joint6=(0.2, np.deg2rad(0.05), 0.4))  # J6 off nominal: the refit starts far from the fit
     reflector = ReflectorMount(frame="flange", positions=[60.0, 40.0, 30.0])
     result, messages = _refine(_circles(reflector, truth), ParameterSet.nominal(ROBOT), reflector)
-    assert len(solves) == 2 and result.refits == 1
-    assert result.success and result.held == ("J6.alpha",)  # the first fit, with its free set
+    assert len(solves) == 2 and result.fit.refits == 1
+    assert result.success and result.identifiability.held == ("J6.alpha",)  # the first fit, with its free set
     outcome = "did not converge" if failure == "stops" else "ended at a higher cost"
     assert f"fit 1 {outcome}" in result.message and "fit 1 is returned" in result.message
     assert any("fit 1 is returned" in text for text in messages)
     # the first fit's noise-free residual (exact), not the refit's (0.01 mm^2 after one evaluation, or its start)
-    assert result.residual_max < 1e-9
+    assert result.fit.residual_max < 1e-9

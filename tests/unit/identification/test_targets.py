@@ -9,11 +9,13 @@ import warnings
 import numpy as np
 import pytest
 
+import refine_options
 from robotcal.api import capture_targets, refine
 from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.identification.health import FitHealthError, FitHealthWarning, circle_axis_uncertainty
 from robotcal.identification.refine import measurement_pairs, refine_parameters, wrap_angles
+from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.capture_csv import read_capture, write_capture
@@ -57,7 +59,7 @@ def _capture(instrument=NOISE_FREE, *, poses=30, seed=3, u95_mm=None, targets=UN
 def _refine(*args, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)  # J6's d, theta, a, alpha held: by design
-        return refine_parameters(*args, **kwargs)
+        return refine_options.refine(*args, **kwargs)
 
 
 # -- the simulator, against an independent forward kinematics ---------------------------------------
@@ -115,16 +117,16 @@ def test_noise_free_parameters_and_unknown_offsets_are_recovered(criterion, base
     capture, _ = _capture()
     kwargs = {"tracker_from_base": TRACKER} if base == "given" else {}
     with pytest.warns(IdentifiabilityWarning, match="an unknown offset is confounded with J6's d, theta, a, alpha"):
-        result = refine_parameters(capture, ParameterSet.nominal(ROBOT), UNKNOWN, criterion=criterion, **kwargs)
+        result = refine_options.refine(capture, ParameterSet.nominal(ROBOT), UNKNOWN, criterion=criterion, **kwargs)
     # the flange frame stays nominal: J6's parameters are held, the offsets are estimated in it
-    assert set(result.held) == {"J6.d", "J6.theta", "J6.a", "J6.alpha"}
-    assert {f"target.T{k}.{axis}" for k in (1, 2, 3) for axis in "xyz"} <= set(result.free_names)
+    assert set(result.identifiability.held) == {"J6.d", "J6.theta", "J6.a", "J6.alpha"}
+    assert {f"target.T{k}.{axis}" for k in (1, 2, 3) for axis in "xyz"} <= set(result.identifiability.free_names)
     # the truth's joint 6 is nominal (perturb_parameters leaves joint n alone), so everything is recoverable
-    free = result.free
+    free = result.identifiability.free
     np.testing.assert_allclose(result.parameters.values[free], wrap_angles(TRUTH.values)[free], rtol=0, atol=1e-9)
     estimated = np.array([target.positions for target in result.targets])
     np.testing.assert_allclose(estimated, TRUE_OFFSETS, rtol=0, atol=1e-9)
-    assert result.success and result.residual_rms < 1e-9
+    assert result.success and result.fit.residual_rms < 1e-9
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -132,12 +134,12 @@ def test_noisy_offsets_and_parameters_lie_within_their_reported_uncertainty(seed
     capture, _ = _capture(_tracker_noise(0.02), seed=seed)
     result = _refine(capture, ParameterSet.nominal(ROBOT), UNKNOWN, tracker_from_base=TRACKER)
     estimated = np.array([target.positions for target in result.targets])
-    z_offsets = (estimated - TRUE_OFFSETS) / result.target_uncertainty
-    free = result.free
-    z_parameters = (result.parameters.values[free] - wrap_angles(TRUTH.values)[free]) / result.standard_uncertainty[free]
+    z_offsets = (estimated - TRUE_OFFSETS) / result.uncertainty.target_uncertainty
+    free = result.identifiability.free
+    z_parameters = (result.parameters.values[free] - wrap_angles(TRUTH.values)[free]) / result.uncertainty.standard_uncertainty[free]
     # 9 + ~24 standard-normal z values per seed: |z| < 4 fails with probability ~2e-3 per seed
     assert np.all(np.abs(z_offsets) < 4.0) and np.all(np.abs(z_parameters) < 4.0)
-    np.testing.assert_allclose(result.sigma, 0.01, rtol=0.2)  # U = 0.02 mm, k = 2: sigma = 0.01 mm
+    np.testing.assert_allclose(result.uncertainty.sigma, 0.01, rtol=0.2)  # U = 0.02 mm, k = 2: sigma = 0.01 mm
 
 
 def test_one_known_target_fixes_the_flange_frame_for_the_unknown_ones():
@@ -146,20 +148,24 @@ def test_one_known_target_fixes_the_flange_frame_for_the_unknown_ones():
     capture, _ = _capture()
     result = _refine(capture, ParameterSet.nominal(ROBOT), targets, tracker_from_base=TRACKER)
     # the known target fixes J6's d, theta, a; alpha_6 stays held, as with one flange target (module notes)
-    assert {"J6.d", "J6.theta", "J6.a"} <= set(result.free_names) and "J6.alpha" in result.held
+    assert {"J6.d", "J6.theta", "J6.a"} <= set(result.identifiability.free_names) and "J6.alpha" in result.identifiability.held
     np.testing.assert_allclose(result.targets[1].positions, TRUE_OFFSETS[1], rtol=0, atol=1e-8)
-    assert np.all(np.isnan(result.target_uncertainty[0]))  # a known target has no estimate
+    assert np.all(np.isnan(result.uncertainty.target_uncertainty[0]))  # a known target has no estimate
 
 
 def test_a_single_unknown_target_is_reported_confounded_with_joint_6():
     capture, _ = _capture(targets=UNKNOWN[:1])
     with pytest.warns(IdentifiabilityWarning, match="confounded with J6's d, theta, a, alpha"):
         result = refine_parameters(capture, ParameterSet.nominal(ROBOT), UNKNOWN[:1], tracker_from_base=TRACKER)
-    assert {"target.T1.x", "target.T1.y", "target.T1.z"} <= set(result.confounded)
+    assert {"target.T1.x", "target.T1.y", "target.T1.z"} <= set(result.identifiability.confounded)
     # freeing J6.d explicitly asks for what the data cannot give: an error
     with pytest.raises(IdentifiabilityError):
         refine_parameters(
-            capture, ParameterSet.nominal(ROBOT), UNKNOWN[:1], tracker_from_base=TRACKER, free=["J2.a", "J6.d"]
+            capture,
+            ParameterSet.nominal(ROBOT),
+            UNKNOWN[:1],
+            tracker_from_base=TRACKER,
+            settings=RefinementSettings(free=["J2.a", "J6.d"]),
         )
 
 
@@ -167,14 +173,18 @@ def test_strict_does_not_refuse_the_flange_frame_held_for_unknown_offsets():
     capture, _ = _capture()
     with pytest.warns(IdentifiabilityWarning, match="held at their start values"):
         result = refine_parameters(
-            capture, ParameterSet.nominal(ROBOT), UNKNOWN, tracker_from_base=TRACKER, on_unidentifiable="raise"
+            capture,
+            ParameterSet.nominal(ROBOT),
+            UNKNOWN,
+            tracker_from_base=TRACKER,
+            settings=RefinementSettings(on_unidentifiable="raise"),
         )
     assert result.success
 
 
 def _held_warning(*args, **kwargs) -> str:
     with pytest.warns(IdentifiabilityWarning) as caught:
-        refine_parameters(*args, **kwargs)
+        refine_options.refine(*args, **kwargs)
     (warning,) = [w for w in caught if issubclass(w.category, IdentifiabilityWarning)]
     return str(warning.message)
 
@@ -224,7 +234,7 @@ def test_u95_weight_equals_repeating_the_point(criterion):
     a = _refine(weighted, start, known, tracker_from_base=TRACKER, criterion=criterion)
     b = _refine(repeated, start, known, tracker_from_base=TRACKER, criterion=criterion, weights="none")
     c = _refine(capture, start, known, tracker_from_base=TRACKER, criterion=criterion)
-    assert a.weighted and not b.weighted
+    assert a.fit.weighted and not b.fit.weighted
     if criterion == "points":
         np.testing.assert_allclose(a.parameters.values, b.parameters.values, rtol=0, atol=1e-9)
     else:
@@ -265,8 +275,13 @@ def test_duplicate_poses_360_degrees_apart_do_not_break_the_distances_criterion(
         warnings.simplefilter("error")  # no numpy "invalid value" (nor any other) warning
         warnings.simplefilter("ignore", IdentifiabilityWarning)
         with np.errstate(all="raise"):
-            result = refine_parameters(both, ParameterSet.nominal(ROBOT), known, criterion="distances")
-    assert result.n_residuals == 15 * 14 // 2 - 5 and np.isfinite(result.sigma)
+            result = refine_parameters(
+                both,
+                ParameterSet.nominal(ROBOT),
+                known,
+                settings=RefinementSettings(criterion="distances"),
+            )
+    assert result.fit.n_residuals == 15 * 14 // 2 - 5 and np.isfinite(result.uncertainty.sigma)
 
 
 def test_angles_are_wrapped_in_every_output(tmp_path):

@@ -90,13 +90,13 @@ def test_monte_carlo_u_agrees_with_the_linearised_u(cell):
     result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=11)
     mc = result.parameters
     assert mc.model == "measured capture" and mc.n_failed == 0 and mc.n_draws == draws
-    free = estimate.free
+    free = estimate.identifiability.free
     assert np.array_equal(mc.identified, free)
     # the refinement's u uses sigma estimated from its residuals; rescaled to the stated noise U/2 it is the
     # linearised u of exactly the noise the Monte Carlo draws (sigma itself agrees with U/2, fit health)
-    np.testing.assert_allclose(estimate.sigma, U95_MM / 2.0, rtol=0.15)
-    stated = U95_MM / 2.0 / estimate.sigma
-    ratio = mc.summary.std_uncertainty[free] / (estimate.standard_uncertainty[free] * stated)
+    np.testing.assert_allclose(estimate.uncertainty.sigma, U95_MM / 2.0, rtol=0.15)
+    stated = U95_MM / 2.0 / estimate.uncertainty.sigma
+    ratio = mc.summary.std_uncertainty[free] / (estimate.uncertainty.standard_uncertainty[free] * stated)
     # the result's linearised offsets' u is already rescaled to the stated noise (module notes)
     target_ratio = result.target_summary.std_uncertainty / result.target_linearised_u
     # a sample standard deviation of M = 200 normal draws has relative standard error 1/sqrt(2 (M - 1)) = 5 %:
@@ -111,9 +111,9 @@ def test_monte_carlo_u_agrees_with_the_linearised_u(cell):
     assert np.all(np.abs(bias) < 5.0 / np.sqrt(draws))
     # the linearised record is the refinement's own covariance rescaled by u_stated / sigma_hat
     np.testing.assert_allclose(result.stated_u_mm, U95_MM / 2.0, rtol=1e-12)
-    np.testing.assert_allclose(result.residual_sigma_mm, estimate.sigma, rtol=1e-9)
+    np.testing.assert_allclose(result.residual_sigma_mm, estimate.uncertainty.sigma, rtol=1e-9)
     np.testing.assert_allclose(
-        mc.linearised.std_uncertainty[free], estimate.standard_uncertainty[free] * stated, rtol=1e-9
+        mc.linearised.std_uncertainty[free], estimate.uncertainty.standard_uncertainty[free] * stated, rtol=1e-9
     )
 
 
@@ -126,7 +126,7 @@ def test_linearised_u_is_rescaled_to_the_stated_noise_when_the_residuals_disagre
     draws = 40
     result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=5)
     mc = result.parameters
-    free = estimate.free
+    free = estimate.identifiability.free
     np.testing.assert_allclose(result.stated_u_mm, U95_MM, rtol=1e-12)
     np.testing.assert_allclose(result.residual_sigma_mm / result.stated_u_mm, 0.5, rtol=0.15)
     ratio = mc.summary.std_uncertainty[free] / mc.linearised.std_uncertainty[free]
@@ -146,11 +146,11 @@ def test_other_criterion_and_base_frame_repeat_the_users_refinement(criterion, b
     draws = 21
     result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=1)
     mc = result.parameters
-    assert mc.criterion == criterion and mc.n_failed == 0 and np.array_equal(mc.identified, estimate.free)
+    assert mc.criterion == criterion and mc.n_failed == 0 and np.array_equal(mc.identified, estimate.identifiability.free)
     # base estimated (registered): every draw estimates it again, so d1/theta1 stay a gauge as in the user's fit
-    assert result.reference.free_names == estimate.free_names
-    stated = U95_MM / 2.0 / estimate.sigma
-    ratio = mc.summary.std_uncertainty[estimate.free] / (estimate.standard_uncertainty[estimate.free] * stated)
+    assert result.reference.identifiability.free_names == estimate.identifiability.free_names
+    stated = U95_MM / 2.0 / estimate.uncertainty.sigma
+    ratio = mc.summary.std_uncertainty[estimate.identifiability.free] / (estimate.uncertainty.standard_uncertainty[estimate.identifiability.free] * stated)
     # (M - 1) s^2 / sigma^2 is chi-square with M - 1 = 20 degrees of freedom: each ratio inside its
     # 1e-5 / (1 - 1e-5) quantiles (the ~30 ratios together fail with probability < 1e-3)
     low, high = (np.sqrt(chi2.ppf(q, draws - 1) / (draws - 1)) for q in (1e-5, 1.0 - 1e-5))
@@ -167,7 +167,7 @@ def _coverage_hits(n_captures: int, draws: int) -> tuple[np.ndarray, int]:
         estimate = _refine(capture, scenario)
         result = measured_monte_carlo(capture, scenario, estimate, draws=draws, rng=k)
         low, high = result.parameters.interval()
-        free = estimate.free
+        free = estimate.identifiability.free
         true_values = truth.values + 2 * np.pi * np.round((estimate.parameters.values - truth.values) / (2 * np.pi))
         inside = (low[free] <= true_values[free]) & (true_values[free] <= high[free])
         t_low, t_high = result.target_interval()  # the offsets' draws' interval moved by twice their bias

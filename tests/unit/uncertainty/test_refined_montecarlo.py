@@ -14,6 +14,7 @@ from robotcal.api import monte_carlo_problem, simulate
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.io import load_scenario
 from robotcal.io.uncertainty_files import read_uncertainty_csv, write_uncertainty_csv, write_uncertainty_json
 from robotcal.kinematics.model import ParameterSet
@@ -53,9 +54,8 @@ def _loop_reference(problem, points, cpa, k, criterion, estimate_base):
             problem.capture.with_points(points[k]),
             ParameterSet(robot=problem.robot, values=cpa.values[k]),
             problem.structure.reflector,
-            criterion=criterion,
             tracker_from_base=cpa.tracker_from_base[k] if criterion == "points" else None,
-            estimate_base=estimate_base,
+            settings=RefinementSettings(criterion=criterion, estimate_base=estimate_base),
         )
 
 
@@ -63,12 +63,12 @@ def _assert_same_solution(batch_values, batch_cost, reference):
     # Both solvers stop at the rounding floor of the optimum; along its flattest direction a change of
     # 1e-8 mm moves the cost by ~1e-14 mm^2, below what either can resolve. So: the same parameters to
     # 1e-5 of their own standard uncertainty (1e-8 mm where u ~ 6 um), and a cost no worse.
-    u = reference.standard_uncertainty
-    free = reference.free
+    u = reference.uncertainty.standard_uncertainty
+    free = reference.identifiability.free
     difference = np.abs(batch_values - reference.parameters.values)
     assert np.all(difference[free] <= 1e-5 * u[free]), (difference[free] / u[free]).max()
     assert np.all(difference[~free] == 0.0)  # held parameters keep the start value exactly
-    assert batch_cost <= reference.cost_history[-1] * (1.0 + 1e-9)
+    assert batch_cost <= reference.fit.cost_history[-1] * (1.0 + 1e-9)
 
 
 @pytest.mark.parametrize("base_frame", ["given", "registered"])
@@ -83,7 +83,7 @@ def test_batched_refinement_of_a_draw_equals_refine_parameters(laser, base_frame
     assert batch.converged.all()
     for k in range(3):
         reference = _loop_reference(problem, points, cpa, k, "points", base_frame == "registered")
-        np.testing.assert_array_equal(reference.free, problem.refined.free)
+        np.testing.assert_array_equal(reference.identifiability.free, problem.refined.free)
         _assert_same_solution(batch.values[k], batch.cost[k], reference)
         # the same base frame: rotation to 1e-10, translation to 1e-7 mm (the flat direction again: the base
         # translation trades against d and a at ~1e-8 mm; its own u is ~1e-2 mm)
@@ -128,9 +128,9 @@ def test_refined_monte_carlo_u_agrees_with_the_linearised_u(laser):
             ParameterSet(robot=problem.robot, values=problem.noise_free_values),
             scenario.plan.reflector,
             tracker_from_base=scenario.tracker_from_base,
-            estimate_base=False,
+            settings=RefinementSettings(estimate_base=False),
         )
-    ratio = result.summary.std_uncertainty[mask] / single.standard_uncertainty[mask]
+    ratio = result.summary.std_uncertainty[mask] / single.uncertainty.standard_uncertainty[mask]
     # sigma from 405 - 20 residual dof (+-3.6 %) and U(L) varying a few % over the points; 2.2 % MC error
     assert np.all(np.abs(ratio - 1.0) < 0.15), ratio
 

@@ -183,19 +183,20 @@ def test_normal_equations_equal_the_dense_jacobian_products(demo, flange, which)
 def test_extended_draws_equal_one_refinement_each(criterion):
     """An extended model's batch (per-point chains, the joint model fitted from zero as from CPA) converges, draw
     for draw, where scipy's refinement of the same capture does."""
-    from robotcal.api import _joint_model, perturb, simulate
+    from robotcal.api import link_masses, perturb, simulate
     from robotcal.identification.cpa import identify_cpa
-    from robotcal.identification.refine import refine_parameters
+    from robotcal.identification.model_choice import joint_model_for
+    from robotcal.identification.refine import RefinementSettings, refine_parameters
     from robotcal.instruments import Instrument
 
     scenario = load_scenario("kr5-demo")
     robot = scenario.robot
     truth = perturb(scenario, rng=11)
-    truth = truth.replace(joint_model=_joint_model("compliance", robot, scenario).with_values([1e-5, 4e-5]))
+    structure = joint_model_for("compliance", robot, masses=link_masses(scenario))  # the scenario's [joint_model]
+    truth = truth.replace(joint_model=structure.with_values([1e-5, 4e-5]))
     capture = simulate(scenario, rng=1, true_parameters=truth, instrument=Instrument(name="exact", a_mm=0.0, b_mm_per_m=0.0))
     capture = capture.select(np.arange(0, capture.n_points, 2 if criterion == "distances" else 1))
     start = identify_cpa(capture, robot, scenario.plan.reflector, tracker_from_base=scenario.tracker_from_base).parameters
-    structure = _joint_model("compliance", robot, scenario)
     model = prepare_refined_model(
         capture, start, scenario.plan.reflector, criterion=criterion, tracker_from_base=scenario.tracker_from_base,
         estimate_base=False, joint_model=structure,
@@ -207,13 +208,16 @@ def test_extended_draws_equal_one_refinement_each(criterion):
     assert batch.converged.all()
     for k in range(3):
         one = refine_parameters(
-            capture.with_points(measured[k]), start, scenario.plan.reflector, criterion=criterion,
+            capture.with_points(measured[k]),
+            start,
+            scenario.plan.reflector,
             tracker_from_base=scenario.tracker_from_base if criterion == "points" else None,
-            estimate_base=False if criterion == "points" else None, joint_model=structure,
+            joint_model=structure,
+            settings=RefinementSettings(criterion=criterion, estimate_base=False if criterion == "points" else None),
         )  # fmt: skip
         # both stop within their tolerance of the same least-squares solution: far inside 1e-4 of each estimate's
         # standard uncertainty (the refined Monte Carlo's stopping rule allows ~1e-5 u)
-        u = np.where(one.free, one.standard_uncertainty, np.inf)
+        u = np.where(one.identifiability.free, one.uncertainty.standard_uncertainty, np.inf)
         assert np.all(np.abs(batch.values[k] - one.parameters.values) <= 1e-4 * u)
-        extras_u = one.joint_model_uncertainty
+        extras_u = one.uncertainty.joint_model_uncertainty
         assert np.all(np.abs(batch.extras[k] - one.parameters.joint_model.values) <= 1e-4 * extras_u)
