@@ -12,7 +12,7 @@ import numpy as np
 
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import apply_transform, rot_z
-from robotcal.kinematics.model import ReflectorMount
+from robotcal.kinematics.reflector import ReflectorMount
 
 __all__ = ["link_transforms", "joint_frames", "forward_kinematics", "target_positions", "check_joint_variables"]
 

@@ -56,7 +56,7 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import forward_kinematics, joint_frames
-from robotcal.kinematics.model import LinkMasses
+from robotcal.kinematics.masses import LinkMasses
 
 __all__ = [
     "GRAVITY_MPS2",
