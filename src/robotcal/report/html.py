@@ -24,9 +24,9 @@ every canvas drew, then sets ``<body data-status="ok">`` (or ``"error"``, with t
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from importlib.metadata import version
 from pathlib import Path
 
-import robotcal
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.run_folder import REPORT_NAME, RunResult, read_run
 from robotcal.report import template_environment
@@ -145,7 +145,7 @@ def render_report(result: RunResult) -> Report:
         title=f"Calibration report: {robot}",
         scenario=scenario.get("name") if isinstance(scenario.get("name"), str) else None,
         folder=result.folder.name if result.folder is not None else None,
-        version=robotcal.__version__,
+        version=version("robotcal"),
         csp=_CSP,
         sections=sections,
         bodies=bodies,
