@@ -486,6 +486,45 @@ def _check_iso_cycles(readings, n_test_poses: int, *, rows, source: str, same_po
     return n_cycles
 
 
+def _visits_of_targets(capture, free: np.ndarray, names: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of every pose visit of a capture with several targets per pose, ``(n_visits, n_targets)`` with the
+    targets in name-index order, and each visit's first data row (1-based, for messages)."""
+    visits = pose_visits(capture)
+    n_visits = int(visits[-1]) + 1
+    order = np.lexsort((capture.target, visits))  # rows grouped by visit, targets in name-index order
+    counts = np.bincount(visits, minlength=n_visits)
+    if np.any(counts != len(names)):
+        bad = int(np.flatnonzero(counts != len(names))[0])
+        row = int(np.flatnonzero(visits == bad)[0]) + 1
+        raise InputError(
+            f"{capture.source}: pose visit {bad + 1} (free row {row}) measured {counts[bad]} of the {len(names)} "
+            f"targets {', '.join(names)}; every visit must measure every target (three or more for the orientation)"
+        )
+    if len(names) < 3:
+        raise InputError(
+            f"{capture.source}: {len(names)} targets per pose ({', '.join(names)}): the orientation needs three or "
+            "more; keep the rows of one target for positions only"
+        )
+    visit_rows = free[np.array([np.flatnonzero(visits == v)[0] for v in range(n_visits)])] + 1
+    return order.reshape(n_visits, len(names)), visit_rows
+
+
+def _target_offsets(model: IsoModel, label: str, target_names, targets: dict | None, source: str) -> np.ndarray:
+    """The flange offsets ``(n_targets, 3)`` [mm] of ``target_names``: the model's own, else those given."""
+    own = model.target_offsets or {}
+    rows = []
+    for name in target_names:
+        offsets = own if name in own else (targets or {})
+        if name not in offsets:
+            raise InputError(
+                f"{source}: model {label!r} has no flange offset for target {name!r} (its parameter "
+                "set did not estimate it and the scenario does not give it): declare it in the scenario's "
+                "[[targets]] (known), give --targets-mm, or leave the nominal model out with --no-nominal"
+            )
+        rows.append(np.asarray(offsets[name], dtype=float).reshape(3))
+    return np.array(rows)
+
+
 def iso_from_capture(
     capture,
     models: dict,
@@ -534,25 +573,9 @@ def iso_from_capture(
     names = () if capture.target is None else tuple(capture.target_names[k] for k in np.unique(capture.target))
     multi = len(names) > 1
     if multi:
-        visits = pose_visits(capture)
-        n_visits = int(visits[-1]) + 1
-        order = np.lexsort((capture.target, visits))  # rows grouped by visit, targets in name-index order
-        counts = np.bincount(visits, minlength=n_visits)
-        if np.any(counts != len(names)):
-            bad = int(np.flatnonzero(counts != len(names))[0])
-            row = int(np.flatnonzero(visits == bad)[0]) + 1
-            raise InputError(
-                f"{capture.source}: pose visit {bad + 1} (free row {row}) measured {counts[bad]} of the {len(names)} "
-                f"targets {', '.join(names)}; every visit must measure every target (three or more for the orientation)"
-            )
-        if len(names) < 3:
-            raise InputError(
-                f"{capture.source}: {len(names)} targets per pose ({', '.join(names)}): the orientation needs three or "
-                "more; keep the rows of one target for positions only"
-            )
-        row_of_visit = order.reshape(n_visits, len(names))
+        row_of_visit, visit_rows = _visits_of_targets(capture, free, names)
+        n_visits = row_of_visit.shape[0]
         visit_readings = capture.readings[row_of_visit[:, 0]]
-        visit_rows = free[np.array([np.flatnonzero(visits == v)[0] for v in range(n_visits)])] + 1
     else:
         n_visits = capture.n_points
         visit_readings = capture.readings
@@ -567,18 +590,7 @@ def iso_from_capture(
     target_names = [capture.target_names[k] for k in np.unique(capture.target)] if multi else list(names)
 
     def offsets_of(model: IsoModel, label: str) -> np.ndarray:
-        own = model.target_offsets or {}
-        rows = []
-        for name in target_names:
-            source = own if name in own else (targets or {})
-            if name not in source:
-                raise InputError(
-                    f"{capture.source}: model {label!r} has no flange offset for target {name!r} (its parameter "
-                    "set did not estimate it and the scenario does not give it): declare it in the scenario's "
-                    "[[targets]] (known), give --targets-mm, or leave the nominal model out with --no-nominal"
-                )
-            rows.append(np.asarray(source[name], dtype=float).reshape(3))
-        return np.array(rows)
+        return _target_offsets(model, label, target_names, targets, capture.source)
 
     results = {}
     for label, model in models.items():
