@@ -142,6 +142,55 @@ def _unit_hint(ratio: float) -> str | None:
     return None
 
 
+def _repeated_rows(capture: Capture, findings: list[str]) -> np.ndarray:
+    """Rows whose readings and point repeat an earlier row exactly (0-based); a finding, or an error when they are
+    half the file or more."""
+    src = capture.source
+    table = np.concatenate([capture.readings, capture.points], axis=1)
+    _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
+    inverse = np.ravel(inverse)
+    duplicates = np.flatnonzero(first[inverse] != np.arange(capture.n_points))
+    if duplicates.size * 2 >= capture.n_points:
+        pair = duplicates[0]
+        raise InputError(
+            f"{src}: {duplicates.size} of {capture.n_points} rows repeat an earlier row exactly (e.g. point "
+            f"{pair + 1} = point {first[inverse[pair]] + 1}): the file holds the same measurements twice "
+            "(a file appended to itself?); remove the copies"
+        )
+    if duplicates.size:
+        findings.append(
+            f"{src}: {point_rows(duplicates)} repeat earlier rows exactly; a real measurement never repeats "
+            "to the last digit (copied rows?)"
+        )
+    return duplicates
+
+
+def _scale_ratio(measured: np.ndarray, predicted: np.ndarray, robot: RobotModel, src: str, findings: list[str]) -> float:
+    """RMS spread of the measured points about their centroid over the nominal prediction's (invariant to the
+    tracker pose); a finding outside 0.8..1.25, an error outside 0.5..2."""
+    spread = np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=-1)))
+    nominal_spread = np.sqrt(np.mean(np.sum((predicted - predicted.mean(axis=0)) ** 2, axis=-1)))
+    ratio = float(spread / nominal_spread) if nominal_spread > 0 else 1.0
+    if not 0.5 <= ratio <= 2.0:
+        hint = _unit_hint(ratio)
+        cause = (
+            f"the coordinates look like {hint}; robotcal reads millimetres"
+            if hint
+            else f"a capture of another robot, or of robot {robot.name!r} in other units?"
+        )
+        raise InputError(
+            f"{src}: the measured points spread {spread:.4g} mm about their centroid, {ratio:.3g} times the "
+            f"{nominal_spread:.4g} mm that nominal robot {robot.name!r} predicts: {cause}"
+        )
+    if not 0.8 <= ratio <= 1.25:
+        findings.append(
+            f"{src}: the measured points spread {ratio:.3g} times what nominal robot {robot.name!r} predicts "
+            f"({spread:.4g} mm vs {nominal_spread:.4g} mm RMS about the centroid): a capture of another robot "
+            "or another reflector set-up?"
+        )
+    return ratio
+
+
 def check_capture(
     capture: Capture,
     robot: RobotModel,
@@ -183,47 +232,10 @@ def check_capture(
     structure = prepare_cpa(capture, robot, reflector, options)  # structure and coordinate checks first
     findings: list[str] = []
 
-    # duplicated rows (readings and points identical)
-    table = np.concatenate([capture.readings, capture.points], axis=1)
-    _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
-    inverse = np.ravel(inverse)
-    duplicates = np.flatnonzero(first[inverse] != np.arange(capture.n_points))
-    if duplicates.size * 2 >= capture.n_points:
-        pair = duplicates[0]
-        raise InputError(
-            f"{src}: {duplicates.size} of {capture.n_points} rows repeat an earlier row exactly (e.g. point "
-            f"{pair + 1} = point {first[inverse[pair]] + 1}): the file holds the same measurements twice "
-            "(a file appended to itself?); remove the copies"
-        )
-    if duplicates.size:
-        findings.append(
-            f"{src}: {point_rows(duplicates)} repeat earlier rows exactly; a real measurement never repeats "
-            "to the last digit (copied rows?)"
-        )
-
-    # scale of the cloud against the nominal prediction (invariant to the tracker pose)
+    duplicates = _repeated_rows(capture, findings)
     measured = capture.points
     predicted = structure.nominal_points
-    spread = np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=-1)))
-    nominal_spread = np.sqrt(np.mean(np.sum((predicted - predicted.mean(axis=0)) ** 2, axis=-1)))
-    ratio = float(spread / nominal_spread) if nominal_spread > 0 else 1.0
-    if not 0.5 <= ratio <= 2.0:
-        hint = _unit_hint(ratio)
-        cause = (
-            f"the coordinates look like {hint}; robotcal reads millimetres"
-            if hint
-            else f"a capture of another robot, or of robot {robot.name!r} in other units?"
-        )
-        raise InputError(
-            f"{src}: the measured points spread {spread:.4g} mm about their centroid, {ratio:.3g} times the "
-            f"{nominal_spread:.4g} mm that nominal robot {robot.name!r} predicts: {cause}"
-        )
-    if not 0.8 <= ratio <= 1.25:
-        findings.append(
-            f"{src}: the measured points spread {ratio:.3g} times what nominal robot {robot.name!r} predicts "
-            f"({spread:.4g} mm vs {nominal_spread:.4g} mm RMS about the centroid): a capture of another robot "
-            "or another reflector set-up?"
-        )
+    ratio = _scale_ratio(measured, predicted, robot, src, findings)
 
     n = len(structure.circle_indices)
     turn = np.zeros(n)
