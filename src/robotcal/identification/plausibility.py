@@ -191,6 +191,26 @@ def _scale_ratio(measured: np.ndarray, predicted: np.ndarray, robot: RobotModel,
     return ratio
 
 
+def _residual_finding(
+    label: str, rows: np.ndarray, residual: np.ndarray, flagged: np.ndarray, bound: float, findings: list[str]
+) -> None:
+    """A finding when a circle has outliers (``flagged`` rows) or its RMS distance to the fitted circle is over
+    ``OUTLIER_U`` times the instrument's median ``U`` [mm] of its points (``bound``), at least ``RESIDUAL_FLOOR_MM``."""
+    total_rms = float(np.sqrt(np.mean(residual**2)))
+    limit = max(OUTLIER_U * bound, RESIDUAL_FLOOR_MM)
+    if flagged.size or total_rms > limit:
+        worst = rows[np.argsort(residual)[::-1][: max(flagged.size, 3)]]
+        named = flagged if flagged.size else worst
+        residual_of = dict(zip(rows.tolist(), residual.tolist(), strict=True))
+        findings.append(
+            f"{label}: RMS distance to the fitted circle {total_rms:.3g} mm against the instrument's "
+            f"U = {bound:.3g} mm; "
+            + (f"outliers at {point_rows(flagged)}" if flagged.size else f"largest at {point_rows(named)}")
+            + f" (residuals {', '.join(f'{residual_of[r]:.3g}' for r in named[:6])} mm): a mis-measurement, "
+            "a moved target or a loose reflector? `robotcal identify --reject-outliers` drops outliers"
+        )
+
+
 def check_capture(
     capture: Capture,
     robot: RobotModel,
@@ -284,19 +304,7 @@ def check_capture(
         rms[joint] = float(fit.circle_rms)
         flagged = rows[_outlier_mask(residual, point_bound)]
         outliers.append(flagged)
-        total_rms = float(np.sqrt(np.mean(residual**2)))
-        limit = max(OUTLIER_U * bound[joint], RESIDUAL_FLOOR_MM)
-        if flagged.size or total_rms > limit:
-            worst = rows[np.argsort(residual)[::-1][: max(flagged.size, 3)]]
-            named = flagged if flagged.size else worst
-            residual_of = dict(zip(rows.tolist(), residual.tolist(), strict=True))
-            findings.append(
-                f"{label}: RMS distance to the fitted circle {total_rms:.3g} mm against the instrument's "
-                f"U = {bound[joint]:.3g} mm; "
-                + (f"outliers at {point_rows(flagged)}" if flagged.size else f"largest at {point_rows(named)}")
-                + f" (residuals {', '.join(f'{residual_of[r]:.3g}' for r in named[:6])} mm): a mis-measurement, "
-                "a moved target or a loose reflector? `robotcal identify --reject-outliers` drops outliers"
-            )
+        _residual_finding(label, rows, residual, flagged, bound[joint], findings)
     for message in findings:
         warnings.warn(message, PlausibilityWarning, stacklevel=2)
     return PlausibilityReport(
