@@ -395,7 +395,8 @@ def pose_visits(capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarr
     readings differ from the visit's first row by more than ``same_pose_rad`` (any joint).
     """
     visits = np.empty(capture.n_points, dtype=int)
-    current, seen, first = -1, set(), None
+    current, first = -1, None
+    seen: set[int] = set()
     for row in range(capture.n_points):
         target = int(capture.target[row]) if capture.target is not None else 0
         readings = capture.readings[row]

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -362,7 +363,14 @@ def _match(reading: np.ndarray, direction: np.ndarray, tolerance: float) -> tupl
     return pairs_array[:, 0], pairs_array[:, 1]
 
 
-def _circle(capture: Capture, joint: int, rows: np.ndarray, backlash: bool, tolerance: float, method: str):
+def _circle(
+    capture: Capture,
+    joint: int,
+    rows: np.ndarray,
+    backlash: bool,
+    tolerance: float,
+    method: Literal["geometric", "algebraic"],
+):
     points = capture.points[rows]
     reading = capture.readings[rows, joint - 1]
     direction = capture.direction[rows]
@@ -433,7 +441,7 @@ def analyze_joints(
     *,
     backlash: bool = True,
     match_tolerance: float = DEFAULT_MATCH_TOLERANCE,
-    method: str = "geometric",
+    method: Literal["geometric", "algebraic"] = "geometric",
 ) -> JointDiagnostics:
     """Backlash and axial/radial eccentricity of every circle of a capture (thesis ch. 4.6).
 

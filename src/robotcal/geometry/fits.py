@@ -57,8 +57,8 @@ class PlaneFit:
     centroid: np.ndarray
     normal: np.ndarray
     basis: np.ndarray
-    residuals: np.ndarray
-    rms: np.ndarray
+    residuals: np.ndarray | None
+    rms: np.ndarray | None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -94,10 +94,10 @@ class CircleFit:
     centre: np.ndarray
     normal: np.ndarray
     radius: np.ndarray
-    plane_residuals: np.ndarray
-    radial_residuals: np.ndarray
-    plane_rms: np.ndarray
-    circle_rms: np.ndarray
+    plane_residuals: np.ndarray | None
+    radial_residuals: np.ndarray | None
+    plane_rms: np.ndarray | None
+    circle_rms: np.ndarray | None
     method: str
     iterations: int
     converged: bool
@@ -391,13 +391,11 @@ class _CircleIteration:
         state = _CircleState(None)
         for name in ("du", "dv", "dist", "res"):
             setattr(state, name, np.take(getattr(self.state, name), rows, axis=0))
-        return _CircleIteration(
-            *(
-                np.take(getattr(self, name), rows, axis=0)
-                for name in ("u", "v", "cu", "cv", "r", "cost", "damping", "active")
-            ),
-            state,
-        )
+        taken = {
+            name: np.take(getattr(self, name), rows, axis=0)
+            for name in ("u", "v", "cu", "cv", "r", "cost", "damping", "active")
+        }
+        return _CircleIteration(**taken, state=state)
 
     def put(self, rows: np.ndarray, part: _CircleIteration) -> None:
         """Write the iterate ``part`` of the items ``rows`` back (what the solution needs: no scratch, no damping)."""
@@ -512,6 +510,8 @@ def fit_circle_3d(
     axis_u, axis_v = plane.basis[..., 0, :], plane.basis[..., 1, :]
     centre_uv, radius = _fit_circle_2d_algebraic(u, v, scatter)
     iterations, converged = 0, True
+    radial: np.ndarray | None
+    cost: np.ndarray | None
     if method == "geometric":
         centre_uv, radius, iterations, converged, radial, cost, (du, dv) = _refine_circle_2d_geometric(
             u, v, centre_uv, radius, max_iterations=max_iterations, tolerance=tolerance

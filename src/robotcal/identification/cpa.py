@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -113,7 +114,7 @@ class CPAOptions:
         How much a joint other than the turning one may vary within a circle.
     """
 
-    circle_fit: str = "geometric"
+    circle_fit: Literal["geometric", "algebraic"] = "geometric"
     base_frame: str = "given"
     base_axis: str = "registration"
     near_parallel_deg: float = 5.0
@@ -227,7 +228,8 @@ class CPAResult:
 
     def __repr__(self) -> str:
         health = f", {self.health.verdict}" if self.health is not None else ""
-        worst = max((float(fit.circle_rms) for fit in self.circle_fits), default=float("nan"))
+        fitted = [float(fit.circle_rms) for fit in self.circle_fits if fit.circle_rms is not None]
+        worst = max(fitted, default=float("nan"))
         return (
             f"CPAResult({len(self.circle_fits)} circles, {int(self.parameters.identified.sum())} parameters, circle RMS "
             f"<= {worst * 1e3:.3g} um{health}, success={self.success})"
@@ -421,7 +423,7 @@ def _circle_axes(points: np.ndarray, structure: _Structure, *, residuals: bool) 
 
 def _referenced_axes(lines: list[PluckerLine], transport: np.ndarray) -> PluckerLine:
     """Every axis brought to the reference configuration (product of exponentials), stacked ``(..., n_joints)``."""
-    referenced = []
+    referenced: list[PluckerLine] = []
     for k, line in enumerate(lines):
         for j in range(k):  # D^-1 L = Rot(L_{k-1}, -dq) ... Rot(L_1, -dq) L: joint 1 acts first
             angle = transport[k, j]
@@ -593,7 +595,7 @@ def identify_cpa(
             )
         elif not robot.hayati[joint]:
             cos = abs(_dot(batch.axes.direction[joint], batch.axes.direction[joint + 1]))
-            if np.rad2deg(np.arccos(min(cos, 1.0))) < options.near_parallel_deg:
+            if np.rad2deg(np.arccos(np.minimum(cos, 1.0))) < options.near_parallel_deg:
                 messages.append(
                     f"axes {joint + 1} and {joint + 2} nearly parallel: J{joint + 1} DH parameters ill-conditioned"
                 )

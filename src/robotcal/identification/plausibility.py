@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -112,6 +113,7 @@ class PlausibilityReport:
 
 
 def _residuals(fit: CircleFit) -> np.ndarray:
+    assert fit.plane_residuals is not None and fit.radial_residuals is not None  # fitted with residuals
     return np.hypot(fit.plane_residuals, fit.radial_residuals)
 
 
@@ -301,7 +303,7 @@ def check_capture(
         residual = _residuals(fit)
         point_bound = instrument.error_bound(measured[rows])
         bound[joint] = float(np.median(point_bound))
-        rms[joint] = float(fit.circle_rms)
+        rms[joint] = float(fit.circle_rms)  # type: ignore[arg-type]  # fitted with residuals
         flagged = rows[_outlier_mask(residual, point_bound)]
         outliers.append(flagged)
         _residual_finding(label, rows, residual, flagged, bound[joint], findings)
@@ -321,7 +323,7 @@ def check_capture(
 
 
 def reject_outliers(
-    capture: Capture, instrument: Instrument, *, circle_fit: str = "geometric"
+    capture: Capture, instrument: Instrument, *, circle_fit: Literal["geometric", "algebraic"] = "geometric"
 ) -> tuple[Capture, np.ndarray]:
     """Remove per-circle outliers (rule in the module docstring), refit, and remove once more.
 

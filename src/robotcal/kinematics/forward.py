@@ -78,7 +78,7 @@ def link_transforms(parameters, q) -> np.ndarray:
 
 def _chain(links: np.ndarray, keep_all: bool) -> np.ndarray:
     current = np.broadcast_to(np.eye(4), links.shape[:-3] + (4, 4)).copy()
-    frames = [current] if keep_all else None
+    frames = [current]
     for i in range(links.shape[-3]):
         current = current @ links[..., i, :, :]
         if keep_all:

@@ -176,14 +176,14 @@ class JointModel:
 
     names: tuple[str, ...]
     values: np.ndarray
-    identified: np.ndarray = field(default=None)
+    identified: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     nominal: np.ndarray
     compliance_map: np.ndarray
     harmonic_map: np.ndarray
     lumped: dict = field(default_factory=dict)
     masses: LinkMasses | None = None
     gravity: np.ndarray = field(default_factory=lambda: np.array(GRAVITY_MPS2))
-    backlash: np.ndarray = field(default=None)
+    backlash: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     backlash_source: str = ""
 
     def __post_init__(self):

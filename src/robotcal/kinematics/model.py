@@ -109,11 +109,11 @@ class RobotModel:
     name: str
     nominal: np.ndarray
     hayati: np.ndarray
-    reading_sign: np.ndarray = field(default=None)
-    reading_offset: np.ndarray = field(default=None)
-    limits: np.ndarray = field(default=None)
+    reading_sign: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
+    reading_offset: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
+    limits: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     description: str = ""
-    reading_coupling: np.ndarray = field(default=None)
+    reading_coupling: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     masses: LinkMasses | None = None
     flange_frame: np.ndarray | None = None
     _model_from_reading: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
@@ -259,7 +259,7 @@ class ParameterSet:
 
     robot: RobotModel
     values: np.ndarray
-    identified: np.ndarray = field(default=None)
+    identified: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     joint_model: JointModel | None = None
 
     def __post_init__(self):
@@ -298,7 +298,7 @@ class ParameterSet:
         """The joint variables the geometric chain is evaluated at: ``q + delta(q)`` of the joint model (``q`` itself
         for the geometric model) [rad], for commanded model joint variables ``q (n_poses, n_joints)``."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        if not self.is_extended:
+        if self.joint_model is None or not self.is_extended:
             return q
         return q + self.joint_model.deflection(q)
 
@@ -313,7 +313,9 @@ class ParameterSet:
         return replace(self, joint_model=None)
 
     def __repr__(self) -> str:
-        extended = "" if not self.is_extended else f", joint model {', '.join(self.joint_model.names)}"
+        extended = ""
+        if self.joint_model is not None and self.is_extended:
+            extended = f", joint model {', '.join(self.joint_model.names)}"
         return f"ParameterSet({self.robot.name}, {int(self.identified.sum())} identified{extended})"
 
     def difference(self, other: ParameterSet) -> np.ndarray:

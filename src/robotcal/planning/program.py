@@ -190,7 +190,7 @@ def write_program(
             raise InputError(
                 f"`labels` must be {readings.shape[0]} one-line comments, one per point; got {len(labels)}"
             )
-    counts = {}
+    counts: dict[tuple, int] = {}
     comment = {"krl": ";", "rapid": "!", "urscript": "#"}[language]
     indent = "  "
     lines = [f"{comment} {line}" for line in header.splitlines()] if header else []

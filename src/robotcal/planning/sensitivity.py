@@ -203,7 +203,7 @@ def study_rows(study: SensitivityStudy) -> list[dict]:
                 continue
             angle = kind in ANGLE_COLUMNS
             scale = np.rad2deg(1.0) if angle else 1.0
-            row = {"case": number}
+            row: dict[str, object] = {"case": number}
             row.update({key: case.values[key] for key in study.keys})
             row.update(
                 {

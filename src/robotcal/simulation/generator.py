@@ -62,8 +62,8 @@ class JointErrorModel:
     period: np.ndarray
     phase: np.ndarray
     noise_sd: np.ndarray
-    backlash: np.ndarray | None = None
-    lash: np.ndarray | None = None
+    backlash: np.ndarray = None  # type: ignore[assignment]  # None: zeros, set in __post_init__
+    lash: np.ndarray = None  # type: ignore[assignment]  # None: zeros, set in __post_init__
 
     def __post_init__(self):
         shape = np.shape(self.amplitude)

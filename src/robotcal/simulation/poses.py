@@ -114,7 +114,7 @@ def random_poses(
         raise InputError(f"`margin_deg` = {margin_deg:g} leaves no range for J{joint + 1}")
     if reflector is not None and reflector.frame != "flange":
         raise InputError("random poses need a flange reflector (frame='flange')")
-    target = reflector if reflector is not None else ReflectorMount(frame="flange", positions=[0.0, 0.0, 0.0])
+    target = reflector if reflector is not None else ReflectorMount(frame="flange", positions=np.zeros(3))
     accepted = np.empty((0, robot.n_joints))
     for _ in range(100):
         batch = rng.uniform(low, high, size=(max(2 * (n_poses - accepted.shape[0]), 16), robot.n_joints))
