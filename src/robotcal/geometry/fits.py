@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import DegenerateGeometryError, InputError
 from robotcal.geometry._vectors import cross as _cross
@@ -27,7 +28,7 @@ COLLINEAR_RATIO = 1e-6
 COST_TOLERANCE = 1e-10
 
 
-def check_points(points, name: str = "points", *, min_points: int = 3) -> np.ndarray:
+def check_points(points: ArrayLike, name: str = "points", *, min_points: int = 3) -> np.ndarray:
     """Coerce ``points`` to float ``(..., n_points, 3)`` with ``n_points >= min_points``, all finite."""
     points = _check_shape(points, name, min_points=min_points)
     if not np.all(np.isfinite(points)):
@@ -233,7 +234,7 @@ def _plane_fit(points, *, residuals: bool = True) -> tuple[PlaneFit, np.ndarray,
     return plane, _project(centred, u), _project(centred, v), (suu, suv, svv)
 
 
-def fit_plane(points) -> PlaneFit:
+def fit_plane(points: ArrayLike) -> PlaneFit:
     """Fit planes to ``points (..., n_points, 3)`` by orthogonal (total) least squares.
 
     The normal is the eigenvector of the centred points' scatter matrix ``S = sum_k c_k c_k^T``
@@ -466,7 +467,7 @@ def _refine_circle_2d_geometric(
 
 
 def fit_circle_3d(
-    points,
+    points: ArrayLike,
     *,
     method: Literal["geometric", "algebraic"] = "geometric",
     max_iterations: int = 50,

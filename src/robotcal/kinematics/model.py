@@ -14,6 +14,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
@@ -56,7 +57,7 @@ KIND_UNITS = MappingProxyType(
 _D, _BETA = PARAMETER_KINDS.index("d"), PARAMETER_KINDS.index("beta")
 
 
-def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np.ndarray:
+def check_parameter_array(values: ArrayLike, n_joints: int, name: str = "parameters") -> np.ndarray:
     """Coerce ``values`` to float ``(..., n_joints, 5)``, finite, or raise :class:`InputError`."""
     try:
         values = np.asarray(values, dtype=float)
