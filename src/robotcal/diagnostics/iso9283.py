@@ -29,8 +29,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
+from robotcal.capture import Capture
 from robotcal.diagnostics.orientation import (
     ORIENTATION_AXES,
     orientation_deviations,
@@ -38,7 +40,9 @@ from robotcal.diagnostics.orientation import (
     rotation_vectors,
 )
 from robotcal.errors import InputError
+from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import forward_kinematics
+from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.limits import ISO_CYCLES
 
 __all__ = [
@@ -133,14 +137,14 @@ class Iso9283Result:
 
 
 def pose_characteristics(
-    attained,
-    commanded,
+    attained: ArrayLike,
+    commanded: ArrayLike,
     *,
-    distance_pair=(1, 3),
-    attained_rotations=None,
-    commanded_rotations=None,
+    distance_pair: tuple[int, int] = (1, 3),
+    attained_rotations: ArrayLike | None = None,
+    commanded_rotations: ArrayLike | None = None,
     orientation_axes: str = "base",
-    registration_rms=None,
+    registration_rms: ArrayLike | None = None,
 ) -> Iso9283Result:
     """AP, RP, AD and RD of ISO 9283 (clauses 7.2.1, 7.2.2, 7.3.1, 7.3.2) from repeated poses, and
     APa/b/c, RPa/b/c when the orientations are given.
@@ -229,7 +233,7 @@ def pose_characteristics(
     )
 
 
-def iso_cube_corners(center, side: float) -> np.ndarray:
+def iso_cube_corners(center: ArrayLike, side: float) -> np.ndarray:
     """Corners ``C1, C2, C7, C8`` of the diagonal plane of the test cube, shape ``(4, 3)`` [mm].
 
     The cube has edges parallel to the base axes; the plane holds the edge ``y = z = -side/2``
@@ -244,7 +248,7 @@ def iso_cube_corners(center, side: float) -> np.ndarray:
     return center + np.array([[-h, -h, -h], [h, -h, -h], [h, h, h], [-h, h, h]])
 
 
-def iso_test_positions(center, side: float) -> np.ndarray:
+def iso_test_positions(center: ArrayLike, side: float) -> np.ndarray:
     """Test positions P1..P5, shape ``(5, 3)`` [mm]: the cube's centre and 10 % in from C1, C2, C7, C8."""
     corners = iso_cube_corners(center, side)
     center = np.asarray(center, dtype=float)
@@ -254,11 +258,11 @@ def iso_test_positions(center, side: float) -> np.ndarray:
 
 
 def iso_plan_readings(
-    parameters,
-    positions,
-    start_readings,
+    parameters: ParameterSet,
+    positions: ArrayLike,
+    start_readings: ArrayLike,
     *,
-    target=(0.0, 0.0, 0.0),
+    target: ArrayLike = (0.0, 0.0, 0.0),
     n_cycles: int = ISO_CYCLES,
     tolerance_mm: float = 1e-9,
     max_iterations: int = 100,
@@ -335,7 +339,14 @@ def iso_plan_readings(
     return np.tile(np.array(solutions), (n_cycles, 1))
 
 
-def simulate_attained_positions(parameters, readings, *, target=(0.0, 0.0, 0.0), joint_errors=None, rng=None):
+def simulate_attained_positions(
+    parameters: ParameterSet,
+    readings: ArrayLike,
+    *,
+    target: ArrayLike = (0.0, 0.0, 0.0),
+    joint_errors=None,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
     """Attained positions of a flange point at controller ``readings`` with the joint error model [mm].
 
     Parameters
@@ -388,7 +399,7 @@ class IsoModel:
     target_offsets: dict | None = None
 
 
-def pose_visits(capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarray:
+def pose_visits(capture: Capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarray:
     """Visit index of every row of a multi-target capture (rows of the same pose form one visit).
 
     A new visit starts at a row whose target was already measured in the current visit, or whose
@@ -527,13 +538,13 @@ def _target_offsets(model: IsoModel, label: str, target_names, targets: dict | N
 
 
 def iso_from_capture(
-    capture,
+    capture: Capture,
     models: dict,
     *,
-    point=None,
+    point: ArrayLike | None = None,
     targets: dict | None = None,
     n_test_poses: int = 5,
-    distance_pair=(1, 3),
+    distance_pair: tuple[int, int] = (1, 3),
     orientation_axes: str = "base",
 ) -> dict:
     """ISO 9283 characteristics of every model on a capture of repeated test poses (``circle = 0`` rows).
@@ -588,7 +599,7 @@ def iso_from_capture(
         )
     n_cycles = _check_iso_cycles(visit_readings, n_test_poses, rows=visit_rows, source=capture.source)
     commands = visit_readings.reshape(n_cycles, n_test_poses, -1).mean(axis=0)
-    target_names = [capture.target_names[k] for k in np.unique(capture.target)] if multi else list(names)
+    target_names = list(names)  # the capture's target names in name-index order
 
     def offsets_of(model: IsoModel, label: str) -> np.ndarray:
         return _target_offsets(model, label, target_names, targets, capture.source)
@@ -670,7 +681,7 @@ def _reach_mm(robot, point) -> float:
     return float(links + np.linalg.norm(point))
 
 
-def default_iso_start(parameters, point) -> np.ndarray:
+def default_iso_start(parameters: ParameterSet, point: ArrayLike) -> np.ndarray:
     """Start readings of the default cube [rad]: of the readings ``lower + f (upper - lower)``, f in
     {0.25, 0.5, 0.75} for every joint, the one with the largest ``|det J|`` (J: the 6 x n Jacobian of
     the flange point's position [mm] and the flange orientation [rad x reach]), i.e. the best
@@ -719,7 +730,15 @@ def scenario_flange_point(scenario) -> np.ndarray:
     )
 
 
-def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, side_mm=None, n_cycles=ISO_CYCLES):
+def iso_cube_plan(
+    parameters: ParameterSet,
+    point: ArrayLike,
+    *,
+    start_readings: ArrayLike | None = None,
+    center_mm: ArrayLike | None = None,
+    side_mm: float | None = None,
+    n_cycles: int = ISO_CYCLES,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """The test cube and its plan, with the default rule for what is not given (docs/iso9283.md).
 
     Start readings: :func:`default_iso_start`; centre: the flange ``point`` at the start readings;
@@ -771,19 +790,19 @@ def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, sid
 
 
 def simulate_iso_study(
-    robot,
+    robot: RobotModel,
     parameter_sets: dict,
     *,
     targets_mm: dict,
-    true_parameters=None,
-    tracker_from_base=None,
+    true_parameters: ParameterSet | None = None,
+    tracker_from_base: ArrayLike | None = None,
     joint_errors=None,
-    instrument=None,
+    instrument: Instrument | None = None,
     cycles: int = ISO_CYCLES,
     seed: int | None = None,
-    center_mm=None,
+    center_mm: ArrayLike | None = None,
     side_mm: float | None = None,
-    start_deg=None,
+    start_deg: ArrayLike | None = None,
     orientation_axes: str = "base",
 ) -> IsoStudy:
     """A simulated ISO 9283 pose test of a true robot, evaluated with several models.

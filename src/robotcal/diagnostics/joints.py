@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -286,7 +287,7 @@ class JointDiagnostics:
         return tuple(rows)
 
 
-def local_frame(centre, normal, points, *, joint: int = 0) -> np.ndarray:
+def local_frame(centre: np.ndarray, normal: np.ndarray, points: ArrayLike, *, joint: int = 0) -> np.ndarray:
     """Rows ``(axis, radial, tangent)`` of unit vectors at ``points (..., 3)`` about an axis.
 
     ``axis`` is the unit ``normal``, ``radial`` points from the axis to the point's projection on
@@ -304,7 +305,7 @@ def local_frame(centre, normal, points, *, joint: int = 0) -> np.ndarray:
     return np.stack([axis, radial, tangent], axis=-2)
 
 
-def lash_state(readings, direction) -> np.ndarray:
+def lash_state(readings: ArrayLike, direction: ArrayLike) -> np.ndarray:
     """The sweep by which the turning joint reached each point of one circle.
 
     Parameters

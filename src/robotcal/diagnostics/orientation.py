@@ -7,6 +7,7 @@ commanded orientations, and attained flange poses registered from three or more 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 
@@ -17,7 +18,7 @@ __all__ = ["ORIENTATION_AXES", "orientation_deviations", "register_flange_poses"
 ORIENTATION_AXES = ("base", "flange")
 
 
-def rotation_vectors(rotations) -> np.ndarray:
+def rotation_vectors(rotations: ArrayLike) -> np.ndarray:
     """Rotation vectors (axis times angle, ``|v| <= pi``) of rotation matrices ``(..., 3, 3)`` [rad]."""
     from scipy.spatial.transform import Rotation
 
@@ -28,7 +29,9 @@ def rotation_vectors(rotations) -> np.ndarray:
     return Rotation.from_matrix(flat).as_rotvec().reshape(rotations.shape[:-2] + (3,))
 
 
-def orientation_deviations(attained_rotations, commanded_rotations, *, axes: str = "base") -> np.ndarray:
+def orientation_deviations(
+    attained_rotations: ArrayLike, commanded_rotations: ArrayLike, *, axes: str = "base"
+) -> np.ndarray:
     """Orientation deviations ``(a, b, c)`` of attained from commanded flange orientations [rad].
 
     ``axes="base"`` (ISO 9283's angles about the base axes): the rotation vector of
@@ -57,7 +60,7 @@ def orientation_deviations(attained_rotations, commanded_rotations, *, axes: str
     return rotation_vectors(deviation)
 
 
-def register_flange_poses(offsets, points):
+def register_flange_poses(offsets: ArrayLike, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Attained flange poses from targets measured at each pose: the rigid transform taking the
     targets' flange offsets onto their measured positions (Horn's closed form, least squares).
 

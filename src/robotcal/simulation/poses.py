@@ -8,6 +8,7 @@ circle: in a :class:`~robotcal.capture.Capture` they carry ``circle = 0`` and ``
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
@@ -46,7 +47,7 @@ TABLE_4_2_START_DEG = np.array(
 TABLE_4_4_POINTS = np.array([60, 30, 50, 60, 30, 60])
 
 
-def thesis_test2_plan(flange_reflector_mm=(60.0, 40.0, 30.0)) -> CapturePlan:
+def thesis_test2_plan(flange_reflector_mm: ArrayLike = (60.0, 40.0, 30.0)) -> CapturePlan:
     """The capture plan of the thesis's real test 2 (Tables 4.1, 4.2, 4.4): 580 points.
 
     Controller readings of the KUKA KR 5 sixx R650 (robot ``kuka-kr5-sixx-r650-krc``); circle i
@@ -130,10 +131,10 @@ def random_poses(
 
 def simulate_poses(
     robot: RobotModel,
-    readings,
+    readings: ArrayLike,
     reflector: ReflectorMount,
     instrument: Instrument,
-    tracker_from_base,
+    tracker_from_base: ArrayLike,
     *,
     true_parameters: ParameterSet | None = None,
     rng: np.random.Generator | int | None = None,
