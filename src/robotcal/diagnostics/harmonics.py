@@ -239,7 +239,7 @@ class HarmonicFit:
 
 
 def fit_harmonic_series(
-    theta: ArrayLike, values: ArrayLike, *, order: int = 2, joint: int = 0, quantity: str = "radial"
+    theta: ArrayLike, values: ArrayLike, *, order: int = 2, joint: int = 0, quantity: str = "radial",
 ) -> HarmonicFit:
     """Least-squares Fourier series of ``values`` in ``theta``.
 

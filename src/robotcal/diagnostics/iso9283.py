@@ -340,11 +340,7 @@ def iso_plan_readings(
 
 
 def simulate_attained_positions(
-    parameters: ParameterSet,
-    readings: ArrayLike,
-    *,
-    target: ArrayLike = (0.0, 0.0, 0.0),
-    joint_errors=None,
+    parameters: ParameterSet, readings: ArrayLike, *, target: ArrayLike = (0.0, 0.0, 0.0), joint_errors=None,
     rng: np.random.Generator | int | None = None,
 ) -> np.ndarray:
     """Attained positions of a flange point at controller ``readings`` with the joint error model [mm].
@@ -731,13 +727,8 @@ def scenario_flange_point(scenario) -> np.ndarray:
 
 
 def iso_cube_plan(
-    parameters: ParameterSet,
-    point: ArrayLike,
-    *,
-    start_readings: ArrayLike | None = None,
-    center_mm: ArrayLike | None = None,
-    side_mm: float | None = None,
-    n_cycles: int = ISO_CYCLES,
+    parameters: ParameterSet, point: ArrayLike, *, start_readings: ArrayLike | None = None,
+    center_mm: ArrayLike | None = None, side_mm: float | None = None, n_cycles: int = ISO_CYCLES,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """The test cube and its plan, with the default rule for what is not given (docs/iso9283.md).
 

@@ -30,7 +30,7 @@ def rotation_vectors(rotations: ArrayLike) -> np.ndarray:
 
 
 def orientation_deviations(
-    attained_rotations: ArrayLike, commanded_rotations: ArrayLike, *, axes: str = "base"
+    attained_rotations: ArrayLike, commanded_rotations: ArrayLike, *, axes: str = "base",
 ) -> np.ndarray:
     """Orientation deviations ``(a, b, c)`` of attained from commanded flange orientations [rad].
 

@@ -30,12 +30,8 @@ LANGUAGE_OF_SUFFIX = {
 
 
 def read_program(
-    path: str | Path,
-    *,
-    language: str | None = None,
-    dat: str | Path | None = None,
-    config_dat: str | Path | None = None,
-    encoding: str = "utf-8",
+    path: str | Path, *, language: str | None = None, dat: str | Path | None = None,
+    config_dat: str | Path | None = None, encoding: str = "utf-8",
 ) -> Program:
     """Read a robot program with the reader of its language (from the suffix unless ``language`` is given).
 

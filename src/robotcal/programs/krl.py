@@ -156,10 +156,7 @@ class _Target:
 
 
 def read_program(
-    src_path: str | Path,
-    *,
-    dat_path: str | Path | None = None,
-    config_dat: str | Path | None = None,
+    src_path: str | Path, *, dat_path: str | Path | None = None, config_dat: str | Path | None = None,
     encoding: str = "utf-8",
 ) -> Program:
     """Read a KRL program: its ``.src``, its ``.dat`` and, optionally, a ``$config.dat``.
@@ -233,10 +230,7 @@ def read_program(
 
 
 def render(
-    point: ProgramPoint,
-    *,
-    frame_mm: ArrayLike | None = None,
-    joints_deg: ArrayLike | None = None,
+    point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
     """The new text of every number of a KRL ``point`` for a new target.

@@ -64,10 +64,7 @@ def quaternion_from_frame(frame_mm: ArrayLike, near_wxyz: ArrayLike | None = Non
 
 
 def render(
-    point: ProgramPoint,
-    *,
-    frame_mm: ArrayLike | None = None,
-    joints_deg: ArrayLike | None = None,
+    point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
     """The replacement text of every number of ``point`` for a new target.

@@ -689,10 +689,7 @@ def _rotation_vector_near(rotation: np.ndarray, original) -> np.ndarray:
 
 
 def render(
-    point: ProgramPoint,
-    *,
-    frame_mm: ArrayLike | None = None,
-    joints_deg: ArrayLike | None = None,
+    point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
     """The new text of every number of ``point`` for a new target, in URScript's units (metres, radians).
