@@ -16,80 +16,10 @@ fitted to it over a 300 deg circle gives its amplitude back:
 (0.02, True)
 """
 
-from robotcal.diagnostics.harmonics import (
-    HARMONICS_FORMAT,
-    QUANTITIES,
-    CircleGeometry,
-    HarmonicFit,
-    HarmonicModel,
-    fit_harmonic_series,
-    fit_harmonics,
-)
-from robotcal.diagnostics.iso9283 import (
-    ISO_CYCLES,
-    ORIENTATION_AXES,
-    Iso9283Result,
-    IsoModel,
-    IsoStudy,
-    default_iso_start,
-    iso_cube_corners,
-    iso_cube_plan,
-    iso_from_capture,
-    iso_plan_readings,
-    iso_test_positions,
-    orientation_deviations,
-    pose_characteristics,
-    pose_visits,
-    register_flange_poses,
-    rotation_vectors,
-    scenario_flange_point,
-    simulate_attained_positions,
-    simulate_iso_study,
-)
-from robotcal.diagnostics.joints import (
-    DEFAULT_MATCH_TOLERANCE,
-    MAXWELL_MEAN_PER_SIGMA,
-    CircleDiagnostics,
-    JointDiagnostics,
-    JointSummary,
-    analyze_joints,
-    lash_state,
-    local_frame,
-)
+from robotcal.diagnostics import harmonics, iso9283, joints
+from robotcal.diagnostics.harmonics import *
+from robotcal.diagnostics.iso9283 import *
+from robotcal.diagnostics.joints import *
 
-__all__ = [
-    "QUANTITIES",
-    "HarmonicFit",
-    "CircleGeometry",
-    "HarmonicModel",
-    "fit_harmonic_series",
-    "fit_harmonics",
-    "HARMONICS_FORMAT",
-    "ISO_CYCLES",
-    "ORIENTATION_AXES",
-    "Iso9283Result",
-    "IsoModel",
-    "IsoStudy",
-    "default_iso_start",
-    "iso_from_capture",
-    "orientation_deviations",
-    "pose_visits",
-    "register_flange_poses",
-    "rotation_vectors",
-    "scenario_flange_point",
-    "simulate_iso_study",
-    "iso_cube_corners",
-    "iso_cube_plan",
-    "iso_test_positions",
-    "iso_plan_readings",
-    "pose_characteristics",
-    "simulate_attained_positions",
-    "CircleDiagnostics",
-    "JointSummary",
-    "JointDiagnostics",
-    "analyze_joints",
-    "lash_state",
-    "local_frame",
-    "DEFAULT_MATCH_TOLERANCE",
-    "MAXWELL_MEAN_PER_SIGMA",
-]
+# every public name of the modules, each listed once, in its module's __all__
+__all__ = [*harmonics.__all__, *iso9283.__all__, *joints.__all__]

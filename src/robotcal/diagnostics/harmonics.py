@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.diagnostics.joints import JointDiagnostics, local_frame
@@ -237,7 +238,9 @@ class HarmonicFit:
         )
 
 
-def fit_harmonic_series(theta, values, *, order: int = 2, joint: int = 0, quantity: str = "radial") -> HarmonicFit:
+def fit_harmonic_series(
+    theta: ArrayLike, values: ArrayLike, *, order: int = 2, joint: int = 0, quantity: str = "radial",
+) -> HarmonicFit:
     """Least-squares Fourier series of ``values`` in ``theta``.
 
     Minimises ``sum_i (y_i - c0 - sum_k (a_k cos k theta_i + b_k sin k theta_i))^2`` (linear least

@@ -29,10 +29,20 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
+from robotcal.capture import Capture
+from robotcal.diagnostics.orientation import (
+    ORIENTATION_AXES,
+    orientation_deviations,
+    register_flange_poses,
+    rotation_vectors,
+)
 from robotcal.errors import InputError
+from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import forward_kinematics
+from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.limits import ISO_CYCLES
 
 __all__ = [
@@ -127,14 +137,14 @@ class Iso9283Result:
 
 
 def pose_characteristics(
-    attained,
-    commanded,
+    attained: ArrayLike,
+    commanded: ArrayLike,
     *,
-    distance_pair=(1, 3),
-    attained_rotations=None,
-    commanded_rotations=None,
+    distance_pair: tuple[int, int] = (1, 3),
+    attained_rotations: ArrayLike | None = None,
+    commanded_rotations: ArrayLike | None = None,
     orientation_axes: str = "base",
-    registration_rms=None,
+    registration_rms: ArrayLike | None = None,
 ) -> Iso9283Result:
     """AP, RP, AD and RD of ISO 9283 (clauses 7.2.1, 7.2.2, 7.3.1, 7.3.2) from repeated poses, and
     APa/b/c, RPa/b/c when the orientations are given.
@@ -223,7 +233,7 @@ def pose_characteristics(
     )
 
 
-def iso_cube_corners(center, side: float) -> np.ndarray:
+def iso_cube_corners(center: ArrayLike, side: float) -> np.ndarray:
     """Corners ``C1, C2, C7, C8`` of the diagonal plane of the test cube, shape ``(4, 3)`` [mm].
 
     The cube has edges parallel to the base axes; the plane holds the edge ``y = z = -side/2``
@@ -238,7 +248,7 @@ def iso_cube_corners(center, side: float) -> np.ndarray:
     return center + np.array([[-h, -h, -h], [h, -h, -h], [h, h, h], [-h, h, h]])
 
 
-def iso_test_positions(center, side: float) -> np.ndarray:
+def iso_test_positions(center: ArrayLike, side: float) -> np.ndarray:
     """Test positions P1..P5, shape ``(5, 3)`` [mm]: the cube's centre and 10 % in from C1, C2, C7, C8."""
     corners = iso_cube_corners(center, side)
     center = np.asarray(center, dtype=float)
@@ -248,11 +258,11 @@ def iso_test_positions(center, side: float) -> np.ndarray:
 
 
 def iso_plan_readings(
-    parameters,
-    positions,
-    start_readings,
+    parameters: ParameterSet,
+    positions: ArrayLike,
+    start_readings: ArrayLike,
     *,
-    target=(0.0, 0.0, 0.0),
+    target: ArrayLike = (0.0, 0.0, 0.0),
     n_cycles: int = ISO_CYCLES,
     tolerance_mm: float = 1e-9,
     max_iterations: int = 100,
@@ -329,7 +339,10 @@ def iso_plan_readings(
     return np.tile(np.array(solutions), (n_cycles, 1))
 
 
-def simulate_attained_positions(parameters, readings, *, target=(0.0, 0.0, 0.0), joint_errors=None, rng=None):
+def simulate_attained_positions(
+    parameters: ParameterSet, readings: ArrayLike, *, target: ArrayLike = (0.0, 0.0, 0.0), joint_errors=None,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
     """Attained positions of a flange point at controller ``readings`` with the joint error model [mm].
 
     Parameters
@@ -359,86 +372,6 @@ def simulate_attained_positions(parameters, readings, *, target=(0.0, 0.0, 0.0),
     return target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), mount, joint_errors=errors)
 
 
-# --- orientation ------------------------------------------------------------------------------------
-
-#: Axes the orientation deviations are expressed about (see :func:`orientation_deviations`).
-ORIENTATION_AXES = ("base", "flange")
-
-
-def rotation_vectors(rotations) -> np.ndarray:
-    """Rotation vectors (axis times angle, ``|v| <= pi``) of rotation matrices ``(..., 3, 3)`` [rad]."""
-    from scipy.spatial.transform import Rotation
-
-    rotations = np.asarray(rotations, dtype=float)
-    if rotations.shape[-2:] != (3, 3):
-        raise InputError(f"rotations must have shape (..., 3, 3); got {rotations.shape}")
-    flat = rotations.reshape(-1, 3, 3)
-    return Rotation.from_matrix(flat).as_rotvec().reshape(rotations.shape[:-2] + (3,))
-
-
-def orientation_deviations(attained_rotations, commanded_rotations, *, axes: str = "base") -> np.ndarray:
-    """Orientation deviations ``(a, b, c)`` of attained from commanded flange orientations [rad].
-
-    ``axes="base"`` (ISO 9283's angles about the base axes): the rotation vector of
-    ``R_a R_c^T``, the small rotation that, applied in the base frame, turns the commanded flange
-    onto the attained one; its components are the rotations about base x, y, z. ``axes="flange"``:
-    the rotation vector of ``R_c^T R_a`` (commanded^-1 attained), the same rotation expressed about
-    the commanded flange's axes. The two differ only by the commanded rotation: ``v_base = R_c v_flange``.
-
-    Parameters
-    ----------
-    attained_rotations : array_like, shape (..., 3, 3)
-    commanded_rotations : array_like, shape (..., 3, 3)
-        Broadcast against ``attained_rotations``.
-    axes : {"base", "flange"}
-
-    Returns
-    -------
-    ndarray, shape (..., 3)
-    """
-    if axes not in ORIENTATION_AXES:
-        raise InputError(f"orientation axes must be one of {', '.join(ORIENTATION_AXES)}; got {axes!r}")
-    attained = np.asarray(attained_rotations, dtype=float)
-    commanded = np.asarray(commanded_rotations, dtype=float)
-    commanded_t = np.swapaxes(commanded, -1, -2)
-    deviation = attained @ commanded_t if axes == "base" else commanded_t @ attained
-    return rotation_vectors(deviation)
-
-
-def register_flange_poses(offsets, points):
-    """Attained flange poses from targets measured at each pose: the rigid transform taking the
-    targets' flange offsets onto their measured positions (Horn's closed form, least squares).
-
-    Parameters
-    ----------
-    offsets : array_like, shape (n_targets, 3)
-        Targets in the flange frame [mm], n_targets >= 3, not collinear.
-    points : array_like, shape (..., n_targets, 3)
-        The same targets measured, in the base frame [mm].
-
-    Returns
-    -------
-    transforms : ndarray, shape (..., 4, 4)
-        ``base_from_flange`` of every pose.
-    rms : ndarray, shape (...)
-        RMS residual of each registration [mm] (offsets that do not match the targets show here).
-    """
-    from robotcal.errors import DegenerateGeometryError
-    from robotcal.geometry.registration import register_points
-
-    offsets = np.asarray(offsets, dtype=float)
-    points = np.asarray(points, dtype=float)
-    if offsets.ndim != 2 or offsets.shape[1] != 3 or offsets.shape[0] < 3:
-        raise InputError(f"the flange orientation needs >= 3 target offsets (n, 3) [mm]; got shape {offsets.shape}")
-    if points.shape[-2:] != offsets.shape:
-        raise InputError(f"`points` must have shape (..., {offsets.shape[0]}, 3); got {points.shape}")
-    try:
-        registration = register_points(np.broadcast_to(offsets, points.shape), points)
-    except DegenerateGeometryError as exc:
-        raise InputError(f"the flange targets' offsets are collinear: no orientation can be measured ({exc})") from exc
-    return registration.transform, registration.rms
-
-
 # --- from a capture ---------------------------------------------------------------------------------
 
 
@@ -462,14 +395,15 @@ class IsoModel:
     target_offsets: dict | None = None
 
 
-def pose_visits(capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarray:
+def pose_visits(capture: Capture, *, same_pose_rad: float = np.deg2rad(1e-3)) -> np.ndarray:
     """Visit index of every row of a multi-target capture (rows of the same pose form one visit).
 
     A new visit starts at a row whose target was already measured in the current visit, or whose
     readings differ from the visit's first row by more than ``same_pose_rad`` (any joint).
     """
     visits = np.empty(capture.n_points, dtype=int)
-    current, seen, first = -1, set(), None
+    current, first = -1, None
+    seen: set[int] = set()
     for row in range(capture.n_points):
         target = int(capture.target[row]) if capture.target is not None else 0
         readings = capture.readings[row]
@@ -560,14 +494,53 @@ def _check_iso_cycles(readings, n_test_poses: int, *, rows, source: str, same_po
     return n_cycles
 
 
+def _visits_of_targets(capture, free: np.ndarray, names: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of every pose visit of a capture with several targets per pose, ``(n_visits, n_targets)`` with the
+    targets in name-index order, and each visit's first data row (1-based, for messages)."""
+    visits = pose_visits(capture)
+    n_visits = int(visits[-1]) + 1
+    order = np.lexsort((capture.target, visits))  # rows grouped by visit, targets in name-index order
+    counts = np.bincount(visits, minlength=n_visits)
+    if np.any(counts != len(names)):
+        bad = int(np.flatnonzero(counts != len(names))[0])
+        row = int(np.flatnonzero(visits == bad)[0]) + 1
+        raise InputError(
+            f"{capture.source}: pose visit {bad + 1} (free row {row}) measured {counts[bad]} of the {len(names)} "
+            f"targets {', '.join(names)}; every visit must measure every target (three or more for the orientation)"
+        )
+    if len(names) < 3:
+        raise InputError(
+            f"{capture.source}: {len(names)} targets per pose ({', '.join(names)}): the orientation needs three or "
+            "more; keep the rows of one target for positions only"
+        )
+    visit_rows = free[np.array([np.flatnonzero(visits == v)[0] for v in range(n_visits)])] + 1
+    return order.reshape(n_visits, len(names)), visit_rows
+
+
+def _target_offsets(model: IsoModel, label: str, target_names, targets: dict | None, source: str) -> np.ndarray:
+    """The flange offsets ``(n_targets, 3)`` [mm] of ``target_names``: the model's own, else those given."""
+    own = model.target_offsets or {}
+    rows = []
+    for name in target_names:
+        offsets = own if name in own else (targets or {})
+        if name not in offsets:
+            raise InputError(
+                f"{source}: model {label!r} has no flange offset for target {name!r} (its parameter "
+                "set did not estimate it and the scenario does not give it): declare it in the scenario's "
+                "[[targets]] (known), give --targets-mm, or leave the nominal model out with --no-nominal"
+            )
+        rows.append(np.asarray(offsets[name], dtype=float).reshape(3))
+    return np.array(rows)
+
+
 def iso_from_capture(
-    capture,
+    capture: Capture,
     models: dict,
     *,
-    point=None,
+    point: ArrayLike | None = None,
     targets: dict | None = None,
     n_test_poses: int = 5,
-    distance_pair=(1, 3),
+    distance_pair: tuple[int, int] = (1, 3),
     orientation_axes: str = "base",
 ) -> dict:
     """ISO 9283 characteristics of every model on a capture of repeated test poses (``circle = 0`` rows).
@@ -608,25 +581,9 @@ def iso_from_capture(
     names = () if capture.target is None else tuple(capture.target_names[k] for k in np.unique(capture.target))
     multi = len(names) > 1
     if multi:
-        visits = pose_visits(capture)
-        n_visits = int(visits[-1]) + 1
-        order = np.lexsort((capture.target, visits))  # rows grouped by visit, targets in name-index order
-        counts = np.bincount(visits, minlength=n_visits)
-        if np.any(counts != len(names)):
-            bad = int(np.flatnonzero(counts != len(names))[0])
-            row = int(np.flatnonzero(visits == bad)[0]) + 1
-            raise InputError(
-                f"{capture.source}: pose visit {bad + 1} (free row {row}) measured {counts[bad]} of the {len(names)} "
-                f"targets {', '.join(names)}; every visit must measure every target (three or more for the orientation)"
-            )
-        if len(names) < 3:
-            raise InputError(
-                f"{capture.source}: {len(names)} targets per pose ({', '.join(names)}): the orientation needs three or "
-                "more; keep the rows of one target for positions only"
-            )
-        row_of_visit = order.reshape(n_visits, len(names))
+        row_of_visit, visit_rows = _visits_of_targets(capture, free, names)
+        n_visits = row_of_visit.shape[0]
         visit_readings = capture.readings[row_of_visit[:, 0]]
-        visit_rows = free[np.array([np.flatnonzero(visits == v)[0] for v in range(n_visits)])] + 1
     else:
         n_visits = capture.n_points
         visit_readings = capture.readings
@@ -638,21 +595,10 @@ def iso_from_capture(
         )
     n_cycles = _check_iso_cycles(visit_readings, n_test_poses, rows=visit_rows, source=capture.source)
     commands = visit_readings.reshape(n_cycles, n_test_poses, -1).mean(axis=0)
-    target_names = [capture.target_names[k] for k in np.unique(capture.target)] if multi else list(names)
+    target_names = list(names)  # the capture's target names in name-index order
 
     def offsets_of(model: IsoModel, label: str) -> np.ndarray:
-        own = model.target_offsets or {}
-        rows = []
-        for name in target_names:
-            source = own if name in own else (targets or {})
-            if name not in source:
-                raise InputError(
-                    f"{capture.source}: model {label!r} has no flange offset for target {name!r} (its parameter "
-                    "set did not estimate it and the scenario does not give it): declare it in the scenario's "
-                    "[[targets]] (known), give --targets-mm, or leave the nominal model out with --no-nominal"
-                )
-            rows.append(np.asarray(source[name], dtype=float).reshape(3))
-        return np.array(rows)
+        return _target_offsets(model, label, target_names, targets, capture.source)
 
     results = {}
     for label, model in models.items():
@@ -731,7 +677,7 @@ def _reach_mm(robot, point) -> float:
     return float(links + np.linalg.norm(point))
 
 
-def default_iso_start(parameters, point) -> np.ndarray:
+def default_iso_start(parameters: ParameterSet, point: ArrayLike) -> np.ndarray:
     """Start readings of the default cube [rad]: of the readings ``lower + f (upper - lower)``, f in
     {0.25, 0.5, 0.75} for every joint, the one with the largest ``|det J|`` (J: the 6 x n Jacobian of
     the flange point's position [mm] and the flange orientation [rad x reach]), i.e. the best
@@ -780,7 +726,10 @@ def scenario_flange_point(scenario) -> np.ndarray:
     )
 
 
-def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, side_mm=None, n_cycles=ISO_CYCLES):
+def iso_cube_plan(
+    parameters: ParameterSet, point: ArrayLike, *, start_readings: ArrayLike | None = None,
+    center_mm: ArrayLike | None = None, side_mm: float | None = None, n_cycles: int = ISO_CYCLES,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """The test cube and its plan, with the default rule for what is not given (docs/iso9283.md).
 
     Start readings: :func:`default_iso_start`; centre: the flange ``point`` at the start readings;
@@ -832,19 +781,19 @@ def iso_cube_plan(parameters, point, *, start_readings=None, center_mm=None, sid
 
 
 def simulate_iso_study(
-    robot,
+    robot: RobotModel,
     parameter_sets: dict,
     *,
     targets_mm: dict,
-    true_parameters=None,
-    tracker_from_base=None,
+    true_parameters: ParameterSet | None = None,
+    tracker_from_base: ArrayLike | None = None,
     joint_errors=None,
-    instrument=None,
+    instrument: Instrument | None = None,
     cycles: int = ISO_CYCLES,
     seed: int | None = None,
-    center_mm=None,
+    center_mm: ArrayLike | None = None,
     side_mm: float | None = None,
-    start_deg=None,
+    start_deg: ArrayLike | None = None,
     orientation_axes: str = "base",
 ) -> IsoStudy:
     """A simulated ISO 9283 pose test of a true robot, evaluated with several models.

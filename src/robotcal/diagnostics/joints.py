@@ -31,8 +31,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -285,7 +287,7 @@ class JointDiagnostics:
         return tuple(rows)
 
 
-def local_frame(centre, normal, points, *, joint: int = 0) -> np.ndarray:
+def local_frame(centre: np.ndarray, normal: np.ndarray, points: ArrayLike, *, joint: int = 0) -> np.ndarray:
     """Rows ``(axis, radial, tangent)`` of unit vectors at ``points (..., 3)`` about an axis.
 
     ``axis`` is the unit ``normal``, ``radial`` points from the axis to the point's projection on
@@ -303,7 +305,7 @@ def local_frame(centre, normal, points, *, joint: int = 0) -> np.ndarray:
     return np.stack([axis, radial, tangent], axis=-2)
 
 
-def lash_state(readings, direction) -> np.ndarray:
+def lash_state(readings: ArrayLike, direction: ArrayLike) -> np.ndarray:
     """The sweep by which the turning joint reached each point of one circle.
 
     Parameters
@@ -362,7 +364,14 @@ def _match(reading: np.ndarray, direction: np.ndarray, tolerance: float) -> tupl
     return pairs_array[:, 0], pairs_array[:, 1]
 
 
-def _circle(capture: Capture, joint: int, rows: np.ndarray, backlash: bool, tolerance: float, method: str):
+def _circle(
+    capture: Capture,
+    joint: int,
+    rows: np.ndarray,
+    backlash: bool,
+    tolerance: float,
+    method: Literal["geometric", "algebraic"],
+):
     points = capture.points[rows]
     reading = capture.readings[rows, joint - 1]
     direction = capture.direction[rows]
@@ -433,7 +442,7 @@ def analyze_joints(
     *,
     backlash: bool = True,
     match_tolerance: float = DEFAULT_MATCH_TOLERANCE,
-    method: str = "geometric",
+    method: Literal["geometric", "algebraic"] = "geometric",
 ) -> JointDiagnostics:
     """Backlash and axial/radial eccentricity of every circle of a capture (thesis ch. 4.6).
 

@@ -15,63 +15,12 @@ A circle fitted to points of a known circle gives its centre, radius and axis ba
 ([10.0, -5.0, 3.0], 50.0, [0.0, 0.0, 1.0])
 """
 
-from robotcal.geometry.euler import (
-    GIMBAL_TOLERANCE,
-    kuka_abc_from_matrix,
-    matrix_from_kuka_abc,
-    thesis_order,
-    wrap_angle_near,
-)
-from robotcal.geometry.fits import CircleFit, PlaneFit, check_points, fit_circle_3d, fit_plane
-from robotcal.geometry.lines import (
-    INTERSECTION_TOLERANCE_MM,
-    PARALLEL_TOLERANCE_RAD,
-    LinePair,
-    PluckerLine,
-    analyse_dh_pair,
-    analyse_hayati_pair,
-    signed_angle_about,
-)
-from robotcal.geometry.registration import Registration, register_points
-from robotcal.geometry.transforms import (
-    apply_transform,
-    check_rigid_transform,
-    invert_transform,
-    nearest_rotation,
-    rot_x,
-    rot_y,
-    rot_z,
-    rotation_about_line,
-    translation,
-)
+from robotcal.geometry import euler, fits, lines, registration, transforms
+from robotcal.geometry.euler import *
+from robotcal.geometry.fits import *
+from robotcal.geometry.lines import *
+from robotcal.geometry.registration import *
+from robotcal.geometry.transforms import *
 
-__all__ = [
-    "GIMBAL_TOLERANCE",
-    "kuka_abc_from_matrix",
-    "matrix_from_kuka_abc",
-    "thesis_order",
-    "wrap_angle_near",
-    "PlaneFit",
-    "CircleFit",
-    "fit_plane",
-    "fit_circle_3d",
-    "check_points",
-    "PluckerLine",
-    "LinePair",
-    "PARALLEL_TOLERANCE_RAD",
-    "INTERSECTION_TOLERANCE_MM",
-    "analyse_dh_pair",
-    "analyse_hayati_pair",
-    "signed_angle_about",
-    "Registration",
-    "register_points",
-    "rot_x",
-    "rot_y",
-    "rot_z",
-    "translation",
-    "rotation_about_line",
-    "invert_transform",
-    "apply_transform",
-    "nearest_rotation",
-    "check_rigid_transform",
-]
+# every public name of the modules, each listed once, in its module's __all__
+__all__ = [*euler.__all__, *fits.__all__, *lines.__all__, *registration.__all__, *transforms.__all__]

@@ -18,6 +18,7 @@ Angles in radians; ranges A, C in (-pi, pi], B in [-pi/2, pi/2]. At the gimbal l
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 
@@ -37,7 +38,7 @@ def _check_rotations(rotation) -> np.ndarray:
     return rotation[..., :3, :3]
 
 
-def kuka_abc_from_matrix(rotation) -> np.ndarray:
+def kuka_abc_from_matrix(rotation: ArrayLike) -> np.ndarray:
     """KUKA ``A, B, C`` [rad] of rotation matrices, ``R = Rz(A) Ry(B) Rx(C)``.
 
     Parameters
@@ -68,7 +69,7 @@ def kuka_abc_from_matrix(rotation) -> np.ndarray:
     return np.stack([a, b, c], axis=-1)
 
 
-def matrix_from_kuka_abc(abc) -> np.ndarray:
+def matrix_from_kuka_abc(abc: ArrayLike) -> np.ndarray:
     """Rotation matrices ``Rz(A) Ry(B) Rx(C)`` from KUKA angles ``abc (..., 3)`` [rad] -> ``(..., 3, 3)``."""
     abc = np.asarray(abc, dtype=float)
     if abc.ndim < 1 or abc.shape[-1] != 3:
@@ -89,13 +90,13 @@ def matrix_from_kuka_abc(abc) -> np.ndarray:
     return out
 
 
-def thesis_order(abc) -> np.ndarray:
+def thesis_order(abc: ArrayLike) -> np.ndarray:
     """KUKA ``(A, B, C)`` -> the thesis's X, Y, Z order ``(C, B, A)`` (Table 5.8), ``(..., 3)``."""
     abc = np.asarray(abc, dtype=float)
     return abc[..., ::-1]
 
 
-def wrap_angle_near(angle, reference) -> np.ndarray:
+def wrap_angle_near(angle: ArrayLike, reference: ArrayLike) -> np.ndarray:
     """``angle`` shifted by a multiple of 2 pi to lie within (-pi, pi] of ``reference`` [rad].
 
     Used before averaging angles of Monte Carlo draws: draws of C = 179.9 deg and -179.9 deg are

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import DegenerateGeometryError, InputError
 from robotcal.geometry._vectors import cross as _cross
@@ -27,7 +28,7 @@ COLLINEAR_RATIO = 1e-6
 COST_TOLERANCE = 1e-10
 
 
-def check_points(points, name: str = "points", *, min_points: int = 3) -> np.ndarray:
+def check_points(points: ArrayLike, name: str = "points", *, min_points: int = 3) -> np.ndarray:
     """Coerce ``points`` to float ``(..., n_points, 3)`` with ``n_points >= min_points``, all finite."""
     points = _check_shape(points, name, min_points=min_points)
     if not np.all(np.isfinite(points)):
@@ -57,8 +58,8 @@ class PlaneFit:
     centroid: np.ndarray
     normal: np.ndarray
     basis: np.ndarray
-    residuals: np.ndarray
-    rms: np.ndarray
+    residuals: np.ndarray | None
+    rms: np.ndarray | None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -94,10 +95,10 @@ class CircleFit:
     centre: np.ndarray
     normal: np.ndarray
     radius: np.ndarray
-    plane_residuals: np.ndarray
-    radial_residuals: np.ndarray
-    plane_rms: np.ndarray
-    circle_rms: np.ndarray
+    plane_residuals: np.ndarray | None
+    radial_residuals: np.ndarray | None
+    plane_rms: np.ndarray | None
+    circle_rms: np.ndarray | None
     method: str
     iterations: int
     converged: bool
@@ -233,7 +234,7 @@ def _plane_fit(points, *, residuals: bool = True) -> tuple[PlaneFit, np.ndarray,
     return plane, _project(centred, u), _project(centred, v), (suu, suv, svv)
 
 
-def fit_plane(points) -> PlaneFit:
+def fit_plane(points: ArrayLike) -> PlaneFit:
     """Fit planes to ``points (..., n_points, 3)`` by orthogonal (total) least squares.
 
     The normal is the eigenvector of the centred points' scatter matrix ``S = sum_k c_k c_k^T``
@@ -391,13 +392,11 @@ class _CircleIteration:
         state = _CircleState(None)
         for name in ("du", "dv", "dist", "res"):
             setattr(state, name, np.take(getattr(self.state, name), rows, axis=0))
-        return _CircleIteration(
-            *(
-                np.take(getattr(self, name), rows, axis=0)
-                for name in ("u", "v", "cu", "cv", "r", "cost", "damping", "active")
-            ),
-            state,
-        )
+        taken = {
+            name: np.take(getattr(self, name), rows, axis=0)
+            for name in ("u", "v", "cu", "cv", "r", "cost", "damping", "active")
+        }
+        return _CircleIteration(**taken, state=state)
 
     def put(self, rows: np.ndarray, part: _CircleIteration) -> None:
         """Write the iterate ``part`` of the items ``rows`` back (what the solution needs: no scratch, no damping)."""
@@ -468,7 +467,7 @@ def _refine_circle_2d_geometric(
 
 
 def fit_circle_3d(
-    points,
+    points: ArrayLike,
     *,
     method: Literal["geometric", "algebraic"] = "geometric",
     max_iterations: int = 50,
@@ -512,6 +511,8 @@ def fit_circle_3d(
     axis_u, axis_v = plane.basis[..., 0, :], plane.basis[..., 1, :]
     centre_uv, radius = _fit_circle_2d_algebraic(u, v, scatter)
     iterations, converged = 0, True
+    radial: np.ndarray | None
+    cost: np.ndarray | None
     if method == "geometric":
         centre_uv, radius, iterations, converged, radial, cost, (du, dv) = _refine_circle_2d_geometric(
             u, v, centre_uv, radius, max_iterations=max_iterations, tolerance=tolerance

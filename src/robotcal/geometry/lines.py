@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import DegenerateGeometryError, InputError
 from robotcal.geometry._vectors import cross as _cross
@@ -192,7 +193,7 @@ def _where3(condition, if_true, if_false) -> tuple:
     return tuple(np.where(condition, t, f) for t, f in zip(if_true, if_false, strict=True))
 
 
-def signed_angle_about(from_vector, to_vector, axis) -> np.ndarray:
+def signed_angle_about(from_vector: ArrayLike, to_vector: ArrayLike, axis: ArrayLike) -> np.ndarray:
     """Right-handed angle [rad] from ``from_vector`` to ``to_vector`` about unit ``axis``, (-pi, pi].
 
     Both vectors are projected on the plane normal to ``axis`` first, so they need not be
@@ -202,7 +203,9 @@ def signed_angle_about(from_vector, to_vector, axis) -> np.ndarray:
     return np.arctan2(_dot3(_cross3(f, t), n), _dot3(f, t) - _dot3(f, n) * _dot3(t, n))
 
 
-def analyse_dh_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint, point_j_if_parallel) -> LinePair:
+def analyse_dh_pair(
+    line_j: PluckerLine, line_k: PluckerLine, *, normal_hint: ArrayLike, point_j_if_parallel: ArrayLike
+) -> LinePair:
     """Adjacent-line analysis for a Denavit-Hartenberg joint (thesis 4.4.3, 4.4.5 steps 1, 3, 4).
 
     - skew lines (``|a_jk| > INTERSECTION_TOLERANCE_MM``): common-normal feet by eqs 4-35 and 4-36
@@ -300,7 +303,9 @@ def analyse_dh_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint, po
     )
 
 
-def analyse_hayati_pair(line_j: PluckerLine, line_k: PluckerLine, *, normal_hint, point_j) -> LinePair:
+def analyse_hayati_pair(
+    line_j: PluckerLine, line_k: PluckerLine, *, normal_hint: ArrayLike, point_j: ArrayLike
+) -> LinePair:
     """Nearly parallel axes with the extra Hayati angle beta (thesis 4.4.4.3, Solution 3).
 
     - ``P_j = point_j``: the caller passes ``P_j^prev + d_j^nom S_j`` (eq. 4-60; d = 0 on a Hayati joint);

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import DegenerateGeometryError, InputError
 from robotcal.geometry.fits import check_points
@@ -37,7 +38,7 @@ class Registration:
     rms: np.ndarray
 
 
-def register_points(source_points, target_points) -> Registration:
+def register_points(source_points: ArrayLike, target_points: ArrayLike) -> Registration:
     """Rigid transform taking ``source_points`` onto ``target_points`` (Horn 1987, closed form).
 
     The rotation is the unit quaternion that is the eigenvector of Horn's symmetric 4x4 matrix ``N``

@@ -7,6 +7,7 @@ Every function broadcasts over leading axes; the last axes are coordinates (``(.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 
@@ -37,22 +38,22 @@ def _elementary(angle, axis: int) -> np.ndarray:
     return out
 
 
-def rot_x(angle) -> np.ndarray:
+def rot_x(angle: ArrayLike) -> np.ndarray:
     """Homogeneous rotation about x by ``angle`` [rad], shape ``angle.shape + (4, 4)``."""
     return _elementary(angle, 0)
 
 
-def rot_y(angle) -> np.ndarray:
+def rot_y(angle: ArrayLike) -> np.ndarray:
     """Homogeneous rotation about y by ``angle`` [rad], shape ``angle.shape + (4, 4)``."""
     return _elementary(angle, 1)
 
 
-def rot_z(angle) -> np.ndarray:
+def rot_z(angle: ArrayLike) -> np.ndarray:
     """Homogeneous rotation about z by ``angle`` [rad], shape ``angle.shape + (4, 4)``."""
     return _elementary(angle, 2)
 
 
-def translation(vector) -> np.ndarray:
+def translation(vector: ArrayLike) -> np.ndarray:
     """Homogeneous translation by ``vector`` [mm], shape ``(..., 3) -> (..., 4, 4)``."""
     vector = np.asarray(vector, dtype=float)
     out = np.zeros(vector.shape[:-1] + (4, 4))
@@ -61,7 +62,7 @@ def translation(vector) -> np.ndarray:
     return out
 
 
-def rotation_about_line(direction, point, angle) -> np.ndarray:
+def rotation_about_line(direction: ArrayLike, point: ArrayLike, angle: ArrayLike) -> np.ndarray:
     """Rigid transform that turns space by ``angle`` about the line through ``point`` along ``direction``.
 
     Right-handed about ``direction`` (Rodrigues' formula): ``T = Trans(p) Rot(S, angle) Trans(-p)``.
@@ -98,7 +99,7 @@ def rotation_about_line(direction, point, angle) -> np.ndarray:
     return out
 
 
-def invert_transform(transform) -> np.ndarray:
+def invert_transform(transform: ArrayLike) -> np.ndarray:
     """Inverse of rigid transforms ``(..., 4, 4)`` using ``R^T`` (no general matrix inverse)."""
     transform = np.asarray(transform, dtype=float)
     rotation_t = np.swapaxes(transform[..., :3, :3], -1, -2)
@@ -109,14 +110,14 @@ def invert_transform(transform) -> np.ndarray:
     return out
 
 
-def apply_transform(transform, points) -> np.ndarray:
+def apply_transform(transform: ArrayLike, points: ArrayLike) -> np.ndarray:
     """Apply ``(..., 4, 4)`` transforms to ``(..., 3)`` points [mm] (broadcasting leading axes)."""
     transform = np.asarray(transform, dtype=float)
     points = np.asarray(points, dtype=float)
     return np.einsum("...ij,...j->...i", transform[..., :3, :3], points) + transform[..., :3, 3]
 
 
-def nearest_rotation(matrix) -> np.ndarray:
+def nearest_rotation(matrix: ArrayLike) -> np.ndarray:
     """Nearest proper rotation (Frobenius norm) to ``(..., 3, 3)`` matrices, by SVD (polar factor)."""
     u, _, vt = np.linalg.svd(np.asarray(matrix, dtype=float))
     d = np.sign(np.linalg.det(u @ vt))
@@ -125,7 +126,7 @@ def nearest_rotation(matrix) -> np.ndarray:
     return u @ vt
 
 
-def check_rigid_transform(matrix, name: str = "transform", *, tolerance: float = 1e-6) -> np.ndarray:
+def check_rigid_transform(matrix: ArrayLike, name: str = "transform", *, tolerance: float = 1e-6) -> np.ndarray:
     """Return ``matrix`` as a float (4, 4) rigid transform, or raise :class:`InputError`.
 
     A rigid transform has a proper orthonormal rotation block (``|R^T R - I| <= tolerance``,

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -113,7 +114,7 @@ class CPAOptions:
         How much a joint other than the turning one may vary within a circle.
     """
 
-    circle_fit: str = "geometric"
+    circle_fit: Literal["geometric", "algebraic"] = "geometric"
     base_frame: str = "given"
     base_axis: str = "registration"
     near_parallel_deg: float = 5.0
@@ -227,7 +228,8 @@ class CPAResult:
 
     def __repr__(self) -> str:
         health = f", {self.health.verdict}" if self.health is not None else ""
-        worst = max((float(fit.circle_rms) for fit in self.circle_fits), default=float("nan"))
+        fitted = [float(fit.circle_rms) for fit in self.circle_fits if fit.circle_rms is not None]
+        worst = max(fitted, default=float("nan"))
         return (
             f"CPAResult({len(self.circle_fits)} circles, {int(self.parameters.identified.sum())} parameters, circle RMS "
             f"<= {worst * 1e3:.3g} um{health}, success={self.success})"
@@ -297,13 +299,7 @@ def prepare_cpa(
     nominal_points = target_positions(robot.nominal, model_q, capture.circle - 1, reflector)
     circle1_azimuth = 0.0
     if options.base_axis == "circle1":
-        first = indices[0][0]
-        q_zero = model_q[first].copy()
-        q_zero[0] = 0.0
-        nominal = target_positions(robot.nominal, q_zero[None, :], np.array([0]), reflector)[0]
-        if np.hypot(nominal[0], nominal[1]) < 1e-6:
-            raise DegenerateGeometryError(f"{src}: base_axis='circle1' needs the circle-1 target off axis 1")
-        circle1_azimuth = float(model_q[first, 0] + np.arctan2(nominal[1], nominal[0]))
+        circle1_azimuth = _circle1_azimuth(robot, reflector, model_q[indices[0][0]], src)
     return _Structure(
         robot=robot,
         reflector=reflector,
@@ -317,6 +313,17 @@ def prepare_cpa(
         circle1_azimuth=circle1_azimuth,
         source=src,
     )
+
+
+def _circle1_azimuth(robot: RobotModel, reflector: ReflectorMount, first_q: np.ndarray, src: str) -> float:
+    """Azimuth about axis 1 of the circle-1 target at J1 = 0 plus J1 of circle 1's first point [rad]
+    (``base_axis="circle1"``: the base x axis points at the target of circle 1 at J1 = 0)."""
+    q_zero = first_q.copy()
+    q_zero[0] = 0.0
+    nominal = target_positions(robot.nominal, q_zero[None, :], np.array([0]), reflector)[0]
+    if np.hypot(nominal[0], nominal[1]) < 1e-6:
+        raise DegenerateGeometryError(f"{src}: base_axis='circle1' needs the circle-1 target off axis 1")
+    return float(first_q[0] + np.arctan2(nominal[1], nominal[0]))
 
 
 def _coupling_hint(robot: RobotModel, turning: int, moving: int) -> str:
@@ -392,18 +399,9 @@ def _row_selector(rows: np.ndarray) -> slice | np.ndarray:
     return rows
 
 
-def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *, residuals: bool = True) -> CPABatch:
-    """CPA on measured points ``(..., n_points, 3)`` [mm] sharing one capture structure.
-
-    ``tracker_from_base`` (4, 4) is required when ``structure.options.base_frame == "given"``.
-    ``residuals=False`` leaves the fit residuals out of ``circle_fits`` (``fit_circle_3d(residuals=False)``):
-    the parameters are the same, and a Monte Carlo draw needs nothing else.
-    """
-    robot, options = structure.robot, structure.options
-    n = robot.n_joints
-    points = np.asarray(points, dtype=float)
-    batch_shape = points.shape[:-2]
-    # 1. circles -> oriented axes (measured configuration)
+def _circle_axes(points: np.ndarray, structure: _Structure, *, residuals: bool) -> tuple[list, list[PluckerLine]]:
+    """The circle fit of every joint and its axis oriented by the turn of the readings (measured configuration)."""
+    options = structure.options
     fits, lines = [], []
     for joint, rows in enumerate(structure.circle_indices):
         circle_points = points[..., _row_selector(rows), :]
@@ -420,11 +418,15 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *,
                 f"{structure.source}: circle {joint + 1} (J{joint + 1}, {point_rows(rows)}): no axis from the "
                 f"circle fit ({exc}); check these rows for repeated or corrupt points"
             ) from None
-    # 2. bring every axis to the reference configuration (product of exponentials)
-    referenced = []
+    return fits, lines
+
+
+def _referenced_axes(lines: list[PluckerLine], transport: np.ndarray) -> PluckerLine:
+    """Every axis brought to the reference configuration (product of exponentials), stacked ``(..., n_joints)``."""
+    referenced: list[PluckerLine] = []
     for k, line in enumerate(lines):
         for j in range(k):  # D^-1 L = Rot(L_{k-1}, -dq) ... Rot(L_1, -dq) L: joint 1 acts first
-            angle = structure.transport[k, j]
+            angle = transport[k, j]
             if angle != 0.0:
                 line = _turned_about(line, referenced[j], -angle)
         referenced.append(line)
@@ -432,16 +434,44 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *,
         direction=np.stack([line.direction for line in referenced], axis=-2),
         moment=np.stack([line.moment for line in referenced], axis=-2),
     )
-    # 3. base frame
-    registration_rms = None
-    if options.base_frame == "registered":
+    return axes
+
+
+def _base_frame(points: np.ndarray, structure: _Structure, tracker_from_base) -> tuple[np.ndarray, np.ndarray | None]:
+    """``tracker_from_base`` registered from the points (and the registration's RMS) or the given one, checked."""
+    if structure.options.base_frame == "registered":
         registration = register_points(structure.nominal_points, points)
-        tracker_from_base = registration.transform
-        registration_rms = registration.rms
-    elif tracker_from_base is None:
+        return registration.transform, registration.rms
+    if tracker_from_base is None:
         raise InputError("base_frame='given' needs `tracker_from_base`")
-    else:
-        tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    return check_rigid_transform(tracker_from_base, "tracker_from_base"), None
+
+
+def _wrap_angles_to_nominal(values: np.ndarray, nominal: np.ndarray) -> None:
+    """Bring the angles of ``values (..., n_joints, 5)`` within +-pi of the nominal ones, in place."""
+    angles = [_THETA, _ALPHA, _BETA]
+    nominal_angles = nominal[:, angles]
+    offsets = values[..., angles] - nominal_angles
+    offsets -= 2.0 * np.pi * np.round(offsets / (2.0 * np.pi))  # exact for offsets already within +-pi
+    values[..., angles] = nominal_angles + offsets
+
+
+def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *, residuals: bool = True) -> CPABatch:
+    """CPA on measured points ``(..., n_points, 3)`` [mm] sharing one capture structure.
+
+    ``tracker_from_base`` (4, 4) is required when ``structure.options.base_frame == "given"``.
+    ``residuals=False`` leaves the fit residuals out of ``circle_fits`` (``fit_circle_3d(residuals=False)``):
+    the parameters are the same, and a Monte Carlo draw needs nothing else.
+    """
+    robot, options = structure.robot, structure.options
+    n = robot.n_joints
+    points = np.asarray(points, dtype=float)
+    batch_shape = points.shape[:-2]
+    # 1. circles -> oriented axes (measured configuration); 2. every axis at the reference configuration
+    fits, lines = _circle_axes(points, structure, residuals=residuals)
+    axes = _referenced_axes(lines, structure.transport)
+    # 3. base frame
+    tracker_from_base, registration_rms = _base_frame(points, structure, tracker_from_base)
     # x axes of the nominal frames {1}..{n} at the reference configuration: the hints of the common normals
     nominal_x = joint_frames(robot.nominal, structure.reference_q[None, :])[0][:, :3, 0]
     hints = np.einsum("...ij,kj->...ki", tracker_from_base[..., :3, :3], nominal_x)
@@ -493,11 +523,7 @@ def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *,
         cases.append(str(np.asarray(pair.case).reshape(-1)[0]))
         previous_point, previous_x = pair.point_k, pair.normal
     # 5. angles within +-180 deg of nominal (docs/conventions.md)
-    angles = [_THETA, _ALPHA, _BETA]
-    nominal_angles = robot.nominal[:, angles]
-    offsets = values[..., angles] - nominal_angles
-    offsets -= 2.0 * np.pi * np.round(offsets / (2.0 * np.pi))  # exact for offsets already within +-pi
-    values[..., angles] = nominal_angles + offsets
+    _wrap_angles_to_nominal(values, robot.nominal)
     return CPABatch(
         values=values,
         identified=identified,
@@ -569,7 +595,7 @@ def identify_cpa(
             )
         elif not robot.hayati[joint]:
             cos = abs(_dot(batch.axes.direction[joint], batch.axes.direction[joint + 1]))
-            if np.rad2deg(np.arccos(min(cos, 1.0))) < options.near_parallel_deg:
+            if np.rad2deg(np.arccos(np.minimum(cos, 1.0))) < options.near_parallel_deg:
                 messages.append(
                     f"axes {joint + 1} and {joint + 2} nearly parallel: J{joint + 1} DH parameters ill-conditioned"
                 )

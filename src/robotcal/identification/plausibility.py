@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -112,6 +113,7 @@ class PlausibilityReport:
 
 
 def _residuals(fit: CircleFit) -> np.ndarray:
+    assert fit.plane_residuals is not None and fit.radial_residuals is not None  # fitted with residuals
     return np.hypot(fit.plane_residuals, fit.radial_residuals)
 
 
@@ -140,6 +142,75 @@ def _unit_hint(ratio: float) -> str | None:
         if abs(ratio / factor - 1.0) < 0.15:
             return name
     return None
+
+
+def _repeated_rows(capture: Capture, findings: list[str]) -> np.ndarray:
+    """Rows whose readings and point repeat an earlier row exactly (0-based); a finding, or an error when they are
+    half the file or more."""
+    src = capture.source
+    table = np.concatenate([capture.readings, capture.points], axis=1)
+    _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
+    inverse = np.ravel(inverse)
+    duplicates = np.flatnonzero(first[inverse] != np.arange(capture.n_points))
+    if duplicates.size * 2 >= capture.n_points:
+        pair = duplicates[0]
+        raise InputError(
+            f"{src}: {duplicates.size} of {capture.n_points} rows repeat an earlier row exactly (e.g. point "
+            f"{pair + 1} = point {first[inverse[pair]] + 1}): the file holds the same measurements twice "
+            "(a file appended to itself?); remove the copies"
+        )
+    if duplicates.size:
+        findings.append(
+            f"{src}: {point_rows(duplicates)} repeat earlier rows exactly; a real measurement never repeats "
+            "to the last digit (copied rows?)"
+        )
+    return duplicates
+
+
+def _scale_ratio(measured: np.ndarray, predicted: np.ndarray, robot: RobotModel, src: str, findings: list[str]) -> float:
+    """RMS spread of the measured points about their centroid over the nominal prediction's (invariant to the
+    tracker pose); a finding outside 0.8..1.25, an error outside 0.5..2."""
+    spread = np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=-1)))
+    nominal_spread = np.sqrt(np.mean(np.sum((predicted - predicted.mean(axis=0)) ** 2, axis=-1)))
+    ratio = float(spread / nominal_spread) if nominal_spread > 0 else 1.0
+    if not 0.5 <= ratio <= 2.0:
+        hint = _unit_hint(ratio)
+        cause = (
+            f"the coordinates look like {hint}; robotcal reads millimetres"
+            if hint
+            else f"a capture of another robot, or of robot {robot.name!r} in other units?"
+        )
+        raise InputError(
+            f"{src}: the measured points spread {spread:.4g} mm about their centroid, {ratio:.3g} times the "
+            f"{nominal_spread:.4g} mm that nominal robot {robot.name!r} predicts: {cause}"
+        )
+    if not 0.8 <= ratio <= 1.25:
+        findings.append(
+            f"{src}: the measured points spread {ratio:.3g} times what nominal robot {robot.name!r} predicts "
+            f"({spread:.4g} mm vs {nominal_spread:.4g} mm RMS about the centroid): a capture of another robot "
+            "or another reflector set-up?"
+        )
+    return ratio
+
+
+def _residual_finding(
+    label: str, rows: np.ndarray, residual: np.ndarray, flagged: np.ndarray, bound: float, findings: list[str]
+) -> None:
+    """A finding when a circle has outliers (``flagged`` rows) or its RMS distance to the fitted circle is over
+    ``OUTLIER_U`` times the instrument's median ``U`` [mm] of its points (``bound``), at least ``RESIDUAL_FLOOR_MM``."""
+    total_rms = float(np.sqrt(np.mean(residual**2)))
+    limit = max(OUTLIER_U * bound, RESIDUAL_FLOOR_MM)
+    if flagged.size or total_rms > limit:
+        worst = rows[np.argsort(residual)[::-1][: max(flagged.size, 3)]]
+        named = flagged if flagged.size else worst
+        residual_of = dict(zip(rows.tolist(), residual.tolist(), strict=True))
+        findings.append(
+            f"{label}: RMS distance to the fitted circle {total_rms:.3g} mm against the instrument's "
+            f"U = {bound:.3g} mm; "
+            + (f"outliers at {point_rows(flagged)}" if flagged.size else f"largest at {point_rows(named)}")
+            + f" (residuals {', '.join(f'{residual_of[r]:.3g}' for r in named[:6])} mm): a mis-measurement, "
+            "a moved target or a loose reflector? `robotcal identify --reject-outliers` drops outliers"
+        )
 
 
 def check_capture(
@@ -183,47 +254,10 @@ def check_capture(
     structure = prepare_cpa(capture, robot, reflector, options)  # structure and coordinate checks first
     findings: list[str] = []
 
-    # duplicated rows (readings and points identical)
-    table = np.concatenate([capture.readings, capture.points], axis=1)
-    _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
-    inverse = np.ravel(inverse)
-    duplicates = np.flatnonzero(first[inverse] != np.arange(capture.n_points))
-    if duplicates.size * 2 >= capture.n_points:
-        pair = duplicates[0]
-        raise InputError(
-            f"{src}: {duplicates.size} of {capture.n_points} rows repeat an earlier row exactly (e.g. point "
-            f"{pair + 1} = point {first[inverse[pair]] + 1}): the file holds the same measurements twice "
-            "(a file appended to itself?); remove the copies"
-        )
-    if duplicates.size:
-        findings.append(
-            f"{src}: {point_rows(duplicates)} repeat earlier rows exactly; a real measurement never repeats "
-            "to the last digit (copied rows?)"
-        )
-
-    # scale of the cloud against the nominal prediction (invariant to the tracker pose)
+    duplicates = _repeated_rows(capture, findings)
     measured = capture.points
     predicted = structure.nominal_points
-    spread = np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=-1)))
-    nominal_spread = np.sqrt(np.mean(np.sum((predicted - predicted.mean(axis=0)) ** 2, axis=-1)))
-    ratio = float(spread / nominal_spread) if nominal_spread > 0 else 1.0
-    if not 0.5 <= ratio <= 2.0:
-        hint = _unit_hint(ratio)
-        cause = (
-            f"the coordinates look like {hint}; robotcal reads millimetres"
-            if hint
-            else f"a capture of another robot, or of robot {robot.name!r} in other units?"
-        )
-        raise InputError(
-            f"{src}: the measured points spread {spread:.4g} mm about their centroid, {ratio:.3g} times the "
-            f"{nominal_spread:.4g} mm that nominal robot {robot.name!r} predicts: {cause}"
-        )
-    if not 0.8 <= ratio <= 1.25:
-        findings.append(
-            f"{src}: the measured points spread {ratio:.3g} times what nominal robot {robot.name!r} predicts "
-            f"({spread:.4g} mm vs {nominal_spread:.4g} mm RMS about the centroid): a capture of another robot "
-            "or another reflector set-up?"
-        )
+    ratio = _scale_ratio(measured, predicted, robot, src, findings)
 
     n = len(structure.circle_indices)
     turn = np.zeros(n)
@@ -269,22 +303,10 @@ def check_capture(
         residual = _residuals(fit)
         point_bound = instrument.error_bound(measured[rows])
         bound[joint] = float(np.median(point_bound))
-        rms[joint] = float(fit.circle_rms)
+        rms[joint] = float(fit.circle_rms)  # type: ignore[arg-type]  # fitted with residuals
         flagged = rows[_outlier_mask(residual, point_bound)]
         outliers.append(flagged)
-        total_rms = float(np.sqrt(np.mean(residual**2)))
-        limit = max(OUTLIER_U * bound[joint], RESIDUAL_FLOOR_MM)
-        if flagged.size or total_rms > limit:
-            worst = rows[np.argsort(residual)[::-1][: max(flagged.size, 3)]]
-            named = flagged if flagged.size else worst
-            residual_of = dict(zip(rows.tolist(), residual.tolist(), strict=True))
-            findings.append(
-                f"{label}: RMS distance to the fitted circle {total_rms:.3g} mm against the instrument's "
-                f"U = {bound[joint]:.3g} mm; "
-                + (f"outliers at {point_rows(flagged)}" if flagged.size else f"largest at {point_rows(named)}")
-                + f" (residuals {', '.join(f'{residual_of[r]:.3g}' for r in named[:6])} mm): a mis-measurement, "
-                "a moved target or a loose reflector? `robotcal identify --reject-outliers` drops outliers"
-            )
+        _residual_finding(label, rows, residual, flagged, bound[joint], findings)
     for message in findings:
         warnings.warn(message, PlausibilityWarning, stacklevel=2)
     return PlausibilityReport(
@@ -301,7 +323,7 @@ def check_capture(
 
 
 def reject_outliers(
-    capture: Capture, instrument: Instrument, *, circle_fit: str = "geometric"
+    capture: Capture, instrument: Instrument, *, circle_fit: Literal["geometric", "algebraic"] = "geometric"
 ) -> tuple[Capture, np.ndarray]:
     """Remove per-circle outliers (rule in the module docstring), refit, and remove once more.
 

@@ -36,9 +36,11 @@ geometry then Newton on the calibrated model), and the taught branch's solution,
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.inverse import (
@@ -201,12 +203,12 @@ def _errors(parameters: ParameterSet, targets, readings, tool):
 
 def compensate_commands(
     parameters: ParameterSet,
-    targets,
-    taught,
+    targets: ArrayLike,
+    taught: ArrayLike,
     *,
-    tool=None,
+    tool: ArrayLike | None = None,
     settings: CompensationSettings | None = None,
-    progress=None,
+    progress: Callable[[int, int], object] | None = None,
 ) -> Compensation:
     """The command of every row, on the taught command's branch and near it, with its status (module notes).
 

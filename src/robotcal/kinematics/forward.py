@@ -9,15 +9,16 @@ parameter sets: ``parameters (..., n_joints, 5)`` and ``q (n_poses, n_joints)`` 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import apply_transform, rot_z
-from robotcal.kinematics.model import ReflectorMount
+from robotcal.kinematics.reflector import ReflectorMount
 
 __all__ = ["link_transforms", "joint_frames", "forward_kinematics", "target_positions", "check_joint_variables"]
 
 
-def check_joint_variables(q, n_joints: int, name: str = "q") -> np.ndarray:
+def check_joint_variables(q: ArrayLike, n_joints: int, name: str = "q") -> np.ndarray:
     """Coerce ``q`` to float ``(n_poses, n_joints)`` (a single pose becomes a batch of one)."""
     try:
         q = np.asarray(q, dtype=float)
@@ -32,7 +33,7 @@ def check_joint_variables(q, n_joints: int, name: str = "q") -> np.ndarray:
     return q
 
 
-def link_transforms(parameters, q) -> np.ndarray:
+def link_transforms(parameters: ArrayLike, q: ArrayLike) -> np.ndarray:
     """Link transforms ``A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)``.
 
     With beta = 0 this is the DH matrix of eq. 3-72; with d = 0 the Hayati matrix of eq. 3-82
@@ -78,7 +79,7 @@ def link_transforms(parameters, q) -> np.ndarray:
 
 def _chain(links: np.ndarray, keep_all: bool) -> np.ndarray:
     current = np.broadcast_to(np.eye(4), links.shape[:-3] + (4, 4)).copy()
-    frames = [current] if keep_all else None
+    frames = [current]
     for i in range(links.shape[-3]):
         current = current @ links[..., i, :, :]
         if keep_all:
@@ -86,7 +87,7 @@ def _chain(links: np.ndarray, keep_all: bool) -> np.ndarray:
     return np.stack(frames, axis=-3) if keep_all else current
 
 
-def joint_frames(parameters, q, *, joint_errors=None) -> np.ndarray:
+def joint_frames(parameters: ArrayLike, q: ArrayLike, *, joint_errors: ArrayLike | None = None) -> np.ndarray:
     """All DH frames ``base_from_link_i`` for i = 0..n, shape ``(..., n_poses, n_joints + 1, 4, 4)``.
 
     ``joint_errors`` (optional, ``(n_poses, n_joints, 4, 4)`` or broadcastable) are rigid error
@@ -99,7 +100,7 @@ def joint_frames(parameters, q, *, joint_errors=None) -> np.ndarray:
     return _chain(links, keep_all=True)
 
 
-def forward_kinematics(parameters, q) -> np.ndarray:
+def forward_kinematics(parameters: ArrayLike, q: ArrayLike) -> np.ndarray:
     """Flange pose ``base_from_flange = A_1 ... A_n`` (eq. 3-84), shape ``(..., n_poses, 4, 4)``.
 
     Parameters
@@ -114,7 +115,14 @@ def forward_kinematics(parameters, q) -> np.ndarray:
     return _chain(link_transforms(parameters, q), keep_all=False)
 
 
-def target_positions(parameters, q, turning_joint, reflector: ReflectorMount, *, joint_errors=None) -> np.ndarray:
+def target_positions(
+    parameters: ArrayLike,
+    q: ArrayLike,
+    turning_joint: ArrayLike,
+    reflector: ReflectorMount,
+    *,
+    joint_errors: ArrayLike | None = None,
+) -> np.ndarray:
     """Positions of the measured target in the base frame [mm], one per capture point.
 
     Parameters

@@ -37,6 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import forward_kinematics, joint_frames, link_transforms
@@ -358,7 +359,7 @@ def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     return out
 
 
-def tool_frames(parameters: ParameterSet, readings: np.ndarray, tool: np.ndarray):
+def tool_frames(parameters: ParameterSet, readings: np.ndarray, tool: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tool frames ``(P, 4, 4)`` of the calibrated model (its joint model included) at ``readings`` ``(P, n)``
     [rad], and their Jacobian ``(P, 6, n)`` in the readings: rows translation [mm/rad] then rotation [rad/rad]. The
     Jacobian is the chain's at the deflected joints; the deflection's own derivative (the gravity torque's change
@@ -380,10 +381,10 @@ def tool_frames(parameters: ParameterSet, readings: np.ndarray, tool: np.ndarray
 
 def solve_pose(
     parameters: ParameterSet,
-    targets,
-    start_readings,
+    targets: ArrayLike,
+    start_readings: ArrayLike,
     *,
-    tool=None,
+    tool: ArrayLike | None = None,
     max_iterations: int = 200,
 ) -> Solved:
     """Controller readings at which the model's tool frame is each target frame, by Newton's method from
@@ -474,7 +475,7 @@ def robot_size(robot: RobotModel) -> float:
     return max(float(np.abs(robot.nominal[:, [0, 2]]).sum()), 1.0)
 
 
-def check_targets(targets, readings, n_joints: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+def check_targets(targets: ArrayLike, readings: ArrayLike, n_joints: int, name: str) -> tuple[np.ndarray, np.ndarray]:
     """``targets`` as finite frames ``(P, 4, 4)`` and ``readings`` as finite ``(P, n_joints)``, or InputError."""
     targets = np.asarray(targets, dtype=float)
     readings = np.asarray(readings, dtype=float)
@@ -489,7 +490,9 @@ def _wrapped(angle):
     return np.angle(np.exp(1j * np.asarray(angle, dtype=float)))
 
 
-def wrap_readings(readings, robot: RobotModel, reference, *, prefer_limits: bool = True) -> np.ndarray:
+def wrap_readings(
+    readings: ArrayLike, robot: RobotModel, reference: ArrayLike, *, prefer_limits: bool = True
+) -> np.ndarray:
     """``readings`` ``(..., n)`` [rad] each shifted by whole turns to lie nearest ``reference`` (broadcastable),
     preferring a shift that puts it inside the robot's limits (unless ``prefer_limits`` is False)."""
     readings = np.asarray(readings, dtype=float)
@@ -521,7 +524,9 @@ def _check_frames(frames, name: str) -> np.ndarray:
     return frames
 
 
-def nominal_solutions(robot: RobotModel, flange_frames, *, reference=None) -> tuple[np.ndarray, np.ndarray]:
+def nominal_solutions(
+    robot: RobotModel, flange_frames: ArrayLike, *, reference: ArrayLike | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Every closed-form solution of flange poses on the robot's nominal geometry (module notes).
 
     Parameters
@@ -584,13 +589,13 @@ class InverseSolutions:
         )
 
 
-def within_limits(robot: RobotModel, readings) -> np.ndarray:
+def within_limits(robot: RobotModel, readings: ArrayLike) -> np.ndarray:
     """Whether every reading of ``(..., n)`` lies inside the robot's limits (1e-9 rad of slack)."""
     readings = np.asarray(readings, dtype=float)
     return np.all((readings >= robot.limits[:, 0] - 1e-9) & (readings <= robot.limits[:, 1] + 1e-9), axis=-1)
 
 
-def as_tool_frame(tool) -> np.ndarray:
+def as_tool_frame(tool: ArrayLike | None) -> np.ndarray:
     """A tool point ``(3,)`` or frame ``(4, 4)`` in the flange frame [mm] as a frame; None: the flange."""
     frame = np.eye(4)
     if tool is None:
@@ -606,13 +611,13 @@ def as_tool_frame(tool) -> np.ndarray:
 
 def inverse_kinematics(
     parameters: ParameterSet,
-    targets,
+    targets: ArrayLike,
     *,
-    tool=None,
-    reference=None,
+    tool: ArrayLike | None = None,
+    reference: ArrayLike | None = None,
     position_tolerance_mm: float = 1e-6,
     orientation_tolerance_deg: float = 1e-6,
-    branches=None,
+    branches: ArrayLike | None = None,
     max_iterations: int = 200,
 ) -> InverseSolutions:
     """Every branch's readings at which ``parameters``' tool frame is each target (module notes).
@@ -676,7 +681,7 @@ def inverse_kinematics(
     )
 
 
-def branch_of(robot: RobotModel, readings) -> np.ndarray:
+def branch_of(robot: RobotModel, readings: ArrayLike) -> np.ndarray:
     """The branch (:data:`BRANCH_NAMES` index) of ``readings`` ``(n_poses, n_joints)`` [rad] on the nominal geometry:
     the closed-form branch whose solution of the pose they reach is nearest them (turns ignored)."""
     readings = np.atleast_2d(np.asarray(readings, dtype=float))

@@ -24,6 +24,7 @@ against central differences.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import apply_transform, rot_z
@@ -33,7 +34,14 @@ from robotcal.kinematics.model import ReflectorMount, check_parameter_array
 __all__ = ["target_jacobian"]
 
 
-def target_jacobian(parameters, q, turning_joint, reflector: ReflectorMount, *, joint_variables: bool = False):
+def target_jacobian(
+    parameters: ArrayLike,
+    q: ArrayLike,
+    turning_joint: ArrayLike,
+    reflector: ReflectorMount,
+    *,
+    joint_variables: bool = False,
+) -> tuple[np.ndarray, ...]:
     """Target positions and their derivatives with respect to every ``d, theta, a, alpha, beta``.
 
     Parameters

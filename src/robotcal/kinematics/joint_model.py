@@ -48,15 +48,17 @@ the refinement's Jacobian is ``dp/de = sum_i dp/dq_i C_i``, ``dp/dq_i`` that of 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import forward_kinematics, joint_frames
-from robotcal.kinematics.model import LinkMasses
+from robotcal.kinematics.masses import LinkMasses
 
 __all__ = [
     "GRAVITY_MPS2",
@@ -91,7 +93,7 @@ MAX_DEFLECTION_DEG = 1.0
 _MM = 1e-3  # mm -> m
 
 
-def gravity_regressor(values, q, gravity=GRAVITY_MPS2) -> np.ndarray:
+def gravity_regressor(values: ArrayLike, q: ArrayLike, gravity: ArrayLike = GRAVITY_MPS2) -> np.ndarray:
     """``Y`` with ``tau_i = sum_j Y[p, i, j] . phi_j`` (module notes), shape ``(n_poses, n_joints, n_joints, 4)``.
 
     ``Y[p, i, j, 0] = z_{i-1} . ((o_j - o_{i-1}) x g)`` and ``Y[p, i, j, 1:] = R_j^T (g x z_{i-1})``, in m, for
@@ -119,7 +121,9 @@ def gravity_regressor(values, q, gravity=GRAVITY_MPS2) -> np.ndarray:
     return out * np.triu(np.ones((n, n)))[None, :, :, None]  # link j is moved by joint i only if j >= i
 
 
-def gravity_torques(values, q, masses: LinkMasses, gravity=GRAVITY_MPS2) -> np.ndarray:
+def gravity_torques(
+    values: ArrayLike, q: ArrayLike, masses: LinkMasses, gravity: ArrayLike = GRAVITY_MPS2
+) -> np.ndarray:
     """Gravity torque about every joint axis [N m], shape ``(n_poses, n_joints)`` (module notes).
 
     Examples
@@ -176,14 +180,14 @@ class JointModel:
 
     names: tuple[str, ...]
     values: np.ndarray
-    identified: np.ndarray = field(default=None)
+    identified: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     nominal: np.ndarray
     compliance_map: np.ndarray
     harmonic_map: np.ndarray
     lumped: dict = field(default_factory=dict)
     masses: LinkMasses | None = None
     gravity: np.ndarray = field(default_factory=lambda: np.array(GRAVITY_MPS2))
-    backlash: np.ndarray = field(default=None)
+    backlash: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     backlash_source: str = ""
 
     def __post_init__(self):
@@ -366,7 +370,7 @@ class JointModel:
         return k
 
 
-def motion_direction(q) -> np.ndarray:
+def motion_direction(q: ArrayLike) -> np.ndarray:
     """Direction of each joint's last motion along a sequence of configurations.
 
     Parameters
@@ -391,7 +395,7 @@ def motion_direction(q) -> np.ndarray:
     return step[last_moved, np.arange(q.shape[1])].astype(int)
 
 
-def lash_turns(backlash, q, circle) -> np.ndarray:
+def lash_turns(backlash: ArrayLike, q: ArrayLike, circle: ArrayLike) -> np.ndarray:
     """The backlash correction of a capture's joint variables ``(n_points, n_joints)`` [rad] (module notes):
     ``-s_i b_i / 2`` on every joint of every circle point, ``s_i`` the direction of joint i's last motion along the
     circle points in capture order (the order the robot visited them: :func:`motion_direction` of the commanded model variables ``q``); 0 at free poses (``circle = 0``), whose approach
@@ -461,7 +465,9 @@ def largest_deflection(model: JointModel, robot, *, poses: int = 400, seed: int 
     )
 
 
-def lumped_terms(robot, joints, gravity=GRAVITY_MPS2, *, poses: int = 400, seed: int = 0) -> dict[str, np.ndarray]:
+def lumped_terms(
+    robot, joints: Iterable[int], gravity: ArrayLike = GRAVITY_MPS2, *, poses: int = 400, seed: int = 0
+) -> dict[str, np.ndarray]:
     """The lumped compliance terms of ``joints`` (0-based): ``{"J<i>.g<b>": v (4 n,)}``, the torques ``f_b = Y_i
     v_b`` spanning joint i's gravity torques on the nominal structure over ``poses`` seeded random poses within
     the limits (right singular vectors of the regressor), each scaled to unit RMS torque over that sample, so that

@@ -14,9 +14,12 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
+from robotcal.kinematics.masses import LinkMasses
+from robotcal.kinematics.reflector import ReflectorMount
 
 if TYPE_CHECKING:
     from robotcal.kinematics.joint_model import JointModel
@@ -54,7 +57,7 @@ KIND_UNITS = MappingProxyType(
 _D, _BETA = PARAMETER_KINDS.index("d"), PARAMETER_KINDS.index("beta")
 
 
-def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np.ndarray:
+def check_parameter_array(values: ArrayLike, n_joints: int, name: str = "parameters") -> np.ndarray:
     """Coerce ``values`` to float ``(..., n_joints, 5)``, finite, or raise :class:`InputError`."""
     try:
         values = np.asarray(values, dtype=float)
@@ -67,59 +70,6 @@ def check_parameter_array(values, n_joints: int, name: str = "parameters") -> np
     if not np.all(np.isfinite(values)):
         raise InputError(f"`{name}` contains NaN or infinite values")
     return values
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class LinkMasses:
-    """Masses and centres of mass of the links, and a payload on the flange.
-
-    Attributes
-    ----------
-    mass_kg : ndarray, shape (n_joints,)
-        Mass of the link joint i moves (everything rigidly on frame {i} up to joint i+1) [kg].
-    com_mm : ndarray, shape (n_joints, 3)
-        Its centre of mass in DH frame {i} [mm].
-    payload_kg : float
-        A point mass on the flange [kg].
-    payload_com_mm : ndarray, shape (3,)
-        Its position in the flange frame {n} [mm].
-    source : str
-        Where the numbers come from (a catalogue, a CAD model, an estimate).
-    """
-
-    mass_kg: np.ndarray
-    com_mm: np.ndarray
-    payload_kg: float = 0.0
-    payload_com_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    source: str = ""
-
-    def __post_init__(self):
-        mass = np.asarray(self.mass_kg, dtype=float)
-        com = np.asarray(self.com_mm, dtype=float)
-        payload = np.asarray(self.payload_com_mm, dtype=float)
-        if mass.ndim != 1 or com.shape != (mass.size, 3) or payload.shape != (3,):
-            raise InputError(
-                f"link masses: `mass_kg` (n,) and `com_mm` (n, 3) must agree and the payload's `com_mm` be (3,); "
-                f"got {mass.shape}, {com.shape}, {payload.shape}"
-            )
-        if not (np.all(np.isfinite(mass)) and np.all(np.isfinite(com)) and np.all(np.isfinite(payload))):
-            raise InputError("link masses: every mass and centre of mass must be finite")
-        if np.any(mass < 0) or not (np.isfinite(self.payload_kg) and self.payload_kg >= 0):
-            raise InputError("link masses: masses must be >= 0 kg")
-        object.__setattr__(self, "mass_kg", _frozen(mass))
-        object.__setattr__(self, "com_mm", _frozen(com))
-        object.__setattr__(self, "payload_com_mm", _frozen(payload))
-        object.__setattr__(self, "payload_kg", float(self.payload_kg))
-
-    @property
-    def moments(self) -> np.ndarray:
-        """``phi (n_joints, 4)``: per link ``(m, m c_x, m c_y, m c_z)`` [kg, kg mm], the payload in link n."""
-        phi = np.column_stack([self.mass_kg, self.mass_kg[:, None] * self.com_mm])
-        phi[-1] += self.payload_kg * np.r_[1.0, self.payload_com_mm]
-        return phi
-
-    def with_payload(self, mass_kg: float, com_mm) -> LinkMasses:
-        return replace(self, payload_kg=float(mass_kg), payload_com_mm=np.asarray(com_mm, dtype=float))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -160,11 +110,11 @@ class RobotModel:
     name: str
     nominal: np.ndarray
     hayati: np.ndarray
-    reading_sign: np.ndarray = field(default=None)
-    reading_offset: np.ndarray = field(default=None)
-    limits: np.ndarray = field(default=None)
+    reading_sign: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
+    reading_offset: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
+    limits: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     description: str = ""
-    reading_coupling: np.ndarray = field(default=None)
+    reading_coupling: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     masses: LinkMasses | None = None
     flange_frame: np.ndarray | None = None
     _model_from_reading: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
@@ -310,7 +260,7 @@ class ParameterSet:
 
     robot: RobotModel
     values: np.ndarray
-    identified: np.ndarray = field(default=None)
+    identified: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     joint_model: JointModel | None = None
 
     def __post_init__(self):
@@ -349,7 +299,7 @@ class ParameterSet:
         """The joint variables the geometric chain is evaluated at: ``q + delta(q)`` of the joint model (``q`` itself
         for the geometric model) [rad], for commanded model joint variables ``q (n_poses, n_joints)``."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        if not self.is_extended:
+        if self.joint_model is None or not self.is_extended:
             return q
         return q + self.joint_model.deflection(q)
 
@@ -364,7 +314,9 @@ class ParameterSet:
         return replace(self, joint_model=None)
 
     def __repr__(self) -> str:
-        extended = "" if not self.is_extended else f", joint model {', '.join(self.joint_model.names)}"
+        extended = ""
+        if self.joint_model is not None and self.is_extended:
+            extended = f", joint model {', '.join(self.joint_model.names)}"
         return f"ParameterSet({self.robot.name}, {int(self.identified.sum())} identified{extended})"
 
     def difference(self, other: ParameterSet) -> np.ndarray:
@@ -376,31 +328,3 @@ class ParameterSet:
 
     def replace(self, **changes) -> ParameterSet:
         return replace(self, **changes)
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class ReflectorMount:
-    """Where the measured target sits on the robot.
-
-    ``frame="joint"``: one position per circle, circle i's target given in DH frame {i-1} turned by
-    joint i's variable (without the theta_i offset): ``base_p = F_{i-1} Rz(q_i) r_i`` (eq. 5-1, the
-    thesis generator's way). ``positions`` has shape ``(n_joints, 3)``.
-
-    ``frame="flange"``: one target on the flange (DH frame {n}) for every circle, the thesis's
-    active target on the end effector: ``base_p = F_n r``. ``positions`` has shape ``(1, 3)``.
-    """
-
-    frame: str
-    positions: np.ndarray
-
-    def __post_init__(self):
-        if self.frame not in ("joint", "flange"):
-            raise InputError(f"reflector frame must be 'joint' or 'flange'; got {self.frame!r}")
-        positions = np.asarray(self.positions, dtype=float)
-        if positions.ndim == 1:
-            positions = positions[None, :]
-        if positions.ndim != 2 or positions.shape[1] != 3 or not np.all(np.isfinite(positions)):
-            raise InputError(f"reflector positions must be finite (n, 3) [mm]; got shape {positions.shape}")
-        if self.frame == "flange" and positions.shape[0] != 1:
-            raise InputError(f"a flange reflector is one position (3,); got {positions.shape[0]}")
-        object.__setattr__(self, "positions", _frozen(positions))

@@ -12,77 +12,13 @@ The process capability index of eq. 5-5, ``Cpk = min(USL - mean, mean - LSL) / (
 1.5
 """
 
-from robotcal.planning.cell import REASONS, CellModel, CircleCheck, PlanCheck, check_plan, segment_distance
-from robotcal.planning.files import check_document, write_check_files, write_sensitivity_files
-from robotcal.planning.optimise import (
-    OBJECTIVES,
-    OptimisationResult,
-    PlanProblem,
-    evaluate_plan,
-    optimise_plan,
-    workspace_readings,
-)
-from robotcal.planning.program import (
-    LANGUAGES,
-    NAME_LIMITS,
-    check_program_name,
-    controller_readings,
-    program_name,
-    write_program,
-)
-from robotcal.planning.scenario import (
-    DEFAULT_CAPSULE_RADIUS_MM,
-    cell_from_scenario,
-    robot_capsule_radii,
-    scenario_document,
-    scenario_from_document,
-    set_key,
-)
-from robotcal.planning.sensitivity import (
-    DEFAULT_ANGLE_LIMIT_DEG,
-    DEFAULT_LENGTH_LIMIT_MM,
-    SensitivityCase,
-    SensitivityStudy,
-    capability_limits,
-    parse_vary,
-    process_capability,
-    run_sensitivity,
-)
+from robotcal.planning import cell, files, optimise, program, scenario, sensitivity
+from robotcal.planning.cell import *
+from robotcal.planning.files import *
+from robotcal.planning.optimise import *
+from robotcal.planning.program import *
+from robotcal.planning.scenario import *
+from robotcal.planning.sensitivity import *
 
-__all__ = [
-    "CellModel",
-    "PlanCheck",
-    "CircleCheck",
-    "segment_distance",
-    "check_plan",
-    "REASONS",
-    "check_document",
-    "write_check_files",
-    "write_sensitivity_files",
-    "OBJECTIVES",
-    "PlanProblem",
-    "OptimisationResult",
-    "evaluate_plan",
-    "optimise_plan",
-    "workspace_readings",
-    "LANGUAGES",
-    "NAME_LIMITS",
-    "check_program_name",
-    "program_name",
-    "write_program",
-    "controller_readings",
-    "DEFAULT_CAPSULE_RADIUS_MM",
-    "scenario_document",
-    "scenario_from_document",
-    "robot_capsule_radii",
-    "cell_from_scenario",
-    "set_key",
-    "DEFAULT_LENGTH_LIMIT_MM",
-    "DEFAULT_ANGLE_LIMIT_DEG",
-    "process_capability",
-    "capability_limits",
-    "SensitivityCase",
-    "SensitivityStudy",
-    "parse_vary",
-    "run_sensitivity",
-]
+# every public name of the modules, each listed once, in its module's __all__
+__all__ = [*cell.__all__, *files.__all__, *optimise.__all__, *program.__all__, *scenario.__all__, *sensitivity.__all__]

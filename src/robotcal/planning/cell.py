@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import joint_frames
@@ -39,7 +40,7 @@ REASONS = ("joint limit", "range", "acceptance", "line of sight")
 _EPS = 1e-12
 
 
-def segment_distance(p0, p1, q0, q1) -> np.ndarray:
+def segment_distance(p0: ArrayLike, p1: ArrayLike, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
     """Shortest distance between segments ``p0-p1`` and ``q0-q1`` (batched, broadcasting).
 
     Closest points ``p0 + s (p1 - p0)`` and ``q0 + t (q1 - q0)`` with ``s, t`` in [0, 1] minimise

@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.io.atomic import atomic_write_text
-from robotcal.planning.cell import REASONS, PlanCheck
+from robotcal.planning.cell import REASONS, CellModel, PlanCheck
 
 __all__ = ["check_document", "write_check_files", "write_sensitivity_files"]
 
 
-def check_document(check: PlanCheck, *, scenario: str, cell, notes: list[str]) -> dict:
+def check_document(check: PlanCheck, *, scenario: str, cell: CellModel, notes: list[str]) -> dict:
     """The JSON document of a cell check (mm, deg)."""
     return {
         "scenario": scenario,

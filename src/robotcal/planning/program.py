@@ -23,8 +23,11 @@ keyword of KRL. A KRL program's ``DEF`` name must equal its file name (the ``.sr
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.model import RobotModel
@@ -71,7 +74,7 @@ def check_program_name(name: str, language: str, *, what: str = "program name") 
     return name
 
 
-def program_name(language: str, path, name: str | None = None) -> str:
+def program_name(language: str, path: str | Path, name: str | None = None) -> str:
     """The name of a ``language`` program written to ``path``, checked by :func:`check_program_name`.
 
     KRL: the file's stem (the controller expects ``DEF name`` in ``name.src``); a ``name`` given must
@@ -105,7 +108,7 @@ def _fixed(value: float, decimals: int) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
-def controller_readings(readings, robot: RobotModel, controller: RobotModel | None = None) -> np.ndarray:
+def controller_readings(readings: ArrayLike, robot: RobotModel, controller: RobotModel | None = None) -> np.ndarray:
     """Readings of ``robot`` [rad] as readings of ``controller`` [rad] (same model), limit-checked.
 
     Raises
@@ -134,16 +137,16 @@ def controller_readings(readings, robot: RobotModel, controller: RobotModel | No
 
 
 def write_program(
-    circle,
-    direction,
-    readings,
+    circle: np.ndarray,
+    direction: np.ndarray,
+    readings: ArrayLike,
     *,
     language: str,
     dwell_s: float,
     name: str = "robotcal_capture",
     speed_percent: float = 10.0,
     header: str = "",
-    labels=None,
+    labels: Sequence[str] | None = None,
 ) -> str:
     """The program text.
 
@@ -190,7 +193,7 @@ def write_program(
             raise InputError(
                 f"`labels` must be {readings.shape[0]} one-line comments, one per point; got {len(labels)}"
             )
-    counts = {}
+    counts: dict[tuple, int] = {}
     comment = {"krl": ";", "rapid": "!", "urscript": "#"}[language]
     indent = "  "
     lines = [f"{comment} {line}" for line in header.splitlines()] if header else []

@@ -31,7 +31,7 @@ __all__ = [
 DEFAULT_CAPSULE_RADIUS_MM = 50.0
 
 
-def scenario_document(name_or_path) -> tuple[dict, Path, str, str]:
+def scenario_document(name_or_path: str | Path) -> tuple[dict, Path, str, str]:
     """The parsed TOML of a built-in scenario or scenario file: ``(document, base_dir, name, source)``."""
     text = str(name_or_path)
     if text in builtin_names("scenarios"):
@@ -112,7 +112,7 @@ def cell_from_scenario(
     return cell, notes
 
 
-def set_key(document: dict, key: str, value) -> dict:
+def set_key(document: dict, key: str, value: object) -> dict:
     """A copy of ``document`` with the dotted ``key`` set to ``value``.
 
     ``capture.sweep_deg.4`` sets the 4th (1-based) element of a list; a scalar given for a key that

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.model import ANGLE_COLUMNS, KIND_UNITS, PARAMETER_KINDS
@@ -37,7 +38,7 @@ DEFAULT_LENGTH_LIMIT_MM = 0.1
 DEFAULT_ANGLE_LIMIT_DEG = 0.01
 
 
-def process_capability(mean, std, lower, upper) -> np.ndarray:
+def process_capability(mean: ArrayLike, std: ArrayLike, lower: ArrayLike, upper: ArrayLike) -> np.ndarray:
     """Cpk of eq. 5-5: ``min(upper - mean, mean - lower) / (3 std)`` (elementwise; inf when std = 0)."""
     mean, std, lower, upper = (np.asarray(v, dtype=float) for v in (mean, std, lower, upper))
     margin = np.minimum(upper - mean, mean - lower)
@@ -46,8 +47,8 @@ def process_capability(mean, std, lower, upper) -> np.ndarray:
 
 
 def capability_limits(
-    nominal, *, length_mm: float = DEFAULT_LENGTH_LIMIT_MM, angle_deg: float = DEFAULT_ANGLE_LIMIT_DEG
-):
+    nominal: ArrayLike, *, length_mm: float = DEFAULT_LENGTH_LIMIT_MM, angle_deg: float = DEFAULT_ANGLE_LIMIT_DEG
+) -> tuple[np.ndarray, np.ndarray]:
     """``(lower, upper)`` of shape (n_joints, 5) around ``nominal`` [mm, rad]."""
     if not (length_mm > 0 and angle_deg > 0):
         raise InputError(f"Cpk limits must be positive; got {length_mm} mm and {angle_deg} deg")
@@ -139,7 +140,7 @@ def _run_case(task) -> dict:
 
 def run_sensitivity(
     document: dict,
-    base_dir,
+    base_dir: str | Path,
     name: str,
     source: str,
     vary: list[tuple[str, list]],
@@ -203,7 +204,7 @@ def study_rows(study: SensitivityStudy) -> list[dict]:
                 continue
             angle = kind in ANGLE_COLUMNS
             scale = np.rad2deg(1.0) if angle else 1.0
-            row = {"case": number}
+            row: dict[str, object] = {"case": number}
             row.update({key: case.values[key] for key in study.keys})
             row.update(
                 {

@@ -70,7 +70,7 @@ def _legend(figure, axes) -> None:
     (Per-panel ``loc="best"`` legends searched each panel's data for a free corner, a tenth of the
     drawing time; entries are collected from all panels, first label wins.)
     """
-    entries = {}
+    entries: dict[str, object] = {}
     for axis in axes:
         for handle, label in zip(*axis.get_legend_handles_labels(), strict=True):
             entries.setdefault(label, handle)

@@ -40,7 +40,7 @@ def _y_ticks(low: float, high: float, finals: list[float], spacing: float) -> tu
         for m in (1.0, 2.0, 5.0)
         if low <= m * 10.0**d <= high
     ]
-    round_values = []
+    round_values: list[float] = []
     for value in grid:
         if all(abs(math.log10(value / other)) >= spacing for other in kept + round_values):
             round_values.append(value)

@@ -102,7 +102,7 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
         ax.ticklabel_format(axis="x", useOffset=False)  # an offset label ("-1.65e2") would sit on the x label
         ax.xaxis.set_major_locator(MaxNLocator(4, symmetric=True))
         ax.yaxis.set_major_locator(MaxNLocator(5))
-    handles = {}
+    handles: dict[str, object] = {}
     for ax in axes.ravel():  # mean and interval always; the nominal where some panel draws it
         handles.update(zip(*reversed(ax.get_legend_handles_labels()), strict=True))
     axes[0, 0].legend(list(handles.values()), list(handles), fontsize=7, loc="upper left")
@@ -215,4 +215,6 @@ def write_tcp_figures(result: TCPUncertainty, folder, mode: str, *, workspace: W
         return [plot_tcp_scatter(result, folder / "scatter.png"), plot_tcp_histograms(result, folder / "histograms.png")]
     if mode == "trajectory":
         return [plot_trajectory(result, folder / "trajectory.png")]
+    if workspace is None:
+        raise InputError("the workspace figure needs `workspace` (a WorkspaceUncertainty)")
     return [plot_workspace(workspace, folder / "workspace.png")]

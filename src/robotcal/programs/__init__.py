@@ -5,8 +5,12 @@ with new numbers and nothing else changed (issue 28). :mod:`robotcal.programs.ba
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from robotcal.errors import InputError
+
+if TYPE_CHECKING:
+    from robotcal.programs.base import Program
 
 __all__ = ["LANGUAGE_OF_SUFFIX", "LANGUAGES", "read_program"]
 
@@ -25,7 +29,10 @@ LANGUAGE_OF_SUFFIX = {
 }
 
 
-def read_program(path, *, language: str | None = None, dat=None, config_dat=None, encoding: str = "utf-8"):
+def read_program(
+    path: str | Path, *, language: str | None = None, dat: str | Path | None = None,
+    config_dat: str | Path | None = None, encoding: str = "utf-8",
+) -> Program:
     """Read a robot program with the reader of its language (from the suffix unless ``language`` is given).
 
     ``dat`` and ``config_dat`` are KRL's: the program's ``.dat`` (default: beside the ``.src``) and the cell's

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 
@@ -147,7 +148,7 @@ def replace_numbers(texts: Mapping[str, str], replacements: Mapping[NumberSpan, 
     return out
 
 
-def read_program_text(path, encoding: str, kind: str) -> str:
+def read_program_text(path: str | Path, encoding: str, kind: str) -> str:
     """A program file's text exactly as written (line endings and a BOM kept: the filtered file must differ in
     numbers only), or an :class:`InputError` naming the file (and the line of a byte that is not ``encoding``)."""
     path = Path(path)
@@ -168,7 +169,7 @@ def read_program_text(path, encoding: str, kind: str) -> str:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def joint_values(point: ProgramPoint, joints_deg) -> np.ndarray:
+def joint_values(point: ProgramPoint, joints_deg: ArrayLike) -> np.ndarray:
     """``joints_deg`` as the finite axis values [deg] of the joint point ``point``, or an :class:`InputError`."""
     where = f"point {point.label!r} ({point.file}, line {point.line})"
     try:

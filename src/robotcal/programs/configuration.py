@@ -25,6 +25,7 @@ readings are the controller's (a robot file with the controller's reading signs,
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import joint_frames
@@ -86,7 +87,7 @@ def _search_stretched_a3(controller: RobotModel) -> float:
     return float(x[1] + (0.5 * step * (y[0] - y[2]) / denominator if denominator != 0 else 0.0))
 
 
-def kuka_status_turn(controller: RobotModel, readings) -> tuple[np.ndarray, np.ndarray]:
+def kuka_status_turn(controller: RobotModel, readings: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """KUKA ``S`` and ``T`` (module notes) of controller readings ``(P, 6)`` [rad]."""
     readings = np.atleast_2d(np.asarray(readings, dtype=float))
     forward, _ = _geometry(controller, readings)
@@ -98,7 +99,7 @@ def kuka_status_turn(controller: RobotModel, readings) -> tuple[np.ndarray, np.n
     return status, turn
 
 
-def abb_confdata(controller: RobotModel, readings) -> np.ndarray:
+def abb_confdata(controller: RobotModel, readings: ArrayLike) -> np.ndarray:
     """ABB ``[cf1, cf4, cf6, cfx]`` (module notes) of controller readings ``(P, 6)`` [rad], shape (P, 4)."""
     readings = np.atleast_2d(np.asarray(readings, dtype=float))
     forward, side = _geometry(controller, readings)
@@ -110,7 +111,7 @@ def abb_confdata(controller: RobotModel, readings) -> np.ndarray:
     return np.column_stack([quadrant, cfx])
 
 
-def configuration(language: str, controller: RobotModel, readings) -> list[dict[str, int]]:
+def configuration(language: str, controller: RobotModel, readings: ArrayLike) -> list[dict[str, int]]:
     """The configuration entries of ``language`` (:data:`CONFIG_KEYS`) for each pose of controller ``readings``."""
     if language not in CONFIG_KEYS:
         raise InputError(f"unknown program language {language!r}; choose one of {', '.join(CONFIG_KEYS)}")

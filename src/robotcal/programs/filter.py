@@ -28,16 +28,18 @@ given in the controller's flange frame, which the robot file's ``flange_frame`` 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.kinematics.compensation import CompensationSettings, compensate_commands
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.inverse import nominal_solutions, rotation_vector, within_limits
 from robotcal.kinematics.model import ParameterSet, RobotModel
-from robotcal.programs.base import Program, ProgramPoint, replace_numbers
+from robotcal.programs.base import NumberSpan, Program, ProgramPoint, replace_numbers
 from robotcal.programs.configuration import configuration
 
 __all__ = ["POINT_STATUSES", "FilteredPoint", "FilteredProgram", "filter_program", "missing_frames", "renderer"]
@@ -109,7 +111,7 @@ class FilteredProgram:
         return all(p.status == "ok" for p in self.points)
 
 
-def renderer(language: str):
+def renderer(language: str) -> Callable[..., dict[NumberSpan, str]]:
     """The ``render`` function of a language's module."""
     if language == "krl":
         from robotcal.programs.krl import render
@@ -215,7 +217,7 @@ def filter_program(
     controller: RobotModel | None = None,
     frames: dict | None = None,
     settings: CompensationSettings | None = None,
-    start_deg=None,
+    start_deg: ArrayLike | None = None,
 ) -> FilteredProgram:
     """The program with every point solved on the calibrated model and written back (module notes).
 

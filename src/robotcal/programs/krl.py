@@ -41,10 +41,12 @@ Points are listed in the order of their first use.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, matrix_from_kuka_abc
@@ -153,7 +155,10 @@ class _Target:
         return self.name is not None or self.aggregate is not None
 
 
-def read_program(src_path, *, dat_path=None, config_dat=None, encoding: str = "utf-8") -> Program:
+def read_program(
+    src_path: str | Path, *, dat_path: str | Path | None = None, config_dat: str | Path | None = None,
+    encoding: str = "utf-8",
+) -> Program:
     """Read a KRL program: its ``.src``, its ``.dat`` and, optionally, a ``$config.dat``.
 
     Parameters
@@ -224,7 +229,10 @@ def read_program(src_path, *, dat_path=None, config_dat=None, encoding: str = "u
     )
 
 
-def render(point: ProgramPoint, *, frame_mm=None, joints_deg=None, config=None) -> dict[NumberSpan, str]:
+def render(
+    point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
+    config: Mapping[str, int] | None = None,
+) -> dict[NumberSpan, str]:
     """The new text of every number of a KRL ``point`` for a new target.
 
     Parameters

@@ -141,7 +141,7 @@ class _Declaration:
     uses: list = field(default_factory=list)
 
 
-def read_program(path, *, encoding: str = "utf-8") -> Program:
+def read_program(path: str | Path, *, encoding: str = "utf-8") -> Program:
     """Read one RAPID module file: its exact text, its motion targets, tool and work-object frames.
 
     Parameters

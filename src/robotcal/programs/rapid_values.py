@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import check_rigid_transform
@@ -26,7 +27,7 @@ JOINT_DECIMALS = 8  # 5e-9 deg per axis: under 1e-7 mm at the tool of a 1 m arm
 CONFIG_KEYS = ("cf1", "cf4", "cf6", "cfx")
 
 
-def frame_from_pose(position_mm, quaternion_wxyz) -> np.ndarray:
+def frame_from_pose(position_mm: ArrayLike, quaternion_wxyz: ArrayLike) -> np.ndarray:
     """4x4 frame [mm] of a RAPID ``pose``: ``position_mm = [x, y, z]``, ``quaternion_wxyz = [q1, q2, q3, q4]``.
 
     The quaternion is normalised (RAPID's ``q1`` is the scalar part; scipy's ``Rotation.from_quat`` takes
@@ -45,7 +46,7 @@ def frame_from_pose(position_mm, quaternion_wxyz) -> np.ndarray:
     return frame
 
 
-def quaternion_from_frame(frame_mm, near_wxyz=None) -> np.ndarray:
+def quaternion_from_frame(frame_mm: ArrayLike, near_wxyz: ArrayLike | None = None) -> np.ndarray:
     """Unit quaternion ``[q1, q2, q3, q4]`` (scalar first, RAPID's order) of a 4x4 frame's rotation.
 
     ``q`` and ``-q`` are the same rotation; the one returned lies in the hemisphere of ``near_wxyz`` (the
@@ -63,7 +64,8 @@ def quaternion_from_frame(frame_mm, near_wxyz=None) -> np.ndarray:
 
 
 def render(
-    point: ProgramPoint, *, frame_mm=None, joints_deg=None, config: Mapping[str, int] | None = None
+    point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
+    config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
     """The replacement text of every number of ``point`` for a new target.
 

@@ -50,10 +50,12 @@ from __future__ import annotations
 
 import bisect
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 from robotcal.programs.base import NumberSpan, Program, ProgramPoint, format_number, joint_values, read_program_text
@@ -622,7 +624,7 @@ def _frame_from_pose(values) -> np.ndarray:
     return frame
 
 
-def read_program(path, *, encoding: str = "utf-8") -> Program:
+def read_program(path: str | Path, *, encoding: str = "utf-8") -> Program:
     """Read a URScript file: its exact text, its motion targets, its tool frames, and what cannot be filtered.
 
     Parameters
@@ -686,7 +688,10 @@ def _rotation_vector_near(rotation: np.ndarray, original) -> np.ndarray:
     return min(candidates, key=lambda candidate: float(np.linalg.norm(candidate - original)))
 
 
-def render(point: ProgramPoint, *, frame_mm=None, joints_deg=None, config=None) -> dict[NumberSpan, str]:
+def render(
+    point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
+    config: Mapping[str, int] | None = None,
+) -> dict[NumberSpan, str]:
     """The new text of every number of ``point`` for a new target, in URScript's units (metres, radians).
 
     Parameters

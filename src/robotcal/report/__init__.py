@@ -3,8 +3,16 @@ the pipeline; only ``cli`` and, lazily, the pipeline's last stage import it). Th
 by :mod:`robotcal.plots`, below the pipeline."""
 
 from functools import cache
+from importlib.metadata import version
 
-__all__ = ["template_environment"]
+__all__ = ["installed_version", "template_environment"]
+
+
+@cache
+def installed_version() -> str:
+    """The installed robotcal distribution's version (``importlib.metadata``; read once, the report opens no file
+    but its figures)."""
+    return version("robotcal")
 
 
 @cache

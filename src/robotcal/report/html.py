@@ -26,10 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import robotcal
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.run_folder import REPORT_NAME, RunResult, read_run
-from robotcal.report import template_environment
+from robotcal.report import installed_version, template_environment
 from robotcal.report.page import _Page
 from robotcal.report.sections.model import _model
 from robotcal.report.sections.parameters import _parameters
@@ -145,7 +144,7 @@ def render_report(result: RunResult) -> Report:
         title=f"Calibration report: {robot}",
         scenario=scenario.get("name") if isinstance(scenario.get("name"), str) else None,
         folder=result.folder.name if result.folder is not None else None,
-        version=robotcal.__version__,
+        version=installed_version(),
         csp=_CSP,
         sections=sections,
         bodies=bodies,

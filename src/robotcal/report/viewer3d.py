@@ -100,8 +100,8 @@ def viewer_scene(capture: Capture, *, tracker_from_base=None, circle_fit: str = 
                 radius=round(radius, _DECIMALS),
                 u=_rounded(u),
                 v=_rounded(v),
-                plane_rms_mm=float(fit.plane_rms),
-                circle_rms_mm=float(fit.circle_rms),
+                plane_rms_mm=float(fit.plane_rms),  # type: ignore[arg-type]  # fitted with residuals
+                circle_rms_mm=float(fit.circle_rms),  # type: ignore[arg-type]
             )
             angles = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)[:, None]
             extremes.append(centre + radius * (np.cos(angles) * u + np.sin(angles) * v))

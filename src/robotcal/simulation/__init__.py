@@ -20,37 +20,11 @@ axis, so its points lie 100 mm from the base origin:
 [100.0, 100.0, 100.0, 100.0, 100.0]
 """
 
-from robotcal.simulation.generator import (
-    ERROR_TERMS,
-    JointErrorModel,
-    motion_direction,
-    simulate_capture,
-    simulate_target_poses,
-)
-from robotcal.simulation.perturb import perturb_parameters, perturbable_mask
-from robotcal.simulation.plan import CapturePlan
-from robotcal.simulation.poses import (
-    TABLE_4_1_RANGE_DEG,
-    TABLE_4_2_START_DEG,
-    TABLE_4_4_POINTS,
-    random_poses,
-    simulate_poses,
-    thesis_test2_plan,
-)
+from robotcal.simulation import generator, perturb, plan, poses
+from robotcal.simulation.generator import *
+from robotcal.simulation.perturb import *
+from robotcal.simulation.plan import *
+from robotcal.simulation.poses import *
 
-__all__ = [
-    "JointErrorModel",
-    "simulate_capture",
-    "simulate_target_poses",
-    "motion_direction",
-    "ERROR_TERMS",
-    "perturb_parameters",
-    "perturbable_mask",
-    "CapturePlan",
-    "random_poses",
-    "simulate_poses",
-    "thesis_test2_plan",
-    "TABLE_4_1_RANGE_DEG",
-    "TABLE_4_2_START_DEG",
-    "TABLE_4_4_POINTS",
-]
+# every public name of the modules, each listed once, in its module's __all__
+__all__ = [*generator.__all__, *perturb.__all__, *plan.__all__, *poses.__all__]

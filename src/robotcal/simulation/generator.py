@@ -14,6 +14,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError, JointLimitWarning
@@ -62,8 +63,8 @@ class JointErrorModel:
     period: np.ndarray
     phase: np.ndarray
     noise_sd: np.ndarray
-    backlash: np.ndarray | None = None
-    lash: np.ndarray | None = None
+    backlash: np.ndarray = None  # type: ignore[assignment]  # None: zeros, set in __post_init__
+    lash: np.ndarray = None  # type: ignore[assignment]  # None: zeros, set in __post_init__
 
     def __post_init__(self):
         shape = np.shape(self.amplitude)
@@ -162,7 +163,7 @@ def simulate_capture(
     robot: RobotModel,
     plan: CapturePlan,
     instrument: Instrument,
-    tracker_from_base,
+    tracker_from_base: ArrayLike,
     *,
     true_parameters: ParameterSet | None = None,
     joint_errors: JointErrorModel | None = None,
@@ -230,13 +231,13 @@ def simulate_capture(
 
 def simulate_target_poses(
     robot: RobotModel,
-    readings,
+    readings: ArrayLike,
     targets,
     instrument: Instrument,
-    tracker_from_base,
+    tracker_from_base: ArrayLike,
     *,
     true_parameters: ParameterSet | None = None,
-    true_offsets=None,
+    true_offsets: ArrayLike | None = None,
     u95_mm: float | None = None,
     rng: np.random.Generator | int | None = None,
 ) -> tuple[Capture, np.ndarray]:

@@ -8,6 +8,7 @@ circle: in a :class:`~robotcal.capture.Capture` they carry ``circle = 0`` and ``
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
@@ -46,7 +47,7 @@ TABLE_4_2_START_DEG = np.array(
 TABLE_4_4_POINTS = np.array([60, 30, 50, 60, 30, 60])
 
 
-def thesis_test2_plan(flange_reflector_mm=(60.0, 40.0, 30.0)) -> CapturePlan:
+def thesis_test2_plan(flange_reflector_mm: ArrayLike = (60.0, 40.0, 30.0)) -> CapturePlan:
     """The capture plan of the thesis's real test 2 (Tables 4.1, 4.2, 4.4): 580 points.
 
     Controller readings of the KUKA KR 5 sixx R650 (robot ``kuka-kr5-sixx-r650-krc``); circle i
@@ -114,7 +115,7 @@ def random_poses(
         raise InputError(f"`margin_deg` = {margin_deg:g} leaves no range for J{joint + 1}")
     if reflector is not None and reflector.frame != "flange":
         raise InputError("random poses need a flange reflector (frame='flange')")
-    target = reflector if reflector is not None else ReflectorMount(frame="flange", positions=[0.0, 0.0, 0.0])
+    target = reflector if reflector is not None else ReflectorMount(frame="flange", positions=np.zeros(3))
     accepted = np.empty((0, robot.n_joints))
     for _ in range(100):
         batch = rng.uniform(low, high, size=(max(2 * (n_poses - accepted.shape[0]), 16), robot.n_joints))
@@ -130,10 +131,10 @@ def random_poses(
 
 def simulate_poses(
     robot: RobotModel,
-    readings,
+    readings: ArrayLike,
     reflector: ReflectorMount,
     instrument: Instrument,
-    tracker_from_base,
+    tracker_from_base: ArrayLike,
     *,
     true_parameters: ParameterSet | None = None,
     rng: np.random.Generator | int | None = None,

@@ -25,13 +25,9 @@ def _observed(base_frame: str | None) -> str:
     return f"RMS, base frame {base_frame or 'given'}, no registration"
 
 
-def _model(page: _Page) -> dict:
-    document = page.json("refine/points.json")
-    provenance = (document or {}).get("provenance")
-    if not isinstance(provenance, dict):
-        return {"present": False, "blocks_": [_block("not_run", what="refine/points.json")]}
-    candidates, chosen, reason = _candidates(provenance)
-    blocks = []
+def _candidates_table(candidates: list[dict], chosen: str, reason: str) -> list:
+    """The cross-validation table of the models fitted, the chosen one tagged."""
+    blocks: list = []
     if candidates:
         folds = candidates[0].get("folds")
         rows, dim = [], set()
@@ -63,6 +59,12 @@ def _model(page: _Page) -> dict:
                 note=f"Chosen: {reason}" if reason else "",
             )
         )
+    return blocks
+
+
+def _joint_model_blocks(document: dict | None) -> list:
+    """The deployed refinement's joint-model parameters with their u."""
+    blocks: list = []
     joint_model = (document or {}).get("joint_model")
     parameters = [p for p in (joint_model or {}).get("parameters") or [] if isinstance(p, dict)]
     if parameters:
@@ -93,6 +95,12 @@ def _model(page: _Page) -> dict:
                 dim_rows=frozenset(k for k, p in enumerate(parameters) if p.get("identified") is False),
             )
         )
+    return blocks
+
+
+def _validation_blocks(page: _Page, chosen: str) -> list:
+    """The validation error of the nominal, the geometric and the deployed model."""
+    blocks: list = []
     evaluation = page.json("evaluation/evaluation.json") or {}
     found = {
         row.get("parameter_set"): row
@@ -125,6 +133,19 @@ def _model(page: _Page) -> dict:
                 text_columns=frozenset({0}),
             )
         )
+    return blocks
+
+
+def _model(page: _Page) -> dict:
+    document = page.json("refine/points.json")
+    provenance = (document or {}).get("provenance")
+    if not isinstance(provenance, dict):
+        return {"present": False, "blocks_": [_block("not_run", what="refine/points.json")]}
+    candidates, chosen, reason = _candidates(provenance)
+    blocks: list = []
+    blocks += _candidates_table(candidates, chosen, reason)
+    blocks += _joint_model_blocks(document)
+    blocks += _validation_blocks(page, chosen)
     check = page.summary.consistency
     if check is not None:
         blocks.append(

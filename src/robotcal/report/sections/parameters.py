@@ -95,15 +95,12 @@ def _refinement_rms(page: _Page, label: str, data: dict) -> list:
     ]
 
 
-def _parameters(page: _Page) -> dict:
-    cpa = page.json("cpa/parameters.json")
-    truth = page.json("truth.json")
-    refined = {label: page.json(f"refine/{label}.json") for label in ("points", "distances")}
-    mc = {
-        folder: _statistics(page.json(f"{folder}/parameters.json")) for folder in ("uncertainty-refined", "uncertainty")
-    }
-    if cpa is None and not any(mc.values()) and not any(refined.values()):
-        return {"present": False, "blocks_": [_block("not_run", what="cpa/parameters.json")]}
+Column = tuple[str, dict, str]
+
+
+def _value_columns(cpa: dict | None, truth: dict | None, refined: dict, mc: dict) -> tuple[list[Column], set, set]:
+    """The value columns (label, ``name -> value``, format) of the parameters tables, the identified names and the
+    structurally fixed names."""
     cpa_values, identified, fixed = _parameter_values(cpa)
     truth_values = _parameter_values(truth)[0]
     nominal = {}
@@ -111,7 +108,7 @@ def _parameters(page: _Page) -> dict:
         nominal.update(
             {n: _number(p.get("nominal")) for n, p in stats.items() if _number(p.get("nominal")) is not None}
         )
-    values: list[tuple[str, dict, str]] = [("nominal", nominal, ".4f")] if nominal else []
+    values: list[Column] = [("nominal", nominal, ".4f")] if nominal else []
     if truth_values:
         values.append(("truth", truth_values, ".4f"))
     if cpa_values:
@@ -130,7 +127,13 @@ def _parameters(page: _Page) -> dict:
             values.append((f"refined ({label})", found, ".4f"))
             identified |= more
             fixed |= more_fixed
-    uncertainty: list[tuple[str, dict, str]] = []
+    return values, identified, fixed
+
+
+def _uncertainty_columns(page: _Page, mc: dict, identified: set) -> tuple[list[Column], set]:
+    """The Monte Carlo columns (mean, u, interval of each model) and the identified names (the Monte Carlo's when no
+    parameter file names them)."""
+    uncertainty: list[Column] = []
     for folder, model in (("uncertainty-refined", "refined"), ("uncertainty", "CPA")):
         stats = mc[folder]
         if not stats:
@@ -148,7 +151,11 @@ def _parameters(page: _Page) -> dict:
         ]
         if not identified:
             identified = {n for n, p in stats.items() if p.get("identified") is True}
-    names = sorted({n for _, found, _ in values + uncertainty for n in found if _is_param(n)} - fixed, key=_param_order)
+    return uncertainty, identified
+
+
+def _parameter_tables(names: list[str], values: list[Column], uncertainty: list[Column], identified: set) -> list:
+    """The lengths' and the angles' tables of values and of Monte Carlo uncertainty."""
     blocks = []
     for unit, kinds, title in (
         (DISPLAY_UNITS["length"], LENGTH_KINDS, "Lengths"),
@@ -187,6 +194,12 @@ def _parameters(page: _Page) -> dict:
                     tags=tags,
                 )
             )
+    return blocks
+
+
+def _cpa_blocks(cpa: dict | None) -> list:
+    """The CPA circle fits, the adjacent axes and the CPA provenance."""
+    blocks: list = []
     provenance = (cpa or {}).get("provenance") if isinstance((cpa or {}).get("provenance"), dict) else None
     if provenance is not None:
         circles = [c for c in provenance.get("circles") or [] if isinstance(c, dict)]
@@ -225,6 +238,23 @@ def _parameters(page: _Page) -> dict:
             source="cpa/parameters.json",
             skip=("circles", "line_pairs", "versions", "tracker_from_base"),
         )
+    return blocks
+
+
+def _parameters(page: _Page) -> dict:
+    cpa = page.json("cpa/parameters.json")
+    truth = page.json("truth.json")
+    refined = {label: page.json(f"refine/{label}.json") for label in ("points", "distances")}
+    mc = {
+        folder: _statistics(page.json(f"{folder}/parameters.json")) for folder in ("uncertainty-refined", "uncertainty")
+    }
+    if cpa is None and not any(mc.values()) and not any(refined.values()):
+        return {"present": False, "blocks_": [_block("not_run", what="cpa/parameters.json")]}
+    values, identified, fixed = _value_columns(cpa, truth, refined, mc)
+    uncertainty, identified = _uncertainty_columns(page, mc, identified)
+    names = sorted({n for _, found, _ in values + uncertainty for n in found if _is_param(n)} - fixed, key=_param_order)
+    blocks = _parameter_tables(names, values, uncertainty, identified)
+    blocks += _cpa_blocks(cpa)
     for label, data in refined.items():
         if data and isinstance(data.get("provenance"), dict):
             blocks.append(_block("heading", text=f"Refinement ({label} criterion)"))

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import datetime as _dt
 
-import robotcal
 from robotcal.io.run_folder import REPORT_NAME, Table
+from robotcal.report import installed_version
 from robotcal.report.page import _FOLD_ROWS, _block, _facts, _Page, _Table
 
 
@@ -23,7 +23,7 @@ def _provenance(page: _Page) -> dict:
             versions.update({str(k): str(v) for k, v in found["versions"].items()})
     if isinstance(record.get("versions"), dict):
         versions.update({str(k): str(v) for k, v in record["versions"].items()})
-    versions.setdefault("robotcal (this report)", robotcal.__version__)
+    versions.setdefault("robotcal (this report)", installed_version())
     blocks.append(
         _Table(
             header=["software", "version"],
@@ -56,6 +56,6 @@ def _provenance(page: _Page) -> dict:
         "present": True,
         "blocks_": blocks,
         "generated": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
-        "version": robotcal.__version__,
+        "version": installed_version(),
         "folder": str(folder) if folder is not None else None,
     }

@@ -137,16 +137,8 @@ _MC_COLUMNS = (
     "lpu_std_uncertainty",
     "identified",
 )
-_TCP_COLUMNS = (
-    "pose",
-    "name",
-    "nominal",
-    "mean",
-    "std_uncertainty",
-    "coverage_low",
-    "coverage_high",
-    "lpu_std_uncertainty",
-)
+#: Columns of a TCP uncertainty's CSV shown: the pose, then the Monte Carlo's but ``identified``.
+_TCP_COLUMNS = ("pose", *_MC_COLUMNS[:-1])
 
 
 def _histogram_captions(page: _Page, folder: str, names: list[str]) -> dict:

@@ -148,6 +148,53 @@ def _validation_detail(page: _Page) -> str:
     return text
 
 
+def _uncertainty_cards(summary) -> list[dict]:
+    """The largest standard uncertainties of the lengths and of the angles (the deployed model's Monte Carlo)."""
+    cards = []
+    refined, cpa = summary.uncertainty("uncertainty-refined"), summary.uncertainty("uncertainty")
+    shown = refined or cpa
+    model = "refined model (deployed)" if refined is not None else "CPA model"
+    for label, unit, value_of, name_of, fmt in (
+        ("largest standard uncertainty, lengths", "mm", "length_mm", "length_name", _length),
+        ("largest standard uncertainty, angles", "deg", "angle_deg", "angle_name", _angle),
+    ):
+        value = getattr(shown, value_of) if shown is not None else None
+        if value is None:
+            cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
+            continue
+        name, over = getattr(shown, name_of), ""
+        if refined is not None:
+            over = ", largest over the parameters the refinement determines"
+            if unit in shown.set_aside:
+                u, aside_name, why = shown.set_aside[unit]
+                over += f"; larger: {aside_name}, {fmt(u)}, {why}"
+        detail = f"{name}, {model}, Monte Carlo (GUM-S1){over}"
+        if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
+            detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
+        cards.append(_card("How sure are we?", label, fmt(value), detail))
+    return cards
+
+
+def _tcp_pose_card(page: _Page) -> dict:
+    """The TCP position uncertainty at the pose."""
+    pose = page.summary.tcp_pose
+    if pose is not None:
+        where, readings, outside = _tcp_pose(page)
+        detail = f"√(u_X² + u_Y² + u_Z²) at {where}"
+        caution = ""
+        if outside:  # the thesis's Table 5.8 pose is: say so where the number is read
+            detail += f", outside the joint limits of {', '.join(outside)}"
+            caution = f"pose outside the joint limits of {', '.join(outside)}"
+        detail += f" (readings {readings} deg)" if readings else ""
+        detail += f" (first of {pose.poses} poses)" if pose.poses > 1 else ""
+        detail += f"; {pose.model}" if pose.model else ""
+        if pose.ellipsoid_mm is not None:
+            share = f"{_fmt(pose.coverage * 100, '.3g')} % " if pose.coverage else ""
+            detail += f"; largest semi-axis of the {share}ellipsoid {_length(pose.ellipsoid_mm)}"
+        return _card("How sure are we?", "TCP position uncertainty at the pose", _length(pose.first_mm), detail, caution)
+    return _card("How sure are we?", "TCP position uncertainty at the pose", "n/a", "tcp pose not run")
+
+
 def _cards(page: _Page) -> list[dict]:
     summary = page.summary
     cards = []
@@ -173,48 +220,8 @@ def _cards(page: _Page) -> list[dict]:
                 f"{circle}{summary.circles} circles fitted by CPA",
             )
         )
-    refined, cpa = summary.uncertainty("uncertainty-refined"), summary.uncertainty("uncertainty")
-    shown = refined or cpa
-    model = "refined model (deployed)" if refined is not None else "CPA model"
-    for label, unit, value_of, name_of, fmt in (
-        ("largest standard uncertainty, lengths", "mm", "length_mm", "length_name", _length),
-        ("largest standard uncertainty, angles", "deg", "angle_deg", "angle_name", _angle),
-    ):
-        value = getattr(shown, value_of) if shown is not None else None
-        if value is None:
-            cards.append(_card("How sure are we?", label, "n/a", "uncertainty stage not run"))
-            continue
-        name, over = getattr(shown, name_of), ""
-        if refined is not None:
-            over = ", largest over the parameters the refinement determines"
-            if unit in shown.set_aside:
-                u, aside_name, why = shown.set_aside[unit]
-                over += f"; larger: {aside_name}, {fmt(u)}, {why}"
-        detail = f"{name}, {model}, Monte Carlo (GUM-S1){over}"
-        if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
-            detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
-        cards.append(_card("How sure are we?", label, fmt(value), detail))
-    pose = summary.tcp_pose
-    if pose is not None:
-        where, readings, outside = _tcp_pose(page)
-        detail = f"√(u_X² + u_Y² + u_Z²) at {where}"
-        caution = ""
-        if outside:  # the thesis's Table 5.8 pose is: say so where the number is read
-            detail += f", outside the joint limits of {', '.join(outside)}"
-            caution = f"pose outside the joint limits of {', '.join(outside)}"
-        detail += f" (readings {readings} deg)" if readings else ""
-        detail += f" (first of {pose.poses} poses)" if pose.poses > 1 else ""
-        detail += f"; {pose.model}" if pose.model else ""
-        if pose.ellipsoid_mm is not None:
-            share = f"{_fmt(pose.coverage * 100, '.3g')} % " if pose.coverage else ""
-            detail += f"; largest semi-axis of the {share}ellipsoid {_length(pose.ellipsoid_mm)}"
-        cards.append(
-            _card(
-                "How sure are we?", "TCP position uncertainty at the pose", _length(pose.first_mm), detail, caution
-            )
-        )
-    else:
-        cards.append(_card("How sure are we?", "TCP position uncertainty at the pose", "n/a", "tcp pose not run"))
+    cards += _uncertainty_cards(summary)
+    cards.append(_tcp_pose_card(page))
     workspace = summary.tcp_workspace
     if workspace is not None:
         cards.append(
