@@ -41,11 +41,11 @@ Examples
 (True, 'OK')
 """
 
-from importlib.metadata import version as _installed_version
-
 import lazy_loader
 
-__version__ = _installed_version("robotcal")  # the installed distribution's, from pyproject.toml
+from robotcal._version import installed_version as _installed_version
+
+__version__ = _installed_version()  # the installed distribution's, from pyproject.toml
 
 __getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
 __all__ = ["__version__", *__all__]

@@ -53,9 +53,9 @@ app = typer.Typer(
 
 def _print_version(asked: bool) -> None:
     if asked:
-        from robotcal import __version__
+        from robotcal._version import installed_version
 
-        typer.echo(f"robotcal {__version__}")
+        typer.echo(f"robotcal {installed_version()}")
         raise typer.Exit()
 
 

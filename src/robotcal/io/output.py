@@ -475,11 +475,11 @@ def write_marker(folder, *, command: str, files: Iterable[str] | None = None) ->
     ``files``: the top-level names robotcal writes into the folder (a run folder names them up front);
     default the folder's entries now (a result folder is complete when its marker is written).
     """
-    import robotcal
+    from robotcal._version import installed_version
 
     folder = Path(folder)
     names = sorted(entry.name for entry in folder.iterdir() if entry.name != MARKER) if files is None else sorted(files)
-    document = {"written_by": "robotcal", "version": robotcal.__version__, "command": command, "files": names}
+    document = {"written_by": "robotcal", "version": installed_version(), "command": command, "files": names}
     return atomic_write_text(Path(folder) / MARKER, json.dumps(document) + "\n")
 
 

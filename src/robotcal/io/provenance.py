@@ -19,10 +19,10 @@ def versions() -> dict[str, str]:
     """Versions of robotcal and of the numeric stack."""
     import scipy
 
-    import robotcal
+    from robotcal._version import installed_version
 
     return {
-        "robotcal": robotcal.__version__,
+        "robotcal": installed_version(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "python": platform.python_version(),

@@ -3,16 +3,10 @@ the pipeline; only ``cli`` and, lazily, the pipeline's last stage import it). Th
 by :mod:`robotcal.plots`, below the pipeline."""
 
 from functools import cache
-from importlib.metadata import version
+
+from robotcal._version import installed_version
 
 __all__ = ["installed_version", "template_environment"]
-
-
-@cache
-def installed_version() -> str:
-    """The installed robotcal distribution's version (``importlib.metadata``; read once, the report opens no file
-    but its figures)."""
-    return version("robotcal")
 
 
 @cache
