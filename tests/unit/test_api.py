@@ -85,7 +85,7 @@ def test_import_robotcal_io_imports_none_of_its_modules():
         "robotcal.io.builtin_names\n"
         "print('robotcal.io.builtins' in sys.modules, 'robotcal.io.scenario' in sys.modules)\n"
     )
-    assert loaded == ["robotcal", "robotcal.io", "True", "False"]
+    assert loaded == ["robotcal", "robotcal._version", "robotcal.io", "True", "False"]
 
 
 def test_a_name_imports_its_module_on_first_use():
