@@ -44,10 +44,10 @@ from robotcal.identification.health import cpa_health, report_health
 from robotcal.identification.model_choice import refine_model
 from robotcal.identification.plausibility import check_capture
 from robotcal.identification.records import RefinementResult
-from robotcal.identification.settings import ModelChoiceSettings, RefinementSettings
+from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.scenario import JointModelTable, Scenario, TruthTable
+from robotcal.io.scenario import Scenario, TruthTable
 from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
@@ -60,9 +60,12 @@ from robotcal.resolve import (
     calibration_capture,
     capture_targets,
     convert_readings,
+    cpa_rows,
     free_pose_table,
     link_masses,
+    model_choice_settings,
     needed,
+    scenario_cpa_target,
     seed_from,
     simulation_inputs,
     target_name,
@@ -80,6 +83,7 @@ from robotcal.simulation.poses import random_poses
 from robotcal.simulation.poses import simulate_poses as simulate_poses_core
 from robotcal.studies import (
     JointAnalysis,
+    backlash_correction,
     change_plan,
     check_plan,
     coverage_study,
@@ -265,64 +269,12 @@ def simulate_poses(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, true_offsets=offsets,
             rng=generator,
         )  # fmt: skip
-    what = "validation capture" if isinstance(targets, ReflectorMount) else f"capture of {len(targets)} target(s) at free poses"
-    if kind == "calibration":
-        what = "calibration poses"
+    what = "validation capture"
+    if not isinstance(targets, ReflectorMount):
+        what = f"capture of {len(targets)} target(s) at free poses"
+    what = "calibration poses" if kind == "calibration" else what
     source = f"{what} simulated" + (f" from {scenario.name}" if scenario is not None else "")
     return dataclasses.replace(capture, source=source, seed=seed)
-
-
-# ------------------------------------------------------------------ what identify and refine resolve
-
-
-def _cpa_rows(capture: Capture, target) -> tuple[Capture, ReflectorMount]:
-    """The rows CPA uses and their (known) target: all rows, or with a ``target`` column those of ``target``
-    (a Target or a name; None: the capture's first target)."""
-    if isinstance(target, ReflectorMount):
-        if capture.target is not None:
-            raise InputError(
-                f"{capture.source}: the capture has a `target` column; give CPA's target as a Target (or its name)"
-            )
-        return capture, target
-    if capture.target is not None:
-        names = capture.target_names
-        name = names[int(capture.target[0])] if target is None else getattr(target, "name", target)
-        if name not in names:
-            raise InputError(f"{capture.source}: no point of target {name!r} (targets: {', '.join(names)})")
-        capture = capture.select(capture.target == names.index(name))
-    if not isinstance(target, Target):
-        raise InputError(f"`target` must be a ReflectorMount or a Target; got {type(target).__name__}")
-    if not target.known:
-        raise InputError(
-            f"CPA needs a target of known position; the offset of target {target.name!r} is unknown (refine from "
-            "the nominal parameters instead, which estimates it)"
-        )
-    return capture, target.mount
-
-
-def _scenario_cpa_target(scenario: Scenario, capture: Capture):
-    if capture.target is not None:
-        return scenario.target(capture.target_names[int(capture.target[0])])
-    target = capture_targets(scenario, capture)
-    return target if isinstance(target, ReflectorMount | Target) else target[0]
-
-
-def _backlash(backlash, robot: RobotModel) -> tuple[np.ndarray | None, str]:
-    """The lash correction [rad] and its source from ``backlash_deg`` (array [deg] or a JointAnalysis)."""
-    if backlash is None:
-        return None, ""
-    if isinstance(backlash, JointAnalysis):
-        lash = np.zeros(robot.n_joints)
-        for joint in backlash.diagnostics.summary():
-            if joint.backlash_exceeds_noise:
-                lash[joint.joint - 1] = joint.backlash_angle_mean
-        return lash, "the joints stage (angular backlash of the joints whose backlash exceeds the noise)"
-    values = np.asarray(backlash, dtype=float)
-    if values.shape != (robot.n_joints,) or not np.all(np.isfinite(values)):
-        raise InputError(f"`backlash_deg` must be {robot.n_joints} finite angles [deg]; got shape {values.shape}")
-    return np.deg2rad(values), "given"
-
-
 
 
 # ------------------------------------------------------------------------------------ identification
@@ -388,7 +340,7 @@ def identify(
     capture = _capture(capture, robot)
     if scenario is not None:
         if target is None:
-            target = _scenario_cpa_target(scenario, capture)
+            target = scenario_cpa_target(scenario, capture)
         elif isinstance(target, str):
             target = scenario.target(target)
         if options is None:
@@ -400,7 +352,7 @@ def identify(
     if options is None:
         options = CPAOptions(base_frame="given" if tracker_from_base is not None else "registered")
     instrument = _instrument(instrument, scenario)
-    capture, mount = _cpa_rows(capture, target)
+    capture, mount = cpa_rows(capture, target)
     if check and instrument is not None:
         check_capture(capture, robot, mount, instrument, options=options)
     result = identify_cpa(capture, robot, mount, tracker_from_base=tracker_from_base, options=options)
@@ -494,7 +446,7 @@ def refine(
     """
     robot, scenario = _split(robot)
     capture = _capture(capture, robot)
-    choice = _model_choice(scenario, model, folds)
+    choice = model_choice_settings(scenario, model, folds)
     if settings is None:
         settings = RefinementSettings(criterion=criterion, **options)
     elif options or criterion != "points":
@@ -505,7 +457,7 @@ def refine(
             tracker_from_base = scenario.tracker_from_base
     if targets is None:
         raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
-    lash, lash_source = _backlash(backlash_deg, robot)
+    lash, lash_source = backlash_correction(backlash_deg, robot)
     result = refine_model(
         capture, _parameters(start, robot, "start"), targets, settings=settings, choice=choice,
         tracker_from_base=tracker_from_base, masses=link_masses(robot, scenario), backlash=lash,
@@ -514,20 +466,6 @@ def refine(
     if health != "off":
         report_health(result.health, source=capture.source, strict=health == "strict")
     return result
-
-
-def _model_choice(scenario: Scenario | None, model: str | None, folds: int | None) -> ModelChoiceSettings:
-    """The model-choice settings: the arguments, else the scenario's ``[joint_model]`` (joints made 0-based)."""
-    table = scenario.joint_model if scenario is not None else JointModelTable()
-
-    def joints(values):
-        return None if values is None else tuple(j - 1 for j in values)
-
-    return ModelChoiceSettings(
-        model=table.fit if model is None else model, folds=table.folds if folds is None else folds, seed=table.seed,
-        compliance_joints=joints(table.compliance_joints), harmonic_joints=joints(table.harmonic_joints),
-        harmonic_order=table.harmonic_order,
-    )  # fmt: skip
 
 
 def evaluate(
@@ -621,7 +559,9 @@ def monte_carlo_problem(
             pose_readings = poses.readings
             names = set(poses.point_targets or (target_name(scenario, poses),))
             if len(names) != 1:
-                raise InputError(f"{poses.source}: calibration poses on one flange target; got {', '.join(sorted(names))}")
+                raise InputError(
+                    f"{poses.source}: calibration poses on one flange target; got {', '.join(sorted(names))}"
+                )
             pose_target = scenario.target(names.pop())
     if scenario is not None:
         plan, instrument, tracker_from_base, options, joint_errors, joint_limits = simulation_inputs(

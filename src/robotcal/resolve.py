@@ -20,10 +20,11 @@ import numpy as np
 
 from robotcal.capture import Capture, join_captures
 from robotcal.errors import InputError, JointLimitWarning
+from robotcal.identification.settings import ModelChoiceSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io.robots import load_robot
-from robotcal.io.scenario import CalibrationPosesTable, Scenario, TCPTable, ValidationTable
+from robotcal.io.scenario import CalibrationPosesTable, JointModelTable, Scenario, TCPTable, ValidationTable
 from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
 from robotcal.kinematics.model import LinkMasses, ParameterSet, ReflectorMount, RobotModel
 from robotcal.limits import SEED_BOUND
@@ -499,7 +500,9 @@ def compensation_targets(
     from robotcal.kinematics.inverse import nominal_solutions
 
     if (poses_deg is None) == (cartesian is None):
-        raise InputError("give the targets as joint poses (`poses_deg`) or as Cartesian targets (`cartesian`), one of them")
+        raise InputError(
+            "give the targets as joint poses (`poses_deg`) or as Cartesian targets (`cartesian`), one of them"
+        )
     tool = np.eye(4)
     if tool_mm is not None:
         tool[:3, 3] = np.asarray(tool_mm, dtype=float).reshape(3)
@@ -518,7 +521,9 @@ def compensation_targets(
     solutions, exists = nominal_solutions(robot, targets @ np.linalg.inv(tool), reference=seed)
     # the nominal controller's solution nearest the seed: an exact one inside the limits before any other
     inside = np.all((solutions >= robot.limits[:, 0]) & (solutions <= robot.limits[:, 1]), axis=-1)
-    distance = np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6) + np.where(inside, 0.0, 1e3)
+    distance = (
+        np.abs(solutions - seed[:, None, :]).max(axis=-1) + np.where(exists, 0.0, 1e6) + np.where(inside, 0.0, 1e3)
+    )
     return targets, solutions[np.arange(len(seed)), np.argmin(distance, axis=1)], tool
 
 
@@ -600,3 +605,50 @@ def simulation_inputs(scenario: Scenario, **given: Any) -> tuple[Any, ...]:
     ``instrument``, ``tracker_from_base``, ``options``: its ``[identification]``, ``joint_errors``, ``joint_limits``)."""
     fields = {"options": "identification"}
     return tuple(getattr(scenario, fields.get(key, key)) if value is None else value for key, value in given.items())
+
+
+def cpa_rows(capture: Capture, target) -> tuple[Capture, ReflectorMount]:
+    """The rows CPA uses and their (known) target: all rows, or with a ``target`` column those of ``target``
+    (a Target or a name; None: the capture's first target)."""
+    if isinstance(target, ReflectorMount):
+        if capture.target is not None:
+            raise InputError(
+                f"{capture.source}: the capture has a `target` column; give CPA's target as a Target (or its name)"
+            )
+        return capture, target
+    if capture.target is not None:
+        names = capture.target_names
+        name = names[int(capture.target[0])] if target is None else getattr(target, "name", target)
+        if name not in names:
+            raise InputError(f"{capture.source}: no point of target {name!r} (targets: {', '.join(names)})")
+        capture = capture.select(capture.target == names.index(name))
+    if not isinstance(target, Target):
+        raise InputError(f"`target` must be a ReflectorMount or a Target; got {type(target).__name__}")
+    if not target.known:
+        raise InputError(
+            f"CPA needs a target of known position; the offset of target {target.name!r} is unknown (refine from "
+            "the nominal parameters instead, which estimates it)"
+        )
+    return capture, target.mount
+
+
+def scenario_cpa_target(scenario: Scenario, capture: Capture) -> ReflectorMount | Target:
+    """CPA's target in a scenario: the capture's first named target, else the scenario's capture target."""
+    if capture.target is not None:
+        return scenario.target(capture.target_names[int(capture.target[0])])
+    target = capture_targets(scenario, capture)
+    return target if isinstance(target, ReflectorMount | Target) else target[0]
+
+
+def model_choice_settings(scenario: Scenario | None, model: str | None, folds: int | None) -> ModelChoiceSettings:
+    """The model-choice settings: the arguments, else the scenario's ``[joint_model]`` (joints made 0-based)."""
+    table = scenario.joint_model if scenario is not None else JointModelTable()
+
+    def joints(values):
+        return None if values is None else tuple(j - 1 for j in values)
+
+    return ModelChoiceSettings(
+        model=table.fit if model is None else model, folds=table.folds if folds is None else folds, seed=table.seed,
+        compliance_joints=joints(table.compliance_joints), harmonic_joints=joints(table.harmonic_joints),
+        harmonic_order=table.harmonic_order,
+    )  # fmt: skip

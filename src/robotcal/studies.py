@@ -79,6 +79,22 @@ class JointAnalysis:
         return f"JointAnalysis({len(self.diagnostics.circles)} circles, backlash={self.diagnostics.backlash})"
 
 
+def backlash_correction(backlash, robot: RobotModel) -> tuple[np.ndarray | None, str]:
+    """The lash correction [rad] and its source from ``backlash_deg`` (array [deg] or a JointAnalysis)."""
+    if backlash is None:
+        return None, ""
+    if isinstance(backlash, JointAnalysis):
+        lash = np.zeros(robot.n_joints)
+        for joint in backlash.diagnostics.summary():
+            if joint.backlash_exceeds_noise:
+                lash[joint.joint - 1] = joint.backlash_angle_mean
+        return lash, "the joints stage (angular backlash of the joints whose backlash exceeds the noise)"
+    values = np.asarray(backlash, dtype=float)
+    if values.shape != (robot.n_joints,) or not np.all(np.isfinite(values)):
+        raise InputError(f"`backlash_deg` must be {robot.n_joints} finite angles [deg]; got shape {values.shape}")
+    return np.deg2rad(values), "given"
+
+
 def diagnose_joints(
     capture: Capture | PathLike,
     robot: RobotModel | Scenario | None = None,
@@ -175,7 +191,9 @@ def change_plan(
         raise InputError(f"`scenario` must be a Scenario (robotcal.load_scenario); got {type(scenario).__name__}")
     plan = scenario.plan  # a scenario without a capture plan raises its InputError (naming the key) on first use
     if plan.n_joints != scenario.robot.n_joints:
-        raise InputError(f"{scenario.source}: the plan has {plan.n_joints} circles for {scenario.robot.n_joints} joints")
+        raise InputError(
+            f"{scenario.source}: the plan has {plan.n_joints} circles for {scenario.robot.n_joints} joints"
+        )
     changes: dict[str, Any] = {}
     if start_deg is not None:
         changes["start"] = np.deg2rad(np.asarray(start_deg, dtype=float))
@@ -218,7 +236,9 @@ def optimise_plan(
     from robotcal.planning.scenario import cell_from_scenario
 
     cell = cell_from_scenario(scenario)[0] if cell is None else cell
-    problem, _ = PlanProblem.from_scenario(scenario, cell, workspace_poses=workspace_poses, seed=seed, objective=objective)
+    problem, _ = PlanProblem.from_scenario(
+        scenario, cell, workspace_poses=workspace_poses, seed=seed, objective=objective
+    )
     return search_plan(
         scenario.plan, problem, budget=budget, generations=generations, population=population, seed=seed,
         workers=workers, scheduler=scheduler, progress=progress,
