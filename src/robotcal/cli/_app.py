@@ -11,7 +11,7 @@ from typing import Annotated
 import typer
 from typer.core import TyperGroup
 
-from robotcal.cli import COMMANDS, load_command
+from robotcal.cli._commands import COMMANDS, load_command
 
 __all__ = ["LazyCommandGroup", "app"]
 
