@@ -75,6 +75,8 @@ __all__ = [
 
 #: What a draw computes: capture -> CPA, or capture -> CPA -> refinement.
 MODELS = ("cpa", "refined")
+#: How the refined model's draws are solved (:attr:`MonteCarloSettings.refined_solver`).
+REFINED_SOLVERS = ("gauss-newton", "per-draw")
 #: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
 REFINE_BATCH = 500
 #: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined._PointBatch`): its
@@ -326,6 +328,12 @@ class MonteCarloSettings:
         (:func:`robotcal.execution.open_executor`). Results do not depend on it.
     keep_draws : bool
         Keep every draw in the result (needed for histograms, ``draws.npz`` and the TCP stage).
+    refined_solver : {"gauss-newton", "per-draw"}
+        How the refined model's draws are solved: ``"gauss-newton"`` (default), batched Gauss-Newton around the
+        noise-free solution with the per-draw solve as fallback (:mod:`robotcal.uncertainty.gauss_newton`);
+        ``"per-draw"``, Levenberg-Marquardt from every draw's own CPA estimate
+        (:func:`robotcal.uncertainty.refined.refine_batch`). Both reach the same least-squares solution of every
+        draw (to the stopping rule's tolerance, far below 0.01 u); kept to compare them.
     """
 
     iterations: int = 100_000
@@ -339,8 +347,11 @@ class MonteCarloSettings:
     workers: int = 1
     scheduler: str | None = None
     keep_draws: bool = True
+    refined_solver: Literal["gauss-newton", "per-draw"] = "gauss-newton"
 
     def __post_init__(self):
+        if self.refined_solver not in REFINED_SOLVERS:
+            raise InputError(f"`refined_solver` must be one of {REFINED_SOLVERS}; got {self.refined_solver!r}")
         for name in ("iterations", "ndig", "max_draws", "batch_size", "block_size", "workers"):
             value = getattr(self, name)
             if name == "block_size" and value is None:
@@ -604,7 +615,15 @@ def _noise(
     return noise
 
 
-def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, batch_size: int) -> np.ndarray:
+def draw_block(
+    problem: MonteCarloProblem,
+    seed: int,
+    block: int,
+    n_draws: int,
+    batch_size: int,
+    *,
+    refined_solver: Literal["gauss-newton", "per-draw"] = "gauss-newton",
+) -> np.ndarray:
     """The outputs of the ``n_draws`` draws of block ``block``, one row per draw, shape ``(n_draws, 5 n + m)``:
     the parameters ``d, theta, a, alpha, beta`` joint by joint [mm, rad], then the joint model's ``m`` values of
     an extended refined model (``m = 0`` otherwise; ``.reshape(-1, n, 5)`` gives the parameters).
@@ -613,7 +632,7 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
     counts and drops it. The noise is drawn draw by draw from the block's generators, and every
     computation on a batch is per draw, so a draw's value does not depend on ``batch_size``; a lone
     draw is computed as a batch of two (itself twice), because numpy reduces a stack of one with
-    other loops than a larger stack (last-bit differences).
+    other loops than a larger stack (last-bit differences). ``refined_solver``: see :class:`MonteCarloSettings`.
     """
     instrument_rng, joint_rng = _block_generators(seed, block)
     values = np.empty((n_draws, 5 * problem.robot.n_joints + problem.n_extra))
@@ -634,17 +653,21 @@ def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, 
             batch = identify_cpa_batch(circles, problem.structure, problem.tracker_from_base, residuals=False)
             result = batch.values.reshape(batch.values.shape[0], -1)
             if problem.refined is not None:
-                result = _refine_draws(problem.refined, points, batch)
+                result = _refine_draws(problem.refined, points, batch, refined_solver)
         except RobotcalError as exc:
             raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
         values[start : start + count] = result[:count]
     return values
 
 
-def _refine_draws(model: RefinedModel, points: np.ndarray, batch) -> np.ndarray:
-    """Refine every CPA draw of ``batch`` from its own estimate, ``REFINE_BATCH`` draws at a time (fewer for an
-    extended model, whose per-point Jacobian takes ~30 times the memory): the rows of :func:`draw_block`."""
+def _refine_draws(model: RefinedModel, points: np.ndarray, batch, solver: str = "gauss-newton") -> np.ndarray:
+    """Refine every CPA draw of ``batch``, ``REFINE_BATCH`` draws at a time (fewer for an extended model, whose
+    per-point Jacobian takes ~30 times the memory): the rows of :func:`draw_block`. ``solver``: batched
+    Gauss-Newton around the noise-free solution, or Levenberg-Marquardt from every draw's CPA estimate."""
+    from robotcal.uncertainty.gauss_newton import refine_draws_gauss_newton
     from robotcal.uncertainty.refined import refine_batch
+
+    solve = refine_draws_gauss_newton if solver == "gauss-newton" else refine_batch
 
     n_draws = batch.values.shape[0]
     m = 0 if model.joint_model is None else model.joint_model.size
@@ -652,7 +675,7 @@ def _refine_draws(model: RefinedModel, points: np.ndarray, batch) -> np.ndarray:
     size = REFINE_BATCH if model.joint_model is None else EXTENDED_REFINE_BATCH
     for start, count in _chunks(points.shape[0], size):
         part = slice(start, start + count)
-        refined = refine_batch(model, points[part], batch.values[part], batch.tracker_from_base[part])
+        refined = solve(model, points[part], batch.values[part], batch.tracker_from_base[part])
         out[part] = np.concatenate([refined.values.reshape(count, -1), refined.extras], axis=1)
     return out
 
@@ -676,17 +699,17 @@ def _block_sizes(total: int, block_size: int) -> list[int]:
     return [block_size] * full + ([rest] if rest else [])
 
 
-def _draw_task(problem: MonteCarloProblem, seed: int, batch_size: int, item: tuple[int, int]) -> np.ndarray:
+def _draw_task(problem: MonteCarloProblem, seed: int, batch_size: int, solver: str, item: tuple[int, int]) -> np.ndarray:
     """One block ``item = (block, size)``: a top-level function, so that any backend can run it."""
     block, size = item
-    return draw_block(problem, seed, block, size, batch_size)
+    return draw_block(problem, seed, block, size, batch_size, refined_solver=solver)
 
 
 class _BlockRunner:
     """Computes blocks on an :class:`robotcal.execution.Executor` (serial, local processes or Dask)."""
 
     def __init__(self, problem: MonteCarloProblem, seed: int, settings: MonteCarloSettings, executor):
-        self.task = functools.partial(_draw_task, problem, seed, settings.batch_size)
+        self.task = functools.partial(_draw_task, problem, seed, settings.batch_size, settings.refined_solver)
         self.executor = executor
 
     def map(self, blocks: list[tuple[int, int]]):
