@@ -179,7 +179,11 @@ def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int)
         failed[active[~better]] = True
         accepted = active[better]
         x[accepted], previous[accepted] = trial[better], size[better]
-        cost[accepted], normal[accepted], gradient[accepted] = new_cost[better], new_normal[better], new_gradient[better]
+        cost[accepted], normal[accepted], gradient[accepted] = (
+            new_cost[better],
+            new_normal[better],
+            new_gradient[better],
+        )
     failed |= ~np.isfinite(x).all(axis=1)
     return converged & ~failed, iterations, cost
 

@@ -699,7 +699,9 @@ def _block_sizes(total: int, block_size: int) -> list[int]:
     return [block_size] * full + ([rest] if rest else [])
 
 
-def _draw_task(problem: MonteCarloProblem, seed: int, batch_size: int, solver: str, item: tuple[int, int]) -> np.ndarray:
+def _draw_task(
+    problem: MonteCarloProblem, seed: int, batch_size: int, solver: str, item: tuple[int, int]
+) -> np.ndarray:
     """One block ``item = (block, size)``: a top-level function, so that any backend can run it."""
     block, size = item
     return draw_block(problem, seed, block, size, batch_size, refined_solver=solver)

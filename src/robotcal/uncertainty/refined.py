@@ -256,7 +256,9 @@ def _group_points(q: np.ndarray, carrier: np.ndarray, vectors: np.ndarray, n_joi
 # ------------------------------------------------------------------------------------------- solver
 
 
-def check_draws(model: RefinedModel, measured, start_values, base_start) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+def check_draws(
+    model: RefinedModel, measured, start_values, base_start
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The draws of :func:`refine_batch` as float arrays of checked shapes (``base_start`` one frame per draw)."""
     measured = np.asarray(measured, dtype=float)
     start = np.asarray(start_values, dtype=float)

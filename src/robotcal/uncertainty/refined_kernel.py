@@ -593,13 +593,15 @@ def _rows(array: np.ndarray, index: np.ndarray, axis: int = 0) -> np.ndarray:
     return np.take(array, index, axis=axis)
 
 
-
-
 def reference_unknowns(model: RefinedModel) -> np.ndarray:
     """The free unknowns ``(p,)`` of the noise-free solution [mm, rad]: kinematic, joint-model, base corrections
     (0: the base frame's corrections are taken from :attr:`RefinedModel.reference_tracker`)."""
     return np.concatenate(
-        [model.reference_values[model.free], model.reference_extras[model.extra_free], np.zeros(int(model.base_free.sum()))]
+        [
+            model.reference_values[model.free],
+            model.reference_extras[model.extra_free],
+            np.zeros(int(model.base_free.sum())),
+        ]
     )
 
 
