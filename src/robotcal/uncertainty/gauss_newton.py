@@ -12,8 +12,10 @@ the draws are solved by Gauss-Newton from ``x0``:
    the pseudo-inverse of the scaled Jacobian, one matrix product for all draws (the first-order estimator that the
    law of propagation of JCGM 101 §5.9 linearises; thesis eq. 5-3);
 2. corrective Gauss-Newton iterations with every draw's own Jacobian (the batched normal equations of
-   :mod:`robotcal.uncertainty.refined_kernel`) until the step satisfies the stopping rule of ``refine_batch``,
-   ``|dz| <= xtol (1 + |z|)`` (the step is taken): the same fixed point as the per-draw solve;
+   :mod:`robotcal.uncertainty.refined_kernel`) until every component of the step is below :data:`STEP_TOLERANCE`
+   (1e-3) of that unknown's linearised standard uncertainty (:attr:`RefinedModel.step_tolerance`; without it the
+   rule of ``refine_batch``, ``|dz| <= xtol (1 + |z|)``); the step is taken: the same fixed point as the per-draw
+   solve, within ~1e-5 u;
 3. a draw whose step does not shrink (``|dz_k| > |dz_{k-1}| / 2``), whose cost rises, that is not converged after
    ``max_corrections`` corrective evaluations, or that turns non-finite is solved again by ``refine_batch`` from its
    own CPA estimate (the fallback): the shortcut never decides a draw's value on its own.
@@ -35,7 +37,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from robotcal.uncertainty.refined import _lm_step, _pad_one, batch_outcome, check_draws, refine_batch
+from robotcal.uncertainty.refined import (
+    _lm_step,
+    _pad_one,
+    batch_outcome,
+    check_draws,
+    refine_batch,
+    refined_covariance,
+)
 from robotcal.uncertainty.refined_kernel import (
     RefinedBatch,
     RefinedModel,
@@ -45,8 +54,15 @@ from robotcal.uncertainty.refined_kernel import (
     reference_unknowns,
 )
 
-__all__ = ["refine_draws_gauss_newton"]
+__all__ = ["refine_draws_gauss_newton", "step_tolerance", "STEP_TOLERANCE"]
 
+#: The stopping rule of the Gauss-Newton draws, in units of every unknown's linearised standard uncertainty: a
+#: draw whose corrective step is below it takes the step and stops. Gauss-Newton converges linearly at a rate of
+#: 1e-4 to 3e-3 per step on these problems (the next step measured against the last: kr5-demo's deployed model,
+#: thesis capture, points and distances), so a draw then lies within ~1e-5 u of its least-squares solution: far below
+#: the 0.01 u to which the Monte Carlo's u and interval ends are compared, and below JCGM 101 §7.9's numerical
+#: tolerance of two significant digits.
+STEP_TOLERANCE = 1e-3
 #: A corrective step longer than this fraction of the previous step is not converging: the draw falls back.
 _SHRINK = 0.5
 #: A cost above the previous one by more than this relative amount (rounding at the optimum) is rising.
@@ -102,6 +118,14 @@ def refine_draws_gauss_newton(
         tracker = tracker.copy()
         tracker[rows] = solved.tracker_from_base
     return RefinedBatch(tracker_from_base=tracker, fallback=fallback, **parts)
+
+
+def step_tolerance(model: RefinedModel, measured, variance) -> np.ndarray:
+    """:data:`STEP_TOLERANCE` times the linearised standard uncertainty of every free unknown, in the scaled
+    unknowns ``(n_free,)`` (:func:`robotcal.uncertainty.refined.refined_covariance` at the noise-free capture
+    ``measured`` with the coordinate ``variance`` [mm^2]): the value of :attr:`RefinedModel.step_tolerance`."""
+    covariance = refined_covariance(model, measured, variance)
+    return STEP_TOLERANCE * np.sqrt(np.clip(np.diag(covariance), 0.0, None)) / model.x_scale
 
 
 def _common_base(model: RefinedModel, base_start: np.ndarray | None) -> np.ndarray | None:
@@ -163,7 +187,10 @@ def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int)
             break
         step = _pad_one(active, lambda work: _lm_step(normal[work], gradient[work], np.zeros(work.size), eye))
         size = np.linalg.norm(step, axis=1)
-        small = size <= model.xtol * (1.0 + np.linalg.norm(x[active] / scale, axis=1))
+        if model.step_tolerance is None:
+            small = size <= model.xtol * (1.0 + np.linalg.norm(x[active] / scale, axis=1))
+        else:
+            small = np.all(np.abs(step) <= model.step_tolerance, axis=1)
         x[active[small]] += step[small] * scale
         converged[active[small]] = True
         stalled = ~small & ~(size <= _SHRINK * previous[active])

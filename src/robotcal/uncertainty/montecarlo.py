@@ -247,6 +247,7 @@ def prepare_monte_carlo(
     if model != "refined" and (poses is not None or joint_model is not None):
         raise InputError("calibration poses and a joint model are the refined model's: give model='refined'")
     if model == "refined":
+        from robotcal.uncertainty.gauss_newton import step_tolerance
         from robotcal.uncertainty.refined import prepare_refined_model
 
         targets = plan.reflector
@@ -270,6 +271,8 @@ def prepare_monte_carlo(
             estimate_base=options.base_frame != "given",
             joint_model=joint_model,
         )
+        tolerance = step_tolerance(refined, exact, _coordinate_variance(instrument, instrument.error_bound(exact)))
+        refined = dataclasses.replace(refined, step_tolerance=tolerance)
         values, identified = refined.reference_values, reference.identified | refined.free
         if refined.joint_model is not None:
             truth = true_parameters.joint_model
@@ -963,10 +966,15 @@ def _run_adaptive(runner: _BlockRunner, settings, identified, store: _Store, pro
 
 def _input_variance(problem: MonteCarloProblem) -> np.ndarray:
     """Variance of each measured coordinate ``(n_points, 3)`` [mm^2]: U^2/3 (uniform) or (U/k)^2."""
-    bound = np.repeat(problem.error_bound[:, None], 3, axis=1)
-    if problem.instrument.noise == "uniform":
+    return _coordinate_variance(problem.instrument, problem.error_bound)
+
+
+def _coordinate_variance(instrument: Instrument, error_bound: np.ndarray) -> np.ndarray:
+    """``(n_points, 3)`` [mm^2] from the bound ``U(L)`` of every point: U^2/3 (uniform) or (U/k)^2."""
+    bound = np.repeat(np.asarray(error_bound)[:, None], 3, axis=1)
+    if instrument.noise == "uniform":
         return bound**2 / 3.0
-    return (bound / problem.instrument.coverage_factor) ** 2
+    return (bound / instrument.coverage_factor) ** 2
 
 
 def linearised_uncertainty(

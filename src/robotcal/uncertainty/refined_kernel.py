@@ -71,6 +71,11 @@ class RefinedModel:
         ``C(q)`` of the joint model at the capture (:meth:`JointModel.columns`).
     extra_free : ndarray of bool, shape (m,)
         Joint-model values estimated.
+    step_tolerance : ndarray, shape (n_free,), or None
+        The Gauss-Newton draws' stopping rule in the scaled unknowns: a draw has converged when every component of
+        its step is below this (:data:`robotcal.uncertainty.gauss_newton.STEP_TOLERANCE` times the linearised
+        standard uncertainty, set by :func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`); None: the
+        ``xtol`` rule of the per-draw solve.
     """
 
     criterion: str
@@ -94,6 +99,7 @@ class RefinedModel:
     joint_model: JointModel | None = None
     joint_columns: np.ndarray | None = None
     extra_free: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    step_tolerance: np.ndarray | None = None
 
     @property
     def n_free(self) -> int:

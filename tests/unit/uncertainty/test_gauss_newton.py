@@ -1,10 +1,12 @@
 """The refined Monte Carlo's batched Gauss-Newton draws against the per-draw Levenberg-Marquardt (issue 31).
 
-The same draws (same seed, same noise) are solved both ways. Both solvers stop at the same rule, ``|dz| <= xtol
-(1 + |z|)`` with xtol 1e-10 on |z| ~ 1e3: each lands within ~1e-7 (scaled) of the draw's least-squares solution,
-which is ~1e-6 of a parameter's standard uncertainty at most (measured: 3e-6 u on the thesis capture, 4e-8 u on the
-demo's). Draw for draw they must therefore agree to 1e-4 u (a margin of 30 over the largest difference seen), and
-then the Monte Carlo's u and both ends of every 95 % interval agree to far better than the 0.01 u the issue asks.
+The same draws (same seed, same noise) are solved both ways. The per-draw solve stops at ``|dz| <= xtol (1 + |z|)``
+(xtol 1e-10 on |z| ~ 1e3, ~1e-7 u), the Gauss-Newton draws when every component of the step is below 1e-3 of its
+linearised u, after which the next step, i.e. the distance left to the solution, is ~1e-3 of it again (the linear
+rate measured on these problems): ~1e-6 u. Measured largest differences: 7e-8 u (demo), 3e-6 u (thesis, points),
+5e-6 u (thesis, distances). Draw for draw they must therefore agree to 1e-4 u (a margin of 20 over the largest seen),
+and then the Monte Carlo's u and both ends of every 95 % interval agree to far better than the 0.01 u the issue
+asks (each differs from the other's by at most the largest per-draw difference).
 """
 
 from __future__ import annotations
@@ -95,14 +97,25 @@ def test_gauss_newton_steps_and_the_fallback():
     args = (problem.refined, points, cpa.values, cpa.tracker_from_base)
     batched = refine_draws_gauss_newton(*args)
     assert batched.converged.all() and not batched.fallback.any()
-    assert np.all(batched.iterations == 2)  # the first step shared, then two evaluations of each draw's own
-    # one corrective evaluation is not enough for the stopping rule: every draw falls back to the per-draw solve,
+    assert set(batched.iterations) <= {1, 2}  # the first step shared, then one or two evaluations of each draw's own
+    # without corrective iterations no draw has met the stopping rule: every draw falls back to the per-draw solve,
     # whose results it then returns exactly
-    impatient = refine_draws_gauss_newton(*args, max_corrections=1)
+    impatient = refine_draws_gauss_newton(*args, max_corrections=0)
     assert impatient.fallback.all() and impatient.converged.all()
     reference = refine_batch(*args)
     np.testing.assert_array_equal(impatient.values, reference.values)
     np.testing.assert_array_equal(impatient.iterations, reference.iterations + 1)
+    # held parameters that differ from the noise-free solution's (J6.d held at each draw's own value): no shared
+    # first step, the corrective iterations start at x0 and still reach the per-draw solution
+    assert "J6.d" in problem.refined.held
+    moved = cpa.values.copy()
+    moved[:, 5, 0] += np.linspace(-0.01, 0.01, moved.shape[0])
+    args = (problem.refined, points, moved, cpa.tracker_from_base)
+    alone, reference = refine_draws_gauss_newton(*args), refine_batch(*args)
+    assert alone.converged.all() and not alone.fallback.any()
+    u = np.std(reference.values, axis=0)
+    varies = u > 0
+    assert np.all(np.abs(alone.values - reference.values)[:, varies] <= PER_DRAW * u[varies])
 
 
 def test_refined_solver_is_checked():
