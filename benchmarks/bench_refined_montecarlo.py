@@ -108,8 +108,9 @@ from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.refine import refine_parameters
 from robotcal.io import load_scenario
 from robotcal.kinematics.model import ParameterSet
+from robotcal.uncertainty.draws import _block_generators, _noise
 from robotcal.uncertainty.gauss_newton import refine_draws_gauss_newton
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, run_monte_carlo
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 from robotcal.uncertainty.refined import refine_batch
 
 SCENARIO = "kr5-demo"

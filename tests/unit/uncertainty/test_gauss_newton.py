@@ -20,8 +20,9 @@ from robotcal.api import _joint_model, monte_carlo_problem, perturb
 from robotcal.execution import single_blas_thread
 from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.io import load_scenario
+from robotcal.uncertainty.draws import _block_generators, _noise, draw_block
 from robotcal.uncertainty.gauss_newton import refine_draws_gauss_newton
-from robotcal.uncertainty.montecarlo import MonteCarloSettings, _block_generators, _noise, draw_block
+from robotcal.uncertainty.montecarlo import MonteCarloSettings
 from robotcal.uncertainty.refined import refine_batch
 from robotcal.uncertainty.statistics import summarize_draws
 

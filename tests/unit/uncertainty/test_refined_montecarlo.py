@@ -17,15 +17,8 @@ from robotcal.identification.refine import refine_parameters
 from robotcal.io import load_scenario
 from robotcal.io.uncertainty_files import read_uncertainty_csv, write_uncertainty_csv, write_uncertainty_json
 from robotcal.kinematics.model import ParameterSet
-from robotcal.uncertainty.montecarlo import (
-    DEFAULT_BLOCK_SIZE,
-    REFINED_BLOCK_SIZE,
-    MonteCarloSettings,
-    _block_generators,
-    _noise,
-    draw_block,
-    run_monte_carlo,
-)
+from robotcal.uncertainty.draws import _block_generators, _noise, draw_block
+from robotcal.uncertainty.montecarlo import DEFAULT_BLOCK_SIZE, REFINED_BLOCK_SIZE, MonteCarloSettings, run_monte_carlo
 from robotcal.uncertainty.refined import refine_batch
 
 
