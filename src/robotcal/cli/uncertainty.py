@@ -234,6 +234,7 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
     from robotcal.io.parameters_json import read_parameters
     from robotcal.io.scenario import load_scenario
     from robotcal.io.uncertainty_files import write_uncertainty_folder
+    from robotcal.pipeline.figures import draw_histograms
     from robotcal.plots.montecarlo import write_histograms
     from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 
@@ -281,8 +282,13 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
             progress=lambda done, expected: display.update(task, completed=done, total=expected),
         )
     with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty") as folder:
-        write_uncertainty_folder(folder, result, scenario=loaded, save_draws=save_draws)
-        write_histograms(result, folder)
+        draw_histograms(
+            result,
+            folder,
+            workers=settings.workers,
+            write_files=lambda: write_uncertainty_folder(folder, result, scenario=loaded, save_draws=save_draws),
+            plot=write_histograms,
+        )
     console.print(uncertainty_table(result))
     timings = result.timings_s
     rate = result.n_draws / max(timings["draws"], 1e-9)
@@ -326,6 +332,7 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
     from robotcal.io.parameters_json import read_parameters, read_targets
     from robotcal.io.scenario import load_scenario
     from robotcal.io.uncertainty_files import measured_target_rows, write_measured_folder
+    from robotcal.pipeline.figures import draw_histograms
     from robotcal.plots.montecarlo import write_histograms
 
     inputs = existing_inputs(scenario, capture, params)
@@ -378,11 +385,10 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
             progress=lambda done, total: display.update(task, completed=done, total=total),
         )
     with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty --capture") as folder:
-        write_measured_folder(
+        draw_histograms(result.parameters, folder, workers=workers, write_files=lambda: write_measured_folder(
             folder, result, scenario=loaded, capture=str(capture), params=str(params), n_points=measured.n_points,
             save_draws=save_draws,
-        )  # fmt: skip
-        write_histograms(result.parameters, folder)
+        ), plot=write_histograms)  # fmt: skip
     console.print(uncertainty_table(result.parameters))
     if result.target_summary is not None:
         headers = ("estimate", "mean", "u", "u (refine)")

@@ -34,6 +34,7 @@ if TYPE_CHECKING:  # the refinement (and SciPy's optimizer behind it) is importe
 
 __all__ = ["MODELS", "MonteCarloProblem", "prepare_monte_carlo", "coordinate_variance"]
 
+_NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
 #: What a draw computes: capture -> CPA, or capture -> CPA -> refinement.
 MODELS = ("cpa", "refined")
 
@@ -163,27 +164,7 @@ def prepare_monte_carlo(
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     true_parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
     noisy_joints = joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0))
-    deterministic_errors = joint_errors
-    if noisy_joints:
-        deterministic_errors = dataclasses.replace(joint_errors, noise_sd=np.zeros_like(joint_errors.noise_sd))
-    noise_free = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
-    capture, exact = simulate_capture(
-        robot,
-        plan,
-        noise_free,
-        tracker_from_base,
-        true_parameters=true_parameters,
-        joint_errors=deterministic_errors,
-        joint_limits=joint_limits,
-        rng=0,
-    )
-    capture = Capture(
-        circle=capture.circle,
-        direction=capture.direction,
-        readings=capture.readings,
-        points=capture.points,
-        source="noise-free capture of the Monte Carlo scenario",
-    )
+    capture, exact = _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits)
     structure = prepare_cpa(capture, robot, plan.reflector, options)
     reference = identify_cpa_batch(exact, structure, tracker_from_base)
     values, identified, refined = reference.values, reference.identified, None
@@ -191,37 +172,11 @@ def prepare_monte_carlo(
     if model != "refined" and (poses is not None or joint_model is not None):
         raise InputError("calibration poses and a joint model are the refined model's: give model='refined'")
     if model == "refined":
-        from robotcal.uncertainty.gauss_newton import step_tolerance
-        from robotcal.uncertainty.refined import prepare_refined_model
-
-        targets = plan.reflector
-        if poses is not None:  # the circles, then the calibration poses on their flange target
-            if poses_target is None or poses_target.frame != "flange" or not poses_target.known:
-                raise InputError("calibration poses need their flange target, of known offset (`poses_target`)")
-            pose_capture, pose_exact = simulate_target_poses(
-                robot, poses, (poses_target,), noise_free, tracker_from_base, true_parameters=true_parameters, rng=0
-            )
-            circles = Target.from_mount(plan.reflector, "capture" if poses_target.name != "capture" else "circles")
-            capture = join_captures([(capture, circles.name), (pose_capture, None)], source=capture.source)
-            exact = np.concatenate([exact, pose_exact])
-            targets = (circles, poses_target)
-        start = ParameterSet(robot=robot, values=reference.values, identified=reference.identified)
-        refined = prepare_refined_model(
-            capture,
-            start,
-            targets,
-            criterion=criterion,
-            tracker_from_base=reference.tracker_from_base,
-            estimate_base=options.base_frame != "given",
-            joint_model=joint_model,
-        )
-        tolerance = step_tolerance(refined, exact, coordinate_variance(instrument, instrument.error_bound(exact)))
-        refined = dataclasses.replace(refined, step_tolerance=tolerance)
+        capture, exact, refined, extra_true = _refined_structure(
+            robot, capture, exact, reference, plan, instrument, tracker_from_base, true_parameters, options,
+            criterion=criterion, poses=poses, poses_target=poses_target, joint_model=joint_model,
+        )  # fmt: skip
         values, identified = refined.reference_values, reference.identified | refined.free
-        if refined.joint_model is not None:
-            truth = true_parameters.joint_model
-            known = {} if truth is None else dict(zip(truth.names, truth.values, strict=True))
-            extra_true = np.array([known.get(name, 0.0) for name in refined.joint_model.names])
     return MonteCarloProblem(
         robot=robot,
         true_parameters=true_parameters,
@@ -240,6 +195,71 @@ def prepare_monte_carlo(
         n_circle=n_circle,
         extra_true=extra_true,
     )
+
+
+def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits):
+    """The plan's capture without instrument noise, with the deterministic part of the joint errors."""
+    deterministic_errors = joint_errors
+    if joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0)):
+        deterministic_errors = dataclasses.replace(joint_errors, noise_sd=np.zeros_like(joint_errors.noise_sd))
+    capture, exact = simulate_capture(
+        robot,
+        plan,
+        _NOISE_FREE,
+        tracker_from_base,
+        true_parameters=true_parameters,
+        joint_errors=deterministic_errors,
+        joint_limits=joint_limits,
+        rng=0,
+    )
+    capture = Capture(
+        circle=capture.circle,
+        direction=capture.direction,
+        readings=capture.readings,
+        points=capture.points,
+        source="noise-free capture of the Monte Carlo scenario",
+    )
+    return capture, exact
+
+
+def _refined_structure(
+    robot, capture, exact, reference, plan, instrument, tracker_from_base, true_parameters, options, *, criterion, poses,
+    poses_target, joint_model,
+):  # fmt: skip
+    """The refined model's capture (the circles, then the calibration poses), exact points, refinement structure
+    (with the Gauss-Newton draws' stopping rule) and the true joint-model values."""
+    from robotcal.uncertainty.gauss_newton import step_tolerance
+    from robotcal.uncertainty.refined import prepare_refined_model
+
+    targets = plan.reflector
+    if poses is not None:  # the circles, then the calibration poses on their flange target
+        if poses_target is None or poses_target.frame != "flange" or not poses_target.known:
+            raise InputError("calibration poses need their flange target, of known offset (`poses_target`)")
+        pose_capture, pose_exact = simulate_target_poses(
+            robot, poses, (poses_target,), _NOISE_FREE, tracker_from_base, true_parameters=true_parameters, rng=0
+        )
+        circles = Target.from_mount(plan.reflector, "capture" if poses_target.name != "capture" else "circles")
+        capture = join_captures([(capture, circles.name), (pose_capture, None)], source=capture.source)
+        exact = np.concatenate([exact, pose_exact])
+        targets = (circles, poses_target)
+    start = ParameterSet(robot=robot, values=reference.values, identified=reference.identified)
+    refined = prepare_refined_model(
+        capture,
+        start,
+        targets,
+        criterion=criterion,
+        tracker_from_base=reference.tracker_from_base,
+        estimate_base=options.base_frame != "given",
+        joint_model=joint_model,
+    )
+    tolerance = step_tolerance(refined, exact, coordinate_variance(instrument, instrument.error_bound(exact)))
+    refined = dataclasses.replace(refined, step_tolerance=tolerance)
+    extra_true = np.zeros(0)
+    if refined.joint_model is not None:
+        truth = true_parameters.joint_model
+        known = {} if truth is None else dict(zip(truth.names, truth.values, strict=True))
+        extra_true = np.array([known.get(name, 0.0) for name in refined.joint_model.names])
+    return capture, exact, refined, extra_true
 
 
 def coordinate_variance(instrument: Instrument, error_bound: np.ndarray) -> np.ndarray:
