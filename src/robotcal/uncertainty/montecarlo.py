@@ -425,7 +425,6 @@ def run_monte_carlo(
             raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
         seed = int(seed)
         started = time.perf_counter()
-        identified = problem.identified
         n = problem.robot.n_joints
         capacity = settings.max_draws if settings.adaptive else settings.iterations
         # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
@@ -441,60 +440,65 @@ def run_monte_carlo(
                         progress(store.computed, settings.iterations)
             else:
                 adaptive_record = _run_adaptive(runner, settings, problem.identified_all, store, progress)
-        done = store.done
-        draws = store.values[:done, : 5 * n].reshape(done, n, 5)
-        extras = store.values[:done, 5 * n :]
-        if done < 2:
-            raise RobotcalError(f"only {done} of {store.computed} draws converged: no statistics can be made")
-        draw_time = time.perf_counter() - started
-        summary_start = time.perf_counter()
-        summary = summarize_draws(draws, settings.coverage)
-        covariance, correlation = draw_covariance(draws, identified)
-        extra_summary = summarize_draws(extras, settings.coverage) if problem.n_extra else None
-        timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
-        linear = None
-        if linearised:
-            linear_start = time.perf_counter()
-            linear = linearised_uncertainty(problem, summary, settings)
-            timings["linearised"] = time.perf_counter() - linear_start
-        timings["total"] = time.perf_counter() - started
-        message = f"{draws.shape[0]} draws"
-        if store.failed:
-            message += (
-                f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
-                f"({store.failed / store.computed:.2%})"
-            )
-        success = store.failed <= 0.001 * store.computed
+        if store.done < 2:
+            raise RobotcalError(f"only {store.done} of {store.computed} draws converged: no statistics can be made")
+        return _result(problem, settings, seed, store, adaptive_record, linearised=linearised, started=started)
 
-        if adaptive_record is not None:
-            message += f"; adaptive: {adaptive_record.reason}"
-            success = success and adaptive_record.stable
-        return MonteCarloResult(
-            robot=problem.robot,
-            settings=settings,
-            seed=seed,
-            n_draws=int(draws.shape[0]),
-            summary=summary,
-            identified=identified,
-            covariance=covariance,
-            correlation=correlation,
-            draws=draws if settings.keep_draws else None,
-            noise_free_values=problem.noise_free_values,
-            true_values=problem.true_parameters.values,
-            adaptive=adaptive_record,
-            linearised=linear,
-            timings_s=timings,
-            success=success,
-            message=message,
-            model=problem.model,
-            criterion=None if problem.refined is None else problem.refined.criterion,
-            n_failed=store.failed,
-            joint_model=None if not problem.n_extra else problem.refined.joint_model,
-            extra_draws=extras if problem.n_extra and settings.keep_draws else None,
-            extra_summary=extra_summary,
-            extra_identified=problem.identified_all[5 * n :],
-            extra_true=problem.extra_true,
+
+def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool, started: float) -> MonteCarloResult:
+    """The statistics of the draws kept in ``store`` (JCGM 101 §7.6-7.7) and, if asked, the linearised comparison."""
+    n, done = problem.robot.n_joints, store.done
+    draws = store.values[:done, : 5 * n].reshape(done, n, 5)
+    extras = store.values[:done, 5 * n :]
+    identified = problem.identified
+    draw_time = time.perf_counter() - started
+    summary_start = time.perf_counter()
+    summary = summarize_draws(draws, settings.coverage)
+    covariance, correlation = draw_covariance(draws, identified)
+    extra_summary = summarize_draws(extras, settings.coverage) if problem.n_extra else None
+    timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
+    linear = None
+    if linearised:
+        linear_start = time.perf_counter()
+        linear = linearised_uncertainty(problem, summary, settings)
+        timings["linearised"] = time.perf_counter() - linear_start
+    timings["total"] = time.perf_counter() - started
+    message = f"{draws.shape[0]} draws"
+    if store.failed:
+        message += (
+            f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
+            f"({store.failed / store.computed:.2%})"
         )
+    success = store.failed <= 0.001 * store.computed
+    if adaptive_record is not None:
+        message += f"; adaptive: {adaptive_record.reason}"
+        success = success and adaptive_record.stable
+    return MonteCarloResult(
+        robot=problem.robot,
+        settings=settings,
+        seed=seed,
+        n_draws=int(draws.shape[0]),
+        summary=summary,
+        identified=identified,
+        covariance=covariance,
+        correlation=correlation,
+        draws=draws if settings.keep_draws else None,
+        noise_free_values=problem.noise_free_values,
+        true_values=problem.true_parameters.values,
+        adaptive=adaptive_record,
+        linearised=linear,
+        timings_s=timings,
+        success=success,
+        message=message,
+        model=problem.model,
+        criterion=None if problem.refined is None else problem.refined.criterion,
+        n_failed=store.failed,
+        joint_model=None if not problem.n_extra else problem.refined.joint_model,
+        extra_draws=extras if problem.n_extra and settings.keep_draws else None,
+        extra_summary=extra_summary,
+        extra_identified=problem.identified_all[5 * n :],
+        extra_true=problem.extra_true,
+    )
 
 
 class _Store:

@@ -678,81 +678,16 @@ def propagate_to_tcp(
         draws, readings, q, tool, extras = _propagation_inputs(
             robot, parameter_draws, readings, tool, batch_size, joint_model, extra_draws
         )
-        n_draws, n_poses = draws.shape[0], q.shape[0]
-        nominal = _coordinates(robot.nominal[None], q, tool)[0]
-        cos_q, sin_q = np.cos(q), np.sin(q)
-        # pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in max_bytes, sizes
-        # evened out, one at a time: its batches of draws fill the coordinates in the threads, then its poses are
-        # split between the threads for the statistics (as many poses as possible per chunk: the per-draw
-        # products of the chain cost less per pose the more poses they hold, ~15 % from 63 to 139 poses)
-        per_pose = 48 if extras is None else 96  # bytes per draw and pose: coordinates (and the deflections)
-        largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (per_pose * n_draws)))
-        n_chunks = -(-n_poses // largest)
-        pose_chunk = -(-n_poses // n_chunks)
-        starts = range(0, n_poses, pose_chunk)
-        if batch_size is None:
-            batch_size = max(1, _BLOCK_FRAMES // pose_chunk)
-        batch_size = int(batch_size)
-        # the link factors B_i of every draw once, when they take no more room than the coordinates of a chunk
-        # (else per batch, so that memory stays bounded by the batch and the pose chunk)
-        all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
-        kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
-        # the coordinates (draws last: contiguous rows for the statistics) and the centred coordinates, reused
-        # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
-        coords_buffer, centred_buffer = np.empty((pose_chunk, 6, n_draws)), np.empty((pose_chunk, 6, n_draws))
-
-        def fill(first: int, poses: slice, coords: np.ndarray, turns: np.ndarray | None) -> None:
-            rows = slice(first, min(first + batch_size, n_draws))
-            links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
-            if turns is None:
-                cq, sq, first_joint = cos_q[poses], sin_q[poses], q[poses, 0]
-            else:  # every draw turns the joints by its own deflection
-                turned = q[poses] + turns[rows]
-                cq, sq, first_joint = np.cos(turned), np.sin(turned), turned[..., 0]
-            frames = _chain_columns(links, cq, sq)
-            # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
-            local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
-            block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
-            target = coords[:, :, rows]  # a view: the draws of this batch
-            target[:, :3] = np.transpose(local, (2, 1, 0))  # before Rz(q_1): turned per chunk, in _turn_first_joint
-            target[:, 3:] = np.transpose(_abc_near(block, first_joint, nominal[poses, 3:]), (2, 0, 1))
-
-        def chunk(start: int, pool: ThreadPoolExecutor | None) -> list:
-            poses = slice(start, min(start + pose_chunk, n_poses))
-            size = poses.stop - poses.start
-            coords, centred = coords_buffer[:size], centred_buffer[:size]
-            turns = _turns(joint_model, extras, q[poses])
-            batches = range(0, n_draws, batch_size)
-            if pool is not None and len(batches) > 1:  # the batches fill disjoint draws in the threads
-                list(pool.map(lambda first: fill(first, poses, coords, turns), batches))
-            else:
-                for first in batches:
-                    fill(first, poses, coords, turns)
-            if turns is None:
-                c1, s1 = cos_q[poses, 0, None], sin_q[poses, 0, None]
-            else:  # (P, M): the first joint of every draw
-                c1, s1 = np.cos(q[poses, 0, None] + turns[:, :, 0].T), np.sin(q[poses, 0, None] + turns[:, :, 0].T)
-            if keep_draws:
-                _turn_first_joint(coords, c1, s1)
-                kept[:, poses] = np.moveaxis(coords, -1, 0)
-
-            def statistics(part: slice):  # X, Y turned by the first joint (unless done), then the statistics
-                if not keep_draws:
-                    _turn_first_joint(coords[part], c1[part], s1[part])
-                return _chunk_statistics(coords[part], centred[part], coverage)
-
-            parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
-            slices = [slice(part[0], part[-1] + 1) for part in parts]
-            if len(slices) == 1:
-                return [statistics(slices[0])]
-            return list(pool.map(statistics, slices))
-
+        work = _Propagation(
+            robot, draws, q, tool, extras, joint_model, coverage=coverage, batch_size=batch_size,
+            max_bytes=max_bytes, keep_draws=keep_draws,
+        )  # fmt: skip
         # numpy releases the GIL in the kinematics and the statistics: the threads share each chunk's work
         if _THREADS > 1:
             with ThreadPoolExecutor(_THREADS) as pool:
-                parts = [part for start in starts for part in chunk(start, pool)]
+                parts = [part for start in work.starts for part in work.chunk(start, pool)]
         else:
-            parts = [part for start in starts for part in chunk(start, None)]
+            parts = [part for start in work.starts for part in work.chunk(start, None)]
         summaries = [part[0] for part in parts]
         ellipsoids = [part[1] for part in parts]
         covariances = [part[2] for part in parts]
@@ -763,13 +698,96 @@ def propagate_to_tcp(
             readings=readings,
             q=q,
             tool=tool,
-            n_draws=n_draws,
+            n_draws=work.n_draws,
             coverage=coverage,
-            nominal=nominal,
+            nominal=work.nominal,
             summary=_concatenate_summaries(summaries),
             covariance=np.concatenate(covariances),
             ellipsoid=_concatenate_ellipsoids(ellipsoids),
             lpu_covariance=lpu_covariance,
             parameter_mean=parameter_mean,
-            draws=kept,
+            draws=work.kept,
         )
+
+
+class _Propagation:
+    """The work of one :func:`propagate_to_tcp` call, shared by its pose chunks and threads (module notes).
+
+    Pose chunks: all poses when the draws are kept; else chunks whose coordinates fit in ``max_bytes``, sizes
+    evened out, one at a time: its batches of draws fill the coordinates in the threads, then its poses are split
+    between the threads for the statistics (as many poses as possible per chunk: the per-draw products of the chain
+    cost less per pose the more poses they hold, ~15 % from 63 to 139 poses).
+    """
+
+    def __init__(self, robot, draws, q, tool, extras, joint_model, *, coverage, batch_size, max_bytes, keep_draws):
+        self.draws, self.q, self.tool, self.extras, self.joint_model = draws, q, tool, extras, joint_model
+        self.coverage, self.keep_draws = coverage, keep_draws
+        n_draws, n_poses = draws.shape[0], q.shape[0]
+        self.n_draws, self.n_poses = n_draws, n_poses
+        self.nominal = _coordinates(robot.nominal[None], q, tool)[0]
+        self.cos_q, self.sin_q = np.cos(q), np.sin(q)
+        per_pose = 48 if extras is None else 96  # bytes per draw and pose: coordinates (and the deflections)
+        largest = n_poses if keep_draws else max(1, min(n_poses, int(max_bytes) // (per_pose * n_draws)))
+        n_chunks = -(-n_poses // largest)
+        self.pose_chunk = pose_chunk = -(-n_poses // n_chunks)
+        self.starts = range(0, n_poses, pose_chunk)
+        self.batch_size = int(max(1, _BLOCK_FRAMES // pose_chunk) if batch_size is None else batch_size)
+        # the link factors B_i of every draw once, when they take no more room than the coordinates of a chunk
+        # (else per batch, so that memory stays bounded by the batch and the pose chunk)
+        self.all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
+        self.kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
+        # the coordinates (draws last: contiguous rows for the statistics) and the centred coordinates, reused
+        # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
+        self.coords_buffer = np.empty((pose_chunk, 6, n_draws))
+        self.centred_buffer = np.empty((pose_chunk, 6, n_draws))
+
+    def fill(self, first: int, poses: slice, coords: np.ndarray, turns: np.ndarray | None) -> None:
+        """The coordinates of the draws ``first ..`` (one batch) at ``poses``, before the first joint's turn."""
+        rows = slice(first, min(first + self.batch_size, self.n_draws))
+        links = _pose_independent_links(self.draws[rows]) if self.all_links is None else self.all_links[rows]
+        if turns is None:
+            cq, sq, first_joint = self.cos_q[poses], self.sin_q[poses], self.q[poses, 0]
+        else:  # every draw turns the joints by its own deflection
+            turned = self.q[poses] + turns[rows]
+            cq, sq, first_joint = np.cos(turned), np.sin(turned), turned[..., 0]
+        frames = _chain_columns(links, cq, sq)
+        # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
+        tool = self.tool
+        local = frames[..., 3] + frames[..., :3] @ tool if tool.any() else frames[..., 3]
+        block = np.moveaxis(frames, 3, 1)  # (m, 4, 3, P): [s, k, r, p], the layout of _abc_near
+        target = coords[:, :, rows]  # a view: the draws of this batch
+        target[:, :3] = np.transpose(local, (2, 1, 0))  # before Rz(q_1): turned per chunk, in _turn_first_joint
+        target[:, 3:] = np.transpose(_abc_near(block, first_joint, self.nominal[poses, 3:]), (2, 0, 1))
+
+    def chunk(self, start: int, pool: ThreadPoolExecutor | None) -> list:
+        """The statistics of the poses ``start ..`` (one chunk): its batches of draws, then its poses' statistics,
+        shared by the threads of ``pool``."""
+        q, n_draws, keep_draws = self.q, self.n_draws, self.keep_draws
+        poses = slice(start, min(start + self.pose_chunk, self.n_poses))
+        size = poses.stop - poses.start
+        coords, centred = self.coords_buffer[:size], self.centred_buffer[:size]
+        turns = _turns(self.joint_model, self.extras, q[poses])
+        batches = range(0, n_draws, self.batch_size)
+        if pool is not None and len(batches) > 1:  # the batches fill disjoint draws in the threads
+            list(pool.map(lambda first: self.fill(first, poses, coords, turns), batches))
+        else:
+            for first in batches:
+                self.fill(first, poses, coords, turns)
+        if turns is None:
+            c1, s1 = self.cos_q[poses, 0, None], self.sin_q[poses, 0, None]
+        else:  # (P, M): the first joint of every draw
+            c1, s1 = np.cos(q[poses, 0, None] + turns[:, :, 0].T), np.sin(q[poses, 0, None] + turns[:, :, 0].T)
+        if keep_draws:
+            _turn_first_joint(coords, c1, s1)
+            self.kept[:, poses] = np.moveaxis(coords, -1, 0)
+
+        def statistics(part: slice):  # X, Y turned by the first joint (unless done), then the statistics
+            if not keep_draws:
+                _turn_first_joint(coords[part], c1[part], s1[part])
+            return _chunk_statistics(coords[part], centred[part], self.coverage)
+
+        parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
+        slices = [slice(part[0], part[-1] + 1) for part in parts]
+        if len(slices) == 1:
+            return [statistics(slices[0])]
+        return list(pool.map(statistics, slices))
