@@ -467,6 +467,7 @@ def extended_coverage_study(
     tracker_from_base=None,
     options: CPAOptions | None = None,
     joint_limits: str = "warn",
+    joint_errors: JointErrorModel | None = None,
     coverage: float = 0.95,
     rng: np.random.Generator | int | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -477,8 +478,10 @@ def extended_coverage_study(
     the flange ``poses_target``; the same poses, fresh noise) on an extended ``truth``; each is identified by
     CPA, refined over circles and poses with the truth's joint model (its values fitted from zero), and the
     refined Monte Carlo (``draws`` draws, the same model, circles and poses) simulated at that refined estimate
-    states the intervals checked: those of the parameters and of the joint-model values. No joint errors: the
-    fitted model must be the truth's for a coverage proof. Other arguments as :func:`coverage_study`.
+    states the intervals checked: those of the parameters and of the joint-model values. ``joint_errors`` (default
+    none) act on the circles of every capture and of the Monte Carlo (simulated at the estimate with the same
+    errors, whose effect the interval's bias correction then takes off), not on the poses. Other arguments as
+    :func:`coverage_study`.
     """
     with single_blas_thread():
         from robotcal.identification.targets import Target
@@ -488,7 +491,7 @@ def extended_coverage_study(
             raise InputError("the extended coverage study needs a truth with a joint model")
         _check_size(captures, draws)
         began = time.perf_counter()
-        setup = _Setup.of(robot, plan, instrument, tracker_from_base, options, None, joint_limits, "points")
+        setup = _Setup.of(robot, plan, instrument, tracker_from_base, options, joint_errors, joint_limits, "points")
         seed = _study_seed(rng)
         children = np.random.SeedSequence(seed).spawn(captures)
         structure = truth.joint_model.with_values(np.zeros(truth.joint_model.size))
@@ -552,8 +555,8 @@ def _extended_capture(setup: _Setup, truth, structure, circles, poses, poses_tar
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         capture, _ = simulate_capture(
-            robot, plan, instrument, base, true_parameters=truth, joint_limits=setup.joint_limits,
-            rng=np.random.default_rng(capture_seed),
+            robot, plan, instrument, base, true_parameters=truth, joint_errors=setup.joint_errors,
+            joint_limits=setup.joint_limits, rng=np.random.default_rng(capture_seed),
         )  # fmt: skip
         measured, _ = simulate_target_poses(
             robot, poses, (poses_target,), instrument, base, true_parameters=truth,
@@ -567,7 +570,7 @@ def _extended_capture(setup: _Setup, truth, structure, circles, poses, poses_tar
         refined = refine_parameters(fitted, cpa, targets, tracker_from_base=setup.held_base, joint_model=structure)
         problem = prepare_monte_carlo(
             robot, plan, instrument, base, options=setup.options, true_parameters=refined.parameters,
-            joint_limits=setup.joint_limits, model="refined", poses=poses, poses_target=poses_target,
-            joint_model=structure,
+            joint_errors=setup.joint_errors, joint_limits=setup.joint_limits, model="refined", poses=poses,
+            poses_target=poses_target, joint_model=structure,
         )  # fmt: skip
         return refined, run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
