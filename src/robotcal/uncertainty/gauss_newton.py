@@ -76,13 +76,10 @@ def refine_draws_gauss_newton(
 
     Parameters
     ----------
-    model : RefinedModel
-    measured : array_like, shape (n_draws, n_points, 3)
-        Measured points of every draw, tracker frame [mm].
-    start_values : array_like, shape (n_draws, n_joints, 5)
-        Every draw's CPA estimate [mm, rad]: the values of the held parameters, and the fallback's start.
-    base_start : array_like, shape (n_draws, 4, 4) or (4, 4), optional
-        Points criterion: every draw's CPA (or given) ``tracker_from_base``.
+    model, measured, start_values, base_start
+        As for :func:`robotcal.uncertainty.refined.refine_batch`: every draw's measured points [mm], its CPA
+        estimate [mm, rad] (the values of the held parameters, and the fallback's start) and, points criterion,
+        its CPA (or given) ``tracker_from_base``.
     max_corrections : int
         Evaluations of the per-draw normal equations after the first step; a draw whose step is then still above
         the stopping rule is solved by the fallback.

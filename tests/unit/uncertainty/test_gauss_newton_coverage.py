@@ -5,8 +5,9 @@ J2, J3, J5), which act on every capture and on every Monte Carlo simulated at th
 correction of the stated interval takes their effect off, docs/uncertainty.md): over K captures the stated 95 %
 interval of every parameter must contain the truth in the exact 99 % binomial band. Geometric: the refined
 (points) Monte Carlo of the circles; extended: circles and calibration poses, J2/J3 compliance refitted in every
-draw. The full studies (K = 200, 1,000 draws) are slow (``pytest -m slow``, docs/validation.md records them); the
-reduced ones here check the bookkeeping and a coverage that is no accident.
+draw (tests/unit/uncertainty/test_extended_coverage.py). The full studies (K = 200, 1,000 draws) are slow
+(``pytest -m slow``, docs/validation.md records them); the reduced ones check the bookkeeping and a coverage that
+is no accident.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ import pytest
 import robotcal
 from robotcal.api import coverage_study
 from robotcal.simulation.perturb import perturb_parameters
-from robotcal.uncertainty.coverage import extended_coverage_study
 
 
 def geometric_study(captures: int, draws: int, seed: int):
@@ -25,18 +25,6 @@ def geometric_study(captures: int, draws: int, seed: int):
     assert scenario.joint_errors is not None
     truth = perturb_parameters(scenario.robot, length_sd_mm=0.2, angle_sd_deg=0.05, include_base=True, rng=3)
     return coverage_study(scenario, truth, captures=captures, draws=draws, methods=("refined-mc",), rng=seed)
-
-
-def extended_study(captures: int, draws: int, seed: int):
-    scenario = robotcal.load_scenario("kr5-demo")
-    truth = robotcal.perturb(scenario, rng=11)  # the demo's truth: J2, J3 compliance 1e-5, 4e-5 rad/(N m)
-    poses = robotcal.simulate_poses(scenario, kind="calibration", rng=3, true_parameters=truth)
-    return extended_coverage_study(
-        scenario.robot, scenario.plan, scenario.instrument, truth, poses=poses.readings,
-        poses_target=scenario.target(scenario.poses_target), captures=captures, draws=draws,
-        tracker_from_base=scenario.tracker_from_base, options=scenario.identification,
-        joint_limits=scenario.joint_limits, joint_errors=scenario.joint_errors, rng=seed,
-    )  # fmt: skip
 
 
 def test_reduced_geometric_study_with_joint_errors():
@@ -47,12 +35,6 @@ def test_reduced_geometric_study_with_joint_errors():
     assert np.all(study.std_uncertainty["refined-mc"] > 0)
 
 
-def test_reduced_extended_study_with_joint_errors():
-    study = extended_study(10, 200, seed=22)
-    assert study.names[-2:] == ("J2.k", "J3.k")
-    assert study.empirical().mean() >= 0.8 and study.empirical().min() >= 0.5
-
-
 @pytest.mark.slow
 def test_geometric_refined_intervals_cover_in_the_binomial_band():
     study = geometric_study(200, 1000, seed=21)
@@ -60,11 +42,3 @@ def test_geometric_refined_intervals_cover_in_the_binomial_band():
     coverage = study.empirical("refined-mc")
     outside = {name: round(float(c), 3) for name, c in zip(study.names, coverage, strict=True) if not low <= c <= high}
     assert not outside, (study.band, outside)
-
-
-@pytest.mark.slow
-def test_extended_refined_intervals_cover_in_the_binomial_band():
-    study = extended_study(200, 1000, seed=22)
-    outside = [(n, round(float(c), 3)) for n, c, ok in zip(study.names, study.empirical(), study.in_band(), strict=True)
-               if not ok]  # fmt: skip
-    assert outside == [], (study.band, outside)
