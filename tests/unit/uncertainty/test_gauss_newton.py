@@ -122,3 +122,12 @@ def test_gauss_newton_steps_and_the_fallback():
 def test_refined_solver_is_checked():
     with pytest.raises(ValueError, match="refined_solver"):
         MonteCarloSettings(refined_solver="newton")
+
+
+@pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")
+def test_extended_gauss_newton_draws_do_not_depend_on_the_batch():
+    problem = _demo_deployed()
+    with single_blas_thread():
+        reference = draw_block(problem, 9, 1, 7, 7)
+        for batch_size in (1, 3):
+            np.testing.assert_array_equal(draw_block(problem, 9, 1, 7, batch_size), reference)
