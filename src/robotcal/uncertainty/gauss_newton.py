@@ -35,6 +35,8 @@ Numerical Methods for Least Squares Problems (1996), §9.2 (Gauss-Newton).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from robotcal.uncertainty.refined import (
@@ -54,7 +56,7 @@ from robotcal.uncertainty.refined_kernel import (
     reference_unknowns,
 )
 
-__all__ = ["refine_draws_gauss_newton", "step_tolerance", "STEP_TOLERANCE"]
+__all__ = ["refine_draws_gauss_newton", "step_tolerance", "shared_step", "SharedStep", "STEP_TOLERANCE"]
 
 #: The stopping rule of the Gauss-Newton draws, in units of every unknown's linearised standard uncertainty: a
 #: draw whose corrective step is below it takes the step and stops. Gauss-Newton converges linearly at a rate of
@@ -144,6 +146,39 @@ def _shares_reference(model: RefinedModel, start: np.ndarray, base: np.ndarray |
     return model.reference_tracker is not None and bool(np.all(base == model.reference_tracker))
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SharedStep:
+    """The first Gauss-Newton step every draw shares: the model at the noise-free solution ``x0``.
+
+    Attributes
+    ----------
+    value : ndarray, shape (N, 3) or (n_pairs,)
+        Points criterion: the base-frame points ``p(x0)`` in the order ``order`` [mm]; distances: ``|p_i - p_j|``
+        over the pairs [mm].
+    order : ndarray of int, shape (N,)
+        The capture row of every point of ``value``.
+    projector : ndarray, shape (p, K)
+        ``J0_s^+``, the pseudo-inverse of the scaled Jacobian at ``x0`` (K = 3 N or n_pairs).
+    """
+
+    value: np.ndarray
+    order: np.ndarray
+    projector: np.ndarray
+
+
+def shared_step(model: RefinedModel) -> SharedStep:
+    """The :class:`SharedStep` of ``model`` (the value of :attr:`RefinedModel.shared_step`)."""
+    points, jacobian, order, pairs = reference_jacobian(model)
+    if model.criterion == "points":
+        value, rows = points, jacobian.reshape(-1, model.n_free)
+    else:
+        i, j = pairs
+        diff = points[i] - points[j]
+        value = np.linalg.norm(diff, axis=1)
+        rows = np.einsum("pc,pck->pk", diff / value[:, None], jacobian[i] - jacobian[j])
+    return SharedStep(value=value, order=order, projector=np.linalg.pinv(rows * model.x_scale))
+
+
 def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarray:
     """``dz_b = -J0_s^+ r_b(x0)`` ``(n_draws, p)`` in the scaled unknowns, for every draw at once.
 
@@ -151,21 +186,15 @@ def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarra
     tracker-frame residuals turned by the orthonormal ``R0``: the same least-squares problem). Distances:
     ``r_b = |p_i - p_j| (x0) - |m_i - m_j|`` over the pairs (the draws' measured distances of ``problem``).
     """
-    points, jacobian, order, pairs = reference_jacobian(model)
+    shared = model.shared_step if model.shared_step is not None else shared_step(model)
     if model.criterion == "points":
         rotation, shift = model.reference_tracker[:3, :3], model.reference_tracker[:3, 3]
-        in_base = np.einsum("bnc,cd->bnd", measured[:, order] - shift, rotation)
-        residuals = (points - in_base).reshape(measured.shape[0], -1)
-        rows = jacobian.reshape(-1, model.n_free)
+        in_base = np.einsum("bnc,cd->bnd", measured[:, shared.order] - shift, rotation)
+        residuals = (shared.value - in_base).reshape(measured.shape[0], -1)
     else:
-        i, j = pairs
-        diff = points[i] - points[j]
-        distance = np.linalg.norm(diff, axis=1)
-        rows = np.einsum("pc,pck->pk", diff / distance[:, None], jacobian[i] - jacobian[j])
-        residuals = distance - problem.distances
-    projector = np.linalg.pinv(rows * model.x_scale)  # (p, K): J0_s^+
+        residuals = shared.value - problem.distances
     # einsum's own loops, not BLAS: every draw's sums in the same order whatever the batch (bit-reproducible)
-    return -np.einsum("bk,pk->bp", residuals, projector)
+    return -np.einsum("bk,pk->bp", residuals, shared.projector)
 
 
 def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int):

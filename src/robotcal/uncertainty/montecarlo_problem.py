@@ -228,7 +228,7 @@ def _refined_structure(
 ):  # fmt: skip
     """The refined model's capture (the circles, then the calibration poses), exact points, refinement structure
     (with the Gauss-Newton draws' stopping rule) and the true joint-model values."""
-    from robotcal.uncertainty.gauss_newton import step_tolerance
+    from robotcal.uncertainty.gauss_newton import shared_step, step_tolerance
     from robotcal.uncertainty.refined import prepare_refined_model
 
     targets = plan.reflector
@@ -254,6 +254,7 @@ def _refined_structure(
     )
     tolerance = step_tolerance(refined, exact, coordinate_variance(instrument, instrument.error_bound(exact)))
     refined = dataclasses.replace(refined, step_tolerance=tolerance)
+    refined = dataclasses.replace(refined, shared_step=shared_step(refined))
     extra_true = np.zeros(0)
     if refined.joint_model is not None:
         truth = true_parameters.joint_model

@@ -76,6 +76,9 @@ class RefinedModel:
         its step is below this (:data:`robotcal.uncertainty.gauss_newton.STEP_TOLERANCE` times the linearised
         standard uncertainty, set by :func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`); None: the
         ``xtol`` rule of the per-draw solve.
+    shared_step : SharedStep or None
+        The Gauss-Newton draws' shared first step at the noise-free solution
+        (:class:`robotcal.uncertainty.gauss_newton.SharedStep`, set with ``step_tolerance``); None: computed per call.
     """
 
     criterion: str
@@ -100,6 +103,7 @@ class RefinedModel:
     joint_columns: np.ndarray | None = None
     extra_free: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     step_tolerance: np.ndarray | None = None
+    shared_step: object | None = None
 
     @property
     def n_free(self) -> int:
