@@ -56,7 +56,7 @@ from robotcal.uncertainty.refined_kernel import (
     reference_unknowns,
 )
 
-__all__ = ["refine_draws_gauss_newton", "step_tolerance", "shared_step", "SharedStep", "STEP_TOLERANCE"]
+__all__ = ["refine_draws_gauss_newton"]
 
 #: The stopping rule of the Gauss-Newton draws, in units of every unknown's linearised standard uncertainty: a
 #: draw whose corrective step is below it takes the step and stops. Gauss-Newton converges linearly at a rate of

@@ -47,7 +47,7 @@ from robotcal.execution import open_executor, single_blas_thread
 from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel
 from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block
 from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
-from robotcal.uncertainty.montecarlo_problem import MODELS, MonteCarloProblem, prepare_monte_carlo
+from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
     SampleSummary,
@@ -62,7 +62,6 @@ if TYPE_CHECKING:
     from robotcal.kinematics.joint_model import JointModel
 
 __all__ = [
-    "MODELS",
     "MonteCarloProblem",
     "MonteCarloSettings",
     "MonteCarloResult",

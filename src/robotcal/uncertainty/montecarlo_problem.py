@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # the refinement (and SciPy's optimizer behind it) is importe
     from robotcal.kinematics.joint_model import JointModel
     from robotcal.uncertainty.refined_kernel import RefinedModel
 
-__all__ = ["MODELS", "MonteCarloProblem", "prepare_monte_carlo", "coordinate_variance"]
+__all__ = ["MonteCarloProblem", "prepare_monte_carlo"]
 
 _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
 #: What a draw computes: capture -> CPA, or capture -> CPA -> refinement.

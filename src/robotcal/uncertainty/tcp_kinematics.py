@@ -19,7 +19,7 @@ from robotcal.geometry.euler import GIMBAL_TOLERANCE, kuka_abc_from_matrix, wrap
 from robotcal.kinematics.forward import link_transforms
 from robotcal.kinematics.model import ANGLE_COLUMNS, check_parameter_array
 
-__all__ = ["check_tool", "tcp_coordinates", "tcp_jacobian", "JACOBIAN_STEP_MM", "JACOBIAN_STEP_RAD"]
+__all__ = ["check_tool", "tcp_coordinates", "tcp_jacobian"]
 
 _ANGLES = slice(3, 6)
 _ANGLE_KINDS = list(ANGLE_COLUMNS)
