@@ -33,7 +33,7 @@ __all__ = ["draw_block"]
 
 #: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
 REFINE_BATCH = 500
-#: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined._PointBatch`): its
+#: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined_kernel._PointBatch`): its
 #: working arrays are ``(3, batch, points)``; at 32 draws x 300 points they stay a few hundred kB, which the cache
 #: and the allocator reuse (faster per draw than batches of 100: the record in benchmarks/bench_extended.py).
 EXTENDED_REFINE_BATCH = 32

@@ -10,7 +10,7 @@ batched Gauss-Newton around the noise-free solution (:mod:`robotcal.uncertainty.
 statistics.
 
 Reproducibility: draws are organised in fixed blocks of ``block_size`` (by default 10^4, the block
-of JCGM 101 §7.9, and 10^3 for a fixed number of refined draws, each of which costs tens of CPA draws, so
+of JCGM 101 §7.9, and 10^3 for a fixed number of refined draws, each of which costs several CPA draws, so
 that a few thousand of them still spread over the workers). Block ``b`` draws from its own generators, seeded by
 ``SeedSequence(seed, spawn_key=(b,))``, instrument noise and joint-error noise from separate
 children; a block is consumed in draw order whatever the batch size, and blocks are independent of
@@ -78,9 +78,10 @@ REFINED_SOLVERS = ("gauss-newton", "per-draw")
 #: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.
 DEFAULT_BLOCK_SIZE = 10_000
 #: Draws per block of the refined model with a fixed number of draws (the adaptive procedure keeps
-#: :data:`DEFAULT_BLOCK_SIZE`): a refined draw costs 20 to 60 CPA draws, and a block is the unit a worker
-#: takes, so the 5,000 draws of the demo make 5 blocks for the workers rather than one.
+#: :data:`DEFAULT_BLOCK_SIZE`): a refined draw costs several CPA draws (the most for an extended model), and a
+#: block is the unit a worker takes, so a few thousand refined draws still make several blocks for the workers.
 REFINED_BLOCK_SIZE = 1_000
+
 ProgressCallback = Callable[[int, int | None], None]
 
 
