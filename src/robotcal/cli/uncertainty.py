@@ -95,102 +95,120 @@ def uncertainty_table(result: MonteCarloResult) -> FittedTable:
     return table
 
 
+# The command's arguments and options (typer reads them from these annotations).
+ScenarioArgument = Annotated[
+    str | None, typer.Argument(help="Built-in scenario name or scenario TOML path (or --scenario).")
+]
+OutOption = Annotated[Path | None, typer.Option("--out", "-o", help="Result folder to write (replaced if it exists).")]
+IterationsOption = Annotated[
+    int | None,
+    typer.Option(
+        "--iterations",
+        "-n",
+        help="Number of draws (default: the scenario's montecarlo.iterations; with --capture, 300).",
+    ),
+]
+AdaptiveOption = Annotated[
+    bool, typer.Option("--adaptive", help="JCGM 101 §7.9 adaptive mode: blocks of 10^4 draws until stable.")
+]
+NdigOption = Annotated[int, typer.Option(help="Adaptive mode: significant digits of u that must be stable.")]
+MaxDrawsOption = Annotated[int, typer.Option("--max-draws", help="Adaptive mode: upper limit of draws.")]
+SeedOption = Annotated[
+    int | None,
+    typer.Option(
+        min=0,
+        max=SEED_BOUND - 1,
+        help="Seed (default: the scenario's montecarlo.seed, else fresh entropy; recorded).",
+    ),
+]
+CoverageOption = Annotated[
+    float | None, typer.Option(help="Coverage probability in (0, 1) (default: the scenario's, 0.95).")
+]
+IntervalOption = Annotated[str, typer.Option(help="Interval reported as coverage_low/high: symmetric | shortest.")]
+BatchSizeOption = Annotated[int, typer.Option("--batch-size", help="Draws per vectorised CPA call (bounds memory).")]
+WorkersOption = Annotated[
+    int | None, typer.Option(help="Parallel worker processes (default: the CPU count, at most 4).")
+]
+SaveDrawsOption = Annotated[bool, typer.Option("--save-draws", help="Also write every draw to draws.npz.")]
+TrueParamsOption = Annotated[
+    Path | None,
+    typer.Option("--true-params", help="Parameter JSON of the 'real' robot to simulate (default: nominal)."),
+]
+ForceOption = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
+ModelOption = Annotated[
+    str,
+    typer.Option(
+        "--model",
+        help="What each draw computes: cpa (capture -> CPA, the thesis's study) | refined (capture -> CPA -> "
+        "refinement, the deployed parameters).",
+    ),
+]
+CriterionOption = Annotated[
+    str | None,
+    typer.Option(
+        "--criterion",
+        help="Refinement objective of --model refined or --capture: points | distances (default: points; with "
+        "--capture, the one recorded in --params).",
+    ),
+]
+SchedulerOption = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        help="Dask scheduler address (tcp://host:8786) to run the blocks on (default: ROBOTCAL_SCHEDULER, "
+        "else local worker processes). Needs robotcal[distributed].",
+    ),
+]
+ScenarioOption = Annotated[
+    str | None, typer.Option("--scenario", "-s", help="Scenario name or TOML (instead of the argument).")
+]
+CaptureOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--capture",
+        help="Monte Carlo of this measured capture (with --params): its poses and targets are simulated on the "
+        "refined parameters, each point's noise drawn from its U(95) (k = 2, normal; else the instrument's), and "
+        "refined again, draw after draw.",
+    ),
+]
+ParamsOption = Annotated[
+    Path | None,
+    typer.Option("--params", help="With --capture: the parameter JSON `robotcal refine` wrote for that capture."),
+]
+PosesOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--poses",
+        help="--model refined: the calibration poses (capture CSV on one flange target) refined with the circles "
+        "(default: the scenario's [calibration_poses], if any).",
+    ),
+]
+
+
 @app.command()
 @handle_errors
 def uncertainty(
-    scenario: Annotated[
-        str | None, typer.Argument(help="Built-in scenario name or scenario TOML path (or --scenario).")
-    ] = None,
-    out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Result folder to write (replaced if it exists).")
-    ] = None,
-    iterations: Annotated[
-        int | None,
-        typer.Option(
-            "--iterations",
-            "-n",
-            help="Number of draws (default: the scenario's montecarlo.iterations; with --capture, 300).",
-        ),
-    ] = None,
-    adaptive: Annotated[
-        bool, typer.Option("--adaptive", help="JCGM 101 §7.9 adaptive mode: blocks of 10^4 draws until stable.")
-    ] = False,
-    ndig: Annotated[int, typer.Option(help="Adaptive mode: significant digits of u that must be stable.")] = 2,
-    max_draws: Annotated[int, typer.Option("--max-draws", help="Adaptive mode: upper limit of draws.")] = 2_000_000,
-    seed: Annotated[
-        int | None,
-        typer.Option(
-            min=0,
-            max=SEED_BOUND - 1,
-            help="Seed (default: the scenario's montecarlo.seed, else fresh entropy; recorded).",
-        ),
-    ] = None,
-    coverage: Annotated[
-        float | None, typer.Option(help="Coverage probability in (0, 1) (default: the scenario's, 0.95).")
-    ] = None,
-    interval: Annotated[
-        str, typer.Option(help="Interval reported as coverage_low/high: symmetric | shortest.")
-    ] = "symmetric",
-    batch_size: Annotated[
-        int, typer.Option("--batch-size", help="Draws per vectorised CPA call (bounds memory).")
-    ] = 2_000,
-    workers: Annotated[
-        int | None, typer.Option(help="Parallel worker processes (default: the CPU count, at most 4).")
-    ] = None,
-    save_draws: Annotated[bool, typer.Option("--save-draws", help="Also write every draw to draws.npz.")] = False,
-    true_params: Annotated[
-        Path | None,
-        typer.Option("--true-params", help="Parameter JSON of the 'real' robot to simulate (default: nominal)."),
-    ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
-    model: Annotated[
-        str,
-        typer.Option(
-            "--model",
-            help="What each draw computes: cpa (capture -> CPA, the thesis's study) | refined (capture -> CPA -> "
-            "refinement, the deployed parameters).",
-        ),
-    ] = "cpa",
-    criterion: Annotated[
-        str | None,
-        typer.Option(
-            "--criterion",
-            help="Refinement objective of --model refined or --capture: points | distances (default: points; with "
-            "--capture, the one recorded in --params).",
-        ),
-    ] = None,
-    scheduler: Annotated[
-        str | None,
-        typer.Option(
-            "--scheduler",
-            help="Dask scheduler address (tcp://host:8786) to run the blocks on (default: ROBOTCAL_SCHEDULER, "
-            "else local worker processes). Needs robotcal[distributed].",
-        ),
-    ] = None,
-    scenario_option: Annotated[
-        str | None, typer.Option("--scenario", "-s", help="Scenario name or TOML (instead of the argument).")
-    ] = None,
-    capture: Annotated[
-        Path | None,
-        typer.Option(
-            "--capture",
-            help="Monte Carlo of this measured capture (with --params): its poses and targets are simulated on the "
-            "refined parameters, each point's noise drawn from its U(95) (k = 2, normal; else the instrument's), and "
-            "refined again, draw after draw.",
-        ),
-    ] = None,
-    params: Annotated[
-        Path | None,
-        typer.Option("--params", help="With --capture: the parameter JSON `robotcal refine` wrote for that capture."),
-    ] = None,
-    poses: Annotated[
-        Path | None,
-        typer.Option(
-            "--poses",
-            help="--model refined: the calibration poses (capture CSV on one flange target) refined with the circles "
-            "(default: the scenario's [calibration_poses], if any).",
-        ),
-    ] = None,
+    scenario: ScenarioArgument = None,
+    out: OutOption = None,
+    iterations: IterationsOption = None,
+    adaptive: AdaptiveOption = False,
+    ndig: NdigOption = 2,
+    max_draws: MaxDrawsOption = 2_000_000,
+    seed: SeedOption = None,
+    coverage: CoverageOption = None,
+    interval: IntervalOption = "symmetric",
+    batch_size: BatchSizeOption = 2_000,
+    workers: WorkersOption = None,
+    save_draws: SaveDrawsOption = False,
+    true_params: TrueParamsOption = None,
+    force: ForceOption = False,
+    model: ModelOption = "cpa",
+    criterion: CriterionOption = None,
+    scheduler: SchedulerOption = None,
+    scenario_option: ScenarioOption = None,
+    capture: CaptureOption = None,
+    params: ParamsOption = None,
+    poses: PosesOption = None,
 ) -> None:
     """Monte Carlo (GUM Supplement 1) uncertainty of the CPA or refined parameters, with the linearised comparison;
     with --capture and --params, of the refinement of a measured capture."""
@@ -227,13 +245,12 @@ def uncertainty(
 def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draws, seed, coverage, interval, batch_size,
                workers, save_draws, true_params, force, model, criterion, scheduler, poses) -> None:  # fmt: skip
     """``robotcal uncertainty SCENARIO --out DIR``: the scenario's Monte Carlo, its folder and its summary."""
-    import numpy as np
-
     from robotcal import api
     from robotcal.io.output import check_output_folder, existing_inputs, result_folder
     from robotcal.io.parameters_json import read_parameters
     from robotcal.io.scenario import load_scenario
     from robotcal.io.uncertainty_files import write_uncertainty_folder
+    from robotcal.pipeline.figures import draw_histograms
     from robotcal.plots.montecarlo import write_histograms
     from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
@@ -277,8 +294,20 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
             progress=lambda done, expected: display.update(task, completed=done, total=expected),
         )  # fmt: skip
     with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty") as folder:
-        write_uncertainty_folder(folder, result, scenario=loaded, save_draws=save_draws)
-        write_histograms(result, folder)
+        draw_histograms(
+            result,
+            folder,
+            workers=settings.workers,
+            write_files=lambda: write_uncertainty_folder(folder, result, scenario=loaded, save_draws=save_draws),
+            plot=write_histograms,
+        )
+    _print_summary(result, settings, out)
+
+
+def _print_summary(result: MonteCarloResult, settings, out: Path) -> None:
+    """The table, the draws' rate, the JCGM 101 §8 verdict and the folder written."""
+    import numpy as np
+
     console.print(uncertainty_table(result))
     timings = result.timings_s
     rate = result.n_draws / max(timings["draws"], 1e-9)
@@ -312,23 +341,10 @@ def _parameter_document(path: Path) -> dict:
     return document if isinstance(document, dict) else {}
 
 
-def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iterations, seed, coverage, interval, workers,
-              scheduler, save_draws, criterion, force) -> None:  # fmt: skip
-    """``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``."""
-    from robotcal import api
-    from robotcal.cli._tables import Column, FittedTable
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-    from robotcal.io.parameters_json import read_parameters, read_targets
-    from robotcal.io.scenario import load_scenario
-    from robotcal.io.uncertainty_files import measured_target_rows, write_measured_folder
-    from robotcal.plots.montecarlo import write_histograms
+def _checked_parameters(params: Path, capture: Path, loaded, measured, criterion):
+    """The parameter JSON's estimate, provenance and criterion, checked against the scenario and the capture."""
+    from robotcal.io.parameters_json import read_parameters
 
-    inputs = existing_inputs(scenario, capture, params)
-    check_output_folder(out, inputs=inputs, force=force)
-    loaded = load_scenario(scenario)
-    inputs += existing_inputs(*loaded.files)
-    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
     document = _parameter_document(params)
     recorded_robot = document.get("robot")
     if isinstance(recorded_robot, str) and recorded_robot != loaded.robot.name:
@@ -352,6 +368,28 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
             f"{params} was refined with the {recorded} criterion; --criterion {criterion} would repeat another "
             "refinement than the one the parameters come from"
         )
+    return estimate, provenance, criterion
+
+
+def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iterations, seed, coverage, interval, workers,
+              scheduler, save_draws, criterion, force) -> None:  # fmt: skip
+    """``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``."""
+    from robotcal import api
+    from robotcal.cli._tables import Column, FittedTable
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.io.parameters_json import read_targets
+    from robotcal.io.scenario import load_scenario
+    from robotcal.io.uncertainty_files import measured_target_rows, write_measured_folder
+    from robotcal.pipeline.figures import draw_histograms
+    from robotcal.plots.montecarlo import write_histograms
+
+    inputs = existing_inputs(scenario, capture, params)
+    check_output_folder(out, inputs=inputs, force=force)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(*loaded.files)
+    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    estimate, provenance, criterion = _checked_parameters(params, capture, loaded, measured, criterion)
     run_seed = api.seed_from(seed, loaded.montecarlo.seed)
     seed_option_check(run_seed, f"{loaded.source}: key `montecarlo.seed`")
     draws = MEASURED_DEFAULT_DRAWS if iterations is None else iterations
@@ -374,11 +412,10 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
             progress=lambda done, total: display.update(task, completed=done, total=total),
         )
     with result_folder(out, inputs=inputs, force=force, command="robotcal uncertainty --capture") as folder:
-        write_measured_folder(
+        draw_histograms(result.parameters, folder, workers=workers, write_files=lambda: write_measured_folder(
             folder, result, scenario=loaded, capture=str(capture), params=str(params), n_points=measured.n_points,
             save_draws=save_draws,
-        )  # fmt: skip
-        write_histograms(result.parameters, folder)
+        ), plot=write_histograms)  # fmt: skip
     console.print(uncertainty_table(result.parameters))
     if result.target_summary is not None:
         headers = ("estimate", "mean", "u", "u (refine)")

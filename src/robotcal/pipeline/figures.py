@@ -14,14 +14,15 @@ whatever its figures cost.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Executor, Future
 from importlib import import_module
 from pathlib import Path
 from typing import Any
 
-from robotcal.execution import check_stop
+from robotcal.execution import check_stop, process_pool
 
-__all__ = ["FigureJobs", "draw_figure"]
+__all__ = ["FigureJobs", "draw_figure", "draw_histograms"]
 
 
 def draw_figure(function: str, /, *args, **kwargs) -> Any:
@@ -59,3 +60,28 @@ class FigureJobs:
                 continue
             written.extend([Path(value)] if isinstance(value, str | Path) else [Path(path) for path in value])
         return written
+
+
+def draw_histograms(
+    result, folder: Path, *, workers: int, plot: Callable, write_files: Callable[[], Any] | None = None
+) -> list[Path]:
+    """A Monte Carlo's histograms, ``plot(result, folder, joints=...)`` (:func:`robotcal.plots.montecarlo.write_histograms`),
+    drawn by ``workers`` processes at once, a share of the joints each, while this process runs ``write_files()``
+    (the folder's data files); with one worker, here after ``write_files()``. The figures are those of one call.
+
+    The pool is forked after the draws, so its workers inherit the modules the caller imported (matplotlib, with
+    the plot module); each receives the result once. Returns the paths written, in joint order.
+    """
+    joints = [joint for joint in range(result.robot.n_joints) if result.identified[joint].any()]
+    count = max(1, min(workers, len(joints)))
+    if count == 1:
+        if write_files is not None:
+            write_files()
+        return [Path(path) for path in plot(result, folder)]
+    with process_pool(count) as pool:
+        jobs = [pool.submit(plot, result, folder, joints=joints[share::count]) for share in range(count)]
+        if write_files is not None:
+            write_files()
+        written = [Path(path) for job in jobs for path in job.result()]
+        check_stop()
+    return sorted(written, key=lambda path: int(path.stem.rpartition("J")[2]))

@@ -19,8 +19,12 @@ def _bins(n_draws: int) -> int:
     return int(np.clip(round(2.0 * n_draws ** (1.0 / 3.0)), 20, 120))  # Rice rule, bounded
 
 
-def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]:
+def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=None) -> list[Path]:
     """One PNG per joint, ``hist_J<i>.png``, a panel per identified parameter; returns the paths in joint order.
+
+    ``joints`` (0-based, default every joint) draws only those joints' figures, each the same as in a call for
+    every joint: a process pool draws a run's figures in parallel, a share of the joints per worker
+    (:func:`robotcal.pipeline.figures.draw_histograms`).
 
     Each panel shows the draws as a density histogram, the mean (solid), the coverage interval for the
     measurand (dashed: the draws' interval of the kind chosen in the settings moved by twice the bias,
@@ -37,7 +41,7 @@ def write_histograms(result: MonteCarloResult, folder: str | Path) -> list[Path]
     draws_low, draws_high = result.draws_interval()
     noise_free = "noise-free refinement" if result.model == "refined" else "noise-free CPA"
     written = []
-    for joint in range(result.robot.n_joints):
+    for joint in range(result.robot.n_joints) if joints is None else sorted(joints):
         columns = np.flatnonzero(result.identified[joint])
         if columns.size == 0:
             continue

@@ -31,6 +31,7 @@ from robotcal.uncertainty.coverage import (
     coverage_study,
     extended_coverage_study,
 )
+from robotcal.uncertainty.gauss_newton import refine_draws_gauss_newton
 from robotcal.uncertainty.measured import (
     DRAWS_PER_BLOCK,
     MODEL,
@@ -111,6 +112,7 @@ __all__ = [
     "prepare_refined_model",
     "refine_batch",
     "refined_covariance",
+    "refine_draws_gauss_newton",
     "INTERVAL_KINDS",
     "SampleSummary",
     "summarize_draws",

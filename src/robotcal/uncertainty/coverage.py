@@ -229,147 +229,190 @@ def coverage_study(
         ``progress(done, captures)`` after each capture.
     """
     with single_blas_thread():
-        from robotcal.identification.cpa import identify_cpa
-        from robotcal.identification.refine import RefinementSettings, refine_parameters
-        from robotcal.simulation.generator import simulate_capture
-        from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+        from robotcal.uncertainty.montecarlo import MonteCarloSettings
         from robotcal.uncertainty.tcp import tcp_coordinates
 
-        options = CPAOptions() if options is None else options
-        tracker_from_base = np.eye(4) if tracker_from_base is None else np.asarray(tracker_from_base, dtype=float)
-        held_base = tracker_from_base if options.base_frame == "given" else None
+        setup = _Setup.of(robot, plan, instrument, tracker_from_base, options, joint_errors, joint_limits, criterion)
         methods = tuple(methods)
         unknown = [m for m in methods if m not in COVERAGE_METHODS]
         if unknown or not methods:
             raise InputError(f"`methods` must be a non-empty subset of {COVERAGE_METHODS}; got {methods!r}")
-        if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
-            raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
-        if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
-            raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
+        _check_size(captures, draws)
         began = time.perf_counter()
-        if isinstance(rng, np.random.Generator):
-            seed = int(rng.integers(2**63 - 1))
-        else:
-            seed = int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
+        seed = _study_seed(rng)
         children = np.random.SeedSequence(seed).spawn(captures)
         if tcp_readings is None and any(m.endswith("-mc") for m in methods):
             raise InputError("the coverage study checks the TCP ellipsoid at a pose: give `tcp_readings`")
+        tcp = None
         if tcp_readings is not None:
             q_tcp = truth.model_joint_variables(np.atleast_2d(np.asarray(tcp_readings, dtype=float)))[:1]
-            true_tcp = tcp_coordinates(truth.values, q_tcp)[0, :3]
+            tcp = (q_tcp, tcp_coordinates(truth.values, q_tcp)[0, :3])
         z = NormalDist().inv_cdf(0.5 + coverage / 2.0)
         settings = MonteCarloSettings(
             iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000)
         )
-
-        contained = {m: [] for m in methods}
-        monte_carlos = [m for m in methods if m.endswith("-mc")]
-        contained_draws = {m: [] for m in monte_carlos}
-        tcp_contained = {m: [] for m in monte_carlos}
-        tcp_contained_corrected = {m: [] for m in monte_carlos}
-        bias = {m: [] for m in monte_carlos}
-        centres = {m: [] for m in monte_carlos}
-        draws_low = {m: [] for m in monte_carlos}
-        draws_high = {m: [] for m in monte_carlos}
-        std = {m: [] for m in methods}
-        error = {"cpa": [], "refined": []}
+        records = _Records(methods)
         checked = None
         for k, child in enumerate(children):
             capture_seed, mc_seed = (int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(2))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                capture, _ = simulate_capture(
-                    robot,
-                    plan,
-                    instrument,
-                    tracker_from_base,
-                    true_parameters=truth,
-                    joint_errors=joint_errors,
-                    joint_limits=joint_limits,
-                    rng=np.random.default_rng(capture_seed),
-                )
-                cpa = identify_cpa(
-                    capture, robot, plan.reflector, tracker_from_base=held_base, options=options
-                ).parameters
-                refined = refine_parameters(
-                    capture, cpa, plan.reflector, tracker_from_base=held_base,
-                    settings=RefinementSettings(criterion=criterion),
-                )  # fmt: skip
-            mask = cpa.identified & refined.identifiability.free
-            if checked is None:
-                checked = mask
-            elif not np.array_equal(mask, checked):
-                # every capture of one plan has the same structure; a different free set means a rank
-                # decision sat on a threshold, and the study would compare different things
-                changed = [
-                    n for n, a, b in zip(robot.parameter_names, mask.ravel(), checked.ravel(), strict=True) if a != b
-                ]
-                raise InputError(
-                    f"capture {k + 1} of the coverage study determines a different set of parameters ({', '.join(changed)}) "
-                    "than the first capture; the study needs one fixed set"
-                )
-            error["cpa"].append((cpa.values - truth.values)[checked])
-            error["refined"].append((refined.parameters.values - truth.values)[checked])
-            truth_values = truth.values[checked]
+            cpa, refined = _estimates(setup, truth, capture_seed)
+            checked = _same_set(cpa.identified & refined.identifiability.free, checked, k, robot.parameter_names)
+            records.error["cpa"].append((cpa.values - truth.values)[checked])
+            records.error["refined"].append((refined.parameters.values - truth.values)[checked])
             for method in methods:
                 if method == "refined-linearised":
                     u = refined.uncertainty.standard_uncertainty
-                    low, high = refined.parameters.values - z * u, refined.parameters.values + z * u
-                    result = None
+                    interval, result = (refined.parameters.values - z * u, refined.parameters.values + z * u), None
                 else:
-                    centre = cpa if method == "cpa-mc" else refined.parameters
-                    model = "cpa" if method == "cpa-mc" else "refined"
-                    problem = prepare_monte_carlo(
-                        robot,
-                        plan,
-                        instrument,
-                        tracker_from_base,
-                        options=options,
-                        true_parameters=centre,
-                        joint_errors=joint_errors,
-                        joint_limits=joint_limits,
-                        model=model,
-                        criterion=criterion,
+                    result = _monte_carlo_at(
+                        setup, cpa if method == "cpa-mc" else refined.parameters, method, settings, mc_seed
                     )
-                    result = run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
-                    low, high = result.interval()
-                    u = result.summary.std_uncertainty
-                contained[method].append(_inside(low, high, truth_values, checked))
-                std[method].append(u[checked])
-                if result is not None:
-                    low_draws, high_draws = result.draws_interval()
-                    contained_draws[method].append(_inside(low_draws, high_draws, truth_values, checked))
-                    bias[method].append(result.bias[checked])
-                    centres[method].append(result.centre[checked])
-                    draws_low[method].append(low_draws[checked])
-                    draws_high[method].append(high_draws[checked])
-                    positions = tcp_coordinates(result.draws, q_tcp)[:, 0, :3]
-                    at_estimate = tcp_coordinates(result.centre, q_tcp)[0, :3]
-                    moved = positions + 2.0 * (at_estimate - positions.mean(axis=0))  # centre 2 T(y) - mean
-                    tcp_contained[method].append(_inside_ellipsoid(positions, true_tcp, coverage))
-                    tcp_contained_corrected[method].append(_inside_ellipsoid(moved, true_tcp, coverage))
+                    interval, u = result.interval(), result.summary.std_uncertainty
+                records.add(method, interval, u, result, truth.values, checked, tcp, coverage)
             if progress is not None:
                 progress(k + 1, captures)
         names = tuple(name for name, flag in zip(robot.parameter_names, checked.ravel(), strict=True) if flag)
+        return records.study(truth=truth, names=names, captures=captures, draws=draws, coverage=coverage, seed=seed,
+                             seconds=time.perf_counter() - began)  # fmt: skip
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Setup:
+    """What every capture of a study shares: the robot, plan, instrument, base frame and identification."""
+
+    robot: RobotModel
+    plan: CapturePlan
+    instrument: Instrument
+    tracker_from_base: np.ndarray
+    held_base: np.ndarray | None
+    options: CPAOptions
+    joint_errors: JointErrorModel | None
+    joint_limits: str
+    criterion: str
+
+    @classmethod
+    def of(cls, robot, plan, instrument, tracker_from_base, options, joint_errors, joint_limits, criterion):
+        options = CPAOptions() if options is None else options
+        tracker_from_base = np.eye(4) if tracker_from_base is None else np.asarray(tracker_from_base, dtype=float)
+        held_base = tracker_from_base if options.base_frame == "given" else None
+        return cls(
+            robot=robot, plan=plan, instrument=instrument, tracker_from_base=tracker_from_base, held_base=held_base,
+            options=options, joint_errors=joint_errors, joint_limits=joint_limits, criterion=criterion,
+        )  # fmt: skip
+
+
+def _check_size(captures, draws) -> None:
+    if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
+        raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
+    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
+        raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
+
+
+def _study_seed(rng) -> int:
+    """The study's recorded seed: drawn from a Generator, fresh entropy for None, else the integer given."""
+    if isinstance(rng, np.random.Generator):
+        return int(rng.integers(2**63 - 1))
+    return int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
+
+
+def _same_set(mask: np.ndarray, checked: np.ndarray | None, k: int, names) -> np.ndarray:
+    """The set of parameters checked: the first capture's; every capture of one plan must determine the same (a
+    different free set means a rank decision sat on a threshold, and the study would compare different things)."""
+    if checked is None or np.array_equal(mask, checked):
+        return mask
+    changed = [n for n, a, b in zip(names, np.ravel(mask), np.ravel(checked), strict=True) if a != b]
+    raise InputError(
+        f"capture {k + 1} of the coverage study determines a different set of parameters ({', '.join(changed)}) "
+        "than the first capture; the study needs one fixed set"
+    )
+
+
+def _estimates(setup: _Setup, truth: ParameterSet, capture_seed: int):
+    """One simulated capture of ``truth``: its CPA parameters and its refinement."""
+    from robotcal.identification.cpa import identify_cpa
+    from robotcal.identification.refine import RefinementSettings, refine_parameters
+    from robotcal.simulation.generator import simulate_capture
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        capture, _ = simulate_capture(
+            setup.robot, setup.plan, setup.instrument, setup.tracker_from_base, true_parameters=truth,
+            joint_errors=setup.joint_errors, joint_limits=setup.joint_limits, rng=np.random.default_rng(capture_seed),
+        )  # fmt: skip
+        cpa = identify_cpa(
+            capture, setup.robot, setup.plan.reflector, tracker_from_base=setup.held_base, options=setup.options
+        ).parameters
+        refined = refine_parameters(
+            capture, cpa, setup.plan.reflector, settings=RefinementSettings(criterion=setup.criterion),
+            tracker_from_base=setup.held_base,
+        )  # fmt: skip
+    return cpa, refined
+
+
+def _monte_carlo_at(setup: _Setup, centre: ParameterSet, method: str, settings, seed: int):
+    """The Monte Carlo a user is given for one capture: simulated at its estimate ``centre`` (module notes)."""
+    from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
+
+    problem = prepare_monte_carlo(
+        setup.robot, setup.plan, setup.instrument, setup.tracker_from_base, options=setup.options,
+        true_parameters=centre, joint_errors=setup.joint_errors, joint_limits=setup.joint_limits,
+        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion,
+    )  # fmt: skip
+    return run_monte_carlo(problem, settings, seed=seed, linearised=False)
+
+
+class _Records:
+    """Each capture's record of a :func:`coverage_study`, method by method."""
+
+    def __init__(self, methods: tuple[str, ...]):
+        monte_carlos = [m for m in methods if m.endswith("-mc")]
+        self.contained = {m: [] for m in methods}
+        self.std = {m: [] for m in methods}
+        self.error = {"cpa": [], "refined": []}
+        names = ("contained_draws", "tcp_contained", "tcp_contained_corrected", "bias", "centre", "low", "high")
+        self.mc = {name: {m: [] for m in monte_carlos} for name in names}
+
+    def add(self, method, interval, u, result, truth_values, checked, tcp, coverage) -> None:
+        """One capture's interval (and, for a Monte Carlo, its draws' interval, bias and TCP ellipsoids)."""
+        from robotcal.uncertainty.tcp import tcp_coordinates
+
+        true_values = truth_values[checked]
+        self.contained[method].append(_inside(*interval, true_values, checked))
+        self.std[method].append(u[checked])
+        if result is None:
+            return
+        low_draws, high_draws = result.draws_interval()
+        record = self.mc
+        record["contained_draws"][method].append(_inside(low_draws, high_draws, true_values, checked))
+        record["bias"][method].append(result.bias[checked])
+        record["centre"][method].append(result.centre[checked])
+        record["low"][method].append(low_draws[checked])
+        record["high"][method].append(high_draws[checked])
+        q_tcp, true_tcp = tcp
+        positions = tcp_coordinates(result.draws, q_tcp)[:, 0, :3]
+        at_estimate = tcp_coordinates(result.centre, q_tcp)[0, :3]
+        moved = positions + 2.0 * (at_estimate - positions.mean(axis=0))  # centre 2 T(y) - mean
+        record["tcp_contained"][method].append(_inside_ellipsoid(positions, true_tcp, coverage))
+        record["tcp_contained_corrected"][method].append(_inside_ellipsoid(moved, true_tcp, coverage))
+
+    def study(self, **fields) -> CoverageStudy:
+        def stacked(records: dict, dtype=None) -> dict:
+            return {m: np.array(v, dtype=dtype) for m, v in records.items()}
+
+        mc = self.mc
         return CoverageStudy(
-            truth=truth,
-            names=names,
-            captures=captures,
-            draws=draws,
-            coverage=coverage,
-            band=binomial_band(captures, coverage),
-            contained={m: np.array(v, dtype=bool) for m, v in contained.items()},
-            contained_draws={m: np.array(v, dtype=bool) for m, v in contained_draws.items()},
-            tcp_contained={m: np.array(v, dtype=bool) for m, v in tcp_contained.items()},
-            tcp_contained_corrected={m: np.array(v, dtype=bool) for m, v in tcp_contained_corrected.items()},
-            std_uncertainty={m: np.array(v) for m, v in std.items()},
-            bias={m: np.array(v) for m, v in bias.items()},
-            centre={m: np.array(v) for m, v in centres.items()},
-            draws_low={m: np.array(v) for m, v in draws_low.items()},
-            draws_high={m: np.array(v) for m, v in draws_high.items()},
-            error={m: np.array(v) for m, v in error.items()},
-            seed=seed,
-            seconds=time.perf_counter() - began,
+            band=binomial_band(fields["captures"], fields["coverage"]),
+            contained=stacked(self.contained, bool),
+            contained_draws=stacked(mc["contained_draws"], bool),
+            tcp_contained=stacked(mc["tcp_contained"], bool),
+            tcp_contained_corrected=stacked(mc["tcp_contained_corrected"], bool),
+            std_uncertainty=stacked(self.std),
+            bias=stacked(mc["bias"]),
+            centre=stacked(mc["centre"]),
+            draws_low=stacked(mc["low"]),
+            draws_high=stacked(mc["high"]),
+            error=stacked(self.error),
+            **fields,
         )
 
 
@@ -425,6 +468,7 @@ def extended_coverage_study(
     tracker_from_base=None,
     options: CPAOptions | None = None,
     joint_limits: str = "warn",
+    joint_errors: JointErrorModel | None = None,
     coverage: float = 0.95,
     rng: np.random.Generator | int | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -435,61 +479,34 @@ def extended_coverage_study(
     the flange ``poses_target``; the same poses, fresh noise) on an extended ``truth``; each is identified by
     CPA, refined over circles and poses with the truth's joint model (its values fitted from zero), and the
     refined Monte Carlo (``draws`` draws, the same model, circles and poses) simulated at that refined estimate
-    states the intervals checked: those of the parameters and of the joint-model values. No joint errors: the
-    fitted model must be the truth's for a coverage proof. Other arguments as :func:`coverage_study`.
+    states the intervals checked: those of the parameters and of the joint-model values. ``joint_errors`` (default
+    none) act on the circles of every capture and of the Monte Carlo (simulated at the estimate with the same
+    errors, whose effect the interval's bias correction then takes off), not on the poses. Other arguments as
+    :func:`coverage_study`.
     """
     with single_blas_thread():
-        from robotcal.capture import join_captures
-        from robotcal.identification.cpa import identify_cpa
-        from robotcal.identification.refine import refine_parameters
         from robotcal.identification.targets import Target
-        from robotcal.simulation.generator import simulate_capture, simulate_target_poses
-        from robotcal.uncertainty.montecarlo import MonteCarloSettings, prepare_monte_carlo, run_monte_carlo
+        from robotcal.uncertainty.montecarlo import MonteCarloSettings
 
         if truth.joint_model is None or truth.joint_model.is_empty:
             raise InputError("the extended coverage study needs a truth with a joint model")
-        if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
-            raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
-        if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
-            raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
+        _check_size(captures, draws)
         began = time.perf_counter()
-        options = CPAOptions() if options is None else options
-        tracker_from_base = np.eye(4) if tracker_from_base is None else np.asarray(tracker_from_base, dtype=float)
-        held = tracker_from_base if options.base_frame == "given" else None
-        if isinstance(rng, np.random.Generator):
-            seed = int(rng.integers(2**63 - 1))
-        else:
-            seed = int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
+        setup = _Setup.of(robot, plan, instrument, tracker_from_base, options, joint_errors, joint_limits, "points")
+        seed = _study_seed(rng)
         children = np.random.SeedSequence(seed).spawn(captures)
         structure = truth.joint_model.with_values(np.zeros(truth.joint_model.size))
         circles = Target.from_mount(plan.reflector, "capture")
-        targets = (circles, poses_target)
-        settings = MonteCarloSettings(iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000))
+        settings = MonteCarloSettings(
+            iterations=draws, coverage=coverage, block_size=draws, batch_size=min(draws, 2000)
+        )
         everything = truth.robot.parameter_names + truth.joint_model.names
         true_all = np.r_[truth.values.ravel(), truth.joint_model.values]
         rows: dict[str, list] = {"contained": [], "draws": [], "u": [], "error": []}
         checked = None
         for k, child in enumerate(children):
-            capture_seed, pose_seed, mc_seed = (int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(3))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                capture, _ = simulate_capture(
-                    robot, plan, instrument, tracker_from_base, true_parameters=truth, joint_limits=joint_limits,
-                    rng=np.random.default_rng(capture_seed),
-                )  # fmt: skip
-                measured, _ = simulate_target_poses(
-                    robot, poses, (poses_target,), instrument, tracker_from_base, true_parameters=truth,
-                    rng=np.random.default_rng(pose_seed),
-                )  # fmt: skip
-                cpa = identify_cpa(capture, robot, plan.reflector, tracker_from_base=held, options=options).parameters
-                fitted = join_captures([(capture, circles.name), (measured, None)], source="coverage capture")
-                refined = refine_parameters(fitted, cpa, targets, tracker_from_base=held, joint_model=structure)
-                problem = prepare_monte_carlo(
-                    robot, plan, instrument, tracker_from_base, options=options, true_parameters=refined.parameters,
-                    joint_limits=joint_limits, model="refined", poses=poses, poses_target=poses_target,
-                    joint_model=structure,
-                )  # fmt: skip
-                result = run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)
+            seeds = [int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(3)]
+            refined, result = _extended_capture(setup, truth, structure, circles, poses, poses_target, settings, seeds)
             mask = np.r_[(result.identified & refined.identifiability.free).ravel(), result.extra_identified]
             if checked is None:
                 checked = mask
@@ -503,7 +520,9 @@ def extended_coverage_study(
             for key, ((low, high), (extra_low, extra_high)) in intervals.items():
                 low, high = np.r_[low.ravel(), extra_low][checked], np.r_[high.ravel(), extra_high][checked]
                 rows[key].append((low <= true_values) & (true_values <= high))
-            rows["u"].append(np.r_[result.summary.std_uncertainty.ravel(), result.extra_summary.std_uncertainty][checked])
+            rows["u"].append(
+                np.r_[result.summary.std_uncertainty.ravel(), result.extra_summary.std_uncertainty][checked]
+            )
             estimate = np.r_[refined.parameters.values.ravel(), refined.parameters.joint_model.values][checked]
             rows["error"].append(estimate - true_values)
             if progress is not None:
@@ -521,3 +540,38 @@ def extended_coverage_study(
             seed=seed,
             seconds=time.perf_counter() - began,
         )
+
+
+def _extended_capture(setup: _Setup, truth, structure, circles, poses, poses_target, settings, seeds):
+    """One capture of circles and calibration poses of ``truth``: its extended refinement (from CPA, the joint
+    model from zero) and the refined Monte Carlo simulated at that refinement."""
+    from robotcal.capture import join_captures
+    from robotcal.identification.cpa import identify_cpa
+    from robotcal.identification.refine import refine_parameters
+    from robotcal.simulation.generator import simulate_capture, simulate_target_poses
+    from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
+
+    capture_seed, pose_seed, mc_seed = seeds
+    robot, plan, instrument, base = setup.robot, setup.plan, setup.instrument, setup.tracker_from_base
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        capture, _ = simulate_capture(
+            robot, plan, instrument, base, true_parameters=truth, joint_errors=setup.joint_errors,
+            joint_limits=setup.joint_limits, rng=np.random.default_rng(capture_seed),
+        )  # fmt: skip
+        measured, _ = simulate_target_poses(
+            robot, poses, (poses_target,), instrument, base, true_parameters=truth,
+            rng=np.random.default_rng(pose_seed),
+        )  # fmt: skip
+        cpa = identify_cpa(
+            capture, robot, plan.reflector, tracker_from_base=setup.held_base, options=setup.options
+        ).parameters
+        fitted = join_captures([(capture, circles.name), (measured, None)], source="coverage capture")
+        targets = (circles, poses_target)
+        refined = refine_parameters(fitted, cpa, targets, tracker_from_base=setup.held_base, joint_model=structure)
+        problem = prepare_monte_carlo(
+            robot, plan, instrument, base, options=setup.options, true_parameters=refined.parameters,
+            joint_errors=setup.joint_errors, joint_limits=setup.joint_limits, model="refined", poses=poses,
+            poses_target=poses_target, joint_model=structure,
+        )  # fmt: skip
+        return refined, run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)

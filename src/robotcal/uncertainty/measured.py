@@ -488,14 +488,9 @@ def measured_monte_carlo(
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
             raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
         seed = int(seed)
-        if isinstance(estimate, RefinementResult):
-            criterion = estimate.criterion if criterion is None else criterion
-            if offsets is None and estimate.targets:
-                offsets = {t.name: t.positions for t in estimate.targets if not t.known}
-            if estimate.tracker_from_base is not None and tracker_from_base is not None:
-                estimate_base = estimate_base or bool(np.any(estimate.identifiability.base_free))
-            estimate = estimate.parameters
-        criterion = "points" if criterion is None else criterion
+        estimate, criterion, offsets, estimate_base = _from_estimate(
+            estimate, criterion, offsets, estimate_base, tracker_from_base
+        )
         started = time.perf_counter()
         problem = prepare_measured(
             capture,
@@ -508,19 +503,7 @@ def measured_monte_carlo(
             estimate_base=estimate_base,
             weights=weights,
         )
-        items = _block_items(settings.iterations)
-        task = functools.partial(measured_block, problem, seed)
-        values, offsets = [], []
-        done = 0
-        with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
-            for block_values, block_offsets in executor.map(task, items):
-                values.append(block_values)
-                offsets.append(block_offsets)
-                done += block_values.shape[0]
-                if progress is not None:
-                    progress(done, settings.iterations)
-        all_values = np.concatenate(values)
-        all_offsets = np.concatenate(offsets)
+        all_values, all_offsets = _measured_draws(problem, seed, settings, progress)
         good = np.isfinite(all_values).all(axis=(1, 2)) & np.isfinite(all_offsets).all(axis=(1, 2))
         n_failed = int((~good).sum())
         draws, offset_draws = all_values[good], all_offsets[good]
@@ -558,25 +541,60 @@ def measured_monte_carlo(
             criterion=criterion,
             n_failed=n_failed,
         )
-        unknown = problem.unknown_targets
-        rows = [k for k, t in enumerate(reference.targets) if not t.known]
-        target_u = (
-            np.asarray(reference.uncertainty.target_uncertainty)[rows] * _noise_rescale(problem)
-            if reference.uncertainty.target_uncertainty is not None
-            else np.zeros((0, 3))
-        )
-        return MeasuredMonteCarloResult(
-            parameters=result,
-            target_names=tuple(t.name for t in unknown),
-            target_estimate=np.array([t.positions for t in unknown], dtype=float).reshape(-1, 3),
-            target_linearised_u=target_u.reshape(-1, 3),
-            target_summary=summarize_draws(offset_draws, settings.coverage) if unknown else None,
-            target_draws=offset_draws if (unknown and settings.keep_draws) else None,
-            noise_source=problem.noise_source,
-            reference=reference,
-            stated_u_mm=stated_point_u(problem),
-            residual_sigma_mm=float(reference.uncertainty.sigma),
-        )
+        return _with_targets(problem, result, offset_draws, settings)
+
+
+def _from_estimate(estimate, criterion, offsets, estimate_base, tracker_from_base):
+    """The parameters, criterion, offsets and base handling of ``estimate``: a :class:`RefinementResult` gives
+    its own where they are not given."""
+    if isinstance(estimate, RefinementResult):
+        criterion = estimate.criterion if criterion is None else criterion
+        if offsets is None and estimate.targets:
+            offsets = {t.name: t.positions for t in estimate.targets if not t.known}
+        if estimate.tracker_from_base is not None and tracker_from_base is not None:
+            estimate_base = estimate_base or bool(np.any(estimate.identifiability.base_free))
+        estimate = estimate.parameters
+    return estimate, "points" if criterion is None else criterion, offsets, estimate_base
+
+
+def _measured_draws(problem, seed: int, settings: MonteCarloSettings, progress) -> tuple[np.ndarray, np.ndarray]:
+    """Every block's parameter and target-offset draws, in block order (NaN where a draw failed)."""
+    items = _block_items(settings.iterations)
+    task = functools.partial(measured_block, problem, seed)
+    values, offsets = [], []
+    done = 0
+    with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
+        for block_values, block_offsets in executor.map(task, items):
+            values.append(block_values)
+            offsets.append(block_offsets)
+            done += block_values.shape[0]
+            if progress is not None:
+                progress(done, settings.iterations)
+    return np.concatenate(values), np.concatenate(offsets)
+
+
+def _with_targets(problem, result: MonteCarloResult, offset_draws: np.ndarray, settings) -> MeasuredMonteCarloResult:
+    """The parameters' result with the estimated target offsets' draws and linearised u."""
+    reference = problem.reference
+    unknown = problem.unknown_targets
+    rows = [k for k, t in enumerate(reference.targets) if not t.known]
+    target_u = (
+        np.asarray(reference.uncertainty.target_uncertainty)[rows] * _noise_rescale(problem)
+        if reference.uncertainty.target_uncertainty is not None
+        else np.zeros((0, 3))
+    )
+    return MeasuredMonteCarloResult(
+        parameters=result,
+        target_names=tuple(t.name for t in unknown),
+        target_estimate=np.array([t.positions for t in unknown], dtype=float).reshape(-1, 3),
+        target_linearised_u=target_u.reshape(-1, 3),
+        target_summary=summarize_draws(offset_draws, settings.coverage) if unknown else None,
+        target_draws=offset_draws if (unknown and settings.keep_draws) else None,
+        noise_source=problem.noise_source,
+        reference=reference,
+        stated_u_mm=stated_point_u(problem),
+        residual_sigma_mm=float(reference.uncertainty.sigma),
+    )
 
 
 def with_model(result: MonteCarloResult, model: str) -> MonteCarloResult:

@@ -3,12 +3,14 @@
 The noise-free capture is simulated once. Every draw adds instrument noise (and, where the scenario's
 joint error model has a random part, redraws the joint errors), runs CPA, and keeps the parameters.
 Draws are vectorised: a batch of ``batch_size`` noisy captures goes through one
-``identify_cpa_batch`` call. With ``model="refined"`` every draw is then refined from its own CPA
-estimate by the batched least-squares refinement of :mod:`robotcal.uncertainty.refined` (the
-deployed model); draws that do not converge are counted and left out of the statistics.
+``identify_cpa_batch`` call. With ``model="refined"`` every draw is then refined (the deployed model): by
+batched Gauss-Newton around the noise-free solution (:mod:`robotcal.uncertainty.gauss_newton`), or, with
+``refined_solver="per-draw"``, by Levenberg-Marquardt from its own CPA estimate
+(:func:`robotcal.uncertainty.refined.refine_batch`); draws that do not converge are counted and left out of the
+statistics.
 
 Reproducibility: draws are organised in fixed blocks of ``block_size`` (by default 10^4, the block
-of JCGM 101 §7.9, and 10^3 for a fixed number of refined draws, each of which costs tens of CPA draws, so
+of JCGM 101 §7.9, and 10^3 for a fixed number of refined draws, each of which costs several CPA draws, so
 that a few thousand of them still spread over the workers). Block ``b`` draws from its own generators, seeded by
 ``SeedSequence(seed, spawn_key=(b,))``, instrument noise and joint-error noise from separate
 children; a block is consumed in draw order whatever the batch size, and blocks are independent of
@@ -16,6 +18,11 @@ which worker computes them. The same seed therefore gives the same draws for any
 number of ``workers`` and any backend (:func:`robotcal.execution.open_executor`: serial, local
 processes, Dask): a lone draw is computed as a batch of two, since numpy reduces a stack of one with
 other loops than a larger stack (last-bit differences, up to 3e-11 mm before this was done).
+
+The parts live in their own modules: the problem (:mod:`robotcal.uncertainty.montecarlo_problem`), the draws
+(:mod:`robotcal.uncertainty.draws`), the refined draws' solvers (:mod:`robotcal.uncertainty.gauss_newton`,
+:mod:`robotcal.uncertainty.refined`) and the linearised covariances (:mod:`robotcal.uncertainty.linearised`); this
+module holds the settings, the driver and the results, and names them all.
 
 References
 ----------
@@ -26,7 +33,6 @@ the GUM uncertainty framework); thesis ch. 5.2.3 (Tables 5.6 and 5.7).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 from collections.abc import Callable
@@ -36,17 +42,12 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robotcal.capture import Capture, join_captures
 from robotcal.errors import InputError, RobotcalError
-from robotcal.execution import check_stop, open_executor, single_blas_thread
-from robotcal.geometry.transforms import apply_transform, check_rigid_transform
-from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
-from robotcal.identification.targets import Target
-from robotcal.instruments import Instrument
-from robotcal.kinematics.forward import target_positions
-from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
-from robotcal.simulation.generator import JointErrorModel, simulate_capture, simulate_target_poses
-from robotcal.simulation.plan import CapturePlan
+from robotcal.execution import open_executor, single_blas_thread
+from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel
+from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block
+from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
+from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
     SampleSummary,
@@ -57,9 +58,8 @@ from robotcal.uncertainty.statistics import (
     summarize_draws,
 )
 
-if TYPE_CHECKING:  # the refinement (and SciPy's optimizer behind it) is imported only for model="refined"
+if TYPE_CHECKING:
     from robotcal.kinematics.joint_model import JointModel
-    from robotcal.uncertainty.refined import RefinedModel
 
 __all__ = [
     "MonteCarloProblem",
@@ -73,224 +73,16 @@ __all__ = [
     "draw_block",
 ]
 
-#: What a draw computes: capture -> CPA, or capture -> CPA -> refinement.
-MODELS = ("cpa", "refined")
-#: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
-REFINE_BATCH = 500
-#: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined._PointBatch`): its
-#: working arrays are ``(3, batch, points)``; at 32 draws x 300 points they stay a few hundred kB, which the cache
-#: and the allocator reuse (faster per draw than batches of 100: the record in benchmarks/bench_extended.py).
-EXTENDED_REFINE_BATCH = 32
-
+#: How the refined model's draws are solved (:attr:`MonteCarloSettings.refined_solver`).
+REFINED_SOLVERS = ("gauss-newton", "per-draw")
 #: JCGM 101 §7.9.2: M = max(J, 10^4) with J = 100 / (1 - p); 10^4 at p = 0.95.
 DEFAULT_BLOCK_SIZE = 10_000
 #: Draws per block of the refined model with a fixed number of draws (the adaptive procedure keeps
-#: :data:`DEFAULT_BLOCK_SIZE`): a refined draw costs 20 to 60 CPA draws, and a block is the unit a worker
-#: takes, so the 5,000 draws of the demo make 5 blocks for the workers rather than one.
+#: :data:`DEFAULT_BLOCK_SIZE`): a refined draw costs several CPA draws (the most for an extended model), and a
+#: block is the unit a worker takes, so a few thousand refined draws still make several blocks for the workers.
 REFINED_BLOCK_SIZE = 1_000
 
 ProgressCallback = Callable[[int, int | None], None]
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class MonteCarloProblem:
-    """What every draw shares: the noise-free capture and how to identify it.
-
-    Attributes
-    ----------
-    robot : RobotModel
-    true_parameters : ParameterSet
-        The robot that "produced" the capture (nominal unless a perturbed truth is given).
-    capture : Capture
-        The noise-free capture (readings of every point; points in the tracker frame [mm]).
-    exact_points : ndarray, shape (n_points, 3)
-        Noise-free target positions in the tracker frame [mm] (with the deterministic part of the
-        joint error model).
-    error_bound : ndarray, shape (n_points,)
-        Instrument bound ``U(L) = A + B L`` at every point [mm].
-    instrument : Instrument
-    tracker_from_base : ndarray, shape (4, 4)
-    joint_errors : JointErrorModel or None
-        Kept only when it has a random part, which is then redrawn in every draw.
-    options : CPAOptions
-    structure
-        The CPA structure shared by all draws (``prepare_cpa``).
-    noise_free_values : ndarray, shape (n_joints, 5)
-        The model value ``f(x)`` at the input estimates [mm, rad]: CPA of the noise-free capture
-        (``model="cpa"``) or its refinement (``model="refined"``); used by the linearised comparison.
-    identified : ndarray of bool, shape (n_joints, 5)
-        Parameters the model determines from the data (the others keep their nominal value).
-    model : {"cpa", "refined"}
-        What every draw computes: capture -> CPA, or capture -> CPA -> refinement (the deployed model).
-    refined : RefinedModel or None
-        The refinement's structure (free set, base handling, scale), ``model="refined"`` only.
-    n_circle : int
-        The capture's first ``n_circle`` points are the plan's circles, which CPA identifies; the others are
-        calibration poses on a flange target (``[calibration_poses]``), which only the refinement uses.
-    extra_true : ndarray, shape (m,)
-        The joint-model values of the robot the capture was simulated from, on the refined model's joint model
-        (0 for a term it does not have; empty for the geometric model).
-    """
-
-    robot: RobotModel
-    true_parameters: ParameterSet
-    capture: Capture
-    exact_points: np.ndarray
-    error_bound: np.ndarray
-    instrument: Instrument
-    tracker_from_base: np.ndarray
-    joint_errors: JointErrorModel | None
-    options: CPAOptions
-    structure: object
-    noise_free_values: np.ndarray
-    identified: np.ndarray
-    model: str = "cpa"
-    refined: RefinedModel | None = None
-    n_circle: int = -1
-    extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    def __post_init__(self):
-        if self.n_circle < 0:
-            object.__setattr__(self, "n_circle", self.exact_points.shape[0])
-
-    @property
-    def n_points(self) -> int:
-        return self.exact_points.shape[0]
-
-    @property
-    def n_extra(self) -> int:
-        """Joint-model values every draw estimates besides the parameters (0 for the geometric model)."""
-        return 0 if self.refined is None or self.refined.joint_model is None else self.refined.joint_model.size
-
-    @property
-    def identified_all(self) -> np.ndarray:
-        """The flat mask of a draw's outputs ``(5 n + m,)``: the identified parameters, then the joint-model
-        values the refinement estimates."""
-        extra = np.zeros(0, dtype=bool) if self.n_extra == 0 else np.asarray(self.refined.extra_free, dtype=bool)
-        return np.r_[self.identified.ravel(), extra]
-
-
-def prepare_monte_carlo(
-    robot: RobotModel,
-    plan: CapturePlan,
-    instrument: Instrument,
-    tracker_from_base,
-    *,
-    options: CPAOptions | None = None,
-    true_parameters: ParameterSet | None = None,
-    joint_errors: JointErrorModel | None = None,
-    joint_limits: str = "warn",
-    model: str = "cpa",
-    criterion: str = "points",
-    poses=None,
-    poses_target: Target | None = None,
-    joint_model: JointModel | None = None,
-) -> MonteCarloProblem:
-    """Simulate the noise-free capture once and check that CPA can identify it.
-
-    Every problem that would make draws fail (a circle of 2 points, a joint that does not turn, a
-    reading sign that contradicts the data) raises here, before any draw is made.
-
-    Parameters
-    ----------
-    robot, plan, instrument, tracker_from_base, true_parameters, joint_errors, joint_limits
-        As for :func:`robotcal.simulation.generator.simulate_capture`.
-    options : CPAOptions, optional
-        CPA options (circle fit, base frame, theta1 reference).
-    model : {"cpa", "refined"}
-        ``"refined"``: every draw is refined after CPA (thesis ch. 4.5.7), starting from its own CPA
-        estimate; the free set and the base handling are those ``refine_parameters`` chooses on the
-        noise-free capture (points criterion: the base frame is held when ``options.base_frame`` is
-        ``"given"``, else its 6 corrections are estimated).
-    criterion : {"points", "distances"}
-        Refinement objective (eq. 4-101 or 4-102), ``model="refined"`` only.
-    poses : array_like, shape (n_poses, n_joints), optional
-        ``model="refined"``: readings [rad] of calibration poses measured on ``poses_target`` (a flange target of
-        known offset) after the circles, refined with them (issue 22); CPA sees only the circles.
-    poses_target : Target, optional
-    joint_model : JointModel, optional
-        ``model="refined"``: the extended model's joint model, fitted from zero in every draw (issue 22).
-    """
-    if model not in MODELS:
-        raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
-    options = CPAOptions() if options is None else options
-    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
-    true_parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    noisy_joints = joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0))
-    deterministic_errors = joint_errors
-    if noisy_joints:
-        deterministic_errors = dataclasses.replace(joint_errors, noise_sd=np.zeros_like(joint_errors.noise_sd))
-    noise_free = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
-    capture, exact = simulate_capture(
-        robot,
-        plan,
-        noise_free,
-        tracker_from_base,
-        true_parameters=true_parameters,
-        joint_errors=deterministic_errors,
-        joint_limits=joint_limits,
-        rng=0,
-    )
-    capture = Capture(
-        circle=capture.circle,
-        direction=capture.direction,
-        readings=capture.readings,
-        points=capture.points,
-        source="noise-free capture of the Monte Carlo scenario",
-    )
-    structure = prepare_cpa(capture, robot, plan.reflector, options)
-    reference = identify_cpa_batch(exact, structure, tracker_from_base)
-    values, identified, refined = reference.values, reference.identified, None
-    n_circle, extra_true = capture.n_points, np.zeros(0)
-    if model != "refined" and (poses is not None or joint_model is not None):
-        raise InputError("calibration poses and a joint model are the refined model's: give model='refined'")
-    if model == "refined":
-        from robotcal.uncertainty.refined import prepare_refined_model
-
-        targets = plan.reflector
-        if poses is not None:  # the circles, then the calibration poses on their flange target
-            if poses_target is None or poses_target.frame != "flange" or not poses_target.known:
-                raise InputError("calibration poses need their flange target, of known offset (`poses_target`)")
-            pose_capture, pose_exact = simulate_target_poses(
-                robot, poses, (poses_target,), noise_free, tracker_from_base, true_parameters=true_parameters, rng=0
-            )
-            circles = Target.from_mount(plan.reflector, "capture" if poses_target.name != "capture" else "circles")
-            capture = join_captures([(capture, circles.name), (pose_capture, None)], source=capture.source)
-            exact = np.concatenate([exact, pose_exact])
-            targets = (circles, poses_target)
-        start = ParameterSet(robot=robot, values=reference.values, identified=reference.identified)
-        refined = prepare_refined_model(
-            capture,
-            start,
-            targets,
-            criterion=criterion,
-            tracker_from_base=reference.tracker_from_base,
-            estimate_base=options.base_frame != "given",
-            joint_model=joint_model,
-        )
-        values, identified = refined.reference_values, reference.identified | refined.free
-        if refined.joint_model is not None:
-            truth = true_parameters.joint_model
-            known = {} if truth is None else dict(zip(truth.names, truth.values, strict=True))
-            extra_true = np.array([known.get(name, 0.0) for name in refined.joint_model.names])
-    return MonteCarloProblem(
-        robot=robot,
-        true_parameters=true_parameters,
-        capture=capture,
-        exact_points=exact,
-        error_bound=instrument.error_bound(exact),
-        instrument=instrument,
-        tracker_from_base=tracker_from_base,
-        joint_errors=joint_errors if noisy_joints else None,
-        options=options,
-        structure=structure,
-        noise_free_values=values,
-        identified=identified,
-        model=model,
-        refined=refined,
-        n_circle=n_circle,
-        extra_true=extra_true,
-    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -326,6 +118,12 @@ class MonteCarloSettings:
         (:func:`robotcal.execution.open_executor`). Results do not depend on it.
     keep_draws : bool
         Keep every draw in the result (needed for histograms, ``draws.npz`` and the TCP stage).
+    refined_solver : {"gauss-newton", "per-draw"}
+        How the refined model's draws are solved: ``"gauss-newton"`` (default), batched Gauss-Newton around the
+        noise-free solution with the per-draw solve as fallback (:mod:`robotcal.uncertainty.gauss_newton`);
+        ``"per-draw"``, Levenberg-Marquardt from every draw's own CPA estimate
+        (:func:`robotcal.uncertainty.refined.refine_batch`). Both reach the same least-squares solution of every
+        draw (to the stopping rule's tolerance, far below 0.01 u); kept to compare them.
     """
 
     iterations: int = 100_000
@@ -339,8 +137,11 @@ class MonteCarloSettings:
     workers: int = 1
     scheduler: str | None = None
     keep_draws: bool = True
+    refined_solver: Literal["gauss-newton", "per-draw"] = "gauss-newton"
 
     def __post_init__(self):
+        if self.refined_solver not in REFINED_SOLVERS:
+            raise InputError(f"`refined_solver` must be one of {REFINED_SOLVERS}; got {self.refined_solver!r}")
         for name in ("iterations", "ndig", "max_draws", "batch_size", "block_size", "workers"):
             value = getattr(self, name)
             if name == "block_size" and value is None:
@@ -375,40 +176,6 @@ class AdaptiveRecord:
     reason: str
     tolerance: np.ndarray
     stability: dict
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class LinearisedResult:
-    """GUM law of propagation of uncertainty (linearised) for the same capture, and its §8 check.
-
-    Attributes
-    ----------
-    estimate : ndarray, shape (n_joints, 5)
-        ``f(x)``: CPA of the noise-free capture [mm, rad].
-    covariance : ndarray, shape (n_params, n_params)
-        ``J U_x J^T`` over every parameter (joint-major, ``n_params = 5 n_joints``) [mm^2, mm rad, rad^2].
-    std_uncertainty : ndarray, shape (n_joints, 5)
-    coverage_low, coverage_high : ndarray, shape (n_joints, 5)
-        ``f(x) -+ k_p u`` with ``k_p`` the normal quantile for coverage p.
-    agrees : ndarray of bool, shape (n_joints, 5)
-        JCGM 101 §8.2: both ``|y - U_p - y_low|`` and ``|y + U_p - y_high|`` are within the numerical
-        tolerance of ``ndig`` significant digits of u (identified parameters only; True elsewhere).
-    endpoint_difference : ndarray, shape (n_joints, 5)
-        The larger of the two endpoint differences [mm, rad].
-    tolerance : ndarray, shape (n_joints, 5)
-    step_mm : float
-        Central-difference step of the Jacobian.
-    """
-
-    estimate: np.ndarray
-    covariance: np.ndarray
-    std_uncertainty: np.ndarray
-    coverage_low: np.ndarray
-    coverage_high: np.ndarray
-    agrees: np.ndarray
-    endpoint_difference: np.ndarray
-    tolerance: np.ndarray
-    step_mm: float
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -545,156 +312,6 @@ class MonteCarloResult:
         return np.where(self.identified, self.summary.mean - self.centre, 0.0)
 
 
-# ----------------------------------------------------------------------------------------- draws
-
-
-def _block_generators(seed: int, block: int) -> tuple[np.random.Generator, np.random.Generator]:
-    sequence = np.random.SeedSequence(entropy=seed, spawn_key=(block,))
-    instrument_seq, joint_seq = sequence.spawn(2)
-    return np.random.default_rng(instrument_seq), np.random.default_rng(joint_seq)
-
-
-def _noisy_exact_points(problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator) -> np.ndarray:
-    """Exact points ``(n_draws, n_points, 3)`` with a fresh draw of the joint errors' random part (on the circles:
-    the calibration poses, if any, are simulated without joint errors)."""
-    circles = slice(0, problem.n_circle)
-    readings = problem.capture.readings[circles]
-    q = problem.true_parameters.model_joint_variables(readings)
-    commanded = problem.robot.model_joint_variables(readings)  # the joint errors follow the commanded motion
-    errors = np.stack([problem.joint_errors.transforms(commanded, rng=rng) for _ in range(n_draws)])
-    base = target_positions(
-        problem.true_parameters.values,
-        q,
-        problem.capture.circle[circles] - 1,
-        problem.structure.reflector,
-        joint_errors=errors,
-    )
-    out = np.broadcast_to(problem.exact_points, (n_draws,) + problem.exact_points.shape).copy()
-    out[:, circles] = apply_transform(problem.tracker_from_base, base)
-    return out
-
-
-def _noise(
-    problem: MonteCarloProblem, n_draws: int, rng: np.random.Generator, out: np.ndarray | None = None
-) -> np.ndarray:
-    """Instrument errors ``(n_draws, n_points, 3)`` [mm], draw-major from ``rng``; written into ``out`` if given.
-
-    Uniform noise is ``rng.random`` mapped to ``2 u - 1`` in place: the very numbers (and the same
-    generator state) as ``rng.uniform(-1, 1)``, which computes ``-1 + 2 u`` element by element (``2 u`` is
-    exact), in fewer passes and into a buffer that the caller reuses batch after batch (a fresh array of
-    millions of numbers costs its page faults every time).
-    """
-    shape = (n_draws, problem.n_points, 3)
-    noise = np.empty(shape) if out is None else out
-    if problem.instrument.is_noise_free:
-        noise[...] = 0.0
-        return noise
-    # The bound of every coordinate as one row of 3 n_points numbers: the in-place product then runs
-    # along whole draws rather than 3 numbers at a time (the same products, in long inner loops).
-    bound = np.repeat(problem.error_bound, 3)
-    if problem.instrument.noise == "uniform":
-        rng.random(out=noise)
-        noise *= 2.0
-        noise -= 1.0
-    else:
-        rng.standard_normal(out=noise)
-        bound = bound / problem.instrument.coverage_factor
-    flat = noise.reshape(n_draws, -1)  # a view: the product is made in place (millions of numbers)
-    flat *= bound
-    return noise
-
-
-def draw_block(problem: MonteCarloProblem, seed: int, block: int, n_draws: int, batch_size: int) -> np.ndarray:
-    """The outputs of the ``n_draws`` draws of block ``block``, one row per draw, shape ``(n_draws, 5 n + m)``:
-    the parameters ``d, theta, a, alpha, beta`` joint by joint [mm, rad], then the joint model's ``m`` values of
-    an extended refined model (``m = 0`` otherwise; ``.reshape(-1, n, 5)`` gives the parameters).
-
-    A draw whose refinement did not converge (``model="refined"``) is a row of NaN: the driver
-    counts and drops it. The noise is drawn draw by draw from the block's generators, and every
-    computation on a batch is per draw, so a draw's value does not depend on ``batch_size``; a lone
-    draw is computed as a batch of two (itself twice), because numpy reduces a stack of one with
-    other loops than a larger stack (last-bit differences).
-    """
-    instrument_rng, joint_rng = _block_generators(seed, block)
-    values = np.empty((n_draws, 5 * problem.robot.n_joints + problem.n_extra))
-    chunks = _chunks(n_draws, batch_size)
-    buffer = np.empty((max((count for _, count in chunks), default=0), problem.n_points, 3))  # every batch's points
-    for start, count in chunks:
-        check_stop()  # a pool worker: end the block when the pool stops; this process: an interrupt Python dropped
-        if problem.joint_errors is not None:
-            exact = _noisy_exact_points(problem, count, joint_rng)
-        else:
-            exact = problem.exact_points
-        points = _noise(problem, count, instrument_rng, out=buffer[:count])
-        points += exact  # noise + exact, in place (the same numbers as exact + noise)
-        if count == 1:
-            points = np.concatenate([points, points])
-        try:
-            circles = points[:, : problem.n_circle]
-            batch = identify_cpa_batch(circles, problem.structure, problem.tracker_from_base, residuals=False)
-            result = batch.values.reshape(batch.values.shape[0], -1)
-            if problem.refined is not None:
-                result = _refine_draws(problem.refined, points, batch)
-        except RobotcalError as exc:
-            raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
-        values[start : start + count] = result[:count]
-    return values
-
-
-def _refine_draws(model: RefinedModel, points: np.ndarray, batch) -> np.ndarray:
-    """Refine every CPA draw of ``batch`` from its own estimate, ``REFINE_BATCH`` draws at a time (fewer for an
-    extended model, whose per-point Jacobian takes ~30 times the memory): the rows of :func:`draw_block`."""
-    from robotcal.uncertainty.refined import refine_batch
-
-    n_draws = batch.values.shape[0]
-    m = 0 if model.joint_model is None else model.joint_model.size
-    out = np.empty((n_draws, batch.values[0].size + m))
-    size = REFINE_BATCH if model.joint_model is None else EXTENDED_REFINE_BATCH
-    for start, count in _chunks(points.shape[0], size):
-        part = slice(start, start + count)
-        refined = refine_batch(model, points[part], batch.values[part], batch.tracker_from_base[part])
-        out[part] = np.concatenate([refined.values.reshape(count, -1), refined.extras], axis=1)
-    return out
-
-
-def _chunks(n_draws: int, batch_size: int) -> list[tuple[int, int]]:
-    """``(start, count)`` of the vectorised calls over a block, never a lone draw after a full batch.
-
-    numpy reduces a batch of one with other loops than a larger batch (last-bit differences), so a
-    trailing single draw joins the previous batch: every draw is then computed identically for any
-    ``batch_size`` and the same seed gives bit-identical results.
-    """
-    chunks = [(start, min(batch_size, n_draws - start)) for start in range(0, n_draws, batch_size)]
-    if len(chunks) > 1 and chunks[-1][1] == 1:
-        start, count = chunks[-2]
-        chunks[-2:] = [(start, count + 1)]
-    return chunks
-
-
-def _block_sizes(total: int, block_size: int) -> list[int]:
-    full, rest = divmod(total, block_size)
-    return [block_size] * full + ([rest] if rest else [])
-
-
-def _draw_task(problem: MonteCarloProblem, seed: int, batch_size: int, item: tuple[int, int]) -> np.ndarray:
-    """One block ``item = (block, size)``: a top-level function, so that any backend can run it."""
-    block, size = item
-    return draw_block(problem, seed, block, size, batch_size)
-
-
-class _BlockRunner:
-    """Computes blocks on an :class:`robotcal.execution.Executor` (serial, local processes or Dask)."""
-
-    def __init__(self, problem: MonteCarloProblem, seed: int, settings: MonteCarloSettings, executor):
-        self.task = functools.partial(_draw_task, problem, seed, settings.batch_size)
-        self.executor = executor
-
-    def map(self, blocks: list[tuple[int, int]]):
-        """Yield ``(block, values)`` in block order."""
-        for (block, _), values in zip(blocks, self.executor.map(self.task, blocks), strict=True):
-            yield block, values
-
-
 # ------------------------------------------------------------------------------------ statistics
 
 
@@ -808,7 +425,6 @@ def run_monte_carlo(
             raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
         seed = int(seed)
         started = time.perf_counter()
-        identified = problem.identified
         n = problem.robot.n_joints
         capacity = settings.max_draws if settings.adaptive else settings.iterations
         # Filled block by block; untouched pages of np.empty cost no memory, and no concatenation copy is made.
@@ -824,60 +440,65 @@ def run_monte_carlo(
                         progress(store.computed, settings.iterations)
             else:
                 adaptive_record = _run_adaptive(runner, settings, problem.identified_all, store, progress)
-        done = store.done
-        draws = store.values[:done, : 5 * n].reshape(done, n, 5)
-        extras = store.values[:done, 5 * n :]
-        if done < 2:
-            raise RobotcalError(f"only {done} of {store.computed} draws converged: no statistics can be made")
-        draw_time = time.perf_counter() - started
-        summary_start = time.perf_counter()
-        summary = summarize_draws(draws, settings.coverage)
-        covariance, correlation = draw_covariance(draws, identified)
-        extra_summary = summarize_draws(extras, settings.coverage) if problem.n_extra else None
-        timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
-        linear = None
-        if linearised:
-            linear_start = time.perf_counter()
-            linear = linearised_uncertainty(problem, summary, settings)
-            timings["linearised"] = time.perf_counter() - linear_start
-        timings["total"] = time.perf_counter() - started
-        message = f"{draws.shape[0]} draws"
-        if store.failed:
-            message += (
-                f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
-                f"({store.failed / store.computed:.2%})"
-            )
-        success = store.failed <= 0.001 * store.computed
+        if store.done < 2:
+            raise RobotcalError(f"only {store.done} of {store.computed} draws converged: no statistics can be made")
+        return _result(problem, settings, seed, store, adaptive_record, linearised=linearised, started=started)
 
-        if adaptive_record is not None:
-            message += f"; adaptive: {adaptive_record.reason}"
-            success = success and adaptive_record.stable
-        return MonteCarloResult(
-            robot=problem.robot,
-            settings=settings,
-            seed=seed,
-            n_draws=int(draws.shape[0]),
-            summary=summary,
-            identified=identified,
-            covariance=covariance,
-            correlation=correlation,
-            draws=draws if settings.keep_draws else None,
-            noise_free_values=problem.noise_free_values,
-            true_values=problem.true_parameters.values,
-            adaptive=adaptive_record,
-            linearised=linear,
-            timings_s=timings,
-            success=success,
-            message=message,
-            model=problem.model,
-            criterion=None if problem.refined is None else problem.refined.criterion,
-            n_failed=store.failed,
-            joint_model=None if not problem.n_extra else problem.refined.joint_model,
-            extra_draws=extras if problem.n_extra and settings.keep_draws else None,
-            extra_summary=extra_summary,
-            extra_identified=problem.identified_all[5 * n :],
-            extra_true=problem.extra_true,
+
+def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool, started: float) -> MonteCarloResult:
+    """The statistics of the draws kept in ``store`` (JCGM 101 §7.6-7.7) and, if asked, the linearised comparison."""
+    n, done = problem.robot.n_joints, store.done
+    draws = store.values[:done, : 5 * n].reshape(done, n, 5)
+    extras = store.values[:done, 5 * n :]
+    identified = problem.identified
+    draw_time = time.perf_counter() - started
+    summary_start = time.perf_counter()
+    summary = summarize_draws(draws, settings.coverage)
+    covariance, correlation = draw_covariance(draws, identified)
+    extra_summary = summarize_draws(extras, settings.coverage) if problem.n_extra else None
+    timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
+    linear = None
+    if linearised:
+        linear_start = time.perf_counter()
+        linear = linearised_uncertainty(problem, summary, settings)
+        timings["linearised"] = time.perf_counter() - linear_start
+    timings["total"] = time.perf_counter() - started
+    message = f"{draws.shape[0]} draws"
+    if store.failed:
+        message += (
+            f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
+            f"({store.failed / store.computed:.2%})"
         )
+    success = store.failed <= 0.001 * store.computed
+    if adaptive_record is not None:
+        message += f"; adaptive: {adaptive_record.reason}"
+        success = success and adaptive_record.stable
+    return MonteCarloResult(
+        robot=problem.robot,
+        settings=settings,
+        seed=seed,
+        n_draws=int(draws.shape[0]),
+        summary=summary,
+        identified=identified,
+        covariance=covariance,
+        correlation=correlation,
+        draws=draws if settings.keep_draws else None,
+        noise_free_values=problem.noise_free_values,
+        true_values=problem.true_parameters.values,
+        adaptive=adaptive_record,
+        linearised=linear,
+        timings_s=timings,
+        success=success,
+        message=message,
+        model=problem.model,
+        criterion=None if problem.refined is None else problem.refined.criterion,
+        n_failed=store.failed,
+        joint_model=None if not problem.n_extra else problem.refined.joint_model,
+        extra_draws=extras if problem.n_extra and settings.keep_draws else None,
+        extra_summary=extra_summary,
+        extra_identified=problem.identified_all[5 * n :],
+        extra_true=problem.extra_true,
+    )
 
 
 class _Store:
@@ -936,14 +557,6 @@ def _run_adaptive(runner: _BlockRunner, settings, identified, store: _Store, pro
 # ------------------------------------------------------------------------------------ linearised
 
 
-def _input_variance(problem: MonteCarloProblem) -> np.ndarray:
-    """Variance of each measured coordinate ``(n_points, 3)`` [mm^2]: U^2/3 (uniform) or (U/k)^2."""
-    bound = np.repeat(problem.error_bound[:, None], 3, axis=1)
-    if problem.instrument.noise == "uniform":
-        return bound**2 / 3.0
-    return (bound / problem.instrument.coverage_factor) ** 2
-
-
 def linearised_uncertainty(
     problem: MonteCarloProblem, summary: SampleSummary | None = None, settings: MonteCarloSettings | None = None
 ) -> LinearisedResult:
@@ -991,38 +604,3 @@ def linearised_uncertainty(
         tolerance=tolerance,
         step_mm=step,
     )
-
-
-def _refined_full_covariance(problem: MonteCarloProblem, cpa_covariance: np.ndarray) -> np.ndarray:
-    """Joint-major covariance of the refined model: the refinement's linearised covariance for the
-    parameters it estimates (:func:`robotcal.uncertainty.refined.refined_covariance`, exact to first
-    order); CPA's for identified parameters the refinement holds at their CPA value (their
-    cross-covariance with the refined ones is left out)."""
-    from robotcal.uncertainty.refined import refined_covariance
-
-    model = problem.refined
-    free_cov = refined_covariance(model, problem.exact_points, _input_variance(problem))
-    mask = model.free.reshape(-1)
-    index = np.flatnonzero(mask)
-    covariance = cpa_covariance.copy()
-    covariance[mask, :] = 0.0
-    covariance[:, mask] = 0.0
-    covariance[np.ix_(index, index)] = free_cov[: index.size, : index.size]
-    return covariance
-
-
-def _cpa_covariance(problem: MonteCarloProblem, step: float) -> np.ndarray:
-    """``J U_x J^T`` of CPA, J by central differences over the measured coordinates [mm, rad]."""
-    n_points = problem.n_points
-    n_inputs = 3 * n_points
-    perturbation = np.zeros((2 * n_inputs, n_points, 3))
-    index = np.arange(n_inputs)
-    perturbation[index, index // 3, index % 3] = step
-    perturbation[n_inputs + index, index // 3, index % 3] = -step
-    values = identify_cpa_batch(
-        problem.exact_points + perturbation, problem.structure, problem.tracker_from_base, residuals=False
-    ).values
-    flat = values.reshape(2 * n_inputs, -1)
-    jacobian = ((flat[:n_inputs] - flat[n_inputs:]) / (2.0 * step)).T  # (n_params, n_inputs)
-    variance = _input_variance(problem).reshape(-1)
-    return np.einsum("ik,jk->ij", jacobian * variance, jacobian)  # not BLAS: see _covariance

@@ -21,7 +21,7 @@ def test_plan_without_a_folder_writes_nothing(tmp_path, monkeypatch):
     assert plan.seeds == {
         "capture": 1, "truth": 11, "validation": 2, "montecarlo": 1, "workspace": 0, "iso9283": 6, "poses": 3
     }  # fmt: skip
-    assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == 5_000
+    assert plan.montecarlo.iterations == 100_000 and plan.refined_montecarlo.iterations == 100_000
     assert plan.backlash and plan.command == "robotcal run"
     with pytest.raises(InputError, match="needs a run folder"):
         run_calibration(plan)
@@ -39,15 +39,15 @@ def test_one_seed_seeds_every_part(tmp_path):
 def test_refined_draws_come_from_the_option_then_the_scenario_then_the_default(tmp_path):
     demo = Path(load_scenario("kr5-demo").source)
     text = demo.read_text(encoding="utf-8")
-    assert "\nrefined_iterations = 5000\n" in text
+    assert "\nrefined_iterations = 100000\n" in text
     without = tmp_path / "demo-without.toml"
-    without.write_text(text.replace("\nrefined_iterations = 5000\n", "\n"), encoding="utf-8")
+    without.write_text(text.replace("\nrefined_iterations = 100000\n", "\n"), encoding="utf-8")
     assert plan_run(without).refined_montecarlo.iterations == REFINED_DRAWS
     assert plan_run("kr5-demo", refined_draws=700).refined_montecarlo.iterations == 700
     assert plan_run("kr5-demo", draws=3000).refined_montecarlo.iterations == 3000  # capped by the draws
     # too few for a 95 % interval: the error names the scenario's key, not an option the user did not give
     few = tmp_path / "demo-few.toml"
-    few.write_text(text.replace("\nrefined_iterations = 5000\n", "\nrefined_iterations = 5\n"), encoding="utf-8")
+    few.write_text(text.replace("\nrefined_iterations = 100000\n", "\nrefined_iterations = 5\n"), encoding="utf-8")
     with pytest.raises(InputError, match=r"demo-few\.toml: montecarlo\.refined_iterations: `iterations` = 5 is too few"):
         plan_run(few)
 

@@ -100,3 +100,22 @@ def test_y_labels_stay_inside_the_figure_for_large_densities(result, tmp_path, m
     assert len(figures) > 2
     for figure in figures:
         assert_y_labels_fit(figure)
+
+
+def test_histograms_drawn_by_a_pool_are_those_of_one_call(result, tmp_path):
+    """Issue 31: the command draws its histograms in worker processes (a share of the joints each) while it writes
+    the data files; the files are byte for byte those of one call."""
+    from robotcal.pipeline.figures import draw_histograms
+
+    serial, pooled = tmp_path / "serial", tmp_path / "pooled"
+    serial.mkdir(), pooled.mkdir()
+    expected = histograms.write_histograms(result, serial)
+    written = []
+    paths = draw_histograms(
+        result, pooled, workers=2, plot=histograms.write_histograms, write_files=lambda: written.append(True)
+    )
+    assert written == [True]
+    assert [path.name for path in paths] == [path.name for path in expected]
+    for path in expected:
+        assert (pooled / path.name).read_bytes() == path.read_bytes()
+    assert histograms.write_histograms(result, tmp_path, joints=[1])[0].name == "hist_J2.png"

@@ -13,12 +13,8 @@ from robotcal.identification.cpa import identify_cpa
 from robotcal.io import load_scenario
 from robotcal.simulation.generator import JointErrorModel
 from robotcal.simulation.plan import CapturePlan
-from robotcal.uncertainty.montecarlo import (
-    MonteCarloSettings,
-    _block_generators,
-    draw_block,
-    run_monte_carlo,
-)
+from robotcal.uncertainty.draws import _block_generators, draw_block
+from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 from thesis_data import TABLE_5_1_START_DEG, TABLE_5_1_SWEEP_DEG
 
 
@@ -108,7 +104,7 @@ def test_demo_draws_are_those_of_the_reference_implementation():
 
 @pytest.mark.parametrize("noise", ["uniform", "normal"])
 def test_noise_is_the_generator_stream_scaled_by_the_bound(laser, noise):
-    from robotcal.uncertainty.montecarlo import _noise
+    from robotcal.uncertainty.draws import _noise
 
     scenario, _ = laser
     instrument = dataclasses.replace(scenario.instrument, noise=noise)

@@ -14,15 +14,9 @@ from robotcal.io import load_scenario
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
-from robotcal.uncertainty.montecarlo import _block_generators, _noise
-from robotcal.uncertainty.refined import (
-    _Batch,
-    _kinematics,
-    _point_jacobian,
-    _points,
-    prepare_refined_model,
-    refine_batch,
-)
+from robotcal.uncertainty.draws import _block_generators, _noise
+from robotcal.uncertainty.refined import prepare_refined_model, refine_batch
+from robotcal.uncertainty.refined_kernel import _Batch, _kinematics, _point_jacobian, _points
 
 
 @pytest.fixture(scope="module")

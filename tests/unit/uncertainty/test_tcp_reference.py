@@ -125,7 +125,7 @@ def test_workspace_equals_the_plain_composition():
 def test_abc_fast_path_keeps_the_quadrant_of_a_negative_zero():
     # atan2(1, -0.0) = +90 deg: arctan(y / x) + pi * (x < 0) gave -90 deg for x = -0.0 (review finding)
     from robotcal.geometry.euler import kuka_abc_from_matrix
-    from robotcal.uncertainty.tcp import _abc_near
+    from robotcal.uncertainty.tcp_kinematics import _abc_near
 
     rotation = np.array([[-0.0, -1.0, 0.0], [1.0, -0.0, 0.0], [0.0, 0.0, 1.0]])  # Rz(90 deg), r00 = -0.0
     block = np.zeros((1, 4, 3, 1))
@@ -143,7 +143,7 @@ def test_abc_near_equals_the_matrix_formula(spread, offset_deg):
     """``_abc_near`` against ``kuka_abc_from_matrix`` + ``wrap_angle_near`` for rotations near the reference,
     farther from it, and more than 90 deg away, where the turned vector points backwards; the first joint added
     to A."""
-    from robotcal.uncertainty.tcp import _abc_near
+    from robotcal.uncertainty.tcp_kinematics import _abc_near
 
     rng = np.random.default_rng(12)
     m, n_poses = 50, 7

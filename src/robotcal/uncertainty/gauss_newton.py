@@ -1,0 +1,248 @@
+"""Batched Gauss-Newton draws around the noise-free solution: the deployed model's Monte Carlo at full size.
+
+Every draw of the refined Monte Carlo (thesis ch. 5.2.3, the deployed model of ch. 4.5.7) refines a capture that
+differs from the noise-free capture by the instrument noise (and the joint errors' random part): a small
+perturbation. Its least-squares solution is therefore close to the noise-free solution ``x0``, the refinement of the
+noise-free capture (:attr:`RefinedModel.reference_values`, computed once by the full solver: the truth when the
+model holds; with joint errors the model lacks, the model's best fit to the truth's points, not the truth).
+Rather than a Levenberg-Marquardt from each draw's own CPA estimate (:func:`robotcal.uncertainty.refined.refine_batch`),
+the draws are solved by Gauss-Newton from ``x0``:
+
+1. one step with the Jacobian ``J0`` at ``x0``, the same for every draw: ``dz_b = -J0_s^+ r_b(x0)`` with ``J0_s^+``
+   the pseudo-inverse of the scaled Jacobian, one matrix product for all draws (the first-order estimator that the
+   law of propagation of JCGM 101 §5.9 linearises; thesis eq. 5-3);
+2. corrective Gauss-Newton iterations with every draw's own Jacobian (the batched normal equations of
+   :mod:`robotcal.uncertainty.refined_kernel`) until every component of the step is below :data:`STEP_TOLERANCE`
+   (1e-3) of that unknown's linearised standard uncertainty (:attr:`RefinedModel.step_tolerance`; without it the
+   rule of ``refine_batch``, ``|dz| <= xtol (1 + |z|)``); the step is taken: the same fixed point as the per-draw
+   solve, within ~1e-5 u;
+3. a draw whose step does not shrink (``|dz_k| > |dz_{k-1}| / 2``), whose cost rises, that is not converged after
+   ``max_corrections`` corrective evaluations, or that turns non-finite is solved again by ``refine_batch`` from its
+   own CPA estimate (the fallback): the shortcut never decides a draw's value on its own.
+
+Parameters the noise-free refinement holds keep every draw's CPA value, as in ``refine_batch``. The one-product
+first step needs the residuals of every draw at ``x0`` to differ only by the measurements: the held parameters equal
+to the reference's in every draw and one base frame (an estimated base frame with its 6 corrections starts every draw
+from the reference frame, which reaches the same minimum as the draw's CPA frame); otherwise the corrective
+iterations start at ``x0`` itself. Every per-draw operation is element-wise, a stacked solve, a sum in numpy's own
+loops (the first step) or the kernel's products, so a draw's value does not depend on the batch it is solved in.
+
+References
+----------
+JCGM 101:2008 §5.9, §7 (the Monte Carlo method); thesis ch. 4.5.7 (eqs 4-101, 4-102) and ch. 5.2.3; Bjorck,
+Numerical Methods for Least Squares Problems (1996), §9.2 (Gauss-Newton).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robotcal.uncertainty.refined import (
+    _lm_step,
+    _pad_one,
+    batch_outcome,
+    check_draws,
+    refine_batch,
+    refined_covariance,
+)
+from robotcal.uncertainty.refined_kernel import (
+    RefinedBatch,
+    RefinedModel,
+    _Batch,
+    _PointBatch,
+    reference_jacobian,
+    reference_unknowns,
+)
+
+__all__ = ["refine_draws_gauss_newton"]
+
+#: The stopping rule of the Gauss-Newton draws, in units of every unknown's linearised standard uncertainty: a
+#: draw whose corrective step is below it takes the step and stops. Gauss-Newton converges linearly at a rate of
+#: 1e-4 to 3e-3 per step on these problems (the next step measured against the last: kr5-demo's deployed model,
+#: thesis capture, points and distances), so a draw then lies within ~1e-5 u of its least-squares solution: far below
+#: the 0.01 u to which the Monte Carlo's u and interval ends are compared, and below JCGM 101 §7.9's numerical
+#: tolerance of two significant digits.
+STEP_TOLERANCE = 1e-3
+#: A corrective step longer than this fraction of the previous step is not converging: the draw falls back.
+_SHRINK = 0.5
+#: A cost above the previous one by more than this relative amount (rounding at the optimum) is rising.
+_COST_SLACK = 1e-9
+
+
+def refine_draws_gauss_newton(
+    model: RefinedModel, measured, start_values, base_start=None, *, max_corrections: int = 3
+) -> RefinedBatch:
+    """Refine ``n_draws`` captures by batched Gauss-Newton around the noise-free solution (see the module notes).
+
+    Parameters
+    ----------
+    model, measured, start_values, base_start
+        As for :func:`robotcal.uncertainty.refined.refine_batch`: every draw's measured points [mm], its CPA
+        estimate [mm, rad] (the values of the held parameters, and the fallback's start) and, points criterion,
+        its CPA (or given) ``tracker_from_base``.
+    max_corrections : int
+        Evaluations of the per-draw normal equations after the first step; a draw whose step is then still above
+        the stopping rule is solved by the fallback.
+
+    Returns
+    -------
+    RefinedBatch
+        ``iterations``: evaluations of the per-draw normal equations (the fallback's added); ``fallback``: the draws
+        solved by :func:`robotcal.uncertainty.refined.refine_batch`.
+    """
+    measured, start, base_start = check_draws(model, measured, start_values, base_start)
+    n_draws = measured.shape[0]
+    common_base = _common_base(model, base_start)
+    problem = (_Batch if model.joint_model is None else _PointBatch)(model, measured, start, common_base)
+    x = np.tile(reference_unknowns(model), (n_draws, 1))
+    previous = np.full(n_draws, np.inf)
+    if _shares_reference(model, start, common_base):
+        step = _first_step(model, problem, measured)
+        x += step * model.x_scale
+        previous = np.linalg.norm(step, axis=1)
+    ok, iterations, cost = _correct(problem, x, previous, max_corrections)
+    result = batch_outcome(problem, x, ok, iterations, cost)
+    fallback = ~ok
+    if not fallback.any():
+        return result
+    rows = np.flatnonzero(fallback)
+    solved = refine_batch(model, measured[rows], start[rows], None if base_start is None else base_start[rows])
+    parts = {name: getattr(result, name).copy() for name in ("values", "converged", "iterations", "cost", "extras")}
+    for name, array in parts.items():
+        array[rows] = getattr(solved, name) + (iterations[rows] if name == "iterations" else 0)
+    tracker = result.tracker_from_base
+    if tracker is not None:
+        tracker = tracker.copy()
+        tracker[rows] = solved.tracker_from_base
+    return RefinedBatch(tracker_from_base=tracker, fallback=fallback, **parts)
+
+
+def step_tolerance(model: RefinedModel, measured, variance) -> np.ndarray:
+    """:data:`STEP_TOLERANCE` times the linearised standard uncertainty of every free unknown, in the scaled
+    unknowns ``(n_free,)`` (:func:`robotcal.uncertainty.refined.refined_covariance` at the noise-free capture
+    ``measured`` with the coordinate ``variance`` [mm^2]): the value of :attr:`RefinedModel.step_tolerance`."""
+    covariance = refined_covariance(model, measured, variance)
+    return STEP_TOLERANCE * np.sqrt(np.clip(np.diag(covariance), 0.0, None)) / model.x_scale
+
+
+def _common_base(model: RefinedModel, base_start: np.ndarray | None) -> np.ndarray | None:
+    """The base frames the Gauss-Newton draws start from: the reference frame for every draw when all 6 base
+    corrections are estimated (the minimum does not depend on where the corrections are counted from), else the
+    draws' own (a held base frame is the given one)."""
+    if base_start is None or not model.base_free.all():
+        return base_start
+    return np.broadcast_to(model.reference_tracker, base_start.shape)
+
+
+def _shares_reference(model: RefinedModel, start: np.ndarray, base: np.ndarray | None) -> bool:
+    """Whether every draw's residuals at ``x0`` differ only by its measurements (one Jacobian, one model value)."""
+    held = ~model.free
+    if not np.array_equal(start[:, held], np.broadcast_to(model.reference_values[held], start[:, held].shape)):
+        return False
+    if model.criterion != "points":
+        return True
+    return model.reference_tracker is not None and bool(np.all(base == model.reference_tracker))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SharedStep:
+    """The first Gauss-Newton step every draw shares: the model at the noise-free solution ``x0``.
+
+    Attributes
+    ----------
+    value : ndarray, shape (N, 3) or (n_pairs,)
+        Points criterion: the base-frame points ``p(x0)`` in the order ``order`` [mm]; distances: ``|p_i - p_j|``
+        over the pairs [mm].
+    order : ndarray of int, shape (N,)
+        The capture row of every point of ``value``.
+    projector : ndarray, shape (p, K)
+        ``J0_s^+``, the pseudo-inverse of the scaled Jacobian at ``x0`` (K = 3 N or n_pairs).
+    """
+
+    value: np.ndarray
+    order: np.ndarray
+    projector: np.ndarray
+
+
+def shared_step(model: RefinedModel) -> SharedStep:
+    """The :class:`SharedStep` of ``model`` (the value of :attr:`RefinedModel.shared_step`)."""
+    points, jacobian, order, pairs = reference_jacobian(model)
+    if model.criterion == "points":
+        value, rows = points, jacobian.reshape(-1, model.n_free)
+    else:
+        i, j = pairs
+        diff = points[i] - points[j]
+        value = np.linalg.norm(diff, axis=1)
+        rows = np.einsum("pc,pck->pk", diff / value[:, None], jacobian[i] - jacobian[j])
+    return SharedStep(value=value, order=order, projector=np.linalg.pinv(rows * model.x_scale))
+
+
+def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarray:
+    """``dz_b = -J0_s^+ r_b(x0)`` ``(n_draws, p)`` in the scaled unknowns, for every draw at once.
+
+    Points criterion: ``r_b = p(x0) - R0^T (m_b - t0)`` in the base frame of the reference ``[R0 | t0]`` (the
+    tracker-frame residuals turned by the orthonormal ``R0``: the same least-squares problem). Distances:
+    ``r_b = |p_i - p_j| (x0) - |m_i - m_j|`` over the pairs (the draws' measured distances of ``problem``).
+    """
+    shared = model.shared_step if model.shared_step is not None else shared_step(model)
+    if model.criterion == "points":
+        rotation, shift = model.reference_tracker[:3, :3], model.reference_tracker[:3, 3]
+        in_base = np.einsum("bnc,cd->bnd", measured[:, shared.order] - shift, rotation)
+        residuals = (shared.value - in_base).reshape(measured.shape[0], -1)
+    else:
+        residuals = shared.value - problem.distances
+    # einsum's own loops, not BLAS: every draw's sums in the same order whatever the batch (bit-reproducible)
+    return -np.einsum("bk,pk->bp", residuals, shared.projector)
+
+
+def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int):
+    """Corrective Gauss-Newton iterations in place on ``x``: per-draw normal equations, the step taken while it
+    shrinks and the cost does not rise. Returns ``converged (B,)``, ``iterations (B,)`` and ``cost (B,)``."""
+    model = problem.model
+    scale, eye = model.x_scale, np.eye(model.n_free)
+    n_draws = x.shape[0]
+    cost, normal, gradient = _evaluate(problem, x, np.arange(n_draws))
+    iterations = np.ones(n_draws, dtype=int)
+    converged = np.zeros(n_draws, dtype=bool)
+    failed = ~np.isfinite(cost)
+    for correction in range(1, max_corrections + 1):
+        active = np.flatnonzero(~converged & ~failed)
+        if active.size == 0:
+            break
+        step = _pad_one(active, lambda work: _lm_step(normal[work], gradient[work], np.zeros(work.size), eye))
+        size = np.linalg.norm(step, axis=1)
+        if model.step_tolerance is None:
+            small = size <= model.xtol * (1.0 + np.linalg.norm(x[active] / scale, axis=1))
+        else:
+            small = np.all(np.abs(step) <= model.step_tolerance, axis=1)
+        x[active[small]] += step[small] * scale
+        converged[active[small]] = True
+        stalled = ~small & ~(size <= _SHRINK * previous[active])
+        failed[active[stalled]] = True
+        going = ~small & ~stalled
+        if correction == max_corrections or not going.any():
+            break
+        active, step, size = active[going], step[going], size[going]
+        trial = x[active] + step * scale
+        new_cost, new_normal, new_gradient = _evaluate(problem, trial, active)
+        iterations[active] += 1
+        better = np.isfinite(new_cost) & (new_cost <= cost[active] * (1.0 + _COST_SLACK))
+        failed[active[~better]] = True
+        accepted = active[better]
+        x[accepted], previous[accepted] = trial[better], size[better]
+        cost[accepted], normal[accepted], gradient[accepted] = (
+            new_cost[better],
+            new_normal[better],
+            new_gradient[better],
+        )
+    failed |= ~np.isfinite(x).all(axis=1)
+    return converged & ~failed, iterations, cost
+
+
+def _evaluate(problem, x: np.ndarray, index: np.ndarray):
+    """The normal equations of the draws ``index`` at ``x``; a lone draw as a stack of two (see ``refine_batch``)."""
+    if index.size == 1:
+        return tuple(item[:1] for item in problem.normal_equations(np.r_[x, x], np.r_[index, index]))
+    return problem.normal_equations(x, index)
