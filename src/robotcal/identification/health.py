@@ -58,12 +58,17 @@ the verdict unchanged: CPA's own parameter uncertainty already leaves 4-5 times 
 kr5-demo capture (0.07 mm), and the last joint's parameters and the target offsets that CPA cannot see add to
 it (real cells: 0.8-0.9 mm); the refinement, which sees every point, is what places the points absolutely.
 
-Poorly determined refined quantities are named the same way: ``u_k e_k``, with ``e_k`` the RMS displacement of
-the points per unit of quantity k (the norm of its Jacobian column over the points, ``RefinementResult.identifiability.effect``),
-is what one standard uncertainty of that quantity alone does to the points [mm]. Above
-:data:`U_EFFECT_LIMIT_MM` = 0.1 mm (several times a laser tracker's noise, the size of the errors a calibration
-is there to remove) the quantity is named with its u and what would determine it better. The demo's refined
-parameters stay below 0.01 mm.
+Poorly determined refined quantities are named the same way, by their effect in mm: ``u_k e_k``, with ``e_k`` the
+RMS displacement of the points per unit of quantity k (the norm of its Jacobian column over the points,
+``RefinementResult.identifiability.effect``), is what one standard uncertainty of that quantity alone does to
+the points [mm]. ``u_k`` is taken at the stated noise (the fit's u times ``u / sigma``): what the capture fails to
+determine, not what a model error inflates (a geometric fit of a sagging robot at 21 times the noise listed 7
+parameters that its 30 poses determine well). Above :data:`U_EFFECT_LIMIT_MM` = 0.1 mm (several times a laser
+tracker's noise, the size of the errors a calibration is there to remove) the quantity is named with its u, that
+effect and what would determine it better, worded for its kind: a joint's geometry "a wider arc" only when the
+joint swept less than :data:`NARROW_SWEEP_DEG`, else the quantity it is confounded with; a harmonic term its
+joint's range, never the load; a compliance poses of different gravity torque. The demo's refined parameters stay
+below 0.01 mm.
 """
 
 from __future__ import annotations
@@ -114,6 +119,8 @@ PHYSICAL_RESIDUAL_MM = 1.0
 CPA_EFFECT_LIMIT_MM = 2.0
 #: Largest effect on the points [mm] of one standard uncertainty of a refined quantity (module notes).
 U_EFFECT_LIMIT_MM = 0.1
+#: A joint that swept less than this in a capture [deg] determines its own parameters poorly from its range alone.
+NARROW_SWEEP_DEG = 45.0
 
 Verdict = Literal["OK", "MODEL ERROR", "FAILED", "NOT CHECKED"]
 #: The verdicts, best first.
@@ -476,7 +483,8 @@ def refine_health(
 ) -> FitHealth:  # fmt: skip
     """Fit health of a refinement: its residual standard deviation per coordinate (``uncertainty.sigma``, weighted
     by the points' U(95) when given; the RMS residual ``fit.residual_rms_coordinate`` when no degree of freedom is
-    left) against the stated noise, its convergence, and the condition number of its scaled Jacobian.
+    left) against the stated noise, its convergence, the condition number of its scaled Jacobian, and the
+    quantities the capture leaves poorly determined at the stated noise (module notes).
 
     ``fit``, ``identifiability``, ``uncertainty``: the sub-records of the refinement
     (:class:`robotcal.identification.records.RefinementResult`), from which the result is then made.
@@ -524,10 +532,6 @@ def _poorly_refined(identifiability, uncertainty, capture: Capture, noise: float
         partner = _partner(uncertainty.correlation, identifiability.free_names, k)
         found.append(f"{name} (u = {shown}, {effect[k]:.3g} mm on the points): {_remedy(name, sweep, partner)}")
     return found
-
-
-#: A joint that swept less than this in a capture [deg] determines its own parameters poorly from its range alone.
-NARROW_SWEEP_DEG = 45.0
 
 
 def _is_length(name: str) -> bool:

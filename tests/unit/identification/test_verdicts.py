@@ -146,3 +146,37 @@ def test_a_model_error_fit_of_a_good_capture_names_nothing_poorly_determined():
     assert geometric.poorly_determined == ()
     assert "--model compliance" in geometric.advice[0]
     assert compliance.verdict == "OK" and compliance.advice == ()
+
+
+def test_the_advice_names_the_next_model_only_when_it_was_not_fitted():
+    """Every path of `refine --model` on a robot that sags and carries harmonic joint errors: the geometric fit
+    names compliance, the compliance fit (still a MODEL ERROR) names harmonic and never itself, the fuller fit and
+    the one auto chooses are OK without advice."""
+    from robotcal.kinematics.joint_model import JointModel
+
+    scenario = robotcal.load_scenario("kr5-demo")
+    truth = robotcal.perturb(scenario, rng=11)
+    sag = truth.joint_model
+    both = JointModel.build(scenario.robot, compliance_joints=[1, 2], masses=sag.masses, harmonic_joints=[0, 1, 2])
+    truth = truth.replace(
+        joint_model=both.with_values(np.r_[sag.values, np.deg2rad([0.02, -0.01, 0.015, 0.01, -0.02, 0.01])])
+    )
+    capture = robotcal.simulate(scenario, rng=1, true_parameters=truth, joint_errors=None)
+    poses = robotcal.simulate_poses(scenario, kind="calibration", rng=3, true_parameters=truth)
+    fitted = robotcal.calibration_capture(scenario, capture, poses)
+    health = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifiabilityWarning)
+        warnings.simplefilter("ignore", FitHealthWarning)
+        start = robotcal.identify(capture, scenario)
+        for model in ("geometric", "compliance", "compliance+harmonic", "auto"):
+            result = robotcal.refine(fitted, scenario, start, model=model, folds=5 if model == "auto" else 0)
+            health[model] = result.health
+    assert health["geometric"].verdict == "MODEL ERROR" and "`--model compliance`" in health["geometric"].advice[0]
+    advice = health["compliance"].advice[0]
+    assert health["compliance"].verdict == "MODEL ERROR" and advice.startswith("the compliance model does not hold")
+    assert "`--model harmonic`" in advice and "`--model compliance`" not in advice
+    assert "refine with `--model compliance`" not in " ".join(
+        health["compliance+harmonic"].advice + health["auto"].advice
+    )
+    assert health["compliance+harmonic"].verdict == health["auto"].verdict == "OK"
