@@ -297,13 +297,13 @@ class _Runner:
 
     def run(self, tasks: list[FitTask]) -> list[_Outcome]:
         todo = [task for task in tasks if self.key(task) not in self.cache]
-        for task, outcome in zip(todo, self.executor.map(run_fit, todo), strict=True):
+        for ran, (task, outcome) in enumerate(zip(todo, self.executor.map(run_fit, todo), strict=True), start=1):
             if isinstance(outcome, _Refused):
                 raise IdentifiabilityError(outcome.message, parameters=outcome.parameters)
             self.cache[self.key(task)] = outcome
             self.done += 1
             if self.progress is not None:
-                total = self.done + len(todo) - todo.index(task) - 1
+                total = self.done + len(todo) - ran
                 self.progress(self.done, total, task.model if task.fold is None else f"{task.model} CV")
         return [self.cache[self.key(task)] for task in tasks]
 
