@@ -180,3 +180,20 @@ def test_the_advice_names_the_next_model_only_when_it_was_not_fitted():
         health["compliance+harmonic"].advice + health["auto"].advice
     )
     assert health["compliance+harmonic"].verdict == health["auto"].verdict == "OK"
+
+
+def test_identify_on_the_command_line_names_them_and_exits_1(long_arm, tmp_path):
+    from typer.testing import CliRunner
+
+    from robotcal.cli import app
+    from robotcal.io import write_capture
+
+    write_capture(tmp_path / "c.csv", robotcal.simulate(long_arm, rng=1))
+    args = ["identify", tmp_path / "c.csv", "--scenario", long_arm.source, "--out", tmp_path / "p.json"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitHealthWarning)
+        result = CliRunner().invoke(app, [str(arg) for arg in args])
+    output = " ".join(result.output.split())
+    assert result.exit_code == 1 and "(marked FAILED)" in output and "fit health: FAILED" in output
+    assert re.search(r"poorly determined: J3\.d, J3\.theta, J3\.a, J3\.alpha, J4\.d, J4\.theta, J4\.a, J4\.alpha "
+                     r"\(about [0-9.]+ mm\): circle 4", output)  # fmt: skip
