@@ -94,5 +94,7 @@ def identify(
             f"base frame registered with the identified model: RMS residual {result.registration_rms:.4f} mm",
             highlight=False,
         )
+    for note in result.health.notes:
+        console.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
     print_health(result.health)

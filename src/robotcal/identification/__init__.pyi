@@ -17,8 +17,8 @@ from .evaluation import evaluate_parameters as evaluate_parameters
 from .evaluation import guessed_targets as guessed_targets
 from .evaluation import point_errors as point_errors
 from .evaluation import predicted_points as predicted_points
-from .health import AXIS_LIMIT_DEG as AXIS_LIMIT_DEG
 from .health import CONDITION_LIMIT as CONDITION_LIMIT
+from .health import CPA_EFFECT_LIMIT_MM as CPA_EFFECT_LIMIT_MM
 from .health import PHYSICAL_RESIDUAL_MM as PHYSICAL_RESIDUAL_MM
 from .health import RESIDUAL_RATIO_LIMIT as RESIDUAL_RATIO_LIMIT
 from .health import VERDICTS as VERDICTS

@@ -36,22 +36,39 @@ The figures:
   then determined to no better than ``1e8`` times the noise's effect, i.e. not at all (a broken real fit
   stopped at 8.5e8, the thesis captures are at 1e2-1e4).
 
-Small circles (CPA) do not change the verdict but are named (:class:`FitHealthWarning` and the
-``poorly_determined`` list): the direction of a circle's axis comes from the plane fit; its standard
-uncertainty is ``u_axis = u / sqrt(lambda_2)`` [rad], ``lambda_2`` the smaller in-plane eigenvalue of the
-points' scatter matrix ``sum (p - mean)(p - mean)^T`` (a full circle of N points of radius r: ``lambda_2 =
-N r^2 / 2``). Above :data:`AXIS_LIMIT_DEG` = 1 deg the tilt alone moves the axis by ~5 mm at 300 mm along
-it (a wrist's d), where the common normals to the next axes are taken: the parameters of that joint pair
-are then off by millimetres (real 1.6 mm circles gave J3.a 7 mm off). The built-in laser-tracker scenarios
-stay below 0.25 deg; the thesis iGPS capture reaches 2.6 deg on circle 4, rightly named: the thesis's
-own Monte Carlo (Table 5.7) gives u(J4.a) = 12.6 mm for it.
+**Small circles (CPA)** are judged by their effect in millimetres. The direction of a circle's axis comes from
+the plane fit; its standard uncertainty is ``u_axis = u / sqrt(lambda_2)`` [rad], ``u`` the stated noise per
+coordinate or the circle's own out-of-plane RMS if larger, ``lambda_2`` the smaller in-plane eigenvalue of the
+points' scatter matrix ``sum (p - mean)(p - mean)^T`` (a full circle of N points of radius r: ``lambda_2 = N r^2
+/ 2``). The axis is pinned at the circle's centre, so the tilt moves the feet of the common normals with the
+neighbouring axes (where the parameters of the two joint pairs are taken: :func:`common_normal_feet`; the robot
+origin for axis 1, the flange for the last) by ``u_axis`` times their distance from the centre, the lever: the
+parameters of those pairs, and the arm they carry, are off by that many millimetres. Above
+:data:`CPA_EFFECT_LIMIT_MM` = 2 mm the verdict is FAILED and the parameters are named under ``poorly_determined``
+with the effect and the radius that would bring it under the limit (``u_axis`` falls as ``1/r``). The same tilt
+judged against a fixed angle missed real 1.6 mm wrist circles: 0.3 deg over a 1,280 mm lever left J3.a 7 mm off.
+The effect matches the thesis's Monte Carlo: on the iGPS capture circle 4 (2.6 deg over 291 mm) gives 13 mm,
+Table 5.7 u(J4.a) = 12.6 mm; circle 1 3.9 mm, u(J1.a) = 3.7 mm. The built-in laser-tracker captures stay below
+1.1 mm (circle 4, 5 mm radius).
 
-Poorly determined refined quantities are named the same way: ``u_k e_k``, with ``e_k`` the RMS displacement of
-the points per unit of quantity k (the norm of its Jacobian column over the points, ``RefinementResult.identifiability.effect``),
-is what one standard uncertainty of that quantity alone does to the points [mm]. Above
-:data:`U_EFFECT_LIMIT_MM` = 0.1 mm (several times a laser tracker's noise, the size of the errors a calibration
-is there to remove) the quantity is named with its u and what would determine it better. The demo's refined
-parameters stay below 0.01 mm.
+A **registered base frame** (CPA with ``base_frame = "registered"``) is judged against the noise too: the
+identified model's points registered on the measured ones leave an RMS residual per point that the noise alone
+would make ``sqrt(3) u``. Above :data:`RESIDUAL_RATIO_LIMIT` times that it is said in ``notes`` with both figures,
+the verdict unchanged: CPA's own parameter uncertainty already leaves 4-5 times the noise on the noise-only
+kr5-demo capture (0.07 mm), and the last joint's parameters and the target offsets that CPA cannot see add to
+it (real cells: 0.8-0.9 mm); the refinement, which sees every point, is what places the points absolutely.
+
+Poorly determined refined quantities are named the same way, by their effect in mm: ``u_k e_k``, with ``e_k`` the
+RMS displacement of the points per unit of quantity k (the norm of its Jacobian column over the points,
+``RefinementResult.identifiability.effect``), is what one standard uncertainty of that quantity alone does to
+the points [mm]. ``u_k`` is taken at the stated noise (the fit's u times ``u / sigma``): what the capture fails to
+determine, not what a model error inflates (a geometric fit of a sagging robot at 21 times the noise listed 7
+parameters that its 30 poses determine well). Above :data:`U_EFFECT_LIMIT_MM` = 0.1 mm (several times a laser
+tracker's noise, the size of the errors a calibration is there to remove) the quantity is named with its u, that
+effect and what would determine it better, worded for its kind: a joint's geometry "a wider arc" only when the
+joint swept less than :data:`NARROW_SWEEP_DEG`, else the quantity it is confounded with; a harmonic term its
+joint's range, never the load; a compliance poses of different gravity torque. The demo's refined parameters stay
+below 0.01 mm.
 """
 
 from __future__ import annotations
@@ -59,6 +76,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -66,11 +84,12 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import FitHealthError, FitHealthWarning
-from robotcal.kinematics.model import ANGLE_KINDS, LENGTH_KINDS
+from robotcal.kinematics.forward import joint_frames
+from robotcal.kinematics.model import LENGTH_KINDS
 
 __all__ = [
-    "AXIS_LIMIT_DEG",
     "CONDITION_LIMIT",
+    "CPA_EFFECT_LIMIT_MM",
     "PHYSICAL_RESIDUAL_MM",
     "RESIDUAL_RATIO_LIMIT",
     "VERDICTS",
@@ -94,10 +113,14 @@ CONDITION_LIMIT = 1e8
 #: Largest residual standard deviation per coordinate [mm] a sound fit of a real robot can leave: a calibrated
 #: industrial arm's model errors (gravity sag, joint errors) are tenths of a millimetre.
 PHYSICAL_RESIDUAL_MM = 1.0
-#: Largest standard uncertainty of a CPA circle's axis direction [deg].
-AXIS_LIMIT_DEG = 1.0
+#: Largest effect [mm] of one standard uncertainty of a CPA circle's axis direction on the parameters of its pairs
+#: (module notes): an uncalibrated industrial arm's own geometric errors are tenths of a millimetre to 1-2 mm, so
+#: parameters uncertain by more are no better than the nominal ones.
+CPA_EFFECT_LIMIT_MM = 2.0
 #: Largest effect on the points [mm] of one standard uncertainty of a refined quantity (module notes).
 U_EFFECT_LIMIT_MM = 0.1
+#: A joint that swept less than this in a capture [deg] determines its own parameters poorly from its range alone.
+NARROW_SWEEP_DEG = 45.0
 
 Verdict = Literal["OK", "MODEL ERROR", "FAILED", "NOT CHECKED"]
 #: The verdicts, best first.
@@ -132,6 +155,8 @@ class FitHealth:
     poorly_determined : tuple of str
         Parameters or circles the data leave poorly determined, whatever the verdict (named with what to
         measure instead).
+    notes : tuple of str
+        Figures judged against the noise that do not change the verdict (a CPA base registration's residual).
     """
 
     what: str
@@ -146,6 +171,7 @@ class FitHealth:
     problems: tuple[str, ...] = ()
     advice: tuple[str, ...] = ()
     poorly_determined: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     @property
     def healthy(self) -> bool:
@@ -189,6 +215,7 @@ class FitHealth:
             "problems": list(self.problems),
             "advice": list(self.advice),
             "poorly_determined": list(self.poorly_determined),
+            "notes": list(self.notes),
         }
 
 
@@ -235,6 +262,7 @@ def assess_fit(
     converged: bool = True,
     poorly_determined=(),
     fitted_model: str | None = None,
+    undetermined: Sequence[str] = (),
 ) -> FitHealth:
     """The verdict of a fit (module docstring): FAILED, MODEL ERROR, OK or NOT CHECKED.
 
@@ -256,6 +284,9 @@ def assess_fit(
     fitted_model : str, optional
         The model fitted (``geometric``, ``compliance``, ...): a MODEL ERROR's advice names the models it lacks
         (:func:`model_advice`), never itself.
+    undetermined : sequence of str
+        Findings that make the fit FAILED: parameters the data leave off by more than a calibration removes
+        (a CPA circle too small for its lever, module notes); the details are in ``poorly_determined``.
     """
     residual = float(residual_sd_mm)
     noise = None if noise_sd_mm is None or not noise_sd_mm > 0 else float(noise_sd_mm)
@@ -272,6 +303,7 @@ def assess_fit(
             "combination of the parameters is not determined by the data (likely: too few or too similar poses, "
             "a target offset confounded with the last joint's parameters, or joints that hardly move)"
         )
+    failed.extend(undetermined)
     if not math.isfinite(residual) or residual > PHYSICAL_RESIDUAL_MM:
         failed.append(
             f"the residual ({residual:.4g} mm per coordinate) is beyond what a calibrated robot's model errors "
@@ -287,7 +319,11 @@ def assess_fit(
         )
     if failed:
         verdict: Verdict = "FAILED"
-        problems, advice = failed + model, ("do not use these parameters; correct the input or the start and fit again",)
+        if len(failed) == len(undetermined):  # nothing wrong but what the capture leaves undetermined
+            advice = ("do not use the parameters named poorly determined; measure again as said there",)
+        else:
+            advice = ("do not use these parameters; correct the input or the start and fit again",)
+        problems = failed + model
     elif model:
         verdict, problems, advice = "MODEL ERROR", model, (model_advice(fitted_model),)
     elif ratio is None:
@@ -354,37 +390,90 @@ def circle_axis_uncertainty(points, noise_sd_mm: float) -> tuple[float, float]:
     return float(noise_sd_mm) / np.sqrt(in_plane), radius
 
 
+def common_normal_feet(result) -> list[np.ndarray]:
+    """Per joint axis of a CPA result, the points ``(k, 3)`` [mm, tracker frame] on it where the parameters of its
+    pairs are taken: the feet of the common normals with the previous axis (the robot origin for axis 1) and with
+    the next one (the flange origin for the last axis), at the reference configuration of the identified model."""
+    robot = result.parameters.robot
+    values = np.asarray(result.parameters.values, dtype=float)
+    q = robot.model_joint_variables(np.asarray(result.reference_readings, dtype=float)[None, :])
+    frames = np.asarray(result.tracker_from_base, dtype=float) @ joint_frames(values, q)[0]
+    origin, x_axis = frames[:, :3, 3], frames[:, :3, 0]
+    return [np.stack([origin[j], origin[j + 1] - values[j, 2] * x_axis[j + 1]]) for j in range(robot.n_joints)]
+
+
+def _small_circles(result, capture: Capture, noise: float | None) -> list[str]:
+    """The circles whose axis direction uncertainty moves the parameters of their pairs by more than
+    :data:`CPA_EFFECT_LIMIT_MM` (module notes), each named with that effect and the parameters it moves."""
+    names = result.parameters.robot.parameter_names
+    identified = np.asarray(result.parameters.identified, dtype=bool)
+    found = []
+    for joint, (fit, feet) in enumerate(zip(result.circle_fits, common_normal_feet(result), strict=True)):
+        rows = np.flatnonzero(capture.circle == joint + 1)
+        scatter = max(noise or 0.0, float(fit.plane_rms))  # the stated noise, or the circle's own if larger
+        if rows.size < 3 or not scatter > 0.0:
+            continue
+        u_axis, _ = circle_axis_uncertainty(capture.points[rows], scatter)
+        lever = float(np.max(np.linalg.norm(feet - np.asarray(fit.centre, dtype=float), axis=1)))
+        effect = u_axis * lever
+        if not effect > CPA_EFFECT_LIMIT_MM:
+            continue
+        first = max(joint - 1, 0)  # the rows of the pairs (joint - 1, joint) and (joint, joint + 1)
+        moved = [names[first * 5 + k] for k in np.flatnonzero(identified[first : joint + 1].ravel())]
+        radius = float(fit.radius)
+        found.append(
+            f"{', '.join(moved)} (about {effect:.3g} mm): circle {joint + 1} (radius {radius:.3g} mm, {rows.size} "
+            f"points) leaves the J{joint + 1} axis direction uncertain by {math.degrees(u_axis):.3g} deg, which moves "
+            f"the common normals {lever:.0f} mm along the axis by {effect:.3g} mm (> {CPA_EFFECT_LIMIT_MM:g} mm): "
+            f"put the target farther from axis {joint + 1} (a radius of {radius * effect / CPA_EFFECT_LIMIT_MM:.3g} "
+            "mm or more), sweep a wider arc or measure more points"
+        )
+    return found
+
+
 def cpa_health(result, capture: Capture, instrument=None) -> FitHealth:
     """Fit health of a CPA identification: the RMS distance of the points to their fitted circles against
-    the stated noise (:func:`stated_noise`), the circle fits' convergence, and the circles whose axis
-    direction the noise leaves uncertain by more than :data:`AXIS_LIMIT_DEG` (named, with the joints whose
-    parameters they determine)."""
+    the stated noise (:func:`stated_noise`), the circle fits' convergence, the circles whose axis direction
+    uncertainty moves the parameters of their pairs by more than :data:`CPA_EFFECT_LIMIT_MM` (FAILED, named with
+    that effect), and a registered base frame whose residual is far above the noise (MODEL ERROR)."""
     noise, noise_source = stated_noise(capture, instrument)
-    squares, count, small = 0.0, 0, []
+    squares, count = 0.0, 0
     for joint, fit in enumerate(result.circle_fits):
         rows = np.flatnonzero(capture.circle == joint + 1)
         squares += rows.size * (float(fit.plane_rms) ** 2 + float(fit.circle_rms) ** 2)
         count += rows.size
-        if noise is not None and rows.size >= 3:
-            u_axis, _ = circle_axis_uncertainty(capture.points[rows], noise)
-            if np.rad2deg(u_axis) > AXIS_LIMIT_DEG:
-                pair = f"J{joint}-J{joint + 1}" if joint > 0 else "the base"
-                small.append(
-                    f"circle {joint + 1} (radius {float(fit.radius):.4g} mm, {rows.size} points, radius / u = "
-                    f"{float(fit.radius) / noise:.3g}) leaves the J{joint + 1} axis direction uncertain by "
-                    f"{np.rad2deg(u_axis):.3g} deg (> {AXIS_LIMIT_DEG:g} deg), so the parameters of {pair} and "
-                    f"J{joint + 1}-J{joint + 2} are poorly determined: put the target farther from axis {joint + 1}, "
-                    "sweep a wider arc or measure more points"
-                )
     residual = float(np.sqrt(squares / max(count, 1) / 2.0))  # two noise components per circle point
     converged = all(bool(np.all(fit.converged)) for fit in result.circle_fits)
-    return assess_fit(
+    small = _small_circles(result, capture, noise)
+    undetermined = ()
+    if small:
+        undetermined = (
+            f"{len(small)} circle{'s' if len(small) > 1 else ''} too small for {'their' if len(small) > 1 else 'its'} "
+            f"lever: parameters off by more than {CPA_EFFECT_LIMIT_MM:g} mm (named under poorly determined)",
+        )
+    health = assess_fit(
         "CPA (circle fits)",
         residual,
         noise,
         noise_source=noise_source,
         converged=converged,
         poorly_determined=small,
+        undetermined=undetermined,
+    )
+    return dataclasses.replace(health, notes=_registration_note(result.registration_rms, noise, noise_source))
+
+
+def _registration_note(rms: float | None, noise: float | None, noise_source: str) -> tuple[str, ...]:
+    """A registered base frame whose RMS residual per point [mm] is more than :data:`RESIDUAL_RATIO_LIMIT` times
+    the stated noise per point (``sqrt(3) u``), said with both figures (module notes); nothing otherwise."""
+    if rms is None or noise is None or not np.isfinite(rms) or rms <= RESIDUAL_RATIO_LIMIT * math.sqrt(3.0) * noise:
+        return ()
+    expected = math.sqrt(3.0) * noise
+    return (
+        f"the base frame registered with the identified model leaves {rms:.3g} mm RMS per point, {rms / expected:.3g} "
+        f"times the stated noise ({expected:.3g} mm per point, {noise_source}): the CPA model places the points "
+        "absolutely only to that (its own uncertainty, the last joint's parameters and target offsets it cannot "
+        "see, gravity sag); refine over every point (`robotcal refine`) before using it absolutely",
     )
 
 
@@ -394,7 +483,8 @@ def refine_health(
 ) -> FitHealth:  # fmt: skip
     """Fit health of a refinement: its residual standard deviation per coordinate (``uncertainty.sigma``, weighted
     by the points' U(95) when given; the RMS residual ``fit.residual_rms_coordinate`` when no degree of freedom is
-    left) against the stated noise, its convergence, and the condition number of its scaled Jacobian.
+    left) against the stated noise, its convergence, the condition number of its scaled Jacobian, and the
+    quantities the capture leaves poorly determined at the stated noise (module notes).
 
     ``fit``, ``identifiability``, ``uncertainty``: the sub-records of the refinement
     (:class:`robotcal.identification.records.RefinementResult`), from which the result is then made.
@@ -415,33 +505,77 @@ def refine_health(
     )
     if health.verdict == "FAILED":  # the u of a failed fit say nothing about the capture
         return health
-    return dataclasses.replace(health, poorly_determined=tuple(_poorly_refined(identifiability, uncertainty)))
+    found = _poorly_refined(identifiability, uncertainty, capture, noise)
+    return dataclasses.replace(health, poorly_determined=tuple(found))
 
 
-def _poorly_refined(identifiability, uncertainty) -> list[str]:
-    """The refined quantities whose standard uncertainty moves the points by more than :data:`U_EFFECT_LIMIT_MM`
-    (module notes), worst first, each with its u and what would determine it better."""
+def _poorly_refined(identifiability, uncertainty, capture: Capture, noise: float | None) -> list[str]:
+    """The refined quantities that the capture leaves poorly determined (module notes): whose standard uncertainty
+    at the stated noise moves the points by more than :data:`U_EFFECT_LIMIT_MM`, worst first, each with its u,
+    that effect and what would determine it better."""
     covariance = uncertainty.covariance
     if covariance is None or identifiability.effect is None:
         return []
-    effect = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) * np.asarray(identifiability.effect, dtype=float)
+    sigma = float(uncertainty.sigma)
+    # the capture's own u: the fit's u with the residual at the stated noise (a model error inflates them all)
+    scale = noise / sigma if noise is not None and math.isfinite(sigma) and sigma > 0.0 else 1.0
+    u_all = np.sqrt(np.clip(np.diag(covariance), 0.0, None)) * scale
+    effect = u_all * np.asarray(identifiability.effect, dtype=float)
+    sweep = np.rad2deg(np.ptp(np.asarray(capture.readings, dtype=float), axis=0))
     found = []
     for k in np.argsort(-effect):
-        if effect[k] <= U_EFFECT_LIMIT_MM:
+        if not effect[k] > U_EFFECT_LIMIT_MM:
             break
-        name = identifiability.free_names[k]
-        u = math.sqrt(max(float(covariance[k, k]), 0.0))
-        if name.startswith("target."):
-            shown, where = f"{u:.3g} mm", "measure the target at more poses, turning the flange"
-        elif name.startswith("base."):
-            shown = f"{u:.3g} mm" if name[-2] == "t" else f"{math.degrees(u):.3g} deg"
-            where = "spread the poses over more of the workspace"
-        elif name.split(".")[1] in LENGTH_KINDS:
-            shown, where = f"{u:.3g} mm", f"turn {name.split('.')[0]} through a wider arc or measure more poses"
-        elif name.split(".")[1] in ANGLE_KINDS:
-            shown, where = f"{math.degrees(u):.3g} deg", f"turn {name.split('.')[0]} through a wider arc or measure more poses"
-        else:  # a joint-model value
-            shown = f"{u:.3g} rad/(N m)" if name.endswith(".k") else f"{math.degrees(u):.3g} deg"
-            where = "measure poses that load the joint in more ways (free poses over the workspace)"
-        found.append(f"{name} (u = {shown}, {effect[k]:.3g} mm on the points): {where}")
+        name, u = identifiability.free_names[k], float(u_all[k])
+        unit = "mm" if _is_length(name) else "rad/(N m)" if name.endswith(".k") else "deg"
+        shown = f"{u:.3g} {unit}" if unit != "deg" else f"{math.degrees(u):.3g} deg"
+        partner = _partner(uncertainty.correlation, identifiability.free_names, k)
+        found.append(f"{name} (u = {shown}, {effect[k]:.3g} mm on the points): {_remedy(name, sweep, partner)}")
     return found
+
+
+def _is_length(name: str) -> bool:
+    return name.startswith(("target.", "base.t")) or name.split(".")[-1] in LENGTH_KINDS
+
+
+def _is_harmonic(kind: str) -> bool:
+    """``a1``, ``b2``... (a joint model's harmonic amplitudes), not ``alpha`` or ``beta``."""
+    return kind[:1] in ("a", "b") and kind[1:].isdigit()
+
+
+def _partner(correlation, names, k: int) -> tuple[str, float] | None:
+    """The free quantity most correlated with quantity ``k``, and the correlation, if above 0.9 in magnitude."""
+    if correlation is None or len(names) < 2:
+        return None
+    row = np.nan_to_num(np.abs(np.asarray(correlation, dtype=float)[k]))
+    row[k] = 0.0
+    other = int(np.argmax(row))
+    value = float(np.asarray(correlation)[k, other])
+    return (names[other], value) if abs(value) > 0.9 else None
+
+
+def _remedy(name: str, sweep_deg: np.ndarray, partner: tuple[str, float] | None) -> str:
+    """What capture would determine quantity ``name`` better, worded for its kind: a target offset, the base frame,
+    a joint's geometry or harmonic terms (its sweep ``sweep_deg`` of every joint, or the quantity it is confounded
+    with), a compliance (poses of different gravity torque)."""
+    if name.startswith("target."):
+        return "measure the target at more poses, turning the flange"
+    if name.startswith("base."):
+        return "spread the poses over more of the workspace"
+    joint_name, kind = name.split(".")
+    joint = int(joint_name[1:]) - 1
+    if kind == "k" or (kind[:1] == "g" and kind[1:].isdigit()):  # a compliance: its sweep says nothing, the torque does
+        return (
+            f"measure poses with different gravity torque on {joint_name} (the arm stretched out and folded back, "
+            "at several heights), or give the link masses"
+        )
+    if sweep_deg[joint] < NARROW_SWEEP_DEG:
+        arc = f"turn {joint_name} through a wider arc (it swept {sweep_deg[joint]:.3g} deg"
+        return arc + (", a harmonic term needs most of a turn)" if _is_harmonic(kind) else ")")
+    if partner is not None:
+        other, value = partner
+        return (
+            f"{joint_name} swept {sweep_deg[joint]:.3g} deg, but {name} is confounded with {other} (correlation "
+            f"{value:+.3f}) in this capture: add poses that move them differently"
+        )
+    return "measure more poses, spread over the workspace"

@@ -23,6 +23,15 @@ of Hastie, Tibshirani and Friedman, *The Elements of Statistical Learning*, 2nd 
 with more parameters must earn them by more than the folds' own scatter. The standard error is that of the mean
 of the fold MSEs, ``sd / sqrt(folds)``.
 
+**Lumped compliance.** Where the robot file gives no link masses the compliance is lumped
+(:func:`robotcal.kinematics.joint_model.lumped_terms`): 10 torque shapes for J2 and 8 for J3 of a 6R arm, most of
+which a capture cannot tell apart. :func:`smallest_lumped` starts from the largest shape of every compliant joint
+and adds the next shapes only while the data support them: with folds, while the CV error falls by more than one
+standard error, then the one-standard-error choice among the sets tried; without, while an F test of the residual
+against the previous set says the new terms explain more than noise (:data:`LUMPED_F_TEST_ALPHA`). The set used
+is announced (:class:`~robotcal.errors.IdentifiabilityWarning`). On the kr5-demo capture refined without masses
+both rules keep 2 shapes per joint (4 terms of 18).
+
 **Running the fits.** :func:`refine_model` is the whole of it: every candidate's fit on all points and its
 ``folds`` fold fits (``auto``: 4 models x (1 + 5 folds) = 24 fits) are independent, each described by a picklable
 :class:`FitTask`, and run in the process pool of :mod:`robotcal.execution` (``workers``); the results do not depend
@@ -36,6 +45,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields, is_dataclass, replace
 
 import numpy as np
+import scipy.stats
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -53,7 +63,7 @@ from robotcal.identification.settings import (
     RefinementSettings,
 )
 from robotcal.identification.targets import Target
-from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques
+from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques, lumped_levels
 from robotcal.kinematics.model import LinkMasses, ParameterSet, RobotModel
 
 __all__ = [
@@ -265,18 +275,99 @@ def run_fit(task: FitTask) -> _Outcome | _Refused:
     return _Outcome(success=bool(result.success), held_out=residuals, warnings=found)
 
 
-def _tasks(capture, start, targets, settings, choice, tracker_from_base, structures, instrument) -> list[FitTask]:
-    """Every candidate's full fit followed by its folds, in that order (the order of the progress and the warnings)."""
-    fold_of = pose_folds(capture, choice.folds, choice.seed) if choice.folds else None
-    tasks = []
-    for name in choice.candidates:
-        common = dict(
-            model=name, capture=capture, start=start.geometric(), targets=targets, settings=settings,
-            tracker_from_base=tracker_from_base, joint_model=structures[name],
-        )  # fmt: skip
-        tasks.append(FitTask(**common, instrument=instrument))
-        tasks.extend(FitTask(**common, fold=fold, fold_of=fold_of) for fold in range(choice.folds))
+def _fit_tasks(model: str, joint_model: JointModel | None, common: dict, choice: ModelChoiceSettings, fold_of, instrument):
+    """The fit of ``model`` with ``joint_model`` on the whole capture followed by its folds' fits."""
+    tasks = [FitTask(model=model, joint_model=joint_model, **common, instrument=instrument)]
+    tasks += [
+        FitTask(model=model, joint_model=joint_model, **common, fold=fold, fold_of=fold_of) for fold in range(choice.folds)
+    ]
     return tasks
+
+
+class _Runner:
+    """Runs :class:`FitTask` lists in an executor, each distinct fit once (a lumped level's fits are those of the
+    model that keeps it), reporting ``progress(done, total, what)`` over every fit run."""
+
+    def __init__(self, executor, progress):
+        self.executor, self.progress, self.done, self.cache = executor, progress, 0, {}
+
+    @staticmethod
+    def key(task: FitTask) -> tuple:
+        return task.model, None if task.joint_model is None else task.joint_model.names, task.fold
+
+    def run(self, tasks: list[FitTask]) -> list[_Outcome]:
+        todo = [task for task in tasks if self.key(task) not in self.cache]
+        for ran, (task, outcome) in enumerate(zip(todo, self.executor.map(run_fit, todo), strict=True), start=1):
+            if isinstance(outcome, _Refused):
+                raise IdentifiabilityError(outcome.message, parameters=outcome.parameters)
+            self.cache[self.key(task)] = outcome
+            self.done += 1
+            if self.progress is not None:
+                total = self.done + len(todo) - ran
+                self.progress(self.done, total, task.model if task.fold is None else f"{task.model} CV")
+        return [self.cache[self.key(task)] for task in tasks]
+
+
+#: Significance of the F test that adds a level of lumped compliance terms when there are no folds to hold out.
+LUMPED_F_TEST_ALPHA = 0.01
+
+
+def smallest_lumped(
+    model: str, structure: JointModel, robot: RobotModel, runner: _Runner, tasks_of, choice: ModelChoiceSettings
+) -> tuple[JointModel, str]:
+    """The smallest lumped compliance set of ``structure`` the data support, and the sentence that announces it.
+
+    The levels of :func:`robotcal.kinematics.joint_model.lumped_levels` (1, 2, ... terms per compliant joint, the
+    largest torque shapes first) are fitted in turn. With folds, each is cross-validated and the next is tried
+    while the last lowered the CV mean squared error by more than one standard error of the best so far; the set
+    is then the one-standard-error choice among those tried (:func:`choose_model`). Without folds, a level is
+    kept while the F test of its residual against the previous level's rejects "no improvement" at
+    :data:`LUMPED_F_TEST_ALPHA`.
+    """
+    levels = lumped_levels(structure, robot)
+    records, fits, chosen, why = [], [], len(levels) - 1, "every further term lowered the residual"
+    for index, level in enumerate(levels):
+        outcomes = runner.run(tasks_of(model, level))
+        fits.append(outcomes[0].result)
+        if choice.folds:
+            folds = [(outcome.success, outcome.held_out) for outcome in outcomes[1:]]
+            records.append(_validation(f"{index + 1} per joint", fits[-1], folds, choice))
+            best = min(records[:-1], key=lambda record: record.cv_mse_mm2, default=None)
+            if best is not None and not records[-1].cv_mse_mm2 < best.cv_mse_mm2 - best.se_mm2:
+                break
+        elif index and (p_value := _f_test(fits[-2], fits[-1])) > LUMPED_F_TEST_ALPHA:
+            chosen = index - 1
+            why = f"{index + 1} per joint did not lower the residual significantly (F test, p = {p_value:.2g})"
+            break
+    if choice.folds:
+        picked = choose_model(records)
+        chosen = [record.model for record in records].index(picked.chosen)
+        why = f"cross-validation chose them ({picked.reason})" if len(records) > 1 else why
+    kept = [name for name in levels[chosen].names if name in structure.lumped]
+    counts = ", ".join(
+        f"{joint}: {sum(name.startswith(joint + '.') for name in kept)} of "
+        f"{sum(name.startswith(joint + '.') for name in structure.lumped)}"
+        for joint in dict.fromkeys(name.split(".")[0] for name in structure.lumped)
+    )
+    note = (
+        f"model {model}: the robot file gives no link masses, so the compliance is lumped; the terms the data "
+        f"support are {', '.join(kept)} ({counts} torque shapes): {why}; give the link masses (mass_kg, com_mm) "
+        "for one compliance per joint"
+    )
+    return levels[chosen], note
+
+
+def _f_test(smaller: RefinementResult, larger: RefinementResult) -> float:
+    """p-value of the F test that ``larger``'s extra free unknowns lower the residual sum of squares by no more
+    than noise would (1 when they add no free unknown or no degree of freedom is left)."""
+    sizes = [len(fit.identifiability.free_names) for fit in (smaller, larger)]
+    dof = [fit.fit.n_residuals - size for fit, size in zip((smaller, larger), sizes, strict=True)]
+    added = sizes[1] - sizes[0]
+    sigmas = [float(fit.uncertainty.sigma) for fit in (smaller, larger)]
+    if added <= 0 or dof[1] <= 0 or not all(np.isfinite(sigmas)) or sigmas[1] <= 0.0:
+        return 1.0
+    statistic = (sigmas[0] ** 2 * dof[0] - sigmas[1] ** 2 * dof[1]) / added / sigmas[1] ** 2
+    return float(scipy.stats.f.sf(statistic, added, dof[1]))
 
 
 def refine_model(
@@ -307,7 +398,9 @@ def refine_model(
     choice : ModelChoiceSettings
         The model, the folds and their seed, the joint-model structure.
     masses : LinkMasses, optional
-        Of the compliance terms (payload included); None: the robot's, else the lumped form.
+        Of the compliance terms (payload included); None: the robot's, else the lumped form, whose smallest set
+        of terms the data support is chosen first (:func:`smallest_lumped`, announced by an
+        :class:`~robotcal.errors.IdentifiabilityWarning`).
     backlash : ndarray, shape (n_joints,), optional
         Angular lash of every joint [rad], a fixed correction of the circle points (``backlash_source`` says
         where it comes from).
@@ -316,7 +409,8 @@ def refine_model(
     workers : int
         Processes running the fits (1: in this process); the result does not depend on it.
     progress : callable, optional
-        ``progress(done, total, what)`` after every fit, in the order of the fits.
+        ``progress(done, total, what)`` after every fit, in the order of the fits (``total`` grows while the
+        lumped terms are chosen).
 
     Returns
     -------
@@ -328,26 +422,39 @@ def refine_model(
         raise InputError(f"`workers` must be a positive integer; got {workers!r}")
     lash = dict(masses=masses, backlash=backlash, backlash_source=backlash_source)
     structures = {name: candidate_joint_model(name, start, choice, **lash) for name in choice.candidates}
-    tasks = _tasks(capture, start, targets, settings, choice, tracker_from_base, structures, instrument)
+    fold_of = pose_folds(capture, choice.folds, choice.seed) if choice.folds else None
+    common = dict(
+        capture=capture, start=start.geometric(), targets=targets, settings=settings,
+        tracker_from_base=tracker_from_base,
+    )  # fmt: skip
+
+    def tasks_of(model: str, joint_model: JointModel | None) -> list[FitTask]:
+        return _fit_tasks(model, joint_model, common, choice, fold_of, instrument)
+
+    announced = {}
+    with open_executor(workers=workers) as executor:
+        runner = _Runner(executor, progress)
+        for name, structure in structures.items():
+            if structure is not None and structure.lumped:
+                structures[name], announced[name] = smallest_lumped(name, structure, start.robot, runner, tasks_of, choice)
+        tasks = [task for name in choice.candidates for task in tasks_of(name, structures[name])]
+        outcomes = runner.run(tasks)
     fits, held_out, emitted = {}, {name: [] for name in choice.candidates}, {}
-    with open_executor(workers=min(workers, len(tasks))) as executor:
-        for done, (task, outcome) in enumerate(zip(tasks, executor.map(run_fit, tasks), strict=True), start=1):
-            if isinstance(outcome, _Refused):
-                raise IdentifiabilityError(outcome.message, parameters=outcome.parameters)
-            if task.fold is None:
-                fits[task.model] = _read_only(outcome.result)
-                emitted[task.model] = list(outcome.warnings)
-            else:
-                held_out[task.model].append((outcome.success, outcome.held_out))
-                for found in outcome.warnings:  # what a fold raises besides what it cannot determine, as it comes
-                    warnings.warn_explicit(*found)
-            if progress is not None:
-                progress(done, len(tasks), task.model if task.fold is None else f"{task.model} CV")
+    for task, outcome in zip(tasks, outcomes, strict=True):
+        if task.fold is None:
+            fits[task.model] = _read_only(outcome.result)
+            emitted[task.model] = list(outcome.warnings)
+        else:
+            held_out[task.model].append((outcome.success, outcome.held_out))
+            for found in outcome.warnings:  # what a fold raises besides what it cannot determine
+                warnings.warn_explicit(*found)
     validations = {
         name: _validation(name, fits[name], held_out[name], choice) for name in choice.candidates if choice.folds
     }
     model_choice = choose_model(tuple(validations.values())) if choice.model == "auto" else None
     chosen = model_choice.chosen if model_choice is not None else choice.model
+    if chosen in announced:
+        warnings.warn(announced[chosen], IdentifiabilityWarning, stacklevel=2)
     for found in emitted[chosen]:  # only the chosen model's warnings are shown
         warnings.warn_explicit(*found)
     return replace(fits[chosen], cross_validation=validations.get(chosen), model_choice=model_choice)

@@ -72,6 +72,7 @@ __all__ = [
     "gravity_regressor",
     "gravity_torques",
     "lumped_terms",
+    "lumped_levels",
     "lash_turns",
     "motion_direction",
 ]
@@ -485,3 +486,21 @@ def lumped_terms(
         for b, (vector, value) in enumerate(zip(vt[keep], s[keep], strict=True)):
             out[f"J{joint + 1}.g{b + 1}"] = vector * (np.sqrt(poses) / value)  # unit RMS torque over the sample
     return out
+
+
+def lumped_levels(model: JointModel, robot) -> list[JointModel]:
+    """The nested lumped forms of ``model`` (:func:`lumped_terms`): level b keeps the first b terms of every compliant
+    joint (its b largest torque shapes) and every other parameter, with their values; the last level is ``model``'s
+    set. A model without lumped terms is its only level."""
+    depth = max((int(name.split(".g")[1]) for name in model.lumped), default=0)
+    if not depth:
+        return [model]
+    levels = []
+    for level in range(1, depth + 1):
+        keep = [k for k, name in enumerate(model.names) if name not in model.lumped or int(name.split(".g")[1]) <= level]
+        subset = JointModel.assemble(
+            robot, [model.names[k] for k in keep], model.values[keep], identified=model.identified[keep],
+            masses=model.masses, lumped=model.lumped, gravity=model.gravity,
+        )  # fmt: skip
+        levels.append(subset.with_backlash(model.backlash, model.backlash_source) if model.has_backlash else subset)
+    return levels
