@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, Literal, cast
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -119,7 +119,7 @@ def filter_program(
         controller = load_robot(controller)
     if not isinstance(program, Program):
         program = read_program(program, language=language, dat=dat, config_dat=config_dat, encoding=encoding)
-    result = filter_core(cast(Program, program), parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
+    result = filter_core(program, parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
     if draws is None:
         return result
     return program_tcp_uncertainty(result, parameters.robot, controller or parameters.robot, draws, frames)

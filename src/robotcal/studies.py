@@ -100,7 +100,7 @@ def diagnose_joints(
     robot: RobotModel | Scenario | None = None,
     *,
     backlash: bool = True,
-    circle_fit: str | None = None,
+    circle_fit: Literal["geometric", "algebraic"] | None = None,
     order: int = 2,
     match_tolerance_deg: float = 1e-3,
 ) -> JointAnalysis:

@@ -40,6 +40,7 @@ Points are listed in the order of their first use.
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -156,8 +157,8 @@ class _Target:
 
 
 def read_program(
-    src_path: str | Path, *, dat_path: str | Path | None = None, config_dat: str | Path | None = None,
-    encoding: str = "utf-8",
+    src_path: str | os.PathLike[str], *, dat_path: str | os.PathLike[str] | None = None,
+    config_dat: str | os.PathLike[str] | None = None, encoding: str = "utf-8",
 ) -> Program:
     """Read a KRL program: its ``.src``, its ``.dat`` and, optionally, a ``$config.dat``.
 
