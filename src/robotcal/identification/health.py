@@ -285,6 +285,7 @@ def assess_fit(
             f"({noise:.4g} mm, {noise_source}), above {RESIDUAL_RATIO_LIMIT:g}: {unexplained:.3g} mm RMS per point "
             "is not explained by the model"
         )
+    advice: tuple[str, ...]
     if failed:
         verdict: Verdict = "FAILED"
         problems, advice = failed + model, ("do not use these parameters; correct the input or the start and fit again",)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from functools import cache
 from importlib import resources
+from typing import Any, Literal
 
 import numpy as np
 
@@ -56,7 +57,10 @@ def _in_plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(normal, u)
 
 
-def viewer_scene(capture: Capture, *, tracker_from_base=None, circle_fit: str = "geometric") -> dict:
+def viewer_scene(
+    capture: Capture, *, tracker_from_base: np.ndarray | None = None,
+    circle_fit: Literal["geometric", "algebraic"] = "geometric",
+) -> dict:
     """The scene of the 3-D view: points, fitted circles and axes per circle, base frame, bounds.
 
     Parameters
@@ -76,7 +80,10 @@ def viewer_scene(capture: Capture, *, tracker_from_base=None, circle_fit: str = 
         ``axes`` (circle index, label, point, unit direction, half length [mm]), ``frames``,
         ``bounds`` (``min``, ``max`` [mm]) and ``notes`` (circles that could not be fitted).
     """
-    circles, axes, notes, extremes = [], [], [], [capture.points]
+    circles: list[dict[str, Any]] = []
+    axes: list[dict[str, Any]] = []
+    notes: list[str] = []
+    extremes = [capture.points]
     for index, number in enumerate(np.unique(capture.circle)):
         points = capture.points[capture.circle == number]
         entry = {

@@ -65,8 +65,8 @@ def _candidates_table(candidates: list[dict], chosen: str, reason: str) -> list:
 def _joint_model_blocks(document: dict | None) -> list:
     """The deployed refinement's joint-model parameters with their u."""
     blocks: list = []
-    joint_model = (document or {}).get("joint_model")
-    parameters = [p for p in (joint_model or {}).get("parameters") or [] if isinstance(p, dict)]
+    joint_model = (document or {}).get("joint_model") or {}
+    parameters = [p for p in joint_model.get("parameters") or [] if isinstance(p, dict)]
     if parameters:
         masses = joint_model.get("masses") if isinstance(joint_model.get("masses"), dict) else None
         source = (
