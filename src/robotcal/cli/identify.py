@@ -94,5 +94,6 @@ def identify(
             f"base frame registered with the identified model: RMS residual {result.registration_rms:.4f} mm",
             highlight=False,
         )
+    assert result.health is not None  # robotcal.identify always judges the fit
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
     print_health(result.health)
