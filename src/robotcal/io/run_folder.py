@@ -186,7 +186,7 @@ class RunResult:
 
     def __repr__(self) -> str:
         """One line for notebooks: where, how it ended, what was deployed and how good it is."""
-        stages = self.record.get("stages") if isinstance(self.record.get("stages"), dict) else {}
+        stages = found if isinstance(found := self.record.get("stages"), dict) else {}
         done = sum(1 for entry in stages.values() if isinstance(entry, dict) and entry.get("status") == "done")
         parts = [f"folder={str(self.folder)!r}" if self.folder is not None else "in memory", f"status={self.status!r}"]
         if stages:

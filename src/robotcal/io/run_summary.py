@@ -265,7 +265,7 @@ def _not_determined(documents: Mapping, data: Mapping) -> dict[str, str]:
     """The refined model's parameters its refinement does not determine on their own, with why: those it holds
     (``held``, ``gauge``) and the free ones that take up their effect (``confounded``: only their combination is
     determined), from ``refine/<criterion>.json``'s provenance (identification/refine.py)."""
-    criterion = data.get("criterion") if isinstance(data.get("criterion"), str) else "points"
+    criterion = found if isinstance(found := data.get("criterion"), str) else "points"
     provenance = _json(documents, f"refine/{criterion}.json").get("provenance")
     provenance = provenance if isinstance(provenance, Mapping) else {}
 
