@@ -53,8 +53,9 @@ from robotcal.identification.settings import (
     RefinementSettings,
 )
 from robotcal.identification.targets import Target
+from robotcal.instruments import Instrument
 from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques
-from robotcal.kinematics.model import LinkMasses, ParameterSet, RobotModel
+from robotcal.kinematics.model import LinkMasses, ParameterSet, ReflectorMount, RobotModel
 
 __all__ = [
     "MODELS",
@@ -122,7 +123,8 @@ def joint_model_for(
     if model == "geometric":
         return None
     masses = robot.masses if masses is None else masses
-    compliance, harmonic = (), ()
+    compliance: Sequence[int] = ()
+    harmonic: Sequence[int] = ()
     if "compliance" in model:
         compliance = (
             default_compliance_joints(robot, masses, gravity) if compliance_joints is None else compliance_joints
@@ -213,11 +215,11 @@ class FitTask:
     model: str
     capture: Capture
     start: ParameterSet
-    targets: object
+    targets: ReflectorMount | Target | Sequence[Target]
     settings: RefinementSettings
     tracker_from_base: np.ndarray | None
     joint_model: JointModel | None
-    instrument: object = None
+    instrument: Instrument | None = None
     fold: int | None = None
     fold_of: np.ndarray | None = None
 
@@ -329,7 +331,9 @@ def refine_model(
     lash = dict(masses=masses, backlash=backlash, backlash_source=backlash_source)
     structures = {name: candidate_joint_model(name, start, choice, **lash) for name in choice.candidates}
     tasks = _tasks(capture, start, targets, settings, choice, tracker_from_base, structures, instrument)
-    fits, held_out, emitted = {}, {name: [] for name in choice.candidates}, {}
+    fits: dict[str, RefinementResult] = {}
+    held_out: dict[str, list[tuple[bool, np.ndarray]]] = {name: [] for name in choice.candidates}
+    emitted: dict[str, list] = {}
     with open_executor(workers=min(workers, len(tasks))) as executor:
         for done, (task, outcome) in enumerate(zip(tasks, executor.map(run_fit, tasks), strict=True), start=1):
             if isinstance(outcome, _Refused):
