@@ -34,7 +34,6 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.deploy import compensate, export_model, filter_program, import_capture, iso9283, predict
@@ -212,7 +211,7 @@ def simulate(
 
 def simulate_poses(
     robot: RobotModel | Scenario,
-    poses_deg: ArrayLike | None = None,
+    poses_deg: np.typing.ArrayLike | None = None,
     *,
     n_poses: int | None = None,
     targets: ReflectorMount | Sequence[Target] | None = None,
@@ -376,7 +375,7 @@ def refine(
     health: Health = "warn",
     model: ModelName | None = None,
     folds: int | None = None,
-    backlash_deg: ArrayLike | JointAnalysis | None = None,
+    backlash_deg: np.typing.ArrayLike | JointAnalysis | None = None,
     workers: int = 1,
     progress: Callable[[int, int | None, str], None] | None = None,
     settings: RefinementSettings | None = None,
@@ -465,8 +464,7 @@ def refine(
         tracker_from_base=tracker_from_base, masses=link_masses(robot, scenario), backlash=lash,
         backlash_source=lash_source, instrument=_instrument(instrument, scenario), workers=workers, progress=progress,
     )  # fmt: skip
-    if health != "off":
-        assert result.health is not None  # every refinement judges its fit
+    if health != "off" and result.health is not None:  # (never None: every refinement judges its fit)
         report_health(result.health, source=capture.source, strict=health == "strict")
     return result
 

@@ -53,6 +53,15 @@ def _numbers(text: str, option: str, count: int | None = None) -> np.ndarray:
     return values
 
 
+def _interval_kind(interval: str) -> IntervalKind:
+    """``--interval`` checked: one of INTERVAL_KINDS."""
+    from robotcal.uncertainty.statistics import INTERVAL_KINDS
+
+    if interval not in INTERVAL_KINDS:
+        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
+    return cast("IntervalKind", interval)
+
+
 def _draws_path(draws: Path | None, run: Path | None) -> Path:
     if (draws is None) == (run is None):
         raise InputError("give exactly one of --draws FILE and --run DIR")
@@ -199,14 +208,11 @@ def tcp(
     from robotcal.io.draws_npz import read_draws
     from robotcal.io.provenance import versions
     from robotcal.io.tcp_results import write_tcp_folder
-    from robotcal.uncertainty.statistics import INTERVAL_KINDS
 
     started = time.perf_counter()
     if sum(option is not None for option in (pose, trajectory, workspace)) != 1:
         raise InputError("give exactly one of --pose, --trajectory and --workspace")
-    if interval not in INTERVAL_KINDS:
-        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
-    kind = cast("IntervalKind", interval)  # one of INTERVAL_KINDS, checked above
+    kind = _interval_kind(interval)
     if workspace is not None:
         check_memory(
             f"--workspace {workspace}",

@@ -22,6 +22,8 @@ from robotcal.geometry.fits import fit_circle_3d
 
 __all__ = ["CIRCLE_COLOURS", "viewer_scene", "render_viewer", "asset_text"]
 
+CircleFit = Literal["geometric", "algebraic"]  # [identification] circle_fit
+
 #: One colour per circle (colour-blind-safe qualitative palette), cycled beyond ten circles.
 CIRCLE_COLOURS = (
     "#0072b2",
@@ -58,8 +60,7 @@ def _in_plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def viewer_scene(
-    capture: Capture, *, tracker_from_base: np.ndarray | None = None,
-    circle_fit: Literal["geometric", "algebraic"] = "geometric",
+    capture: Capture, *, tracker_from_base: np.ndarray | None = None, circle_fit: CircleFit = "geometric"
 ) -> dict:
     """The scene of the 3-D view: points, fitted circles and axes per circle, base frame, bounds.
 
@@ -82,8 +83,7 @@ def viewer_scene(
     """
     circles: list[dict[str, Any]] = []
     axes: list[dict[str, Any]] = []
-    notes: list[str] = []
-    extremes = [capture.points]
+    notes, extremes = [], [capture.points]
     for index, number in enumerate(np.unique(capture.circle)):
         points = capture.points[capture.circle == number]
         entry = {
