@@ -470,8 +470,8 @@ def refine(
 
 
 def evaluate(
-    captures: Any,
-    parameter_sets: Mapping[str, Any],
+    captures: Capture | PathLike | Mapping[str, Capture | PathLike],
+    parameter_sets: Mapping[str, ParameterSource],
     robot: RobotModel | Scenario,
     *,
     targets: Any = None,
