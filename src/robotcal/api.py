@@ -56,6 +56,7 @@ from robotcal.resolve import (
     DEFAULT_TRAJECTORY,
     KUKA_CONTROLLER_ROBOT,
     TABLE_5_8_READINGS_DEG,
+    ParameterSource,
     TCPTargets,
     calibration_capture,
     capture_targets,
@@ -170,7 +171,7 @@ def simulate(
     *,
     instrument: Instrument | None = None,
     tracker_from_base: np.ndarray | None = None,
-    true_parameters: Any = None,
+    true_parameters: ParameterSource = None,
     joint_errors: JointErrorModel | None = None,
     joint_limits: str | None = None,
     rng: np.random.Generator | int | None = None,
@@ -210,7 +211,7 @@ def simulate(
 
 def simulate_poses(
     robot: RobotModel | Scenario,
-    poses_deg: Any = None,
+    poses_deg: np.typing.ArrayLike | None = None,
     *,
     n_poses: int | None = None,
     targets: ReflectorMount | Sequence[Target] | None = None,
@@ -219,7 +220,7 @@ def simulate_poses(
     min_height_mm: float | None = None,
     instrument: Instrument | None = None,
     tracker_from_base: np.ndarray | None = None,
-    true_parameters: Any = None,
+    true_parameters: ParameterSource = None,
     kind: Literal["validation", "calibration"] = "validation",
     rng: np.random.Generator | int | None = None,
 ) -> Capture:
@@ -281,11 +282,11 @@ def simulate_poses(
 
 
 def identify(
-    capture,
-    robot,
+    capture: Capture | PathLike,
+    robot: RobotModel | Scenario,
     *,
     target: ReflectorMount | Target | str | None = None,
-    tracker_from_base=None,
+    tracker_from_base: np.ndarray | None = None,
     options: CPAOptions | None = None,
     instrument: Instrument | None = None,
     check: bool = True,
@@ -363,22 +364,22 @@ def identify(
 
 
 def refine(
-    capture,
-    robot,
-    start=None,
+    capture: Capture | PathLike,
+    robot: RobotModel | Scenario,
+    start: ParameterSource = None,
     *,
     targets: ReflectorMount | Target | Sequence[Target] | None = None,
-    tracker_from_base=None,
+    tracker_from_base: np.ndarray | None = None,
     criterion: Criterion = "points",
     instrument: Instrument | None = None,
     health: Health = "warn",
     model: ModelName | None = None,
     folds: int | None = None,
-    backlash_deg=None,
+    backlash_deg: np.typing.ArrayLike | JointAnalysis | None = None,
     workers: int = 1,
     progress: Callable[[int, int | None, str], None] | None = None,
     settings: RefinementSettings | None = None,
-    **options,
+    **options: Any,
 ) -> RefinementResult:
     """Least-squares refinement over every measured point (thesis ch. 4.5.7), geometric or extended (issue 22).
 
@@ -463,14 +464,14 @@ def refine(
         tracker_from_base=tracker_from_base, masses=link_masses(robot, scenario), backlash=lash,
         backlash_source=lash_source, instrument=_instrument(instrument, scenario), workers=workers, progress=progress,
     )  # fmt: skip
-    if health != "off":
+    if health != "off" and result.health is not None:  # (never None: every refinement judges its fit)
         report_health(result.health, source=capture.source, strict=health == "strict")
     return result
 
 
 def evaluate(
-    captures: Any,
-    parameter_sets: Mapping[str, Any],
+    captures: Capture | PathLike | Mapping[str, Capture | PathLike],
+    parameter_sets: Mapping[str, ParameterSource],
     robot: RobotModel | Scenario,
     *,
     targets: Any = None,
@@ -531,7 +532,7 @@ def monte_carlo_problem(
     plan: CapturePlan | None = None,
     instrument: Instrument | None = None,
     tracker_from_base: np.ndarray | None = None,
-    parameters: Any = None,
+    parameters: ParameterSource = None,
     options: CPAOptions | None = None,
     joint_errors: JointErrorModel | None = None,
     joint_limits: str | None = None,
@@ -585,7 +586,7 @@ def monte_carlo(
     plan: CapturePlan | None = None,
     instrument: Instrument | None = None,
     tracker_from_base: np.ndarray | None = None,
-    parameters: Any = None,
+    parameters: ParameterSource = None,
     options: CPAOptions | None = None,
     joint_errors: JointErrorModel | None = None,
     joint_limits: str | None = None,

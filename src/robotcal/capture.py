@@ -12,9 +12,11 @@ uncertainty of each coordinate is U / 2).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
@@ -60,7 +62,7 @@ class Capture:
     target_names: tuple[str, ...] = ()
     u95: np.ndarray | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         circle = np.asarray(self.circle)
         readings = np.asarray(self.readings, dtype=float)
         points = np.asarray(self.points, dtype=float)
@@ -141,13 +143,13 @@ class Capture:
             return None
         return tuple(self.target_names[k] for k in self.target)
 
-    def with_points(self, points) -> Capture:
+    def with_points(self, points: ArrayLike) -> Capture:
         """The same capture with other target positions (e.g. noisy copies)."""
         return Capture(
             circle=self.circle,
             direction=self.direction,
             readings=self.readings,
-            points=points,
+            points=np.asarray(points),
             source=self.source,
             seed=self.seed,
             target=self.target,
@@ -155,7 +157,7 @@ class Capture:
             u95=self.u95,
         )
 
-    def select(self, rows) -> Capture:
+    def select(self, rows: ArrayLike) -> Capture:
         """The capture restricted to ``rows`` (indices or a bool mask), every column kept."""
         rows = np.asarray(rows)
         return Capture(
@@ -171,7 +173,7 @@ class Capture:
         )
 
 
-def join_captures(parts, *, source: str) -> Capture:
+def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -> Capture:
     """Captures one after the other as one capture with a ``target`` column.
 
     ``parts``: ``(capture, name)`` pairs; a capture with a ``target`` column keeps its own names (``name`` None),

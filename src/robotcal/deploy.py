@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, Literal, cast
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
@@ -23,6 +24,7 @@ from robotcal.io.scenario import Scenario
 from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.resolve import (
+    ParameterSource,
     as_capture,
     as_parameters,
     calibrated_parameters,
@@ -46,13 +48,13 @@ PathLike = str | os.PathLike
 
 
 def compensate(
-    parameters: Any,
+    parameters: ParameterSource,
     robot: RobotModel | Scenario | None = None,
     *,
-    poses_deg: Any = None,
-    cartesian: Any = None,
-    start_deg: Any = None,
-    tool_mm: Any = None,
+    poses_deg: ArrayLike | None = None,
+    cartesian: ArrayLike | None = None,
+    start_deg: ArrayLike | None = None,
+    tool_mm: ArrayLike | None = None,
     settings: CompensationSettings | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Compensation:
@@ -88,7 +90,7 @@ def compensate(
 
 def filter_program(
     program: PathLike | Program,
-    parameters: Any,
+    parameters: ParameterSource,
     robot: RobotModel | Scenario | None = None,
     *,
     controller: RobotModel | str | None = None,
@@ -97,7 +99,7 @@ def filter_program(
     dat: PathLike | None = None,
     config_dat: PathLike | None = None,
     encoding: str = "utf-8",
-    start_deg: Any = None,
+    start_deg: ArrayLike | None = None,
     settings: CompensationSettings | None = None,
     draws: Any = None,
 ) -> FilteredProgram:
@@ -119,18 +121,18 @@ def filter_program(
         controller = load_robot(controller)
     if not isinstance(program, Program):
         program = read_program(program, language=language, dat=dat, config_dat=config_dat, encoding=encoding)
-    result = filter_core(cast(Program, program), parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
+    result = filter_core(program, parameters, controller=controller, frames=frames, settings=settings, start_deg=start_deg)
     if draws is None:
         return result
     return program_tcp_uncertainty(result, parameters.robot, controller or parameters.robot, draws, frames)
 
 
 def predict(
-    parameters: Any,
-    poses_deg: Any,
+    parameters: ParameterSource,
+    poses_deg: ArrayLike,
     robot: RobotModel | Scenario | None = None,
     *,
-    tool_mm: Any = None,
+    tool_mm: ArrayLike | None = None,
     world_from_base: np.ndarray | None = None,
 ) -> np.ndarray:
     """``world_from_tool`` frames (n_poses, 4, 4) [mm] of the calibrated model at controller readings ``poses_deg``
@@ -167,7 +169,7 @@ def iso9283(
     *,
     nominal: bool = True,
     tracker_from_base: np.ndarray | None = None,
-    point_mm: Any = None,
+    point_mm: ArrayLike | None = None,
     targets_mm: Mapping[str, Any] | None = None,
     poses_per_cycle: int = 5,
     distance_poses: tuple[int, int] = (2, 4),
@@ -241,11 +243,11 @@ def import_capture(
 
 
 def export_model(
-    parameters: Any,
+    parameters: ParameterSource,
     format: Literal["json", "urdf", "ur-yaml", "dh", "mdh"] = "json",
     robot: RobotModel | Scenario | None = None,
     *,
-    tool_mm: Any = None,
+    tool_mm: ArrayLike | None = None,
     joint_variable: Literal["reading", "model"] = "reading",
     markdown: bool = False,
     provenance: Mapping[str, Any] | None = None,

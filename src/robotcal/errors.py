@@ -17,6 +17,7 @@ import os
 import signal
 from collections.abc import Iterator
 from contextlib import contextmanager
+from types import FrameType
 
 __all__ = [
     "RobotcalError",
@@ -108,7 +109,7 @@ def _interrupt(signal_name: str) -> KeyboardInterrupt:
     return KeyboardInterrupt() if signal_name == "SIGINT" else Terminated(signal_name)
 
 
-def _on_signal(signum, frame) -> None:
+def _on_signal(signum: int, frame: FrameType | None) -> None:
     """The command line's handler of :data:`INTERRUPT_SIGNALS` (:func:`install_interrupt_handlers`).
 
     In the main process: record the signal, and raise its interrupt for the first one only (a second signal must not

@@ -14,9 +14,10 @@ import os
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture, join_captures
 from robotcal.errors import InputError, JointLimitWarning
@@ -31,6 +32,8 @@ from robotcal.limits import SEED_BOUND
 from robotcal.uncertainty.tcp import check_readings
 
 if TYPE_CHECKING:
+    from robotcal.identification.cpa import CPAResult
+    from robotcal.identification.records import RefinementResult
     from robotcal.kinematics.joint_model import JointModel
     from robotcal.programs.filter import FilteredProgram
     from robotcal.uncertainty.montecarlo import MonteCarloSettings
@@ -39,6 +42,7 @@ __all__ = [
     "DEFAULT_TRAJECTORY",
     "KUKA_CONTROLLER_ROBOT",
     "TABLE_5_8_READINGS_DEG",
+    "ParameterSource",
     "TCPTargets",
     "as_capture",
     "as_parameters",
@@ -64,6 +68,10 @@ __all__ = [
 ]
 
 T = TypeVar("T")
+
+#: What a ``parameters`` (or ``start``) argument takes: a ParameterSet, a CPA or refinement result holding one, the
+#: path of a parameter JSON, or None (the nominal parameters; where the argument may be None).
+ParameterSource: TypeAlias = "ParameterSet | CPAResult | RefinementResult | str | os.PathLike[str] | None"
 
 #: Robot whose readings are KUKA controller angles; the thesis's Table 5.8 pose and the built-in
 #: trajectories are given in its readings.
@@ -147,12 +155,13 @@ def as_capture(capture: Capture | str | os.PathLike, robot: RobotModel, name: st
     raise InputError(f"`{name}` must be a Capture or the path of a capture CSV; got {type(capture).__name__}")
 
 
-def as_parameters(parameters: Any, robot: RobotModel, name: str = "parameters") -> ParameterSet:
+def as_parameters(parameters: ParameterSource, robot: RobotModel, name: str = "parameters") -> ParameterSet:
     """A ParameterSet from a ParameterSet, a result holding one, a parameter JSON path, or None (nominal)."""
     if parameters is None:
         return ParameterSet.nominal(robot)
-    if isinstance(getattr(parameters, "parameters", None), ParameterSet):  # CPAResult, RefinementResult
-        parameters = parameters.parameters
+    held = getattr(parameters, "parameters", None)
+    if isinstance(held, ParameterSet):  # CPAResult, RefinementResult
+        parameters = held
     elif isinstance(parameters, str | os.PathLike):
         from robotcal.io.parameters_json import read_parameters
 
@@ -177,7 +186,7 @@ def scenario_instrument(instrument: Instrument | None, scenario: Scenario | None
     return scenario.instrument if scenario.has_instrument else None
 
 
-def calibrated_parameters(parameters: Any, robot: RobotModel | Scenario | None) -> ParameterSet:
+def calibrated_parameters(parameters: ParameterSource, robot: RobotModel | Scenario | None) -> ParameterSet:
     """The calibrated model of ``compensate`` and ``filter_program``: a ParameterSet, a result holding one, or a
     parameter JSON path read for ``robot`` (a RobotModel or a Scenario)."""
     if robot is None:
@@ -413,7 +422,7 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
                 f"{where}.readings_robot`: robot {readings_robot.name!r} does not share the model of {robot.name!r}"
             )
 
-    def checked(values, key, source_robot):
+    def checked(values: ArrayLike, key: str, source_robot: RobotModel) -> np.ndarray:
         values = np.asarray(values, dtype=float)
         if values.ndim != 2 or values.shape[1] != robot.n_joints:
             raise InputError(
@@ -476,10 +485,10 @@ def tcp_targets(scenario: Scenario) -> TCPTargets:
 def compensation_targets(
     robot: RobotModel,
     *,
-    poses_deg: Any = None,
-    cartesian: Any = None,
-    start_deg: Any = None,
-    tool_mm: Any = None,
+    poses_deg: ArrayLike | None = None,
+    cartesian: ArrayLike | None = None,
+    start_deg: ArrayLike | None = None,
+    tool_mm: ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The tool frames a compensation must reach, the readings taught for them and the tool, from joint poses taught
     on the nominal model [deg] or Cartesian targets ``x, y, z`` [mm], ``A, B, C`` [deg, KUKA] (see
@@ -607,7 +616,7 @@ def simulation_inputs(scenario: Scenario, **given: Any) -> tuple[Any, ...]:
     return tuple(getattr(scenario, fields.get(key, key)) if value is None else value for key, value in given.items())
 
 
-def cpa_rows(capture: Capture, target) -> tuple[Capture, ReflectorMount]:
+def cpa_rows(capture: Capture, target: ReflectorMount | Target | str | None) -> tuple[Capture, ReflectorMount]:
     """The rows CPA uses and their (known) target: all rows, or with a ``target`` column those of ``target``
     (a Target or a name; None: the capture's first target)."""
     if isinstance(target, ReflectorMount):
@@ -644,7 +653,7 @@ def model_choice_settings(scenario: Scenario | None, model: str | None, folds: i
     """The model-choice settings: the arguments, else the scenario's ``[joint_model]`` (joints made 0-based)."""
     table = scenario.joint_model if scenario is not None else JointModelTable()
 
-    def joints(values):
+    def joints(values: tuple[int, ...] | None) -> tuple[int, ...] | None:
         return None if values is None else tuple(j - 1 for j in values)
 
     return ModelChoiceSettings(

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics, analyze_joints, fit_harmonics
@@ -27,6 +28,7 @@ from robotcal.instruments import Instrument
 from robotcal.io.scenario import Scenario
 from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.resolve import (
+    ParameterSource,
     as_capture,
     as_parameters,
     capture_targets,
@@ -79,7 +81,7 @@ class JointAnalysis:
         return f"JointAnalysis({len(self.diagnostics.circles)} circles, backlash={self.diagnostics.backlash})"
 
 
-def backlash_correction(backlash, robot: RobotModel) -> tuple[np.ndarray | None, str]:
+def backlash_correction(backlash: ArrayLike | JointAnalysis | None, robot: RobotModel) -> tuple[np.ndarray | None, str]:
     """The lash correction [rad] and its source from ``backlash_deg`` (array [deg] or a JointAnalysis)."""
     if backlash is None:
         return None, ""
@@ -100,7 +102,7 @@ def diagnose_joints(
     robot: RobotModel | Scenario | None = None,
     *,
     backlash: bool = True,
-    circle_fit: str | None = None,
+    circle_fit: Literal["geometric", "algebraic"] | None = None,
     order: int = 2,
     match_tolerance_deg: float = 1e-3,
 ) -> JointAnalysis:
@@ -167,10 +169,10 @@ def check_plan(
 def change_plan(
     scenario: Scenario,
     *,
-    start_deg: Any = None,
-    sweep_deg: Any = None,
+    start_deg: ArrayLike | None = None,
+    sweep_deg: ArrayLike | None = None,
     points: Any = None,
-    reflector_mm: Any = None,
+    reflector_mm: ArrayLike | None = None,
     bidirectional: bool | None = None,
 ) -> Scenario:
     """The scenario with another capture plan: the keys given replace those of ``[capture]`` (``start_deg``: one
@@ -275,9 +277,9 @@ def sensitivity(
 def tcp_uncertainty(
     robot: RobotModel | Scenario,
     draws: Any,
-    poses_deg: Any,
+    poses_deg: ArrayLike,
     *,
-    tool_mm: Any = None,
+    tool_mm: ArrayLike | None = None,
     coverage: float = 0.95,
     keep_draws: bool = False,
 ) -> TCPUncertainty:
@@ -319,7 +321,7 @@ def workspace_uncertainty(
     draws: Any,
     n_poses: int = 1000,
     *,
-    tool_mm: Any = None,
+    tool_mm: ArrayLike | None = None,
     coverage: float = 0.95,
     rng: np.random.Generator | int | None = 0,
     draws_used: int | None = None,
@@ -339,7 +341,7 @@ def workspace_uncertainty(
 
 def validation_consistency(
     validation: Capture,
-    estimate: Any,
+    estimate: ParameterSource,
     draws: Any,
     robot: RobotModel | Scenario,
     *,
@@ -374,7 +376,7 @@ def validation_consistency(
 def measured_monte_carlo(
     capture: Capture | PathLike,
     robot: RobotModel | Scenario,
-    estimate: Any,
+    estimate: ParameterSource,
     *,
     targets: Any = None,
     instrument: Instrument | None = None,
@@ -430,7 +432,7 @@ def measured_monte_carlo(
 
 def coverage_study(
     robot: RobotModel | Scenario,
-    truth: Any,
+    truth: ParameterSource,
     *,
     captures: int,
     draws: int,
@@ -439,7 +441,7 @@ def coverage_study(
     tracker_from_base: np.ndarray | None = None,
     options: CPAOptions | None = None,
     joint_errors: JointErrorModel | None = None,
-    tcp_readings_deg: Any = None,
+    tcp_readings_deg: ArrayLike | None = None,
     **study: Any,
 ) -> CoverageStudy:
     """Empirical coverage of the Monte Carlo and linearised intervals over ``captures`` simulated captures of one

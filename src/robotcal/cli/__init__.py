@@ -76,7 +76,7 @@ def exit_interrupted(interrupt: KeyboardInterrupt, say=None) -> NoReturn:
     (say or _say_plain)("interrupted" if name == "SIGINT" else f"terminated ({name})")
     _silence_broken_streams()
     ending = SystemExit(EXIT_STATUS.get(name, EXIT_STATUS["SIGINT"]))
-    ending.robotcal_reported = True
+    ending.robotcal_reported = True  # type: ignore[attr-defined]  # a mark on the exception, read by main() with getattr
     raise ending
 
 

@@ -13,7 +13,8 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from typing import TYPE_CHECKING, Annotated
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -41,7 +42,7 @@ if TYPE_CHECKING:  # imported where used: `robotcal --help` and main() stay ligh
 
 #: Settings of the two consoles, created on first use (module ``__getattr__``): ``console`` for
 #: results on stdout, ``error_console`` for messages on stderr (each message stays on one line).
-_CONSOLES = {
+_CONSOLES: dict[str, dict[str, Any]] = {  # the keyword arguments of each rich Console
     "console": {"markup": False},
     "error_console": {"stderr": True, "soft_wrap": True, "markup": False},
 }
@@ -196,6 +197,7 @@ def parameter_table(
             if robot.structurally_fixed[i, k]:
                 continue
             unit = KIND_UNITS[kind]
+            shown: str | Text
             if identified.identified[i, k]:
                 shown, diff = (
                     f"{_display(kind, identified.values[i, k]):.6f}",
@@ -304,14 +306,17 @@ class LineProgress:
     ``update(task, completed=..., total=...)``.
     """
 
-    def __init__(self, title: str, unit: str, *, console, interval_s: float = PROGRESS_LINE_INTERVAL_S, clock=None):
+    def __init__(
+        self, title: str, unit: str, *, console: Console, interval_s: float = PROGRESS_LINE_INTERVAL_S,
+        clock: Callable[[], float] | None = None,
+    ):
         import time
 
         self.title, self.unit, self.console, self.interval_s = title, unit, console, interval_s
         self.clock = time.monotonic if clock is None else clock
         self.tasks: list[dict] = []
         self.lines = 0
-        self._started = self._last = None
+        self._started = self._last = 0.0  # the clock's time, from __enter__
 
     def __enter__(self) -> LineProgress:
         self._started = self._last = self.clock()

@@ -22,7 +22,9 @@ from typing import TYPE_CHECKING, Literal
 
 if TYPE_CHECKING:
     from rich.console import Console, ConsoleOptions, RenderResult
+    from rich.padding import Padding
     from rich.table import Table
+    from rich.text import Text
 
 __all__ = ["Column", "FittedTable"]
 
@@ -51,7 +53,7 @@ class Column:
     justify: Literal["left", "right", "center"] | None = None
 
     @property
-    def align(self) -> str:
+    def align(self) -> Literal["left", "right", "center"]:
         return self.justify or ("right" if self.kind == "number" else "left")
 
 
@@ -169,12 +171,12 @@ class FittedTable:
             table.add_row(*(row[index] for index in shown))
         return table
 
-    def record_lines(self) -> list:
+    def record_lines(self) -> list[Text | Padding]:
         """Every row as ``header: value`` lines, the first cell as a heading (nothing fits side by side)."""
         from rich.padding import Padding
         from rich.text import Text
 
-        lines = [Text(self.title, style="italic")] if self.title else []
+        lines: list[Text | Padding] = [Text(self.title, style="italic")] if self.title else []
         for row in self.rows:
             lines.append(Text(_plain(row[0]), style="bold"))
             for column, cell in zip(self.columns[1:], row[1:], strict=True):

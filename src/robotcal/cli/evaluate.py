@@ -70,7 +70,8 @@ def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
     """
     import numpy as np
 
-    bases, notes = {}, {}
+    bases: dict[str, np.ndarray | None] = {}
+    notes: dict[str, str] = {}
     for name, provenance in provenances.items():
         recorded = (provenance or {}).get("tracker_from_base")
         if recorded is not None:

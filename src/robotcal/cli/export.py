@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
@@ -122,12 +122,15 @@ def export(
         provenance = None
     check_output_file(out, inputs=inputs, force=force)
     if format == "json" and provenance is None:
+        assert params is not None  # provenance is None only for a PARAMS file
         provenance = json.loads(Path(params).read_text(encoding="utf-8")).get("provenance", {})
     markdown = Path(out).suffix.lower() in (".md", ".markdown")
     if format == "ur-yaml" and joint_variable != "reading":
         raise InputError("--joint-variable model is written only by --format urdf, dh and mdh")
     text = api.export_model(
-        parameters, format, tool_mm=tool_mm, joint_variable=joint_variable, markdown=markdown,
+        parameters, cast(Literal["json", "urdf", "ur-yaml", "dh", "mdh"], format),  # checked against EXPORT_FORMATS
+        tool_mm=tool_mm, markdown=markdown,
+        joint_variable=cast(Literal["reading", "model"], joint_variable),  # another value: InputError from the export
         provenance=provenance if isinstance(provenance, dict) else {},
     )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):

@@ -94,6 +94,7 @@ def identify(
             f"base frame registered with the identified model: RMS residual {result.registration_rms:.4f} mm",
             highlight=False,
         )
+    assert result.health is not None  # robotcal.identify always judges the fit
     for note in result.health.notes:
         console.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)

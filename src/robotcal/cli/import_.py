@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
 from robotcal.cli._common import Force, command_app, console, handle_errors
+
+if TYPE_CHECKING:
+    from robotcal.io.scenario import Scenario
+    from robotcal.kinematics.model import RobotModel
 
 app = command_app()
 
@@ -72,7 +76,7 @@ def import_(
     if robot is not None and scenario is not None:
         raise InputError("give --robot or --scenario, not both")
     inputs = existing_inputs(export, joints, robot, scenario)
-    model = None
+    model: Scenario | RobotModel | None = None
     if scenario is not None:
         model = load_scenario(scenario)
         inputs += existing_inputs(*model.files)
@@ -80,7 +84,8 @@ def import_(
         model = load_robot(robot)
     check_output_file(out, inputs=inputs, force=force)
     capture, points = api.import_capture(
-        export, joints, model, columns=columns, units=units, delimiter=delimiter, decimal=decimal, join=join,
+        export, joints, model, columns=columns, units=units, delimiter=delimiter, decimal=decimal,
+        join=cast(Literal["name", "order"], join),  # any other text: InputError from the join itself
         encoding=encoding, target=target,
     )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
@@ -140,7 +140,7 @@ def iso9283(
     results = api.iso9283(
         measured, loaded, models, nominal=nominal, point_mm=None if target is None else parse_vector(target, "--target"),
         targets_mm=given_offsets, poses_per_cycle=poses_per_cycle, distance_poses=(int(pair[0]), int(pair[1])),
-        orientation_axes=orientation_axes,
+        orientation_axes=cast(Literal["base", "flange"], orientation_axes),  # one of ORIENTATION_AXES, checked above
     )  # fmt: skip
     with result_file(out, inputs=inputs, force=force):
         atomic_write_text(out, iso_to_csv(results))
@@ -152,6 +152,7 @@ def iso9283(
     for label, r in results.items():
         row = [label, f"{r.ap.max():.4f}", f"{r.rp.max():.4f}", f"{r.ad:.4f}", f"{r.rd:.4f}"]
         if r.has_orientation:
+            assert r.ap_abc is not None and r.rp_abc is not None and r.registration_rms is not None
             row += [
                 f"{np.rad2deg(np.abs(r.ap_abc).max()):.5f}",
                 f"{np.rad2deg(r.rp_abc.max()):.5f}",

@@ -254,9 +254,13 @@ def optimise(
     with progress_bar("Monte Carlo of baseline and optimised plans", "draws") as display:
         task = display.add_task("confirm", total=2 * confirm_draws)
         for k, (name, plan) in enumerate((("baseline", loaded.plan), ("optimised", result.plan))):
+
+            def advance(done: int, _total: int | None, before: int = k * confirm_draws) -> None:
+                display.update(task, completed=before + done)
+
             confirmed[name] = api.plan_tcp_p95(
                 loaded, plan, draws=confirm_draws, rng=seed + 1, workspace_poses=workspace_poses, workspace_seed=seed,
-                progress=lambda done, _, before=k * confirm_draws: display.update(task, completed=before + done),
+                progress=advance,
             )  # fmt: skip
     comparison = {
         "scenario": loaded.source,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
 
@@ -26,6 +26,7 @@ from robotcal.cli._tables import Column, FittedTable
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
 if TYPE_CHECKING:  # numpy, the API and the model load in the command: a fast --help
+    from robotcal.api import Criterion, ModelName
     from robotcal.identification.records import RefinementResult
     from robotcal.kinematics.model import ParameterSet
 
@@ -175,11 +176,12 @@ def refine(
         )
     initial = read_parameters(start, loaded.robot) if start is not None else ParameterSet.nominal(loaded.robot)
     began = time.perf_counter()
+    # the criterion and the model: values _check_options let through
     result = api.refine(
-        measured, loaded, initial, criterion=criterion, on_unidentifiable="raise" if strict else "fix",
-        health="strict" if strict else "warn", weights=weights, model=model, folds=folds, backlash_deg=lash,
-        workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
-        **({"estimate_base": True} if estimate_base else {}),
+        measured, loaded, initial, criterion=cast("Criterion", criterion), on_unidentifiable="raise" if strict else "fix",
+        health="strict" if strict else "warn", weights=weights, model=cast("ModelName | None", model), folds=folds,
+        backlash_deg=lash, workers=min(os.cpu_count() or 1, 4) if workers is None else workers,
+        estimate_base=True if estimate_base else None,  # None: the scenario's base frame decides
     )  # fmt: skip
     refinement_s = time.perf_counter() - began
     provenance = refine_provenance(result, measured, str(start) if start is not None else "nominal", scenario=loaded)
@@ -187,6 +189,7 @@ def refine(
         joint_model_u = result.uncertainty.joint_model_uncertainty
         write_parameters(out, result.parameters, provenance, refined_targets(result), joint_model_u=joint_model_u)
     _print_result(result, initial, start is not None, provenance, refinement_s)
+    assert result.health is not None  # every refinement judges its fit
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
     print_health(result.health)
 
@@ -240,6 +243,7 @@ def _print_result(result: RefinementResult, initial: ParameterSet, given: bool, 
     summary.add_row("free, tied to held ones", ", ".join(identifiability.confounded) or "-")
     for k, target in enumerate(result.targets):
         if not target.known:
+            assert uncertainty.target_uncertainty is not None  # estimated with every unknown offset
             u = uncertainty.target_uncertainty[k]
             shown = ", ".join(f"{v:.4f} ± {e:.4f}" for v, e in zip(target.positions, u, strict=True))
             summary.add_row(f"target {target.name} offset [mm] (± u)", shown)

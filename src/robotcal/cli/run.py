@@ -152,6 +152,7 @@ def run_and_print(plan: RunPlan):
         record = getattr(exc, "robotcal_record", None)
         if record is None:
             raise  # refused before any stage ran (output policy, lock)
+        assert plan.out is not None  # `run` and `demo` always plan a folder
         done = [name for name, entry in record["stages"].items() if entry["status"] == "done"]
         raise RobotcalError(
             f"stage {record.get('failed_stage', '?')!r} failed: {exc}. Earlier stages ({', '.join(done) or 'none'}) "

@@ -112,7 +112,7 @@ def simulate(
         raise InputError("--targets and --targets-mm go with --free-poses N or --poses CSV")
     inputs = existing_inputs(scenario, *loaded.files, true_params, poses)
     if validation or free_poses is not None:
-        count = (loaded.validation or ValidationTable()).poses if validation else free_poses
+        count = free_poses if not validation and free_poses is not None else (loaded.validation or ValidationTable()).poses
         check_memory(
             f"a capture of {count:,} poses",
             count * float(BYTES_PER_POSE) * (1 if validation else max(1, len(loaded.targets))),
@@ -141,7 +141,8 @@ def free_pose_targets(scenario, names: str | None, targets_mm: str | None, true_
     declared = {t.name: t for t in scenario.targets if t.frame == "flange"}
     if names is None:
         # one reflector, one target: the calibration poses' "flange" target sits where [validation]'s does
-        chosen, offsets = [], []
+        chosen: list[str] = []
+        offsets: list[np.ndarray] = []
         for name, target in declared.items():
             if target.known and any(np.array_equal(target.positions, seen) for seen in offsets):
                 continue

@@ -6,7 +6,7 @@ import math
 import time
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
 
@@ -27,6 +27,7 @@ if TYPE_CHECKING:  # numpy, the draws and the uncertainty library load in the co
     import numpy as np
 
     from robotcal.io.draws_npz import ParameterDraws
+    from robotcal.uncertainty.statistics import IntervalKind
     from robotcal.uncertainty.tcp import TCPUncertainty
 
 app = command_app()
@@ -52,11 +53,21 @@ def _numbers(text: str, option: str, count: int | None = None) -> np.ndarray:
     return values
 
 
+def _interval_kind(interval: str) -> IntervalKind:
+    """``--interval`` checked: one of INTERVAL_KINDS."""
+    from robotcal.uncertainty.statistics import INTERVAL_KINDS
+
+    if interval not in INTERVAL_KINDS:
+        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
+    return cast("IntervalKind", interval)
+
+
 def _draws_path(draws: Path | None, run: Path | None) -> Path:
     if (draws is None) == (run is None):
         raise InputError("give exactly one of --draws FILE and --run DIR")
     if draws is not None:
         return draws
+    assert run is not None  # exactly one of the two, checked above
     for candidate in (run / "draws.npz", run / "uncertainty" / "draws.npz"):
         if candidate.is_file():
             return candidate
@@ -72,7 +83,7 @@ def _subset(loaded: ParameterDraws, max_draws: int | None) -> np.ndarray:
     return loaded.values[:max_draws]
 
 
-def _summary_table(result: TCPUncertainty, pose: int, interval: str) -> FittedTable:
+def _summary_table(result: TCPUncertainty, pose: int, interval: IntervalKind) -> FittedTable:
     from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS
 
     low, high = result.summary.interval(interval)
@@ -127,7 +138,7 @@ def _readings(robot, pose: str | None, trajectory: str | None, provenance: dict)
     return "workspace", None
 
 
-def _print_summary(result, ws, mode: str, interval: str) -> None:
+def _print_summary(result, ws, mode: str, interval: IntervalKind) -> None:
     """The console summary of ``robotcal tcp``: the pose's table and ellipsoid, or the range of the position
     uncertainty over the poses (and the workspace percentiles)."""
     import numpy as np
@@ -197,13 +208,11 @@ def tcp(
     from robotcal.io.draws_npz import read_draws
     from robotcal.io.provenance import versions
     from robotcal.io.tcp_results import write_tcp_folder
-    from robotcal.uncertainty.statistics import INTERVAL_KINDS
 
     started = time.perf_counter()
     if sum(option is not None for option in (pose, trajectory, workspace)) != 1:
         raise InputError("give exactly one of --pose, --trajectory and --workspace")
-    if interval not in INTERVAL_KINDS:
-        raise InputError(f"--interval must be one of {', '.join(INTERVAL_KINDS)}; got {interval!r}")
+    kind = _interval_kind(interval)
     if workspace is not None:
         check_memory(
             f"--workspace {workspace}",
@@ -226,7 +235,8 @@ def tcp(
     }
     mode, readings = _readings(robot, pose, trajectory, provenance)
     ws = None
-    if mode == "workspace":
+    if readings is None:  # the workspace mode: exactly one of --pose, --trajectory and --workspace is given
+        assert workspace is not None
         ws = api.workspace_uncertainty(robot, values, workspace, tool_mm=tool_mm, coverage=coverage, rng=seed)
         result = ws.tcp
     else:
@@ -238,10 +248,10 @@ def tcp(
     provenance["mode"] = mode
     provenance["seconds"] = round(time.perf_counter() - started, 3)
     with result_folder(out, inputs=inputs, force=force, command="robotcal tcp") as folder:
-        write_tcp_folder(folder, result, interval=interval, workspace=ws, provenance=provenance)
+        write_tcp_folder(folder, result, interval=kind, workspace=ws, provenance=provenance)
         from robotcal.plots.tcp import write_tcp_figures
 
         write_tcp_figures(result, folder, mode, workspace=ws)
 
-    _print_summary(result, ws, mode, interval)
+    _print_summary(result, ws, mode, kind)
     console.print(f"wrote {out} in {time.perf_counter() - started:.1f} s ({result.n_draws} draws)", highlight=False)

@@ -120,8 +120,9 @@ def select_free(
     n_off = probe.offset_free.size
     n_base = int(probe.base_free.sum())
     own = 5 * n + m  # parameter and joint-model columns
+    first = None  # the columns of ``preferred``, in the column order below
     if preferred is not None:
-        preferred = np.r_[
+        first = np.r_[
             preferred.free.ravel(), preferred.extra_free, preferred.offset_free, preferred.base_free[probe.base_free]
         ]
     # columns: 5 n parameters, m joint-model values, 3 k offsets, then the candidate base ones
@@ -135,8 +136,8 @@ def select_free(
         np.arange(5 * n),
         np.arange(5 * n, own),
     ]
-    if preferred is not None:  # the free set being checked first, each part in the documented order
-        order = np.r_[order[preferred[order]], order[~preferred[order]]]
+    if first is not None:  # the free set being checked first, each part in the documented order
+        order = np.r_[order[first[order]], order[~first[order]]]
     keep = np.zeros(chosen.size, dtype=bool)
     keep[order] = select_identifiable(scaled[:, order], chosen[order], tolerance=tolerance)
     held_all = chosen & ~keep

@@ -273,6 +273,7 @@ class Problem:
             points[rows] = group_points
             jac[rows, :, : 5 * n] = group_jac.reshape(rows.size, 3, -1)
             if m:  # d p / d extras = sum_i d p / d q_i C_i
+                assert self.joint_columns is not None  # m > 0 only with a joint model's columns
                 jac[rows, :, 5 * n : 5 * n + m] = by_joint @ self.joint_columns[rows]
             if slot is not None:  # d (F_n r) / d r = the flange rotation
                 column = 5 * n + m + 3 * slot
@@ -280,6 +281,7 @@ class Problem:
         return points, jac
 
     def tracker(self, x_base) -> np.ndarray:
+        assert self.base_start is not None  # the points criterion always has a tracker start
         rotation, shift, _ = base_correction(x_base)
         delta = np.eye(4)
         delta[:3, :3] = rotation
@@ -294,6 +296,11 @@ class Problem:
             return pdist(points)[self.pair_keep] - self.measured_distances
         tracker = self.tracker(state.x_base)
         return (points @ tracker[:3, :3].T + tracker[:3, 3] - self.measured).ravel()
+
+    def _pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The distances criterion's point pairs ``(pair_i, pair_j)``."""
+        assert self.pair_i is not None and self.pair_j is not None  # set whenever the criterion is distances
+        return self.pair_i, self.pair_j
 
     def _row_weights(self) -> np.ndarray | None:
         if self.criterion == "distances":
@@ -312,6 +319,7 @@ class Problem:
         jac = jac[:, :, np.r_[self.free.ravel(), self.extra_free, self.offset_free]]
         if self.criterion == "distances":
             return points, jac
+        assert self.base_start is not None  # the points criterion always has a tracker start
         rotation, shift, derivatives = base_correction(state.x_base)
         r0 = self.base_start[:3, :3]
         total = r0 @ rotation
@@ -331,7 +339,7 @@ class Problem:
             residuals, jacobian = (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
         else:
             residuals = pdist(points)[self.pair_keep] - self.measured_distances
-            jacobian = _pair_jacobian(points, jac, self.pair_i, self.pair_j)
+            jacobian = _pair_jacobian(points, jac, *self._pairs())
         weights = self._row_weights()
         if weights is None:
             return residuals, jacobian
@@ -342,26 +350,27 @@ class Problem:
         points, jac = self.point_jacobian(self.unpack_all(x))
         if self.criterion == "points":
             return jac.reshape(-1, jac.shape[-1])
-        stride = max(1, self.pair_i.size // rows)
-        return _pair_jacobian(points, jac, self.pair_i[::stride], self.pair_j[::stride])
+        pair_i, pair_j = self._pairs()
+        stride = max(1, pair_i.size // rows)
+        return _pair_jacobian(points, jac, pair_i[::stride], pair_j[::stride])
 
     def noise_map(self, x) -> scipy.sparse.csr_matrix | None:
         """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
         if self.criterion == "points":
             return None
         points = self.base_points(self.unpack_all(x))
-        unit = _unit(points[self.pair_i] - points[self.pair_j])
+        pair_i, pair_j = self._pairs()
+        unit = _unit(points[pair_i] - points[pair_j])
         if self.pair_weight is not None:  # G = diag(w_pair) dr/dm diag(sigma_k / sigma_ref): isotropic noise again
+            assert self.point_weight is not None  # pair weights are built from the point weights
             unit = unit * self.pair_weight[:, None]
-            unit_i = unit / self.point_weight[self.pair_i, None]
-            unit_j = unit / self.point_weight[self.pair_j, None]
+            unit_i = unit / self.point_weight[pair_i, None]
+            unit_j = unit / self.point_weight[pair_j, None]
         else:
             unit_i = unit_j = unit
-        m = self.pair_i.size
+        m = pair_i.size
         rows = np.repeat(np.arange(m), 6)
-        cols = np.concatenate(
-            [3 * self.pair_i[:, None] + np.arange(3), 3 * self.pair_j[:, None] + np.arange(3)], axis=1
-        ).ravel()
+        cols = np.concatenate([3 * pair_i[:, None] + np.arange(3), 3 * pair_j[:, None] + np.arange(3)], axis=1).ravel()
         data = np.concatenate([unit_i, -unit_j], axis=1).ravel()
         from scipy import sparse
 

@@ -120,7 +120,7 @@ class CPAOptions:
     near_parallel_deg: float = 5.0
     still_tolerance_deg: float = 1e-6
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         choices = {
             "circle_fit": ("geometric", "algebraic"),
             "base_frame": ("given", "registered"),
@@ -382,7 +382,7 @@ def _turned_about(line: PluckerLine, axis: PluckerLine, angle: float) -> Plucker
     cosine, sine = np.cos(angle), np.sin(angle)
     s = axis.direction
 
-    def turn(x):
+    def turn(x: np.ndarray) -> np.ndarray:
         return x * cosine + _cross(s, x) * sine + s * (_dot(s, x) * (1.0 - cosine))[..., None]
 
     anchor = axis.point
@@ -437,7 +437,9 @@ def _referenced_axes(lines: list[PluckerLine], transport: np.ndarray) -> Plucker
     return axes
 
 
-def _base_frame(points: np.ndarray, structure: _Structure, tracker_from_base) -> tuple[np.ndarray, np.ndarray | None]:
+def _base_frame(
+    points: np.ndarray, structure: _Structure, tracker_from_base: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray | None]:
     """``tracker_from_base`` registered from the points (and the registration's RMS) or the given one, checked."""
     if structure.options.base_frame == "registered":
         registration = register_points(structure.nominal_points, points)
@@ -456,7 +458,7 @@ def _wrap_angles_to_nominal(values: np.ndarray, nominal: np.ndarray) -> None:
     values[..., angles] = nominal_angles + offsets
 
 
-def identify_cpa_batch(points, structure: _Structure, tracker_from_base=None, *, residuals: bool = True) -> CPABatch:
+def identify_cpa_batch(points: np.ndarray, structure: _Structure, tracker_from_base: np.ndarray | None = None, *, residuals: bool = True) -> CPABatch:
     """CPA on measured points ``(..., n_points, 3)`` [mm] sharing one capture structure.
 
     ``tracker_from_base`` (4, 4) is required when ``structure.options.base_frame == "given"``.
@@ -540,7 +542,7 @@ def identify_cpa(
     robot: RobotModel,
     reflector: ReflectorMount,
     *,
-    tracker_from_base=None,
+    tracker_from_base: np.ndarray | None = None,
     options: CPAOptions | None = None,
 ) -> CPAResult:
     """Identify the kinematic parameters of ``robot`` from one Circle Point capture.

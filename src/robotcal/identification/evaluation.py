@@ -221,7 +221,8 @@ def evaluate_parameters(
     unknown = [view for view in views if view not in ALL_VIEWS]
     if unknown:
         raise InputError(f"unknown evaluation view(s) {unknown}; expected {ALL_VIEWS}")
-    if "absolute" in views and not any(bases is not None and bases.get(name) is not None for name in parameter_sets):
+    frames: Mapping[str, np.ndarray] = {} if bases is None else bases
+    if "absolute" in views and not any(frames.get(name) is not None for name in parameter_sets):
         raise InputError("the absolute view needs the base frame of at least one parameter set; none was given")
 
     _warn_guessed(captures, parameter_sets, reflectors, set_targets)
@@ -234,7 +235,7 @@ def evaluate_parameters(
                 t.with_position(offsets[t.name]) if t.frame == "flange" and t.name in offsets else t for t in given
             )
         if view == "absolute":
-            return absolute_errors(capture, parameters, reflector, bases[set_name])
+            return absolute_errors(capture, parameters, reflector, frames[set_name])
         return (point_errors if view == "points" else distance_errors)(capture, parameters, reflector)
 
     rows = []
@@ -245,7 +246,7 @@ def evaluate_parameters(
         for view in views:
             reference = None
             for set_name, parameters in parameter_sets.items():
-                if view == "absolute" and bases.get(set_name) is None:
+                if view == "absolute" and frames.get(set_name) is None:
                     continue  # no base frame for this set: left out of the absolute view (the caller says why)
                 errors = errors_of(view, capture, set_name, parameters, reflector)
                 mean = float(errors.mean())

@@ -317,6 +317,7 @@ def assess_fit(
             f"({noise:.4g} mm, {noise_source}), above {RESIDUAL_RATIO_LIMIT:g}: {unexplained:.3g} mm RMS per point "
             "is not explained by the model"
         )
+    advice: tuple[str, ...]
     if failed:
         verdict: Verdict = "FAILED"
         if len(failed) == len(undetermined):  # nothing wrong but what the capture leaves undetermined

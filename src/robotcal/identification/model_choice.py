@@ -63,8 +63,9 @@ from robotcal.identification.settings import (
     RefinementSettings,
 )
 from robotcal.identification.targets import Target
+from robotcal.instruments import Instrument
 from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques, lumped_levels
-from robotcal.kinematics.model import LinkMasses, ParameterSet, RobotModel
+from robotcal.kinematics.model import LinkMasses, ParameterSet, ReflectorMount, RobotModel
 
 __all__ = [
     "MODELS",
@@ -132,7 +133,8 @@ def joint_model_for(
     if model == "geometric":
         return None
     masses = robot.masses if masses is None else masses
-    compliance, harmonic = (), ()
+    compliance: Sequence[int] = ()
+    harmonic: Sequence[int] = ()
     if "compliance" in model:
         compliance = (
             default_compliance_joints(robot, masses, gravity) if compliance_joints is None else compliance_joints
@@ -223,11 +225,11 @@ class FitTask:
     model: str
     capture: Capture
     start: ParameterSet
-    targets: object
+    targets: ReflectorMount | Target | Sequence[Target]
     settings: RefinementSettings
     tracker_from_base: np.ndarray | None
     joint_model: JointModel | None
-    instrument: object = None
+    instrument: Instrument | None = None
     fold: int | None = None
     fold_of: np.ndarray | None = None
 
@@ -439,7 +441,9 @@ def refine_model(
                 structures[name], announced[name] = smallest_lumped(name, structure, start.robot, runner, tasks_of, choice)
         tasks = [task for name in choice.candidates for task in tasks_of(name, structures[name])]
         outcomes = runner.run(tasks)
-    fits, held_out, emitted = {}, {name: [] for name in choice.candidates}, {}
+    fits: dict[str, RefinementResult] = {}
+    held_out: dict[str, list[tuple[bool, np.ndarray]]] = {name: [] for name in choice.candidates}
+    emitted: dict[str, list] = {}
     for task, outcome in zip(tasks, outcomes, strict=True):
         if task.fold is None:
             fits[task.model] = _read_only(outcome.result)

@@ -23,7 +23,7 @@ def triangular_factor(matrix) -> np.ndarray:
     """
     matrix = np.asarray(matrix, dtype=float)
     if matrix.shape[0] > matrix.shape[1] > 0:
-        return np.linalg.qr(matrix, mode="r")
+        return np.linalg.qr(matrix, mode="r")  # type: ignore[return-value]  # numpy's stubs: a QRResult; mode "r" gives R
     return matrix
 
 

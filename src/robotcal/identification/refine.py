@@ -423,7 +423,7 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
         use_base=use_base,
         still=tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD)),
         weighted=sigmas is not None,
-        n_residuals=capture.n_points * 3 if criterion == "points" else int(pair_i.size),
+        n_residuals=capture.n_points * 3 if pair_i is None else int(pair_i.size),  # pairs: the distances criterion
     )
 
 
@@ -467,6 +467,7 @@ class _Record:
     def finish(self, fit: _Fit, refits: int, unsettled: str, method: str) -> _Fit:
         """The fit with the record of every round."""
         message = f"{unsettled}. Solver: {fit.message}" if unsettled else fit.message
+        assert self.start_cost is not None  # set by the first round, before its solve
         return replace(
             fit, nfev=self.nfev, njev=self.njev, start_cost=self.start_cost, history=np.asarray(self.history),
             refits=refits, unsettled=unsettled, message=message, method=method,
@@ -520,6 +521,7 @@ def _accepted(problem: Problem, solution, start_state: State, record: _Record):
     success = int(solution.status) > 0
     message = str(solution.message)
     start_cost = record.start_cost
+    assert start_cost is not None  # set above
     if not np.isfinite(final_cost) or final_cost > start_cost:
         # the start in this round's unknowns: held quantities are at their start values in every round
         message = (

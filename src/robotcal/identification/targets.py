@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -48,7 +49,7 @@ class Target:
     positions: np.ndarray
     known: bool = True
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.frame not in ("joint", "flange"):
             raise InputError(f"target {self.name!r}: frame must be 'joint' or 'flange'; got {self.frame!r}")
         positions = np.asarray(self.positions, dtype=float)
@@ -74,9 +75,9 @@ class Target:
         positions = mount.positions[0] if mount.frame == "flange" else mount.positions
         return cls(name=name, frame=mount.frame, positions=positions)
 
-    def with_position(self, position) -> Target:
+    def with_position(self, position: ArrayLike) -> Target:
         """The same target at another flange offset (e.g. the refined estimate), still marked unknown."""
-        return Target(name=self.name, frame=self.frame, positions=position, known=self.known)
+        return Target(name=self.name, frame=self.frame, positions=np.asarray(position), known=self.known)
 
 
 def point_target_index(capture: Capture, targets: Sequence[Target]) -> np.ndarray:

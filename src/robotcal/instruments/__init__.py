@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 
@@ -62,7 +63,7 @@ class Instrument:
     coverage_factor: float = 2.0
     description: str = ""
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for attr in ("a_mm", "b_mm_per_m", "coverage_factor"):
             value = getattr(self, attr)
             if not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
@@ -76,17 +77,17 @@ class Instrument:
     def is_noise_free(self) -> bool:
         return self.a_mm == 0.0 and self.b_mm_per_m == 0.0
 
-    def error_bound(self, points) -> np.ndarray:
+    def error_bound(self, points: ArrayLike) -> np.ndarray:
         """``U(L) = A + B L`` [mm] for points ``(..., 3)`` in the tracker frame [mm]."""
         distance_m = np.linalg.norm(np.asarray(points, dtype=float), axis=-1) / 1000.0
         return self.a_mm + self.b_mm_per_m * distance_m
 
-    def standard_uncertainty(self, points) -> np.ndarray:
+    def standard_uncertainty(self, points: ArrayLike) -> np.ndarray:
         """Standard uncertainty per coordinate [mm]: ``U/sqrt(3)`` (uniform) or ``U/k`` (normal)."""
         bound = self.error_bound(points)
         return bound / np.sqrt(3.0) if self.noise == "uniform" else bound / self.coverage_factor
 
-    def sample_noise(self, points, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
+    def sample_noise(self, points: ArrayLike, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
         """Random coordinate errors ``(..., 3)`` [mm] for ``points (..., 3)``, drawn from ``rng``."""
         rng = np.random.default_rng(rng)
         points = np.asarray(points, dtype=float)

@@ -14,7 +14,7 @@ import io
 import json
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, TypeVar
 
 from pydantic import AllowInfNan, BaseModel, BeforeValidator, Strict, ValidationError
 
@@ -278,7 +278,10 @@ def _closest_branches(errors: list) -> list:
     return kept
 
 
-def validate_model(model: type[BaseModel], data: dict, source: str) -> BaseModel:
+_Model = TypeVar("_Model", bound=BaseModel)
+
+
+def validate_model(model: type[_Model], data: dict, source: str) -> _Model:
     """``model.model_validate(data)`` with errors as ``InputError("<source>: key <k>: <why>; got <value>")``, the
     value as the TOML file writes it (``true``, not 1)."""
     try:

@@ -51,7 +51,7 @@ def describe_os_error(exc: OSError) -> str:
     """The reason of ``exc`` for a one-line message, with what to do where that is known
     ("No space left on device; free some space and run again")."""
     reason = exc.strerror or str(exc) or type(exc).__name__
-    advice = _ADVICE.get(exc.errno)
+    advice = None if exc.errno is None else _ADVICE.get(exc.errno)
     return f"{reason}; {advice}" if advice else reason
 
 
@@ -84,7 +84,7 @@ def is_process_running(pid: int) -> bool:
     return True
 
 
-def remove_stale_temporaries(folder, *, names: Iterable[str] | None = None, recursive: bool = False) -> list[Path]:
+def remove_stale_temporaries(folder: str | os.PathLike[str], *, names: Iterable[str] | None = None, recursive: bool = False) -> list[Path]:
     """Remove the temporary entries robotcal left in ``folder`` when it was killed; returns those removed.
 
     An entry is removed only when its name is robotcal's temporary name (module docstring), for one of
@@ -96,7 +96,7 @@ def remove_stale_temporaries(folder, *, names: Iterable[str] | None = None, recu
     """
     folder = Path(folder)
     wanted = None if names is None else set(names)
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(folder))
     except OSError:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -44,12 +45,12 @@ def capture_to_csv(capture: Capture) -> str:
     return stream.getvalue()
 
 
-def write_capture(path, capture: Capture) -> Path:
+def write_capture(path: str | os.PathLike[str], capture: Capture) -> Path:
     """Write a capture CSV atomically."""
     return atomic_write_text(path, capture_to_csv(capture))
 
 
-def read_capture(path, *, n_joints: int | None = None) -> Capture:
+def read_capture(path: str | os.PathLike[str], *, n_joints: int | None = None) -> Capture:
     """Read a capture CSV; every problem is an :class:`InputError` naming the file, line and column.
 
     Parameters

@@ -31,8 +31,9 @@ class InstrumentPreset(BaseModel):
     reflector_acceptance_deg: TomlFloat | None = Field(default=None, gt=0, le=180)
 
     @model_validator(mode="after")
-    def _range(self):
-        if None not in (self.min_distance_m, self.max_distance_m) and self.min_distance_m >= self.max_distance_m:
+    def _range(self) -> InstrumentPreset:
+        low, high = self.min_distance_m, self.max_distance_m
+        if low is not None and high is not None and low >= high:
             raise ValueError("min_distance_m must be below max_distance_m")
         return self
 
@@ -73,7 +74,7 @@ class InstrumentTable(BaseModel):
         return preset
 
     @model_validator(mode="after")
-    def _complete(self):
+    def _complete(self) -> InstrumentTable:
         if self.preset is None and (self.a_um is None or self.b_um_per_m is None):
             raise ValueError("an instrument needs a `preset` or both `a_um` and `b_um_per_m`")
         return self
@@ -101,6 +102,7 @@ def make_instrument(
         name, description = table.preset, entry.get("description", "")
         a_um = entry["a_um"] if a_um is None else a_um
         b_um_per_m = entry["b_um_per_m"] if b_um_per_m is None else b_um_per_m
+    assert a_um is not None and b_um_per_m is not None  # InstrumentTable: a preset or both terms
     return Instrument(
         name=name,
         a_mm=a_um / 1000.0,

@@ -11,6 +11,7 @@ import csv
 import io
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -125,9 +126,9 @@ def harmonics_document(model: HarmonicModel, diagnostics: JointDiagnostics, *, c
     return document
 
 
-def joints_files(diagnostics: JointDiagnostics, model: HarmonicModel, *, capture, scenario) -> dict:
+def joints_files(diagnostics: JointDiagnostics, model: HarmonicModel, *, capture, scenario) -> dict[str, Any]:
     """The text files of ``joints/`` by name: CSV texts and the ``harmonics.json`` document (a dict)."""
-    files = {"summary.csv": summary_csv(diagnostics), "points.csv": points_csv(diagnostics)}
+    files: dict[str, Any] = {"summary.csv": summary_csv(diagnostics), "points.csv": points_csv(diagnostics)}
     if diagnostics.backlash:
         files["backlash.csv"] = backlash_csv(diagnostics)
     files["harmonics.json"] = harmonics_document(model, diagnostics, capture=capture, scenario=scenario)

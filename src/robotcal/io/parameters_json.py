@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import AfterValidator, BaseModel, ConfigDict
 
 from robotcal.errors import InputError, RobotcalWarning
@@ -28,6 +31,10 @@ from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, as_toml, 
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, JointModel, largest_deflection, parse_parameter_name
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
+
+if TYPE_CHECKING:
+    from robotcal.identification.records import RefinementResult
+    from robotcal.identification.targets import Target
 
 __all__ = [
     "ParameterFile",
@@ -51,11 +58,12 @@ def _wrap_deg(value: float, centre: float = 0.0) -> float:
     return value if -180.0 < offset <= 180.0 else centre + 180.0 - (180.0 - offset) % 360.0
 
 
-def targets_to_dict(targets, uncertainty=None) -> dict:
+def targets_to_dict(targets: Sequence[Target], uncertainty: ArrayLike | None = None) -> dict:
     """``{"name": {"frame": "flange", "flange_mm": [x, y, z], "known": bool, "u_mm": [ux, uy, uz] | null}}``
     for flange targets (per-joint ones: ``reflector_mm``); ``u_mm``: standard uncertainties of an estimated
     offset, null where unknown or not estimated."""
-    out = {}
+    out: dict[str, dict] = {}
+    uncertainties = None if uncertainty is None else np.asarray(uncertainty, dtype=float)
     for k, target in enumerate(targets):
         entry: dict = {"frame": target.frame, "known": bool(target.known)}
         if target.frame == "flange":
@@ -63,15 +71,15 @@ def targets_to_dict(targets, uncertainty=None) -> dict:
         else:
             entry["reflector_mm"] = [[float(v) for v in row] for row in target.positions]
         u = None
-        if uncertainty is not None and not target.known:
-            row = np.asarray(uncertainty[k], dtype=float)
+        if uncertainties is not None and not target.known:
+            row = uncertainties[k]
             u = [float(v) if np.isfinite(v) else None for v in row]
         entry["u_mm"] = u
         out[target.name] = entry
     return out
 
 
-def joint_model_to_dict(joint_model: JointModel, uncertainty=None) -> dict:
+def joint_model_to_dict(joint_model: JointModel, uncertainty: ArrayLike | None = None) -> dict:
     """The ``joint_model`` key (module notes); ``uncertainty (m,)``: standard uncertainties in core units (NaN:
     none)."""
     values = joint_model.to_display(joint_model.values)
@@ -167,7 +175,7 @@ class TargetEntry(_JsonObject):
     flange_mm: XYZ | None = None
 
 
-def _units(value):
+def _units(value: dict) -> dict:
     if value != dict(DISPLAY_UNITS):
         raise ValueError(f"must be {dict(DISPLAY_UNITS)}")
     return value
@@ -201,14 +209,14 @@ class _JointModelPart(_JsonObject):
     joint_model: JointModelEntry
 
 
-def read_joint_model(data, robot: RobotModel, path) -> JointModel:
+def read_joint_model(data: Any, robot: RobotModel, path: str | os.PathLike[str]) -> JointModel:
     """A ``joint_model`` document (the parameter JSON's key) back as a :class:`JointModel` (errors name ``path`` and
     the key)."""
     part: _JointModelPart = validate_model(_JointModelPart, {"joint_model": data}, str(path))
     return _joint_model(part.joint_model, robot, path)
 
 
-def _joint_model(entry: JointModelEntry, robot: RobotModel, path) -> JointModel:
+def _joint_model(entry: JointModelEntry, robot: RobotModel, path: str | os.PathLike[str]) -> JointModel:
     """The validated ``joint_model`` key as a :class:`JointModel`: what the schema cannot say (names, units,
     sizes that depend on the robot, the deflection bound) checked here."""
     where = f"{path}: key `joint_model"
@@ -216,7 +224,7 @@ def _joint_model(entry: JointModelEntry, robot: RobotModel, path) -> JointModel:
     if entry.masses is not None:
         try:
             masses = LinkMasses(
-                mass_kg=list(entry.masses.mass_kg),
+                mass_kg=np.array(entry.masses.mass_kg, dtype=float),
                 com_mm=np.asarray(entry.masses.com_mm, dtype=float),
                 payload_kg=entry.masses.payload_kg,
                 payload_com_mm=np.asarray(entry.masses.payload_com_mm, dtype=float),
@@ -252,7 +260,7 @@ def _joint_model(entry: JointModelEntry, robot: RobotModel, path) -> JointModel:
     return model.with_backlash(np.radians(lash), entry.backlash_source)
 
 
-def _check_deflection(model: JointModel, robot: RobotModel, display_values, where: str) -> None:
+def _check_deflection(model: JointModel, robot: RobotModel, display_values: Sequence[float], where: str) -> None:
     """Refuse a joint model that deflects a joint by more than :data:`MAX_DEFLECTION_DEG` at a pose within the
     limits (a compliance of 1 rad/(N m) moved ``predict``'s flange by a metre, issue 30): no robot's joint does,
     so the value is a typing error or a unit slip, and every prediction from it would be wrong."""
@@ -275,7 +283,8 @@ def _check_deflection(model: JointModel, robot: RobotModel, display_values, wher
 
 
 def parameters_to_dict(
-    parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None, joint_model_u=None
+    parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None,
+    joint_model_u: ArrayLike | None = None,
 ) -> dict:
     """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
     nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
@@ -308,14 +317,15 @@ def parameters_to_dict(
 
 
 def write_parameters(
-    path, parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None, joint_model_u=None
+    path: str | os.PathLike[str], parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None,
+    joint_model_u: ArrayLike | None = None,
 ) -> Path:
     """Write a parameter JSON atomically (``targets``, ``joint_model_u``: see :func:`parameters_to_dict`)."""
     text = json.dumps(parameters_to_dict(parameters, provenance, targets, joint_model_u), indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
 
 
-def read_targets(path) -> dict:
+def read_targets(path: str | os.PathLike[str]) -> dict:
     """The ``targets`` key of a parameter JSON: ``{name: (x, y, z) flange offset [mm]}`` of its flange
     targets (empty when the key is absent)."""
     path = Path(path)
@@ -329,7 +339,7 @@ def read_targets(path) -> dict:
     }
 
 
-def read_tracker_from_base(path) -> np.ndarray | None:
+def read_tracker_from_base(path: str | os.PathLike[str]) -> np.ndarray | None:
     """The base frame a fit recorded, ``provenance.tracker_from_base`` of a parameter JSON, as a (4, 4)
     rigid transform [mm]; None when the key is absent or null (a nominal set, a distances-criterion
     refinement). A value that is not a rigid 4x4 transform is an :class:`InputError` naming the key."""
@@ -347,7 +357,7 @@ def read_tracker_from_base(path) -> np.ndarray | None:
         raise InputError(f"{path}: key `provenance.tracker_from_base` must be a 4x4 rigid transform ({exc})") from None
 
 
-def read_parameters(path, robot: RobotModel) -> ParameterSet:
+def read_parameters(path: str | os.PathLike[str], robot: RobotModel) -> ParameterSet:
     """Read a parameter JSON for ``robot`` (schema :class:`ParameterFile`); joint count and types must match."""
     path = Path(path)
     data = read_json_file(path, kind="parameter JSON")
@@ -379,7 +389,7 @@ def read_parameters(path, robot: RobotModel) -> ParameterSet:
         raise InputError(f"{path}: {exc}") from None
 
 
-def refined_targets(result) -> dict | None:
+def refined_targets(result: RefinementResult) -> dict | None:
     """The parameter JSON's ``targets`` key of a refinement (estimated offsets with their standard
     uncertainty), None when it used the historical single mount."""
     if not result.targets:

@@ -18,7 +18,10 @@ the numbers come from.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -56,7 +59,7 @@ class JointEntry(BaseModel):
         return value
 
     @model_validator(mode="after")
-    def _consistent(self):
+    def _consistent(self) -> JointEntry:
         """The rules between keys (every number is finite by its type)."""
         if self.hayati and self.d != 0.0:
             raise ValueError("a Hayati joint has d = 0 by definition")
@@ -69,8 +72,8 @@ class JointEntry(BaseModel):
         return self
 
 
-def _coupling_matrix(spec: RobotFile, source: str) -> np.ndarray | None:
-    """The ``(n, n)`` off-diagonal coupling of the robot file's ``reading_coupling`` keys (None: none)."""
+def _coupling_matrix(spec: RobotFile, source: str) -> np.ndarray:
+    """The ``(n, n)`` off-diagonal coupling of the robot file's ``reading_coupling`` keys (zeros: none)."""
     n = len(spec.joints)
     coupling = np.zeros((n, n))
     for row, joint in enumerate(spec.joints):
@@ -81,7 +84,7 @@ def _coupling_matrix(spec: RobotFile, source: str) -> np.ndarray | None:
             if other == row + 1:
                 raise InputError(f"{where}: a joint is not coupled to itself (its own coefficient is `reading_sign`)")
             coupling[row, other - 1] = coefficient
-    return coupling if np.any(coupling) else None
+    return coupling
 
 
 class RobotFile(BaseModel):
@@ -104,7 +107,9 @@ def _masses(spec: RobotFile, source: str) -> LinkMasses | None:
         missing = ", ".join(f"J{k + 1}" for k, flag in enumerate(given) if not flag)
         raise InputError(f"{source}: `mass_kg` and `com_mm` are given for some joints but not for {missing}")
     return LinkMasses(
-        mass_kg=[j.mass_kg for j in spec.joints], com_mm=[j.com_mm for j in spec.joints], source=spec.mass_source
+        mass_kg=np.array([j.mass_kg for j in spec.joints], dtype=float),
+        com_mm=np.array([j.com_mm for j in spec.joints], dtype=float),
+        source=spec.mass_source,
     )
 
 
@@ -115,8 +120,8 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
     return RobotModel(
         name=spec.name,
         nominal=nominal,
-        hayati=[j.hayati for j in spec.joints],
-        reading_sign=[j.reading_sign for j in spec.joints],
+        hayati=np.array([j.hayati for j in spec.joints], dtype=bool),
+        reading_sign=np.array([j.reading_sign for j in spec.joints], dtype=float),
         reading_offset=np.deg2rad([j.reading_offset_deg for j in spec.joints]),
         limits=np.deg2rad([j.limits_deg for j in spec.joints]),
         description=spec.description,
@@ -126,7 +131,7 @@ def robot_from_dict(data: dict, source: str = "robot") -> RobotModel:
     )
 
 
-def _frame(values) -> np.ndarray:
+def _frame(values: Sequence[float]) -> np.ndarray:
     """A frame from ``x, y, z`` [mm] and KUKA ``A, B, C`` [deg] (``R = Rz(A) Ry(B) Rx(C)``)."""
     from robotcal.geometry.euler import matrix_from_kuka_abc
 
@@ -163,7 +168,7 @@ def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
         if robot.masses is not None:
             joints[-1]["mass_kg"] = float(robot.masses.mass_kg[index])
             joints[-1]["com_mm"] = [float(v) for v in robot.masses.com_mm[index]]
-    document = {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
+    document: dict[str, Any] = {"name": robot.name, "description": robot.description, "source": source, "joints": joints}
     if robot.masses is not None:
         document["mass_source"] = robot.masses.source
     if robot.flange_frame is not None:
@@ -174,7 +179,7 @@ def robot_to_dict(robot: RobotModel, *, source: str = "") -> dict:
     return document
 
 
-def load_robot(name_or_path, *, relative_to: Path | None = None) -> RobotModel:
+def load_robot(name_or_path: str | os.PathLike[str], *, relative_to: Path | None = None) -> RobotModel:
     """A built-in robot by name, or a robot TOML file by path (relative paths from ``relative_to``)."""
     text = str(name_or_path)
     if text in builtin_names("robots"):

@@ -26,15 +26,18 @@ import csv
 import io
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robotcal.errors import InputError
 from robotcal.io._validation import parse_json_text, read_text_file
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.run_summary import summarise
+
+if TYPE_CHECKING:
+    from robotcal.identification.records import RefinementResult
 
 __all__ = [
     "OUTPUTS",
@@ -85,7 +88,7 @@ class Table:
     rows: tuple[tuple[str, ...], ...] = ()
     numeric: tuple[bool, ...] = field(init=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(
             self, "numeric", tuple(_numbers([row[k] for row in self.rows]) for k in range(len(self.header)))
         )
@@ -174,7 +177,7 @@ class RunResult:
         return str(self.record.get("status", "unknown"))
 
     @property
-    def deployed(self):
+    def deployed(self) -> RefinementResult | None:
         """The deployed refinement (points criterion) of a run computed in this process, a ``RefinementResult``
         (``.parameters``, ``.model``, ``.health``...); None otherwise."""
         return (self.results.get("refined") or {}).get("points")
@@ -186,7 +189,7 @@ class RunResult:
 
     def __repr__(self) -> str:
         """One line for notebooks: where, how it ended, what was deployed and how good it is."""
-        stages = self.record.get("stages") if isinstance(self.record.get("stages"), dict) else {}
+        stages = found if isinstance(found := self.record.get("stages"), dict) else {}
         done = sum(1 for entry in stages.values() if isinstance(entry, dict) and entry.get("status") == "done")
         parts = [f"folder={str(self.folder)!r}" if self.folder is not None else "in memory", f"status={self.status!r}"]
         if stages:
@@ -206,7 +209,7 @@ RUN_ENTRIES = (RUN_RECORD, *(name for names in OUTPUTS.values() for name in name
 _PARSED = (".json", ".csv")
 
 
-def json_text(document: dict, *, default=None) -> str:
+def json_text(document: dict, *, default: Callable[[Any], Any] | None = None) -> str:
     """The text of a JSON document as the run writes it (indented, no NaN, a final newline); ``default`` as
     :func:`json.dumps` (``run.json`` writes ``str`` of what JSON has no type for)."""
     return json.dumps(document, indent=2, allow_nan=False, default=default) + "\n"
@@ -227,20 +230,20 @@ def table_from_text(text: str, source: str = "CSV") -> Table:
     return Table(header=header, rows=tuple(body))
 
 
-def write_json(path, document: dict) -> dict:
+def write_json(path: str | os.PathLike[str], document: dict) -> dict:
     """Write ``document`` atomically as JSON (:func:`json_text`); returns it as :func:`read_run` reads it."""
     text = json_text(document)
     atomic_write_text(path, text)
     return json.loads(text)
 
 
-def write_csv(path, text: str) -> Table:
+def write_csv(path: str | os.PathLike[str], text: str) -> Table:
     """Write CSV ``text`` atomically; returns its :class:`Table` as :func:`read_run` reads it."""
     atomic_write_text(path, text)
     return table_from_text(text, str(path))
 
 
-def refusal(root, relative) -> str | None:
+def refusal(root: str | os.PathLike[str], relative: str | os.PathLike[str]) -> str | None:
     """Why ``relative`` may not be read from run folder ``root``: a symbolic link on its way, or a
     target outside the folder; None when it may be read."""
     root = Path(root)
@@ -256,7 +259,7 @@ def refusal(root, relative) -> str | None:
     return None if inside else "refused: resolves outside the run folder"
 
 
-def read_document(root, relative: str) -> Document:
+def read_document(root: str | os.PathLike[str], relative: str) -> Document:
     """The document ``relative`` of run folder ``root`` (JSON -> dict, CSV -> Table, other -> Path).
 
     Raises :class:`InputError` ``"relative: why"`` when the file is refused (:func:`refusal`), missing or
@@ -313,7 +316,7 @@ def _walk(root: Path, relative: str, documents: dict, problems: list) -> None:
         problems.append(str(exc))
 
 
-def run_documents(root, entries=RUN_ENTRIES) -> tuple[dict[str, Document], list[str]]:
+def run_documents(root: str | os.PathLike[str], entries: Iterable[str] = RUN_ENTRIES) -> tuple[dict[str, Document], list[str]]:
     """Every document under the top-level ``entries`` of run folder ``root`` and the problems met."""
     root = Path(root)
     documents: dict[str, Document] = {}
@@ -324,7 +327,7 @@ def run_documents(root, entries=RUN_ENTRIES) -> tuple[dict[str, Document], list[
     return documents, problems
 
 
-def read_run(folder) -> RunResult:
+def read_run(folder: str | os.PathLike[str]) -> RunResult:
     """Read a run folder (docs/results.md) into a :class:`RunResult`: the one place that reads one.
 
     Parameters

@@ -220,8 +220,8 @@ class Summary:
                 f"{'consistent' if check.consistent else 'not explained by the stated uncertainty'})"
             )
         if self.tcp_pose is not None:
-            model = f" ({self.tcp_pose.model})" if self.tcp_pose.model else ""
-            lines.append(f"TCP position uncertainty at the pose: {self.tcp_pose.first_mm:.4f} mm{model}")
+            which = f" ({self.tcp_pose.model})" if self.tcp_pose.model else ""
+            lines.append(f"TCP position uncertainty at the pose: {self.tcp_pose.first_mm:.4f} mm{which}")
         if self.tcp_workspace is not None:
             spread = self.tcp_workspace
             lines.append(
@@ -249,8 +249,8 @@ def _circles(documents: Mapping) -> dict:
     circles = provenance.get("circles") if isinstance(provenance, dict) else None
     if not isinstance(circles, list):
         return {}
-    fits = [(c.get("circle"), _number(c.get("circle_rms_mm"))) for c in circles if isinstance(c, dict)]
-    fits = [(circle, rms) for circle, rms in fits if rms is not None]
+    every = [(c.get("circle"), _number(c.get("circle_rms_mm"))) for c in circles if isinstance(c, dict)]
+    fits = [(circle, rms) for circle, rms in every if rms is not None]
     if not fits:
         return {"circles": len(circles)}
     circle, rms = max(fits, key=lambda fit: fit[1])
@@ -265,7 +265,7 @@ def _not_determined(documents: Mapping, data: Mapping) -> dict[str, str]:
     """The refined model's parameters its refinement does not determine on their own, with why: those it holds
     (``held``, ``gauge``) and the free ones that take up their effect (``confounded``: only their combination is
     determined), from ``refine/<criterion>.json``'s provenance (identification/refine.py)."""
-    criterion = data.get("criterion") if isinstance(data.get("criterion"), str) else "points"
+    criterion = found if isinstance(found := data.get("criterion"), str) else "points"
     provenance = _json(documents, f"refine/{criterion}.json").get("provenance")
     provenance = provenance if isinstance(provenance, Mapping) else {}
 
@@ -286,8 +286,8 @@ def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUnce
     if not isinstance(parameters, list):
         return None
     reasons = _not_determined(documents, data) if folder == "uncertainty-refined" else {}
-    largest: dict[str, tuple[float, str]] = {}
-    aside: dict[str, tuple[float, str, str]] = {}
+    largest: dict[str, tuple[float, str | None]] = {}
+    aside: dict[str, tuple[float, str | None, str]] = {}
     for entry in parameters:
         if not isinstance(entry, dict) or entry.get("identified") is not True:
             continue
@@ -358,7 +358,7 @@ def _consistency(documents: Mapping) -> Consistency | None:
 
 def _notes(record: Mapping) -> tuple[str, ...]:
     stages = record.get("stages")
-    warned = set()
+    warned: set[str] = set()
     if isinstance(stages, dict):
         for entry in stages.values():
             warnings = entry.get("warnings") if isinstance(entry, dict) else None

@@ -12,12 +12,15 @@ state (``_mm``, ``_deg``): ``scenario.montecarlo.iterations``, ``(scenario.truth
 
 from __future__ import annotations
 
+import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Literal, NoReturn, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from robotcal.errors import InputError, RigidTransformWarning
@@ -96,7 +99,7 @@ class CaptureTable(_Strict):
     joint_errors: list[JointErrorTable] = []
 
     @model_validator(mode="after")
-    def _one_reflector(self):
+    def _one_reflector(self) -> CaptureTable:
         if self.reflector_mm is not None and self.flange_reflector_mm is not None:
             raise ValueError("give exactly one of `reflector_mm` (per circle) and `flange_reflector_mm`")
         plan = [key for key in PLAN_KEYS if getattr(self, key) is not None]
@@ -115,7 +118,7 @@ class TargetTable(_Strict):
     reflector_mm: list[XYZList] | None = None  # one per joint (their count: the robot's)
 
     @model_validator(mode="after")
-    def _one_position(self):
+    def _one_position(self) -> TargetTable:
         if (self.flange_mm is None) == (self.reflector_mm is None):
             raise ValueError("give exactly one of `flange_mm` (a flange target) and `reflector_mm` (per joint)")
         if self.guess_mm is not None and self.flange_mm != "unknown":
@@ -241,7 +244,7 @@ class JointModelTable(_RunTable):
     seed: TomlInt = Field(default=0, ge=0)
 
     @model_validator(mode="after")
-    def _valid(self):
+    def _valid(self) -> JointModelTable:
         if self.folds == 1:
             raise ValueError("folds must be 0 (no cross-validation) or at least 2")
         for key in ("compliance_joints", "harmonic_joints"):
@@ -286,7 +289,7 @@ class MissingTable:
     def __init__(self, message: str):
         object.__setattr__(self, "_message", message)
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> NoReturn:
         if name.startswith("__"):
             raise AttributeError(name)
         raise InputError(self._message)
@@ -297,7 +300,7 @@ class MissingTable:
     def __repr__(self) -> str:
         return f"MissingTable({self._message!r})"
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type[MissingTable], tuple[str]]:
         return (MissingTable, (self._message,))
 
 
@@ -368,7 +371,7 @@ class Scenario:
         raise InputError(f"{self.source}: no target named {name!r} (declared: {declared}); see [[targets]]")
 
 
-def _rigid(matrix, source: str) -> np.ndarray:
+def _rigid(matrix: ArrayLike, source: str) -> np.ndarray:
     """``tracker_from_base`` (a 4x4 matrix by its type) as a rigid transform; a near-rotation repaired with a warning."""
     array = np.asarray(matrix, dtype=float)
     rotation = array[:3, :3]
@@ -447,7 +450,7 @@ def scenario_from_dict(
     if reflector is not None and "capture" not in taken:
         targets.append(Target.from_mount(reflector, "capture"))
     if validation is not None and "validation" not in taken:
-        targets.append(Target(name="validation", frame="flange", positions=validation.flange_reflector_mm))
+        targets.append(Target(name="validation", frame="flange", positions=np.asarray(validation.flange_reflector_mm)))
     poses_target = None
     if spec.calibration_poses is not None:  # measured on a [[targets]] flange target at that offset, else on "flange"
         offset = np.asarray(spec.calibration_poses.flange_reflector_mm, dtype=float)
@@ -469,8 +472,9 @@ def scenario_from_dict(
         source=source,
         description=spec.description,
         robot=robot,
-        instrument=instrument,
-        plan=plan,
+        # a MissingTable stands in for an absent table: any use of it raises an InputError naming the key
+        instrument=cast(Instrument, instrument),
+        plan=cast(CapturePlan, plan),
         tracker_from_base=_rigid(spec.tracker_from_base, source),
         joint_errors=_joint_errors([] if capture is None else capture.joint_errors, n, source),
         joint_limits="warn" if capture is None else capture.joint_limits,
@@ -492,7 +496,9 @@ def scenario_from_dict(
     )
 
 
-def _joint_model_table(table: JointModelTable, truth: TruthTable | None, robot: RobotModel, source: str):
+def _joint_model_table(
+    table: JointModelTable, truth: TruthTable | None, robot: RobotModel, source: str
+) -> JointModelTable:
     """``[joint_model]`` checked against the robot (and ``[truth] compliance_rad_per_nm``)."""
     n = robot.n_joints
     for key in ("compliance_joints", "harmonic_joints"):
@@ -520,9 +526,12 @@ def _capture_reflector(capture: CaptureTable, n: int, source: str) -> ReflectorM
     return None
 
 
-def _plan(capture: CaptureTable, reflector, declared, robot, source: str) -> CapturePlan:
+def _plan(
+    capture: CaptureTable, reflector: ReflectorMount | None, declared: Sequence[Target], robot: RobotModel, source: str
+) -> CapturePlan:
     """The capture plan; its target is the ``[capture]`` reflector, else the first ``[[targets]]`` entry."""
     n = robot.n_joints
+    assert capture.sweep_deg is not None and capture.points is not None  # CaptureTable: the plan's keys together
     for key in ("sweep_deg", "points"):
         if len(getattr(capture, key)) != n:
             raise InputError(
@@ -552,7 +561,7 @@ def _plan(capture: CaptureTable, reflector, declared, robot, source: str) -> Cap
         return CapturePlan(
             start=np.deg2rad(start),
             sweep=np.deg2rad(capture.sweep_deg),
-            points=capture.points,
+            points=np.asarray(capture.points),
             reflector=reflector,
             bidirectional=capture.bidirectional,
         )
@@ -562,7 +571,7 @@ def _plan(capture: CaptureTable, reflector, declared, robot, source: str) -> Cap
 
 def _targets(tables: list[TargetTable], n: int, source: str) -> tuple[Target, ...]:
     """The ``[[targets]]`` entries as :class:`Target` objects (names distinct)."""
-    targets = []
+    targets: list[Target] = []
     for k, table in enumerate(tables):
         key = f"targets[{k}]"
         if any(t.name == table.name for t in targets):
@@ -577,12 +586,14 @@ def _targets(tables: list[TargetTable], n: int, source: str) -> tuple[Target, ..
                 Target(name=table.name, frame="joint", positions=np.asarray(table.reflector_mm, dtype=float))
             )
             continue
-        known = table.flange_mm != "unknown"
-        position = table.flange_mm if known else (table.guess_mm if table.guess_mm is not None else [0.0, 0.0, 0.0])
+        flange = table.flange_mm
+        assert flange is not None  # TargetTable: flange_mm or reflector_mm
+        known = flange != "unknown"
+        position = flange if isinstance(flange, list) else (table.guess_mm if table.guess_mm is not None else [0.0, 0.0, 0.0])
         if len(position) != 3:  # not by type: a union's error would name both of flange_mm's types
             what = "flange_mm" if known else "guess_mm"
             raise InputError(f"{source}: key `{key}.{what}` must be [x, y, z] mm; got {len(position)} values")
-        targets.append(Target(name=table.name, frame="flange", positions=position, known=known))
+        targets.append(Target(name=table.name, frame="flange", positions=np.asarray(position), known=known))
     return tuple(targets)
 
 
@@ -596,7 +607,7 @@ def _robot_file(robot: str, base_dir: Path | None) -> tuple[str, ...]:
     return (str(path),)
 
 
-def load_scenario(name_or_path) -> Scenario:
+def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
     """A built-in scenario by name (``robotcal scenarios`` lists them) or a scenario TOML by path."""
     text = str(name_or_path)
     if text in builtin_names("scenarios"):

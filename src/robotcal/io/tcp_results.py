@@ -15,6 +15,7 @@ import numpy as np
 
 from robotcal.io.atomic import atomic_write_text
 from robotcal.kinematics.model import DISPLAY_UNITS
+from robotcal.uncertainty.statistics import IntervalKind
 from robotcal.uncertainty.tcp import ORIENTATION_CONVENTION, TCP_COORDINATES, TCP_UNITS, TCPUncertainty
 from robotcal.uncertainty.workspace import WorkspaceUncertainty
 
@@ -53,7 +54,7 @@ def _covariance_file_units(covariance: np.ndarray) -> np.ndarray:
     return np.asarray(covariance, dtype=float) * _DEG[:, None] * _DEG[None, :]
 
 
-def tcp_to_csv(result: TCPUncertainty, *, interval: str = "symmetric") -> str:
+def tcp_to_csv(result: TCPUncertainty, *, interval: IntervalKind = "symmetric") -> str:
     """The ``tcp.csv`` text (12 significant digits) of a result; ``interval`` picks the coverage interval."""
     low, high = result.summary.interval(interval)
     columns = [
@@ -80,7 +81,7 @@ def tcp_to_csv(result: TCPUncertainty, *, interval: str = "symmetric") -> str:
     return "".join(lines)
 
 
-def write_tcp_csv(path, result: TCPUncertainty, *, interval: str = "symmetric") -> Path:
+def write_tcp_csv(path, result: TCPUncertainty, *, interval: IntervalKind = "symmetric") -> Path:
     """Write ``tcp.csv`` atomically."""
     return atomic_write_text(path, tcp_to_csv(result, interval=interval))
 
@@ -88,7 +89,7 @@ def write_tcp_csv(path, result: TCPUncertainty, *, interval: str = "symmetric") 
 def tcp_to_dict(
     result: TCPUncertainty,
     *,
-    interval: str = "symmetric",
+    interval: IntervalKind = "symmetric",
     workspace: WorkspaceUncertainty | None = None,
     provenance: dict | None = None,
 ) -> dict:
@@ -129,7 +130,7 @@ def tcp_to_dict(
     return data
 
 
-def _pose_entries(result: TCPUncertainty, interval: str) -> list[dict]:
+def _pose_entries(result: TCPUncertainty, interval: IntervalKind) -> list[dict]:
     """The ``poses`` of ``tcp.json``: per pose its readings, coordinates, covariances and ellipsoid."""
     low, high = result.summary.interval(interval)
     ellipsoid = result.ellipsoid
@@ -227,7 +228,7 @@ def write_tcp_folder(
     folder: Path,
     result: TCPUncertainty,
     *,
-    interval: str = "symmetric",
+    interval: IntervalKind = "symmetric",
     workspace: WorkspaceUncertainty | None = None,
     provenance: dict | None = None,
 ) -> dict:

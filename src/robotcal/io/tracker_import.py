@@ -254,7 +254,12 @@ def _number(cell: str, decimal: str, where: str) -> float:
     return value
 
 
-def _cell(key: str, cell: str, decimal: str, where: str):
+def _texts(cells: list[float | int | str]) -> tuple[str, ...]:
+    """The cells of a text column (``name``, ``target``: :func:`_cell` keeps them as written)."""
+    return tuple(str(cell) for cell in cells)
+
+
+def _cell(key: str, cell: str, decimal: str, where: str) -> float | int | str:
     """A cell of column ``key``: a number (``x``, ``y``, ``z``, ``u95``, joint readings), a whole number
     (``circle``, ``direction``) or a non-empty text (``name``, ``target``)."""
     if key in ("circle", "direction"):
@@ -425,7 +430,7 @@ def read_tracker_export(
         return header[positions[key]] if header is not None else f"{key} (column {positions[key] + 1})"
 
     unit, u95_unit = _export_units(header, positions, units, source, column_name("x"))
-    values = {key: [] for key in positions}
+    values: dict[str, list[float | int | str]] = {key: [] for key in positions}
     lines = []
     for line, row in layout.data:
         row = _check_width(row, line, layout.width, source, of=layout.of, delimiter=delimiter)
@@ -443,8 +448,8 @@ def read_tracker_export(
                 f"{source}: line {lines[bad[0]]}, column `{column_name('u95')}`: U(95) must be > 0; "
                 f"got {values['u95'][bad[0]]!r}"
             )
-    names = tuple(values["name"]) if "name" in values else None
-    target = tuple(values["target"]) if "target" in values else None
+    names = _texts(values["name"]) if "name" in values else None
+    target = _texts(values["target"]) if "target" in values else None
     if check_names:
         _check_unique_names(names, target, lines, source, column_name("name") if names else "")
     return TrackerPoints(
@@ -610,7 +615,7 @@ def read_joint_log(
     if not data:
         raise InputError(f"{source}: no data rows")
     readings = np.empty((len(data), count))
-    extra = {key: [] for key in optional}
+    extra: dict[str, list[float | int | str]] = {key: [] for key in optional}
     lines = []
     for row_index, (line, row) in enumerate(data):
         row = _check_width(
@@ -622,7 +627,7 @@ def read_joint_log(
             readings[row_index, k] = _number(row[position], decimal, where) * scale[k]
         for key, position in optional.items():
             extra[key].append(_cell(key, row[position], decimal, f"{source}: line {line}, column `{header[position]}`"))
-    names = tuple(extra["name"]) if "name" in extra else None
+    names = _texts(extra["name"]) if "name" in extra else None
     if names is not None and check_names:
         _check_pose_names(names, extra.get("target"), lines, source, header[optional["name"]])
     return JointLog(
@@ -632,7 +637,7 @@ def read_joint_log(
         source=str(source),
         circle=np.asarray(extra["circle"]) if "circle" in extra else None,
         direction=np.asarray(extra["direction"]) if "direction" in extra else None,
-        target=tuple(extra["target"]) if "target" in extra else None,
+        target=_texts(extra["target"]) if "target" in extra else None,
     )
 
 
@@ -766,7 +771,8 @@ def join_points_to_readings(
         targets = _renamed_targets(target, targets, points.n_points)
     circle = _pick("circle", points.circle, log.circle, rows, points, log)
     direction = _pick("direction", points.direction, log.direction, rows, points, log)
-    target_index, target_names = None, ()
+    target_index: np.ndarray | None = None
+    target_names: tuple[str, ...] = ()
     if targets is not None:
         target_names = tuple(dict.fromkeys(targets))
         lookup = {name: k for k, name in enumerate(target_names)}

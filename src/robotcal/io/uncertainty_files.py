@@ -131,9 +131,10 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
 def _joint_model_rows(result: MonteCarloResult) -> list[dict]:
     """One row per joint-model value of an extended refined model (``J2.k`` [rad/(N m)], ``J4.a1`` [deg]), after
     the parameters: the same columns (no nominal, no linearised comparison)."""
-    if not result.is_extended:
-        return []
     model, summary = result.joint_model, result.extra_summary
+    if model is None:  # not an extended model
+        return []
+    assert summary is not None  # an extended model's draws carry its joint-model values
     low, high = result.extra_interval()
     draws_low, draws_high = summary.interval(result.settings.interval)
     columns = {
@@ -234,8 +235,9 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
     if result.adaptive is not None:
         record = result.adaptive
         scale = _scale(result)[result.identified.reshape(-1)]
-        if result.is_extended:  # the joint-model values follow the parameters in the adaptive record
-            scale = np.r_[scale, result.joint_model.to_display(np.ones(result.joint_model.size))[result.extra_identified]]
+        model = result.joint_model
+        if model is not None:  # extended: the joint-model values follow the parameters in the adaptive record
+            scale = np.r_[scale, model.to_display(np.ones(model.size))[result.extra_identified]]
         adaptive = {
             "blocks": record.blocks,
             "block_size": settings.block_size,
@@ -270,7 +272,7 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
         "success": result.success,
         "message": result.message,
         "adaptive": adaptive,
-        "joint_model": None if not result.is_extended else joint_model_to_dict(result.joint_model),
+        "joint_model": None if result.joint_model is None else joint_model_to_dict(result.joint_model),
         "parameters": uncertainty_rows(result),
         "covariance": _matrix_in_file_units(result, result.covariance, scaled=True),
         "correlation": _matrix_in_file_units(result, result.correlation, scaled=False),
@@ -325,7 +327,7 @@ MEASURED_TARGET_COLUMNS = (
 
 def measured_target_rows(result) -> list[dict]:
     """One dict per estimated offset component (mm)."""
-    rows = []
+    rows: list[dict] = []
     summary = result.target_summary
     if summary is None:
         return rows

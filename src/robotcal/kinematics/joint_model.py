@@ -48,9 +48,9 @@ the refinement's Jacobian is ``dp/de = sum_i dp/dq_i C_i``, ``dp/dq_i`` that of 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -59,6 +59,22 @@ from robotcal._arrays import frozen_array as _frozen
 from robotcal.errors import InputError
 from robotcal.kinematics.forward import forward_kinematics, joint_frames
 from robotcal.kinematics.masses import LinkMasses
+
+
+class _Robot(Protocol):
+    """What a joint model reads of its robot (a :class:`robotcal.kinematics.model.RobotModel`, which this module
+    does not import: the model module imports this one)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def nominal(self) -> np.ndarray: ...
+    @property
+    def limits(self) -> np.ndarray: ...
+    @property
+    def n_joints(self) -> int: ...
+    def model_joint_variables(self, readings: ArrayLike) -> np.ndarray: ...
+
 
 __all__ = [
     "GRAVITY_MPS2",
@@ -191,7 +207,7 @@ class JointModel:
     backlash: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     backlash_source: str = ""
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         values = np.asarray(self.values, dtype=float)
         m = len(self.names)
         if values.shape != (m,) or not np.all(np.isfinite(values)):
@@ -212,13 +228,13 @@ class JointModel:
     @classmethod
     def build(
         cls,
-        robot,
+        robot: _Robot,
         *,
-        compliance_joints=(),
+        compliance_joints: Iterable[int] = (),
         masses: LinkMasses | None = None,
-        harmonic_joints=(),
+        harmonic_joints: Iterable[int] = (),
         harmonic_order: int = 1,
-        gravity=GRAVITY_MPS2,
+        gravity: ArrayLike = GRAVITY_MPS2,
     ) -> JointModel:
         """A model with every parameter at zero.
 
@@ -255,7 +271,15 @@ class JointModel:
 
     @classmethod
     def assemble(
-        cls, robot, names, values, *, identified=None, masses=None, lumped=None, gravity=GRAVITY_MPS2
+        cls,
+        robot: _Robot,
+        names: Iterable[str],
+        values: ArrayLike,
+        *,
+        identified: ArrayLike | None = None,
+        masses: LinkMasses | None = None,
+        lumped: Mapping[str, np.ndarray] | None = None,
+        gravity: ArrayLike = GRAVITY_MPS2,
     ) -> JointModel:
         """The model of the parameters ``names`` (``J<i>.k``, ``J<i>.g<b>``, ``J<i>.a<k>``, ``J<i>.b<k>``) with
         their ``values``; ``masses`` for the ``k`` form, ``lumped {name: vector (4 n,)}`` for the ``g`` form."""
@@ -285,8 +309,8 @@ class JointModel:
         kept = {name: lumped[name] for name, (_, kind, _) in zip(names, parsed, strict=True) if kind == "g"}
         return cls(
             names=names,
-            values=values,
-            identified=identified,
+            values=np.asarray(values),
+            identified=np.zeros(len(names), bool) if identified is None else np.asarray(identified),
             nominal=robot.nominal,
             compliance_map=compliance_map,
             harmonic_map=harmonic_map,
@@ -319,28 +343,31 @@ class JointModel:
         stiffness figures are quoted in), ``deg`` for the deflections and harmonic amplitudes."""
         return tuple("rad/(N m)" if name.endswith(".k") else "deg" for name in self.names)
 
-    def to_display(self, values) -> np.ndarray:
+    def to_display(self, values: ArrayLike) -> np.ndarray:
         """Core values ``(..., m)`` in :attr:`display_units` (NaN stays NaN)."""
         factor = np.array([1.0 if name.endswith(".k") else 180.0 / np.pi for name in self.names])
         return np.asarray(values, dtype=float) * factor
 
-    def from_display(self, values) -> np.ndarray:
+    def from_display(self, values: ArrayLike) -> np.ndarray:
         """Values ``(..., m)`` in :attr:`display_units` back to the core's units."""
         factor = np.array([1.0 if name.endswith(".k") else np.pi / 180.0 for name in self.names])
         return np.asarray(values, dtype=float) * factor
 
-    def with_values(self, values, identified=None) -> JointModel:
-        return replace(self, values=values, identified=self.identified if identified is None else identified)
+    def with_values(self, values: ArrayLike, identified: ArrayLike | None = None) -> JointModel:
+        return replace(
+            self, values=np.asarray(values), identified=self.identified if identified is None else np.asarray(identified)
+        )
 
-    def with_backlash(self, backlash, source: str = "") -> JointModel:
+    def with_backlash(self, backlash: ArrayLike | None, source: str = "") -> JointModel:
         """The same model correcting the circle points for the angular lash ``backlash (n,)`` [rad]."""
-        return replace(self, backlash=backlash, backlash_source=source)
+        lash = np.zeros(self.nominal.shape[0]) if backlash is None else np.asarray(backlash)  # None: no lash
+        return replace(self, backlash=lash, backlash_source=source)
 
     @property
     def has_backlash(self) -> bool:
         return bool(np.any(self.backlash != 0.0))
 
-    def columns(self, q) -> np.ndarray:
+    def columns(self, q: ArrayLike) -> np.ndarray:
         """``C(q)`` with ``delta = C(q) @ values``, shape ``(n_poses, n_joints, m)`` [rad per unit of each value]."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n = q.shape[1]
@@ -355,7 +382,7 @@ class JointModel:
             out += np.einsum("piks,iksm->pim", waves, self.harmonic_map)
         return out
 
-    def deflection(self, q, values=None) -> np.ndarray:
+    def deflection(self, q: ArrayLike, values: ArrayLike | None = None) -> np.ndarray:
         """``delta(q)`` [rad], shape ``(n_poses, n_joints)``; ``values (..., m)``: other values (a batch of draws:
         then shape ``(..., n_poses, n_joints)``)."""
         values = self.values if values is None else np.asarray(values, dtype=float)
@@ -444,7 +471,7 @@ class Deflection(NamedTuple):
     flange_shift_mm: float
 
 
-def largest_deflection(model: JointModel, robot, *, poses: int = 400, seed: int = 0) -> Deflection:
+def largest_deflection(model: JointModel, robot: _Robot, *, poses: int = 400, seed: int = 0) -> Deflection:
     """The largest deflection ``|delta_i(q)|`` of any joint over ``poses`` seeded random poses within the joint
     limits (compliance and harmonics together), where it happens and what it does to the flange of the nominal
     structure. Compare it with :data:`MAX_DEFLECTION_DEG`."""
@@ -467,7 +494,7 @@ def largest_deflection(model: JointModel, robot, *, poses: int = 400, seed: int 
 
 
 def lumped_terms(
-    robot, joints: Iterable[int], gravity: ArrayLike = GRAVITY_MPS2, *, poses: int = 400, seed: int = 0
+    robot: _Robot, joints: Iterable[int], gravity: ArrayLike = GRAVITY_MPS2, *, poses: int = 400, seed: int = 0
 ) -> dict[str, np.ndarray]:
     """The lumped compliance terms of ``joints`` (0-based): ``{"J<i>.g<b>": v (4 n,)}``, the torques ``f_b = Y_i
     v_b`` spanning joint i's gravity torques on the nominal structure over ``poses`` seeded random poses within

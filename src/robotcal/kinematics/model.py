@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -119,7 +119,7 @@ class RobotModel:
     flange_frame: np.ndarray | None = None
     _model_from_reading: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         nominal = np.asarray(self.nominal, dtype=float)
         if nominal.ndim != 2 or nominal.shape[1] != 5 or nominal.shape[0] < 1:
             raise InputError(f"robot {self.name!r}: `nominal` must have shape (n_joints, 5); got {nominal.shape}")
@@ -220,7 +220,7 @@ class RobotModel:
         fixed[:, _BETA] = ~self.hayati
         return fixed
 
-    def model_joint_variables(self, readings) -> np.ndarray:
+    def model_joint_variables(self, readings: ArrayLike) -> np.ndarray:
         """Model joint variables [rad] from controller readings ``(..., n_joints)`` [rad].
 
         ``q = sign * reading + offset``; with a coupling, ``q = M^-1 reading + offset`` (see
@@ -231,7 +231,7 @@ class RobotModel:
             return readings * self.reading_sign + self.reading_offset
         return readings @ self._model_from_reading.T + self.reading_offset
 
-    def readings_from_model(self, q) -> np.ndarray:
+    def readings_from_model(self, q: ArrayLike) -> np.ndarray:
         """Controller readings [rad] from model joint variables ``(..., n_joints)`` [rad].
 
         ``reading = sign * (q - offset)``; with a coupling, ``reading = M (q - offset)``.
@@ -263,7 +263,7 @@ class ParameterSet:
     identified: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None: the default, set in __post_init__
     joint_model: JointModel | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         values = check_parameter_array(self.values, self.robot.n_joints)
         if self.joint_model is not None and self.joint_model.nominal.shape != (self.robot.n_joints, 5):
             raise InputError(f"the joint model was built for another robot than {self.robot.name!r}")
@@ -295,7 +295,7 @@ class ParameterSet:
         """True when the set carries non-geometric parameters (a :class:`JointModel` with any parameter)."""
         return self.joint_model is not None and not self.joint_model.is_empty
 
-    def joint_variables(self, q) -> np.ndarray:
+    def joint_variables(self, q: ArrayLike) -> np.ndarray:
         """The joint variables the geometric chain is evaluated at: ``q + delta(q)`` of the joint model (``q`` itself
         for the geometric model) [rad], for commanded model joint variables ``q (n_poses, n_joints)``."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -303,7 +303,7 @@ class ParameterSet:
             return q
         return q + self.joint_model.deflection(q)
 
-    def model_joint_variables(self, readings) -> np.ndarray:
+    def model_joint_variables(self, readings: ArrayLike) -> np.ndarray:
         """The joint variables this robot's chain turns by at controller ``readings (n_poses, n_joints)`` [rad]:
         :meth:`RobotModel.model_joint_variables` plus the joint model's deflection (:meth:`joint_variables`).
         Every evaluation of a parameter set at readings goes through here."""
@@ -326,5 +326,5 @@ class ParameterSet:
         diff[:, angles] = np.angle(np.exp(1j * diff[:, angles]))
         return diff
 
-    def replace(self, **changes) -> ParameterSet:
+    def replace(self, **changes: Any) -> ParameterSet:
         return replace(self, **changes)

@@ -93,8 +93,8 @@ class RunPlan:
 
 
 def plan_run(
-    scenario,
-    out=None,
+    scenario: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
     *,
     seed: int | None = None,
     draws: int | None = None,
@@ -197,20 +197,21 @@ def plan_run(
 
 def _seeds(loaded: Scenario, seed: int | None, validation: ValidationTable) -> dict[str, int | None]:
     """The seed of every stage: ``seed`` plus each stage's offset (:data:`SEED_OFFSETS`), else the scenario's."""
+    seeds: dict[str, int | None]
     if seed is not None:
         seeds = {name: seed + offset for name, offset in SEED_OFFSETS.items()}
     else:
+        capture = seed_from(loaded.seed)
         seeds = {
-            "capture": seed_from(loaded.seed),
+            "capture": capture,
             "truth": None if loaded.truth is None else seed_from(loaded.truth.seed),
             "validation": seed_from(validation.seed),
             "montecarlo": seed_from(loaded.montecarlo.seed),
             "workspace": None,
             # the ISO 9283 study (joint errors and noise of its visits): derived from the capture seed
-            "iso9283": None,
+            "iso9283": (capture + SEED_OFFSETS["iso9283"]) % SEED_BOUND,
             "poses": None if loaded.calibration_poses is None else seed_from(loaded.calibration_poses.seed),
         }
-        seeds["iso9283"] = (seeds["capture"] + SEED_OFFSETS["iso9283"]) % SEED_BOUND
     if loaded.truth is None:
         seeds["truth"] = None
     if loaded.calibration_poses is None:

@@ -177,13 +177,18 @@ def _clear_previous(out: Path) -> None:
     (out / RUN_RECORD).unlink(missing_ok=True)
 
 
+def _no_progress(stage: str, done: int, total: int | None, detail: str = "") -> None:
+    """The progress of a run nobody watches."""
+
+
 class _Run:
     """One execution of a plan: the record, the documents and typed results gathered stage by stage."""
 
     def __init__(self, plan: RunPlan, progress: StageProgress | None, figures: FigureJobs):
+        assert plan.out is not None  # run_calibration refuses a plan without a folder
         self.plan = plan
         self.out: Path = plan.out
-        self.progress = progress or (lambda stage, done, total, detail="": None)
+        self.progress: StageProgress = progress or _no_progress
         self.record: dict = {}
         self.documents: dict[str, Document] = {}
         self.results: dict = {}
@@ -193,7 +198,7 @@ class _Run:
     def write_record(self) -> None:
         atomic_write_text(self.out / RUN_RECORD, json_text(self.record, default=str))
 
-    def step(self, stage: str):
+    def step(self, stage: str) -> Callable[..., None]:
         return lambda done, total, detail="": self.progress(stage, done, total, detail)
 
     def execute(self) -> RunResult:
@@ -231,7 +236,7 @@ class _Run:
             except AttributeError:
                 pass
 
-    def _stage(self, name: str, function) -> None:
+    def _stage(self, name: str, function: Callable[[], stages.StageOutput]) -> None:
         started = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -386,9 +391,10 @@ class _Run:
                 seconds=round(now - self.started, 3),
                 finished=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             )
-            documents = {**self.documents, RUN_RECORD: json_copy(self.record)}
-            summary = summarise(documents[RUN_RECORD], documents)
-            result = RunResult(folder=self.out, record=documents[RUN_RECORD], documents=documents, summary=summary)
+            record = json_copy(self.record)
+            documents = {**self.documents, RUN_RECORD: record}
+            summary = summarise(record, documents)
+            result = RunResult(folder=self.out, record=record, documents=documents, summary=summary)
             report = html.render_report(result)
             check_interrupt()
             atomic_write_text(self.out / REPORT_NAME, report.html)
@@ -404,7 +410,7 @@ class _Run:
         self.results["report"] = report
         return RunResult(
             folder=self.out,
-            record=documents[RUN_RECORD],
+            record=record,
             documents=documents,
             summary=summary,
             results=dict(self.results),

@@ -19,13 +19,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, cast
 
 import numpy as np
 
 from robotcal import api
 from robotcal.capture import Capture
 from robotcal.diagnostics.iso9283 import ISO_CYCLES, simulate_iso_study
+from robotcal.identification.records import RefinementResult
 from robotcal.io.atomic import atomic_directory
 from robotcal.io.capture_csv import capture_to_csv, read_capture_text
 from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
@@ -60,9 +61,9 @@ __all__ = [
 ]
 
 #: The refinement criteria a run computes, the deployed one (the recommended model) first.
-CRITERIA_RUN = ("points", "distances")
+CRITERIA_RUN: tuple[Literal["points", "distances"], ...] = ("points", "distances")
 #: The deployed model's criterion: its Monte Carlo, TCP figures and consistency check.
-DEPLOYED = "points"
+DEPLOYED: Literal["points"] = "points"
 #: The geometric fit of the deployed criterion, written beside an extended deployed model for the comparison.
 GEOMETRIC_FILE = f"{DEPLOYED}-geometric.json"
 #: Three flange targets (a typical adapter plate) measured at each ISO 9283 test pose, so that the orientation
@@ -120,7 +121,7 @@ def simulate_stage(scenario: Scenario, seeds: dict, out: Path, step: Step = _no_
     The captures the later stages use are those of the CSV files (12 decimals), read back from the text
     written: a stand-alone command reading ``capture.csv`` sees the same numbers bit for bit.
     """
-    provenance = {"scenario": scenario_echo(scenario), "versions": versions()}
+    provenance: dict[str, Any] = {"scenario": scenario_echo(scenario), "versions": versions()}
     if scenario.truth is not None:
         truth = api.perturb(scenario, rng=seeds["truth"])
         provenance.update(
@@ -159,7 +160,8 @@ def identify_stage(scenario: Scenario, capture: Capture, out: Path) -> StageOutp
     result = api.identify(capture, scenario)
     with atomic_directory(out / "cpa") as folder:
         document = parameters_to_dict(result.parameters, cpa_provenance(result, capture, scenario=scenario))
-        documents = {"parameters.json": write_json(folder / "parameters.json", document)}
+        documents: dict[str, Document] = {"parameters.json": write_json(folder / "parameters.json", document)}
+    assert result.health is not None  # robotcal.identify always judges the fit
     detail = f"{int(result.parameters.identified.sum())} parameters, fit health {result.health.verdict}"
     return StageOutput(result, _in("cpa", documents, out / "cpa"), detail)
 
@@ -179,18 +181,22 @@ def refine_stage(
     ``refine/points-geometric.json`` holds the geometric fit of the same data, for the comparison. ``joints``: the
     joints stage's analysis of a bidirectional capture, whose angular backlash corrects the circle points."""
     fitted = api.calibration_capture(scenario, capture, poses)
-    lash = {} if joints is None or not joints.diagnostics.backlash else {"backlash_deg": joints}
-    results = {DEPLOYED: api.refine(fitted, scenario, start, criterion=DEPLOYED, **lash)}
+    lash = None if joints is None or not joints.diagnostics.backlash else joints
+    results: dict[str, RefinementResult] = {
+        DEPLOYED: api.refine(fitted, scenario, start, criterion=DEPLOYED, backlash_deg=lash)
+    }
     step(1, None, DEPLOYED)
-    chosen = results[DEPLOYED].model
+    chosen = cast("api.ModelName", results[DEPLOYED].model)  # the name of a model fitted: one of the choices
     for criterion in CRITERIA_RUN:
         if criterion != DEPLOYED:
-            results[criterion] = api.refine(fitted, scenario, start, criterion=criterion, model=chosen, **lash)
+            results[criterion] = api.refine(fitted, scenario, start, criterion=criterion, model=chosen, backlash_deg=lash)
             step(len(results), None, criterion)
     geometric = None
     if chosen != "geometric":
-        geometric = api.refine(fitted, scenario, start, criterion=DEPLOYED, model="geometric", health="off", **lash)
-    documents = {}
+        geometric = api.refine(
+            fitted, scenario, start, criterion=DEPLOYED, model="geometric", health="off", backlash_deg=lash
+        )
+    documents: dict[str, Document] = {}
     with atomic_directory(out / "refine") as folder:
         named = [(f"{criterion}.json", result) for criterion, result in results.items()]
         if geometric is not None:
@@ -281,10 +287,15 @@ def uncertainty_stage(
     """
     total = montecarlo.iterations + refined_montecarlo.iterations
     results = {}
-    for model, settings, parameters, done in (
+    runs: tuple[tuple[Literal["cpa", "refined"], MonteCarloSettings, ParameterSet, int], ...] = (
         ("cpa", montecarlo, cpa, 0),
         ("refined", refined_montecarlo, deployed, montecarlo.iterations),
-    ):
+    )
+    for model, settings, parameters, done in runs:
+
+        def progress(count: int, expected: int | None, done: int = done) -> None:
+            step(done + count, total, "draws")
+
         results[model] = api.monte_carlo(
             scenario,
             settings=settings,
@@ -292,8 +303,8 @@ def uncertainty_stage(
             model=model,
             criterion=DEPLOYED,
             rng=seed,
-            progress=lambda count, expected, done=done: step(done + count, total, "draws"),
-            **({"poses": poses} if model == "refined" and poses is not None else {}),
+            progress=progress,
+            poses=poses if model == "refined" else None,
         )
     documents: dict[str, Document] = {}
     for name, result in (("uncertainty", results["cpa"]), ("uncertainty-refined", results["refined"])):
@@ -312,7 +323,7 @@ def uncertainty_stage(
 def _deployed_label(draws: MonteCarloResult) -> str:
     """``refined (CPA + points refinement)``, with the extended model's name when the draws carry one."""
     extended = ""
-    if draws.is_extended:
+    if draws.joint_model is not None:  # extended
         groups = draws.joint_model.groups
         extended = ", " + "+".join(group for group in ("compliance", "harmonic") if group in groups) + " model"
     return f"refined (CPA + {DEPLOYED} refinement{extended})"
@@ -478,7 +489,7 @@ def iso9283_stage(
         "units": {"AP, RP, AD, RD, l_bar, S_l": "mm", "APa..c, RPa..c": "deg"},
     }
     with atomic_directory(out / "iso9283") as folder:
-        documents = {
+        documents: dict[str, Document] = {
             "iso9283/iso9283.csv": write_csv(folder / "iso9283.csv", iso_to_csv(study.results)),
             "iso9283/study.json": write_json(folder / "study.json", summary),
         }

@@ -137,8 +137,8 @@ def controller_readings(readings: ArrayLike, robot: RobotModel, controller: Robo
 
 
 def write_program(
-    circle: np.ndarray,
-    direction: np.ndarray,
+    circle: np.ndarray | None,
+    direction: np.ndarray | None,
     readings: ArrayLike,
     *,
     language: str,
@@ -204,8 +204,11 @@ def write_program(
         indent = "    "
     else:
         lines += [f"def {name}():"]
+    if labels is None and (circle is None or direction is None):
+        raise InputError("write_program: give `labels`, or the `circle` and `direction` of every point")
     for index in range(readings.shape[0]):
         if labels is None:
+            assert circle is not None and direction is not None  # checked above
             key = (int(circle[index]), int(direction[index]))
             counts[key] = counts.get(key, 0) + 1
             sweep = "forward" if key[1] > 0 else "return"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +32,7 @@ __all__ = [
 DEFAULT_CAPSULE_RADIUS_MM = 50.0
 
 
-def scenario_document(name_or_path: str | Path) -> tuple[dict, Path, str, str]:
+def scenario_document(name_or_path: str | os.PathLike[str]) -> tuple[dict, Path, str, str]:
     """The parsed TOML of a built-in scenario or scenario file: ``(document, base_dir, name, source)``."""
     text = str(name_or_path)
     if text in builtin_names("scenarios"):

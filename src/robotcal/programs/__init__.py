@@ -4,6 +4,7 @@ with new numbers and nothing else changed (issue 28). :mod:`robotcal.programs.ba
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,8 +31,8 @@ LANGUAGE_OF_SUFFIX = {
 
 
 def read_program(
-    path: str | Path, *, language: str | None = None, dat: str | Path | None = None,
-    config_dat: str | Path | None = None, encoding: str = "utf-8",
+    path: str | os.PathLike[str], *, language: str | None = None, dat: str | os.PathLike[str] | None = None,
+    config_dat: str | os.PathLike[str] | None = None, encoding: str = "utf-8",
 ) -> Program:
     """Read a robot program with the reader of its language (from the suffix unless ``language`` is given).
 

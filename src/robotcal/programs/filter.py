@@ -261,10 +261,13 @@ def filter_program(
         previous = np.where(np.isfinite(robot.limits), robot.limits, 0.0).mean(axis=1)
     else:
         previous = _to_robot(robot, controller, np.deg2rad(np.asarray(start_deg, dtype=float)))
-    targets, taught, tools = [], [], []
+    targets: list[np.ndarray] = []
+    taught: list[np.ndarray] = []
+    tools: list[np.ndarray] = []
     records: list[dict] = []
     for point in program.points:
         base, tool, remark = _frames_of(point, known, flange)
+        readings: np.ndarray | None
         if point.kind == "joint":
             readings = _to_robot(robot, controller, np.deg2rad(np.asarray(point.joints_deg, dtype=float)))
             target = forward_kinematics(robot.nominal, robot.model_joint_variables(readings[None]))[0] @ tool

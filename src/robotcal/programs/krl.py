@@ -40,10 +40,12 @@ Points are listed in the order of their first use.
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -156,8 +158,8 @@ class _Target:
 
 
 def read_program(
-    src_path: str | Path, *, dat_path: str | Path | None = None, config_dat: str | Path | None = None,
-    encoding: str = "utf-8",
+    src_path: str | os.PathLike[str], *, dat_path: str | os.PathLike[str] | None = None,
+    config_dat: str | os.PathLike[str] | None = None, encoding: str = "utf-8",
 ) -> Program:
     """Read a KRL program: its ``.src``, its ``.dat`` and, optionally, a ``$config.dat``.
 
@@ -265,7 +267,7 @@ def render(
             )
         frame = _check_frame(frame_mm, point)
         angles = _abc_near(frame, point.values[3:6])
-        new = (*frame[:3, 3], *angles)
+        new: tuple | np.ndarray = (*frame[:3, 3], *angles)
     else:
         if joints_deg is None or frame_mm is not None:
             raise InputError(
@@ -303,7 +305,8 @@ def _beside(src_path: Path) -> Path | None:
     exact = [path for path in found if path.stem == src_path.stem]
     if len(found) > 1 and len(exact) != 1:
         raise InputError(f"{src_path}: several data lists beside it ({', '.join(sorted(p.name for p in found))})")
-    return (exact or found or [None])[0]
+    chosen = exact or found
+    return chosen[0] if chosen else None
 
 
 def _split_lines(name: str, text: str) -> list[_Line]:
@@ -432,7 +435,7 @@ def _declarations(lines, array_types, *, strict: bool, declared_only: bool) -> d
     return out
 
 
-def _kind(aggregate: _Aggregate, type_name: str | None) -> str | None:
+def _kind(aggregate: _Aggregate, type_name: str | None) -> Literal["cartesian", "joint"] | None:
     """``"cartesian"``, ``"joint"`` or None (not a position) of an aggregate of type ``type_name``."""
     if type_name in _CARTESIAN_TYPES:
         return "cartesian"
@@ -639,8 +642,8 @@ class _Reader:
         if not rest:
             raise InputError(f"{line.where}: {keyword} without a target")
         for name in re.finditer(r"([A-Za-z_][\w$]*)(?:\s*\[([\d\s,]+)\])?", rest):
-            index = re.sub(r"\s+", "", name.group(2) or "")
-            self.used.add(name.group(1).upper() + (f"[{index}]" if index else ""))
+            subscript = re.sub(r"\s+", "", name.group(2) or "")
+            self.used.add(name.group(1).upper() + (f"[{subscript}]" if subscript else ""))
         if motion.group("relative"):
             self.skip(line, f"{keyword}_REL {rest}: a relative motion; not filtered")
             return
@@ -684,6 +687,7 @@ class _Reader:
                 self.skip(line, f"{keyword} {target.text}: not a position aggregate")
                 return
         else:
+            assert target.name is not None  # a simple target: a name when not an aggregate
             key = re.sub(r"\s+", "", target.name).upper()
             if key.startswith("$"):
                 self.skip(line, f"{keyword} {target.name}: a system variable, not a point of the program")
@@ -844,6 +848,7 @@ def _abc_near(frame: np.ndarray, reference_deg) -> np.ndarray:
             distance = float(np.sum((candidate - reference) ** 2))
             if distance < best_distance:
                 best, best_distance = candidate, distance
+    assert best is not None  # every triple has candidates within +-180 deg
     return best
 
 

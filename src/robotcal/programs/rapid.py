@@ -47,6 +47,7 @@ import bisect
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, NoReturn
 
 import numpy as np
 
@@ -67,7 +68,7 @@ class _Motion:
     name: str
     targets: tuple[int, ...]
     tool: int
-    kind: str  # "cartesian" or "joint"
+    kind: Literal["cartesian", "joint"]
 
 
 def _motion_table() -> dict[str, _Motion]:
@@ -187,7 +188,7 @@ class _Reader:
         self.parameters: dict[tuple[str | None, str | None], set[str]] = {}
         self.assignments: dict[str, list[int]] = {}
         self.references: dict[str, list[int]] = {}
-        self.inline: list[tuple[list, int, str, _Motion, dict]] = []
+        self.inline: list[tuple[list, int, int, _Motion, dict]] = []
         self.motions: list[tuple[_Motion, int, tuple, list, dict]] = []
         self.routine_names: dict[str, str] = {}
         self.skipped: list[tuple[str, int, str]] = []
@@ -196,7 +197,7 @@ class _Reader:
     def line_of(self, offset: int) -> int:
         return bisect.bisect_right(self.line_starts, offset)
 
-    def fail(self, offset: int, message: str):
+    def fail(self, offset: int, message: str) -> NoReturn:
         raise InputError(f"{self.where}: line {self.line_of(offset)}: {message}")
 
     def _tokenize(self) -> list[_Token]:
@@ -204,11 +205,12 @@ class _Reader:
         position = _skip_header(text)
         while position < len(text):
             match = _TOKEN.match(text, position)
+            assert match is not None and match.lastgroup is not None  # `op` takes any one character
             kind, value, end = match.lastgroup, match.group(), match.end()
             if kind == "string" and (len(value) < 2 or not value.endswith('"') or _open_string(value)):
                 self.fail(position, f"string {value[:40]!r} is not closed on its line")
             if kind == "number" and end < len(text) and (text[end].isalnum() or text[end] in "_."):
-                bad = re.match(r"[\w.+-]*", text[position:]).group()
+                bad = re.match(r"[\w.+-]*", text[position:]).group()  # type: ignore[union-attr]  # `*`: always a match
                 self.fail(position, f"bad number {bad!r}")
             if kind not in ("space", "comment"):
                 tokens.append(_Token(kind, value, position, end))
@@ -341,10 +343,12 @@ class _Reader:
 
     def _bracket(self, start: int, end: int) -> tuple[list, int]:
         """Parse ``[ ... ]`` opening at ``start``: its elements and the index after its ``]``."""
-        tokens, elements, at = self.tokens, [], start + 1
+        tokens, at = self.tokens, start + 1
+        elements: list[list | _Leaf] = []
         if at < end and tokens[at].text == "]":
             return elements, at + 1
         while at < end:
+            element: list | _Leaf
             if tokens[at].text == "[":
                 element, at = self._bracket(at, end)
                 if at < end and tokens[at].text not in (",", "]"):  # an aggregate inside an expression
@@ -648,7 +652,7 @@ class _Reader:
 
     def _declared_point(self, declaration: _Declaration) -> ProgramPoint | None:
         """The point of a declared robtarget/jointtarget, or None with a skipped entry saying why."""
-        kind = "cartesian" if declaration.type == "robtarget" else "joint"
+        kind: Literal["cartesian", "joint"] = "cartesian" if declaration.type == "robtarget" else "joint"
         where = f"{declaration.type} {declaration.name}"
         line = declaration.line
         if declaration.is_array:
@@ -710,7 +714,7 @@ class _Reader:
         self.skipped.append((self.name, use["line"], f"{use['motion']} {where}: {why}; not supported, not filtered"))
         return False
 
-    def _point(self, label: str, kind: str, value: list, use: dict) -> ProgramPoint:
+    def _point(self, label: str, kind: Literal["cartesian", "joint"], value: list, use: dict) -> ProgramPoint:
         if kind == "cartesian":
             numbers = value[0] + value[1]
             frame = frame_from_pose([leaf.value for leaf in value[0]], [leaf.value for leaf in value[1]])

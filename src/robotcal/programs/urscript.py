@@ -205,6 +205,7 @@ class _Reader:
         text, position = self.text, 0
         while position < len(text):
             match = _LEXEME.match(text, position)
+            assert match is not None and match.lastgroup is not None  # `nl` and `op` take any one character
             kind, lexeme = match.lastgroup, match.group()
             if kind == "num":
                 tail = _NUMBER_TAIL.match(text, match.end())
@@ -309,7 +310,7 @@ class _Reader:
             ):
                 if self._is(index - 1, "op", ".") or (index and tokens[index - 1].text in _FUNCTIONS):
                     continue  # a member, or the name of a function being defined
-                arguments = []
+                arguments: list[tuple[str | None, tuple[int, ...]]] = []
                 for item in self._split(index + 1):
                     if not item:
                         raise self.error(token.start, f"`{token.text}(...)` has an empty argument")
@@ -358,6 +359,7 @@ class _Reader:
         value = [i for i in range(equals + 1, self._statement_end(equals + 1)) if self.tokens[i].kind != "nl"]
         kind, content = ("modified", None) if modified else self._classify(value)
         if kind in ("pose", "list"):
+            assert isinstance(content, _Aggregate)  # _classify: the literal of a pose or a list
             assignment = _Assignment(token.text, index, line, kind, content, self.source(value))
         else:  # an expression, or another variable's name
             assignment = _Assignment(
@@ -365,7 +367,7 @@ class _Reader:
             )
         self.assignments.setdefault(token.text, []).append(assignment)
 
-    def _classify(self, item) -> tuple[str, object]:
+    def _classify(self, item) -> tuple[str, _Aggregate | str]:
         """``("pose" | "list", _Aggregate)``, ``("name", str)`` or ``("expression", text)`` of a value's tokens."""
         item = list(item)
         tokens = self.tokens
@@ -438,10 +440,14 @@ class _Reader:
             )
         item = call.arguments[0][1]
         kind, content = self._classify(item)
-        name, aggregate, why = None, None, ""
+        name: str | None = None
+        aggregate: _Aggregate | None = None
+        why = ""
         if kind == "pose":
+            assert isinstance(content, _Aggregate)  # _classify: a pose's literal
             name, aggregate = f"tcp@{call.line}", content
         elif kind == "name":
+            assert isinstance(content, str)  # _classify: a variable's name
             assignment, why = self._lookup(content, call.index, call)
             if assignment is not None:
                 assignment.used = True
@@ -452,6 +458,7 @@ class _Reader:
         else:
             why = f"`{content}` is an expression"
         if aggregate is not None:
+            assert name is not None  # set with the aggregate
             self._check_length(aggregate, _POSE_LENGTH, where)
             element = aggregate.expression()
             if element is None:
@@ -525,6 +532,7 @@ class _Reader:
             )
             return
         if kind == "name":
+            assert isinstance(content, str)  # _classify: a variable's name
             assignment, why = self._lookup(content, call.index, call)
             if assignment is None:
                 self.skipped.append((self.file, line, f"{where}: {why}: not filtered"))
@@ -532,7 +540,8 @@ class _Reader:
             assignment.used = True
             self._variable_point(call, line, assignment)
             return
-        aggregate: _Aggregate = content
+        assert isinstance(content, _Aggregate)  # _classify: a pose's or a list's literal
+        aggregate = content
         self._check_length(aggregate, _POSE_LENGTH if kind == "pose" else _JOINT_COUNT, f"{where}")
         element = aggregate.expression()
         if element is not None:
@@ -548,6 +557,7 @@ class _Reader:
 
     def _variable_point(self, call: _Call, line: int, assignment: _Assignment) -> None:
         aggregate = assignment.aggregate
+        assert aggregate is not None  # _lookup returns the assignments of a pose or a list only
         where = f"`{assignment.name}` ({call.name} target at line {line})"
         self._check_length(aggregate, _POSE_LENGTH if aggregate.kind == "pose" else _JOINT_COUNT, where)
         element = aggregate.expression()
@@ -586,7 +596,8 @@ class _Reader:
             )
 
     def _point(self, label: str, aggregate: _Aggregate, motion: str, tool: _Tool) -> ProgramPoint:
-        values = tuple(element.value for element in aggregate.elements)
+        values = tuple(element.value for element in aggregate.elements if element.value is not None)
+        assert len(values) == len(aggregate.elements)  # the callers skip an aggregate holding an expression
         spans = tuple(NumberSpan(self.file, element.start, element.end) for element in aggregate.elements)
         line = self.line(aggregate.elements[0].start)
         if aggregate.kind == "pose":

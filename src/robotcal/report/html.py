@@ -23,6 +23,7 @@ every canvas drew, then sets ``<body data-status="ok">`` (or ``"error"``, with t
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -138,7 +139,7 @@ def render_report(result: RunResult) -> Report:
         body = environment.get_template(f"{anchor}.html.j2").render(**context)
         bodies.append({"id": anchor, "title": title, "body": Markup(body)})
     robot = page.record.get("robot") or (page.json("cpa/parameters.json") or {}).get("robot") or "robot"
-    scenario = page.record.get("scenario") if isinstance(page.record.get("scenario"), dict) else {}
+    scenario = found if isinstance(found := page.record.get("scenario"), dict) else {}
     canvases = sum(str(b["body"]).count("<canvas") for b in bodies)
     html = environment.get_template("page.html.j2").render(
         title=f"Calibration report: {robot}",
@@ -163,7 +164,7 @@ def render_report(result: RunResult) -> Report:
     )
 
 
-def build_report(run_dir, out=None) -> Report:
+def build_report(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | None = None) -> Report:
     """Read the run folder ``run_dir``, render its report and write it atomically to ``out``.
 
     Parameters

@@ -107,7 +107,7 @@ _TABLE_ROWS = 40  # longer CSV files show their first rows and say so
 _TABLE_COLUMNS = 8  # wider CSV files are split into several tables, repeating their key columns
 
 
-def _number(text):
+def _number(text: object) -> float | None:
     """Float from a CSV cell or JSON value, else None."""
     if isinstance(text, bool):
         return None
@@ -117,6 +117,12 @@ def _number(text):
         return float(str(text).strip())
     except ValueError:
         return None
+
+
+def _scaled(text: object, factor: float) -> float | None:
+    """``_number(text) * factor`` (a unit change), else None."""
+    number = _number(text)
+    return None if number is None else number * factor
 
 
 def _fmt(value, spec: str = ".6g", *, exponent: bool = True) -> str:
@@ -156,7 +162,7 @@ def _cell(text: str, spec: str = ".6g") -> str:
 
 
 #: The format of the numbers of a CSV column by its unit (a percentage: one decimal, 52.4 %).
-_UNIT_FORMATS = {"%": ".1f"}
+_UNIT_FORMATS: dict[str | None, str] = {"%": ".1f"}  # by _unit_of: a unit, or None
 
 
 def _unit_of(name: str) -> str | None:
@@ -416,7 +422,8 @@ def _figures(page: _Page, folder: str, *, names=None, first=(), captions=None) -
             n,
         ),
     )
-    figures, problems = [], []
+    figures: list[dict] = []
+    problems: list[dict] = []
     for name in names:
         shown = page.figure(name, _caption(PurePosixPath(name).name, captions))
         if shown is None:

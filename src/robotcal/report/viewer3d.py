@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from functools import cache
 from importlib import resources
+from typing import Any, Literal
 
 import numpy as np
 
@@ -20,6 +21,8 @@ from robotcal.errors import RobotcalError
 from robotcal.geometry.fits import fit_circle_3d
 
 __all__ = ["CIRCLE_COLOURS", "viewer_scene", "render_viewer", "asset_text"]
+
+CircleFit = Literal["geometric", "algebraic"]  # [identification] circle_fit
 
 #: One colour per circle (colour-blind-safe qualitative palette), cycled beyond ten circles.
 CIRCLE_COLOURS = (
@@ -56,7 +59,9 @@ def _in_plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(normal, u)
 
 
-def viewer_scene(capture: Capture, *, tracker_from_base=None, circle_fit: str = "geometric") -> dict:
+def viewer_scene(
+    capture: Capture, *, tracker_from_base: np.ndarray | None = None, circle_fit: CircleFit = "geometric"
+) -> dict:
     """The scene of the 3-D view: points, fitted circles and axes per circle, base frame, bounds.
 
     Parameters
@@ -76,7 +81,9 @@ def viewer_scene(capture: Capture, *, tracker_from_base=None, circle_fit: str = 
         ``axes`` (circle index, label, point, unit direction, half length [mm]), ``frames``,
         ``bounds`` (``min``, ``max`` [mm]) and ``notes`` (circles that could not be fitted).
     """
-    circles, axes, notes, extremes = [], [], [], [capture.points]
+    circles: list[dict[str, Any]] = []
+    axes: list[dict[str, Any]] = []
+    notes, extremes = [], [capture.points]
     for index, number in enumerate(np.unique(capture.circle)):
         points = capture.points[capture.circle == number]
         entry = {

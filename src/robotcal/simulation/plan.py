@@ -52,7 +52,7 @@ class CapturePlan:
     reflector: ReflectorMount
     bidirectional: bool = False
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         start = np.asarray(self.start, dtype=float)
         sweep = np.asarray(self.sweep, dtype=float)
         points = np.asarray(self.points)

@@ -9,7 +9,7 @@ from robotcal.report.page import _block, _fmt, _length, _number, _Page, _Table
 
 def _candidates(provenance: dict) -> tuple[list[dict], str, str]:
     """The cross-validated models, the chosen one and the reason, from a refinement's provenance."""
-    choice = provenance.get("model_choice") if isinstance(provenance.get("model_choice"), dict) else None
+    choice = found if isinstance(found := provenance.get("model_choice"), dict) else None
     if choice is not None:
         listed = [c for c in choice.get("candidates") or [] if isinstance(c, dict)]
         return listed, str(choice.get("chosen", "")), str(choice.get("reason", ""))
@@ -65,10 +65,10 @@ def _candidates_table(candidates: list[dict], chosen: str, reason: str) -> list:
 def _joint_model_blocks(document: dict | None) -> list:
     """The deployed refinement's joint-model parameters with their u."""
     blocks: list = []
-    joint_model = (document or {}).get("joint_model")
-    parameters = [p for p in (joint_model or {}).get("parameters") or [] if isinstance(p, dict)]
+    joint_model = (document or {}).get("joint_model") or {}
+    parameters = [p for p in joint_model.get("parameters") or [] if isinstance(p, dict)]
     if parameters:
-        masses = joint_model.get("masses") if isinstance(joint_model.get("masses"), dict) else None
+        masses = found if isinstance(found := joint_model.get("masses"), dict) else None
         source = (
             f"link masses: {masses.get('source') or 'given'}; payload {_fmt(_number(masses.get('payload_kg')), '.3g')} kg"
             if masses

@@ -14,13 +14,15 @@ from robotcal.report.page import (
     _number,
     _Page,
     _param_order,
+    _scaled,
     _Table,
 )
 
 
 def _parameter_values(data: dict | None) -> tuple[dict, set, set]:
     """``name -> value`` [mm, deg], identified names and structurally fixed names of a parameter JSON."""
-    values, fixed = {}, set()
+    values: dict[str, float] = {}
+    fixed: set[str] = set()
     if not data or not isinstance(data.get("joints"), list):
         return values, set(), fixed
     for i, joint in enumerate(data["joints"]):
@@ -46,9 +48,9 @@ def _statistics(data: dict | None) -> dict:
 
 def _refinement_rms(page: _Page, label: str, data: dict) -> list:
     """Which RMS is which, for one refinement: the criterion's, the points', and the validation's."""
-    provenance = data.get("provenance") if isinstance(data.get("provenance"), dict) else {}
-    convergence = provenance.get("convergence") if isinstance(provenance.get("convergence"), dict) else {}
-    history = convergence.get("rms_mm") if isinstance(convergence.get("rms_mm"), list) else []
+    provenance = found if isinstance(found := data.get("provenance"), dict) else {}
+    convergence = found if isinstance(found := provenance.get("convergence"), dict) else {}
+    history = found if isinstance(found := convergence.get("rms_mm"), list) else []
     final = _number(history[-1]) if history else None
     residuals, points = provenance.get("residuals"), provenance.get("points")
     distance = "point distance |T p − m|" if label == "points" else "distance error |D model − D measured|"
@@ -156,7 +158,7 @@ def _uncertainty_columns(page: _Page, mc: dict, identified: set) -> tuple[list[C
 
 def _parameter_tables(names: list[str], values: list[Column], uncertainty: list[Column], identified: set) -> list:
     """The lengths' and the angles' tables of values and of Monte Carlo uncertainty."""
-    blocks = []
+    blocks: list[dict | _Table] = []
     for unit, kinds, title in (
         (DISPLAY_UNITS["length"], LENGTH_KINDS, "Lengths"),
         (DISPLAY_UNITS["angle"], ANGLE_KINDS, "Angles"),
@@ -214,11 +216,11 @@ def _cpa_blocks(cpa: dict | None) -> list:
                             str(c.get("points", "")),
                             _fmt(_number(c.get("radius_mm")), ".4f"),
                             _fmt(
-                                None if _number(c.get("plane_rms_mm")) is None else _number(c["plane_rms_mm"]) * 1e3,
+                                _scaled(c.get("plane_rms_mm"), 1e3),
                                 ".3g",
                             ),
                             _fmt(
-                                None if _number(c.get("circle_rms_mm")) is None else _number(c["circle_rms_mm"]) * 1e3,
+                                _scaled(c.get("circle_rms_mm"), 1e3),
                                 ".3g",
                             ),
                         ]

@@ -17,6 +17,7 @@ from robotcal.report.page import (
     _label,
     _number,
     _Page,
+    _scaled,
     _stage,
     _Table,
 )
@@ -37,10 +38,11 @@ def _noise_floors(page: _Page) -> tuple[dict, str]:
     for name, key in (("joints/summary.csv", "joint"),):
         table = page.table(name)
         if table is not None and {key, "noise_floor_um"} <= set(table.header):
-            floors = {}
+            floors: dict[str, float] = {}
             for joint, value in zip(table.column(key), table.column("noise_floor_um"), strict=True):
-                if _number(value) is not None:
-                    floors.setdefault(joint, _number(value))
+                floor = _number(value)
+                if floor is not None:
+                    floors.setdefault(joint, floor)
             return floors, name
     return {}, ""
 
@@ -48,7 +50,7 @@ def _noise_floors(page: _Page) -> tuple[dict, str]:
 def _joints(page: _Page) -> dict:
     if not page.has("joints"):
         return {"present": False, "blocks_": [_block("not_run", what="joints/")]}
-    blocks = []
+    blocks: list[dict | _Table] = []
     summary = page.table("joints/summary.csv")
     floors, floor_source = _noise_floors(page)
     if summary is not None:
@@ -72,7 +74,7 @@ def _joints(page: _Page) -> dict:
                 header=[_label(c[:-3] + "_um") if c in um else _label(c) for c in present],
                 rows=[
                     [
-                        _fmt(_number(r[c]) * 1e3, ".3g") if c in um and _number(r[c]) is not None else _cell(r[c])
+                        _fmt(_scaled(r[c], 1e3), ".3g") if c in um and _number(r[c]) is not None else _cell(r[c])
                         for c in present
                     ]
                     for r in records
@@ -91,7 +93,7 @@ def _joints(page: _Page) -> dict:
             rows = []
             for r in records:
                 row = [r.get("joint", ""), r.get("pairs", "")]
-                row += [_fmt(_number(r[c]) * 1e3, ".3g") if _number(r[c]) is not None else r[c] for c in lash]
+                row += [_fmt(_scaled(r[c], 1e3), ".3g") if _number(r[c]) is not None else r[c] for c in lash]
                 if "backlash_angle_mean_deg" in summary.header:
                     row.append(_cell(r["backlash_angle_mean_deg"]))
                 if floors:
@@ -146,7 +148,7 @@ def _histogram_captions(page: _Page, folder: str, names: list[str]) -> dict:
     (``model``, ``criterion``, ``linearised``: null when the Monte Carlo computed no linearised comparison, as
     ``robotcal run``'s refined one); a ``"figures"`` caption of the folder's JSON documents wins."""
     data = page.json(f"{folder}/parameters.json") or {}
-    model = data.get("model") if isinstance(data.get("model"), str) else None
+    model = found if isinstance(found := data.get("model"), str) else None
     linearised = isinstance(data["linearised"], dict) if "linearised" in data else None
     refinement = f"refine/{data.get('criterion')}.json" if isinstance(data.get("criterion"), str) else None
     captions = {}

@@ -37,8 +37,8 @@ def _tcp_pose(page: _Page) -> tuple[str, str, list[str]]:
     compared with its joint's limits here.
     """
     document = page.json("tcp/pose/tcp.json") or {}
-    provenance = document.get("provenance") if isinstance(document.get("provenance"), dict) else {}
-    source = provenance.get("pose") if isinstance(provenance.get("pose"), str) else ""
+    provenance = found if isinstance(found := document.get("provenance"), dict) else {}
+    source = found if isinstance(found := provenance.get("pose"), str) else ""
     if source.startswith("thesis Table 5.8 pose"):
         where = "the thesis's Table 5.8 pose"
     elif source.startswith("tcp.pose_deg"):
@@ -55,9 +55,9 @@ def _tcp_pose(page: _Page) -> tuple[str, str, list[str]]:
     for note in page.summary.notes:
         if "outside the joint limits" in note:
             for joint, low, high in _OUTSIDE.findall(note):
-                bounds = _number(low), _number(high)
-                if None not in bounds:
-                    limits[int(joint)] = bounds
+                lower, upper = _number(low), _number(high)
+                if lower is not None and upper is not None:
+                    limits[int(joint)] = lower, upper
     outside = []
     for joint, (low, high) in sorted(limits.items()):
         if joint <= len(readings):
@@ -71,7 +71,7 @@ def _tcp_pose(page: _Page) -> tuple[str, str, list[str]]:
 def _facts_of_run(page: _Page) -> list[dict]:
     """Robot, scenario, instrument, captures, seed, method: ``[{"label", "text", "code"}]``."""
     record = page.record
-    scenario = record.get("scenario") if isinstance(record.get("scenario"), dict) else {}
+    scenario = found if isinstance(found := record.get("scenario"), dict) else {}
     facts = []
     if isinstance(record.get("robot"), str):
         facts.append({"label": "robot", "text": record["robot"], "code": None})
@@ -79,7 +79,7 @@ def _facts_of_run(page: _Page) -> list[dict]:
         description = scenario.get("description")
         text = scenario["name"] + (f" — {description}" if isinstance(description, str) and description else "")
         facts.append({"label": "scenario", "text": text, "code": None})
-    instrument = scenario.get("instrument") if isinstance(scenario.get("instrument"), dict) else {}
+    instrument = found if isinstance(found := scenario.get("instrument"), dict) else {}
     if isinstance(instrument.get("name"), str):
         a_um, b_um = _number(instrument.get("a_um")), _number(instrument.get("b_um_per_m"))
         text = instrument["name"]
@@ -268,14 +268,14 @@ def _cards(page: _Page) -> list[dict]:
 
 
 def _summary(page: _Page) -> dict:
-    stages = page.record.get("stages") if isinstance(page.record.get("stages"), dict) else {}
+    stages = found if isinstance(found := page.record.get("stages"), dict) else {}
     rows = []
     for stage, outputs in OUTPUTS.items():
         if stage == "report":
             continue
-        entry = stages.get(stage) if isinstance(stages.get(stage), dict) else {}
+        entry = found if isinstance(found := stages.get(stage), dict) else {}
         present = any(page.has(name) for name in outputs)
-        status = entry.get("status") if isinstance(entry.get("status"), str) else None
+        status = found if isinstance(found := entry.get("status"), str) else None
         shown = status or ("done" if present else "not run")
         css = "failed" if shown in ("failed", "error") else ("ok" if present else "missing")
         detail = _micrometres(entry["detail"]) if isinstance(entry.get("detail"), str) else ""

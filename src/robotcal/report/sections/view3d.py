@@ -51,7 +51,7 @@ def _view3d(page: _Page) -> dict:
             pose = None
     except (TypeError, ValueError):
         pose = None
-    options = provenance.get("options") if isinstance(provenance.get("options"), dict) else {}
+    options = found if isinstance(found := provenance.get("options"), dict) else {}
     circle_fit = options.get("circle_fit")
     scene = viewer_scene(
         capture,
