@@ -17,6 +17,17 @@ COLUMNS_HELP = (
 )
 
 
+def _with_session(capture, session: str | None):
+    """The capture in session ``session`` (``--session``), unchanged without it."""
+    if session is None:
+        return capture
+    if not session.strip():
+        from robotcal.errors import InputError
+
+        raise InputError("--session: the session name must not be empty")
+    return capture.with_session(session.strip())
+
+
 @app.command("import")
 @handle_errors
 def import_(
@@ -54,6 +65,10 @@ def import_(
             "reflector serial, which it renames); or VALUE=NAME,... to rename each value of the target column.",
         ),
     ] = None,
+    session: Annotated[
+        str | None,
+        typer.Option("--session", help="Session of every point (tracker station, day): one base frame per session."),
+    ] = None,
     robot: Annotated[
         str | None, typer.Option("--robot", "-r", help="Robot name or TOML: checks the number of joint columns.")
     ] = None,
@@ -83,11 +98,12 @@ def import_(
         export, joints, model, columns=columns, units=units, delimiter=delimiter, decimal=decimal, join=join,
         encoding=encoding, target=target,
     )  # fmt: skip
+    capture = _with_session(capture, session)
     with result_file(out, inputs=inputs, force=force):
         write_capture(out, capture)
     poses = len({tuple(row) for row in capture.readings.tolist()})
     targets = f", targets {', '.join(capture.target_names)}" if capture.target is not None else ""
-    u95 = ", U(95) per point" if capture.u95 is not None else ""
+    u95 = (", U(95) per point" if capture.u95 is not None else "") + (f", session {session}" if session else "")
     console.print(
         f"wrote {out}: {capture.n_points} points at {poses} poses ({points.layout} export in {points.unit}{targets}{u95})",
         highlight=False,

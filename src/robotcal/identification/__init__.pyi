@@ -7,9 +7,12 @@ from .cpa import identify_cpa as identify_cpa
 from .cpa import identify_cpa_batch as identify_cpa_batch
 from .cpa import prepare_cpa as prepare_cpa
 from .evaluation import ALL_VIEWS as ALL_VIEWS
+from .evaluation import STATION_FLOOR_MM as STATION_FLOOR_MM
+from .evaluation import STATION_RATIO as STATION_RATIO
 from .evaluation import VIEWS as VIEWS
 from .evaluation import EvaluationRow as EvaluationRow
 from .evaluation import GuessedOffsetWarning as GuessedOffsetWarning
+from .evaluation import StationMovedWarning as StationMovedWarning
 from .evaluation import absolute_errors as absolute_errors
 from .evaluation import distance_errors as distance_errors
 from .evaluation import distinct_pairs as distinct_pairs
@@ -17,6 +20,7 @@ from .evaluation import evaluate_parameters as evaluate_parameters
 from .evaluation import guessed_targets as guessed_targets
 from .evaluation import point_errors as point_errors
 from .evaluation import predicted_points as predicted_points
+from .evaluation import station_moved as station_moved
 from .health import AXIS_LIMIT_DEG as AXIS_LIMIT_DEG
 from .health import CONDITION_LIMIT as CONDITION_LIMIT
 from .health import PHYSICAL_RESIDUAL_MM as PHYSICAL_RESIDUAL_MM
@@ -63,6 +67,7 @@ from .records import Identifiability as Identifiability
 from .records import ModelChoice as ModelChoice
 from .records import RefinementResult as RefinementResult
 from .records import RefinementUncertainty as RefinementUncertainty
+from .records import SessionFrame as SessionFrame
 from .refine import BASE_NAMES as BASE_NAMES
 from .refine import CRITERIA as CRITERIA
 from .refine import base_correction as base_correction
@@ -74,6 +79,8 @@ from .refine import refine_parameters as refine_parameters
 from .refine import wrap_angles as wrap_angles
 from .settings import ModelChoiceSettings as ModelChoiceSettings
 from .settings import RefinementSettings as RefinementSettings
+from .targets import SESSION_SEPARATOR as SESSION_SEPARATOR
 from .targets import Target as Target
 from .targets import point_target_index as point_target_index
 from .targets import resolve_targets as resolve_targets
+from .targets import split_by_session as split_by_session

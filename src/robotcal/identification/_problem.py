@@ -25,6 +25,7 @@ from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, ReflectorMount
 
 __all__ = [
+    "BASE_AXES",
     "BASE_NAMES",
     "Problem",
     "State",
@@ -44,7 +45,8 @@ if TYPE_CHECKING:
 
 #: Names of the six ``tracker_from_base`` corrections (points criterion): translation [mm], then
 #: rotation angles [rad] of ``Rz(rz) Ry(ry) Rx(rx)``, applied on the base side of the start transform.
-BASE_NAMES = ("base.tx", "base.ty", "base.tz", "base.rx", "base.ry", "base.rz")
+BASE_AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
+BASE_NAMES = tuple(f"base.{axis}" for axis in BASE_AXES)
 _PAIR_CHUNK = 32768
 
 
@@ -122,6 +124,15 @@ def base_correction(x_base: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[n
     return rotation, x_base[..., :3].copy(), derivatives
 
 
+def _corrected(start: np.ndarray, correction) -> np.ndarray:
+    """``start @ [R(correction) | t]``: a base frame with its six corrections applied on the base side."""
+    rotation, shift, _ = base_correction(correction)
+    delta = np.eye(4)
+    delta[:3, :3] = rotation
+    delta[:3, 3] = shift
+    return start @ delta
+
+
 def _unit(diff: np.ndarray) -> np.ndarray:
     """Rows of ``diff (m, 3)`` normalised; 0 where a model distance is 0 (|x| has no derivative there)."""
     norm = np.linalg.norm(diff, axis=1, keepdims=True)
@@ -191,6 +202,13 @@ class Problem:
     joint_columns: np.ndarray | None = None  # (n_points, n, m)
     extra_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     extra_free: np.ndarray = field(default_factory=_no_flags)
+    # measurement sessions (points criterion, issue 29): the session of each point (None: one session), the start
+    # transforms of sessions 2..S, whose corrections follow the unknown offsets in the offsets block (a translation
+    # row [mm], then a rotation row [rad] times ``rotation_length`` [mm], so that a unit of either moves the
+    # points by about 1 mm)
+    session_index: np.ndarray | None = None
+    session_starts: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    rotation_length: float = 1.0
 
     @property
     def n_kinematic(self) -> int:
@@ -231,6 +249,32 @@ class Problem:
             ]
         )
 
+    @property
+    def n_sessions(self) -> int:
+        return 1 + self.session_starts.shape[0]
+
+    def session_rows(self) -> list[np.ndarray]:
+        """The points of each session (every point for one session)."""
+        if self.session_index is None:
+            return [np.arange(self.q.shape[0])]
+        return [np.flatnonzero(self.session_index == s) for s in range(self.n_sessions)]
+
+    def session_correction(self, state: State, session: int) -> np.ndarray:
+        """The six corrections ``(tx, ty, tz [mm], rx, ry, rz [rad])`` of a session's base frame (0: ``x_base``)."""
+        if session == 0:
+            return np.asarray(state.x_base, dtype=float)
+        row = len(self.unknown) + 2 * (session - 1)
+        return np.r_[state.offsets[row], state.offsets[row + 1] / self.rotation_length]
+
+    def session_start(self, session: int) -> np.ndarray:
+        return self.base_start if session == 0 else self.session_starts[session - 1]
+
+    def trackers(self, state: State) -> np.ndarray:
+        """``tracker_from_base`` of every session ``(n_sessions, 4, 4)``."""
+        return np.stack(
+            [_corrected(self.session_start(s), self.session_correction(state, s)) for s in range(self.n_sessions)]
+        )
+
     def joint_variables(self, extras) -> np.ndarray:
         """``q + C(q) extras`` [rad] (``q`` itself for the geometric model)."""
         if self.joint_columns is None:
@@ -264,7 +308,7 @@ class Problem:
         n_points, n = q.shape
         m = self.extra_free.size
         points = np.empty((n_points, 3))
-        jac = np.zeros((n_points, 3, 5 * n + m + 3 * len(self.unknown)))
+        jac = np.zeros((n_points, 3, 5 * n + m + self.offset_start.size))  # session columns: point_jacobian
         groups = [(np.arange(n_points), self.reflector, None)] if not self.targets else self._groups(state.offsets)
         for rows, mount, slot in groups:
             group_points, group_jac, by_joint = target_jacobian(
@@ -280,20 +324,21 @@ class Problem:
         return points, jac
 
     def tracker(self, x_base) -> np.ndarray:
-        rotation, shift, _ = base_correction(x_base)
-        delta = np.eye(4)
-        delta[:3, :3] = rotation
-        delta[:3, 3] = shift
-        return self.base_start @ delta
+        """``tracker_from_base`` of the first session at the corrections ``x_base``."""
+        return _corrected(self.base_start, x_base)
 
     def raw_residuals(self, x) -> np.ndarray:
-        """Unweighted residuals [mm]: ``T p - m`` per coordinate, or ``|p_i - p_j| - |m_i - m_j|``."""
+        """Unweighted residuals [mm]: ``T p - m`` per coordinate (``T`` the point's session's), or
+        ``|p_i - p_j| - |m_i - m_j|``."""
         state = self.unpack_all(x)
         points = self.base_points(state)
         if self.criterion == "distances":
             return pdist(points)[self.pair_keep] - self.measured_distances
-        tracker = self.tracker(state.x_base)
-        return (points @ tracker[:3, :3].T + tracker[:3, 3] - self.measured).ravel()
+        trackers = self.trackers(state)
+        in_tracker = np.empty_like(points)
+        for s, rows in enumerate(self.session_rows()):
+            in_tracker[rows] = points[rows] @ trackers[s, :3, :3].T + trackers[s, :3, 3]
+        return (in_tracker - self.measured).ravel()
 
     def _row_weights(self) -> np.ndarray | None:
         if self.criterion == "distances":
@@ -309,19 +354,30 @@ class Problem:
         """Tracker-frame (points criterion) or base-frame (distances) points ``(n_points, 3)`` and
         ``d points / d x`` ``(n_points, 3, n_x)``."""
         points, jac = self.base_jacobian(state)
-        jac = jac[:, :, np.r_[self.free.ravel(), self.extra_free, self.offset_free]]
+        use = np.r_[self.free.ravel(), self.extra_free, self.offset_free]
         if self.criterion == "distances":
-            return points, jac
-        rotation, shift, derivatives = base_correction(state.x_base)
-        r0 = self.base_start[:3, :3]
-        total = r0 @ rotation
-        columns = [np.einsum("ij,pjk->pik", total, jac)]
-        base = [np.broadcast_to(r0[:, axis], points.shape) for axis in range(3)]
-        base += [points @ (r0 @ derivative).T for derivative in derivatives]
-        chosen = [base[k] for k in np.flatnonzero(self.base_free)]
-        if chosen:
-            columns.append(np.stack(chosen, axis=-1))
-        tracker_points = points @ total.T + r0 @ shift + self.base_start[:3, 3]
+            return points, jac[:, :, use]
+        own = jac.shape[-1] - self.offset_start.size + 3 * len(self.unknown)  # the first session column
+        tracker_points = np.empty_like(points)
+        base = np.zeros(points.shape + (6,))
+        for s, rows in enumerate(self.session_rows()):
+            start = self.session_start(s)
+            rotation, shift, derivatives = base_correction(self.session_correction(state, s))
+            r0 = start[:3, :3]
+            total = r0 @ rotation
+            jac[rows] = np.einsum("ij,pjk->pik", total, jac[rows])
+            fields = [np.broadcast_to(r0[:, axis], (rows.size, 3)) for axis in range(3)]
+            fields += [points[rows] @ (r0 @ derivative).T for derivative in derivatives]
+            if s == 0:
+                base[rows] = np.stack(fields, axis=-1)
+            else:  # the session's translation, then its rotation per unit of rotation_length
+                column = own + 6 * (s - 1)
+                jac[rows, :, column : column + 3] = np.stack(fields[:3], axis=-1)
+                jac[rows, :, column + 3 : column + 6] = np.stack(fields[3:], axis=-1) / self.rotation_length
+            tracker_points[rows] = points[rows] @ total.T + r0 @ shift + start[:3, 3]
+        columns = [jac[:, :, use]]
+        if self.base_free.any():
+            columns.append(base[:, :, self.base_free])
         return tracker_points, np.concatenate(columns, axis=-1)
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
@@ -430,6 +486,7 @@ class Setup:
     still: tuple[str, ...]
     weighted: bool
     n_residuals: int
+    session_names: tuple[str, ...] = ()  # points criterion, several sessions: their names (the first: the reference)
 
     @property
     def criterion(self) -> str:

@@ -146,6 +146,7 @@ from robotcal.identification._free_set import (
     selection_key,
 )
 from robotcal.identification._problem import (
+    BASE_AXES,
     BASE_NAMES,
     Problem,
     Setup,
@@ -161,9 +162,15 @@ from robotcal.identification._problem import (
 )
 from robotcal.identification.health import refine_health
 from robotcal.identification.observability import conditioning, correlation_from_covariance, triangular_factor
-from robotcal.identification.records import FitStatistics, Identifiability, RefinementResult, RefinementUncertainty
+from robotcal.identification.records import (
+    FitStatistics,
+    Identifiability,
+    RefinementResult,
+    RefinementUncertainty,
+    SessionFrame,
+)
 from robotcal.identification.settings import CRITERIA, RefinementSettings
-from robotcal.identification.targets import Target, resolve_targets
+from robotcal.identification.targets import Target, resolve_targets, split_by_session
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel, lash_turns
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
@@ -192,10 +199,41 @@ _MAX_REFITS = 3
 _DEFAULT_SETTINGS = RefinementSettings()
 
 
-def _generic_directions(count: int) -> np.ndarray:
-    """``(count, 3)`` fixed unit vectors in generic directions (seeded), one per unknown offset."""
+def _generic_directions(count: int, rows: int) -> np.ndarray:
+    """``(rows, 3)``: fixed unit vectors in generic directions (seeded), one per unknown offset (the first
+    ``count`` rows), then zeros (the session frames' rows)."""
     directions = np.random.default_rng(12345).normal(size=(count, 3))
-    return directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.concatenate([directions, np.zeros((rows - count, 3))])
+
+
+def _sessions(capture: Capture) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """The sessions the capture's points use (in order of first appearance) and each point's index into them;
+    ``((), None)`` for one session (no ``session`` column, or a single name in it)."""
+    if capture.session is None:
+        return (), None
+    used, first, index = np.unique(capture.session, return_index=True, return_inverse=True)
+    if used.size < 2:
+        return (), None
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return tuple(capture.session_names[used[k]] for k in order), rank[index.ravel()]
+
+
+def _session_starts(probe: Problem, values, offset_start, source: str, names) -> Problem:
+    """The start frames of a capture of several sessions: each session's points registered (Horn) onto the start
+    model's; the first session's frame stays the given one when there is one."""
+    start = State(values, probe.extra_start, offset_start, np.zeros(6))
+    points = probe.base_points(start)
+    frames = []
+    for s in range(len(names)):
+        rows = np.flatnonzero(probe.session_index == s)
+        if rows.size < 3:
+            raise InputError(f"{source}: session {names[s]!r} has {rows.size} points; its base frame needs at least 3")
+        frames.append(register_points(points[rows], probe.measured[rows]).transform)
+    base_start = frames[0] if probe.base_start is None else probe.base_start
+    return replace(probe, base_start=base_start, session_starts=np.stack(frames[1:]))
 
 
 def refine_parameters(
@@ -310,7 +348,7 @@ def _layout(capture: Capture, reflector, n: int) -> _Layout:
         turning = capture_turning_joints(capture, reflector)
         return _Layout((), None, (), turning, capture_target_index(capture, reflector), reflector)
     given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
-    targets, target_index = resolve_targets(capture, given)
+    targets, target_index = resolve_targets(*split_by_session(capture, given))
     turning = np.maximum(capture.circle - 1, 0)
     for t, target in enumerate(targets):
         if target.frame == "joint":
@@ -329,9 +367,14 @@ def _layout(capture: Capture, reflector, n: int) -> _Layout:
     return _Layout(targets, target_index, unknown, turning, pair_key, targets[0].mount)
 
 
-def _pairs(capture: Capture, commanded, pair_key, measured, sigmas, reference):
-    """The distances criterion's kept pairs, measured distances and pair weights."""
+def _pairs(capture: Capture, commanded, pair_key, measured, sigmas, reference, sessions):
+    """The distances criterion's kept pairs, measured distances and pair weights; with ``sessions`` (the session
+    of each point) only pairs within a session: a distance between two tracker stations is no measurement."""
     pair_i, pair_j, pair_keep = measurement_pairs(commanded, pair_key)
+    if sessions is not None:
+        within = sessions[pair_i] == sessions[pair_j]
+        pair_keep[np.flatnonzero(pair_keep)[~within]] = False
+        pair_i, pair_j = pair_i[within], pair_j[within]
     distances = pdist(measured)[pair_keep]
     pair_weight = None
     if sigmas is not None:
@@ -370,7 +413,10 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
     measured = np.asarray(capture.points, dtype=float)
     layout = _layout(capture, reflector, n)
     targets, unknown = layout.targets, layout.unknown
-    offset_start = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
+    session_names, session_index = _sessions(capture)
+    target_rows = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
+    n_moved = max(len(session_names) - 1, 0) if criterion == "points" else 0  # sessions 2..S: their frames in the offsets
+    offset_start = np.concatenate([target_rows, np.zeros((2 * n_moved, 3))])
     sigmas = point_sigmas(capture) if settings.weights == "auto" else None
     point_weight = reference = None
     if sigmas is not None:
@@ -388,26 +434,30 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
     columns = None if joint_model is None or joint_model.is_empty else joint_model.columns(commanded)
     extra_start = np.zeros(0) if columns is None else np.asarray(joint_model.values, dtype=float)
     base_start = None
-    if criterion == "points" and tracker_from_base is None:
+    if criterion == "points" and tracker_from_base is None and session_index is None:
         start_q = q if columns is None else q + columns @ extra_start
         nominal_points = target_positions(start.values, start_q, layout.turning, layout.reflector)
         base_start = register_points(nominal_points, measured).transform
-    elif criterion == "points":
+    elif criterion == "points" and tracker_from_base is not None:
         base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
     pair_i = pair_j = distances = pair_keep = pair_weight = None
     if criterion == "distances":
         pair_i, pair_j, pair_keep, distances, pair_weight = _pairs(
-            capture, commanded, layout.pair_key, measured, sigmas, reference
+            capture, commanded, layout.pair_key, measured, sigmas, reference, session_index
         )
+    size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
     probe = Problem(
         start=start.values.copy(), free=np.ones((n, 5), dtype=bool), base_start=base_start,
         base_free=np.full(6, use_base), q=q, turning=layout.turning, reflector=layout.reflector, measured=measured,
         criterion=criterion, pair_i=pair_i, pair_j=pair_j, pair_keep=pair_keep, measured_distances=distances,
         targets=targets, target_index=layout.target_index, unknown=unknown,
-        offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(offset_start.shape[0]),
+        offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(len(unknown), offset_start.shape[0]),
         offset_free=np.ones(offset_start.size, dtype=bool), point_weight=point_weight, pair_weight=pair_weight,
         joint_columns=columns, extra_start=extra_start, extra_free=np.ones(extra_start.size, dtype=bool),
+        session_index=session_index if criterion == "points" else None, rotation_length=max(size, 1.0),
     )  # fmt: skip
+    if criterion == "points" and session_index is not None:
+        probe = _session_starts(probe, start.values, offset_start, capture.source, session_names)
     parameters = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     spread = commanded.max(axis=0) - commanded.min(axis=0)
     return Setup(
@@ -418,7 +468,9 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
         candidates=np.r_[parameters.ravel(), np.ones(extra_start.size, dtype=bool)],
         all_scale=_scales(measured, columns, n),
         offset_start=offset_start,
-        offset_names=tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz"),
+        offset_names=tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz")
+        + tuple(f"session.{name}.{axis}" for name in session_names[1 : 1 + n_moved] for axis in BASE_AXES),
+        session_names=session_names if criterion == "points" else (),
         joint_model=joint_model,
         use_base=use_base,
         still=tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD)),
@@ -629,7 +681,8 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
     """The result: values at the solution, residual statistics (per point, unweighted, mm), conditioning, the
     linearised covariance from the Jacobian of the rank test at the solution, and the fit health."""
     start, criterion, problem = setup.start, setup.criterion, fit.problem
-    values, extras, offsets, x_base = problem.unpack_all(fit.x)
+    solved = problem.unpack_all(fit.x)
+    values, extras, offsets, x_base = solved
     selection = fit.selection
     residuals, jac_all = fit.evaluated
     use = np.r_[selection.free.ravel(), selection.extra_free, selection.offset_free]
@@ -667,8 +720,33 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
         targets=tuple(targets), success=fit.success, status=fit.status, message=message, nfev=fit.nfev,
         njev=fit.njev, model=model, criterion=criterion, method=fit.method,
         wall_time_s=time.perf_counter() - began, fit=statistics, identifiability=identifiability,
-        uncertainty=uncertainty, health=health,
+        uncertainty=uncertainty, health=health, sessions=_session_frames(setup, fit, solved, uncertainty.covariance),
     )  # fmt: skip
+
+
+def _session_frames(setup: Setup, fit: _Fit, solved: State, covariance) -> tuple[SessionFrame, ...]:
+    """The base frame of every session with the standard uncertainties of its corrections (empty for one
+    session); the first session's are the ``base.*`` corrections, the others' follow the unknown offsets."""
+    if not setup.session_names:
+        return ()
+    problem, selection = fit.problem, fit.selection
+    offset_sd = np.full(problem.offset_start.size, np.nan)
+    base_sd = np.full(6, np.nan)
+    if covariance is not None:
+        diagonal = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        bounds = np.cumsum([problem.n_kinematic, problem.n_extra, problem.n_offsets])
+        offset_sd[selection.offset_free] = diagonal[bounds[1] : bounds[2]]
+        base_sd[selection.base_free] = diagonal[bounds[2] :]
+    trackers = problem.trackers(solved)
+    frames = []
+    for s, name in enumerate(setup.session_names):
+        sd = base_sd
+        if s > 0:
+            first = 3 * len(problem.unknown) + 6 * (s - 1)
+            sd = offset_sd[first : first + 6].copy()
+            sd[3:] /= problem.rotation_length
+        frames.append(SessionFrame(name=name, tracker_from_base=_frozen(trackers[s]), standard_uncertainty=_frozen(sd)))
+    return tuple(frames)
 
 
 def _identifiability(setup: Setup, fit: _Fit, jac: np.ndarray) -> Identifiability:

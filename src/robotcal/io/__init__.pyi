@@ -71,13 +71,17 @@ from .output import write_marker as write_marker
 from .parameters_json import JointModelEntry as JointModelEntry
 from .parameters_json import JointValues as JointValues
 from .parameters_json import ParameterFile as ParameterFile
+from .parameters_json import SessionEntry as SessionEntry
 from .parameters_json import joint_model_to_dict as joint_model_to_dict
 from .parameters_json import parameters_to_dict as parameters_to_dict
 from .parameters_json import read_joint_model as read_joint_model
 from .parameters_json import read_parameters as read_parameters
+from .parameters_json import read_sessions as read_sessions
 from .parameters_json import read_targets as read_targets
 from .parameters_json import read_tracker_from_base as read_tracker_from_base
+from .parameters_json import refined_sessions as refined_sessions
 from .parameters_json import refined_targets as refined_targets
+from .parameters_json import sessions_to_dict as sessions_to_dict
 from .parameters_json import targets_to_dict as targets_to_dict
 from .parameters_json import write_parameters as write_parameters
 from .provenance import cpa_provenance as cpa_provenance

@@ -1,11 +1,12 @@
-"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,u95_mm]`` (docs/scenario.md).
+"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,session][,u95_mm]`` (docs/scenario.md).
 
 One row per measured point; ``circle`` = joint turned (1-based; 0 for a free pose on no circle, such
 as a validation capture), ``direction`` = +1/-1, joint
 readings ``q1..qN`` in degrees, target position ``x, y, z`` in the tracker frame in mm. Optional:
 ``target``, the name of the target measured (declared in the scenario's ``[[targets]]``; absent =
 the scenario's one target), and ``u95_mm``, the point's expanded uncertainty U(95) [mm] (k = 2,
-normal). A file without them loads as before.
+normal), and ``session``, the measurement session (tracker station, day) of the point. A file without them
+loads as before.
 """
 
 from __future__ import annotations
@@ -29,16 +30,21 @@ def capture_to_csv(capture: Capture) -> str:
     stream = io.StringIO()
     writer = csv.writer(stream, lineterminator="\n")
     n = capture.n_joints
-    extra = (["target"] if capture.target is not None else []) + (["u95_mm"] if capture.u95 is not None else [])
+    extra = (
+        (["target"] if capture.target is not None else [])
+        + (["session"] if capture.session is not None else [])
+        + (["u95_mm"] if capture.u95 is not None else [])
+    )
     writer.writerow(["circle", "direction", *[f"q{i + 1}" for i in range(n)], "x", "y", "z", *extra])
     readings_deg = np.rad2deg(capture.readings)
-    names = capture.point_targets
+    names, sessions = capture.point_targets, capture.point_sessions
     for k in range(capture.n_points):
         writer.writerow(
             [int(capture.circle[k]), int(capture.direction[k])]
             + [f"{value:.12f}" for value in readings_deg[k]]
             + [f"{value:.12f}" for value in capture.points[k]]
             + ([names[k]] if names is not None else [])
+            + ([sessions[k]] if sessions is not None else [])
             + ([f"{capture.u95[k]:.12g}"] if capture.u95 is not None else [])
         )
     return stream.getvalue()
@@ -108,16 +114,9 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
     bad = np.flatnonzero(~np.isin(direction, (-1.0, 1.0)))
     if bad.size:
         raise InputError(f"{path}: line {lines[bad[0]]}, column `direction`: must be +1 or -1")
-    target = names = u95 = None
-    if "target" in header:
-        position = header.index("target")
-        labels = [row[position].strip() for _, row in records[1:]]
-        empty = [k for k, label in enumerate(labels) if not label]
-        if empty:
-            raise InputError(f"{path}: line {lines[empty[0]]}, column `target`: empty target name")
-        names = tuple(dict.fromkeys(labels))
-        lookup = {name: k for k, name in enumerate(names)}
-        target = np.array([lookup[label] for label in labels], dtype=int)
+    target, names = _labels(header, records, lines, "target", path)
+    session, session_names = _labels(header, records, lines, "session", path)
+    u95 = None
     if "u95_mm" in header:
         position = header.index("u95_mm")
         u95 = np.empty(len(records) - 1)
@@ -133,6 +132,23 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
         source=str(path),
         seed=seed,
         target=target,
-        target_names=names or (),
+        target_names=names,
         u95=u95,
+        session=session,
+        session_names=session_names,
     )
+
+
+def _labels(header, records, lines, column: str, path) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """A column of names (``target``, ``session``): the index of each row's name and the names in order of first
+    appearance; ``(None, ())`` when the header has no such column."""
+    if column not in header:
+        return None, ()
+    position = header.index(column)
+    labels = [row[position].strip() for _, row in records[1:]]
+    empty = [k for k, label in enumerate(labels) if not label]
+    if empty:
+        raise InputError(f"{path}: line {lines[empty[0]]}, column `{column}`: empty {column} name")
+    names = tuple(dict.fromkeys(labels))
+    lookup = {name: k for k, name in enumerate(names)}
+    return np.array([lookup[label] for label in labels], dtype=int), names

@@ -37,9 +37,12 @@ __all__ = [
     "parameters_to_dict",
     "read_joint_model",
     "read_parameters",
+    "read_sessions",
     "read_targets",
     "read_tracker_from_base",
+    "refined_sessions",
     "refined_targets",
+    "sessions_to_dict",
     "targets_to_dict",
     "write_parameters",
 ]
@@ -187,6 +190,16 @@ class _TargetsPart(_JsonObject):
     targets: dict[str, TargetEntry] | None = None
 
 
+class SessionEntry(_JsonObject):
+    """One entry of ``sessions``: a session's base frame (what robotcal reads of it)."""
+
+    tracker_from_base: Matrix4
+
+
+class _SessionsPart(_JsonObject):
+    sessions: dict[str, SessionEntry] | None = None
+
+
 class _ProvenanceEntry(_JsonObject):
     """What robotcal reads of ``provenance``: the base frame a fit recorded (null: none)."""
 
@@ -275,12 +288,17 @@ def _check_deflection(model: JointModel, robot: RobotModel, display_values, wher
 
 
 def parameters_to_dict(
-    parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None, joint_model_u=None
+    parameters: ParameterSet,
+    provenance: dict | None = None,
+    targets: dict | None = None,
+    joint_model_u=None,
+    sessions: dict | None = None,
 ) -> dict:
     """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
     nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
     :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets. An extended set
-    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units)."""
+    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units). ``sessions``
+    (from :func:`sessions_to_dict`) adds the key ``sessions``: the base frame of every measurement session."""
     robot = parameters.robot
     joints = []
     for i in range(robot.n_joints):
@@ -301,6 +319,8 @@ def parameters_to_dict(
     }
     if targets:
         document["targets"] = targets
+    if sessions:
+        document["sessions"] = sessions
     if parameters.joint_model is not None:
         document["joint_model"] = joint_model_to_dict(parameters.joint_model, joint_model_u)
     document["provenance"] = provenance or {}
@@ -308,10 +328,17 @@ def parameters_to_dict(
 
 
 def write_parameters(
-    path, parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None, joint_model_u=None
+    path,
+    parameters: ParameterSet,
+    provenance: dict | None = None,
+    targets: dict | None = None,
+    joint_model_u=None,
+    sessions: dict | None = None,
 ) -> Path:
-    """Write a parameter JSON atomically (``targets``, ``joint_model_u``: see :func:`parameters_to_dict`)."""
-    text = json.dumps(parameters_to_dict(parameters, provenance, targets, joint_model_u), indent=2, allow_nan=False)
+    """Write a parameter JSON atomically (``targets``, ``joint_model_u``, ``sessions``: see
+    :func:`parameters_to_dict`)."""
+    document = parameters_to_dict(parameters, provenance, targets, joint_model_u, sessions)
+    text = json.dumps(document, indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
 
 
@@ -327,6 +354,45 @@ def read_targets(path) -> dict:
         for name, entry in entries.items()
         if entry.frame == "flange" and entry.flange_mm is not None
     }
+
+
+def sessions_to_dict(frames) -> dict:
+    """The ``sessions`` key: per session (in the refinement's order, the first its reference) its
+    ``tracker_from_base`` [mm] and the standard uncertainties ``u`` of its corrections (``T = T_start [Rz Ry Rx |
+    t]``: ``tx_mm, ty_mm, tz_mm, rx_deg, ry_deg, rz_deg``; null where held)."""
+    keys = ("tx_mm", "ty_mm", "tz_mm", "rx_deg", "ry_deg", "rz_deg")
+    out = {}
+    for frame in frames:
+        u = np.asarray(frame.standard_uncertainty, dtype=float).copy()
+        u[3:] = np.rad2deg(u[3:])
+        out[frame.name] = {
+            "tracker_from_base": np.asarray(frame.tracker_from_base, dtype=float).tolist(),
+            "u": {key: None if not np.isfinite(value) else float(value) for key, value in zip(keys, u, strict=True)},
+        }
+    return out
+
+
+def refined_sessions(result) -> dict | None:
+    """The parameter JSON's ``sessions`` key of a refinement over several sessions, None otherwise."""
+    return sessions_to_dict(result.sessions) if result.sessions else None
+
+
+def read_sessions(path) -> dict[str, np.ndarray]:
+    """The ``sessions`` key of a parameter JSON: ``{session: tracker_from_base (4, 4) [mm]}`` in the file's order
+    (empty when absent); a frame that is not a rigid 4x4 transform is an :class:`InputError` naming the key."""
+    from robotcal.geometry.transforms import check_rigid_transform
+
+    path = Path(path)
+    data = read_json_file(path, kind="parameter JSON")
+    part: _SessionsPart = validate_model(_SessionsPart, data if isinstance(data, dict) else {}, str(path))
+    frames = {}
+    for name, entry in (part.sessions or {}).items():
+        key = f"sessions.{name}.tracker_from_base"
+        try:
+            frames[name] = check_rigid_transform(np.asarray(entry.tracker_from_base, dtype=float), f"{path}: {key}")
+        except InputError as exc:
+            raise InputError(f"{path}: key `{key}` must be a 4x4 rigid transform ({exc})") from None
+    return frames
 
 
 def read_tracker_from_base(path) -> np.ndarray | None:
