@@ -75,7 +75,7 @@ from robotcal.identification.refine import (
     refine_parameters,
     wrap_angles,
 )
-from robotcal.identification.targets import Target, resolve_targets
+from robotcal.identification.targets import Target, resolve_targets, split_by_session
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
@@ -238,6 +238,18 @@ def _base_points(capture: Capture, parameters: ParameterSet, reflector) -> np.nd
     return points
 
 
+def _in_tracker(capture: Capture, predicted: np.ndarray, tracker, sessions) -> np.ndarray:
+    """The predicted points in the tracker frame: each session's in its own frame (``sessions``, the reference's
+    :class:`~robotcal.identification.records.SessionFrame`), else all in ``tracker``."""
+    if not sessions:
+        return apply_transform(tracker, predicted)
+    exact = np.empty_like(predicted)
+    for frame in sessions:
+        rows = np.flatnonzero(capture.session == capture.session_names.index(frame.name))
+        exact[rows] = apply_transform(frame.tracker_from_base, predicted[rows])
+    return exact
+
+
 def _noise_model(capture: Capture, instrument: Instrument | None) -> tuple[np.ndarray | None, Instrument | None, str]:
     sigmas = point_sigmas(capture)
     if sigmas is not None:
@@ -294,6 +306,8 @@ def prepare_measured(
             f"{capture.n_joints} joint readings per point"
         )
     noise_sd, instrument, source = _noise_model(capture, instrument)
+    if not isinstance(reflector, ReflectorMount):  # a re-seated target: one target per session (NAME@SESSION)
+        capture, reflector = split_by_session(capture, (reflector,) if isinstance(reflector, Target) else reflector)
     reflector = _with_offsets(reflector, offsets)
     base = True if criterion == "points" and estimate_base else None
     settings = RefinementSettings(criterion=criterion, weights=weights, estimate_base=base)
@@ -325,7 +339,7 @@ def prepare_measured(
         options["settings"] = replace(settings, estimate_base=bool(np.any(reference.identifiability.base_free)))
     else:  # distances: no base frame; any rigid placement gives the same distances
         tracker = register_points(predicted, capture.points).transform
-    exact = apply_transform(tracker, predicted)
+    exact = _in_tracker(capture, predicted, tracker, reference.sessions)
     return MeasuredProblem(
         capture=capture,
         reflector=reflector,

@@ -207,3 +207,18 @@ def test_parameter_json_records_the_session_frames(tmp_path):
 
     u = json.loads(path.read_text())["sessions"]["day2"]["u"]
     assert set(u) == {"tx_mm", "ty_mm", "tz_mm", "rx_deg", "ry_deg", "rz_deg"}
+
+
+def test_measured_monte_carlo_runs_over_sessions():
+    from robotcal.uncertainty.measured import measured_monte_carlo
+    from robotcal.uncertainty.montecarlo import MonteCarloSettings
+
+    tracker = Instrument(name="tracker", a_mm=0.02, b_mm_per_m=0.0, noise="normal", coverage_factor=2.0)
+    capture, _ = simulate_sessions(ROBOT, _sessions(), TARGETS, tracker, true_parameters=TRUTH, u95_mm=0.02, rng=4)
+    estimate = _refine(capture, ParameterSet.nominal(ROBOT))
+    result = measured_monte_carlo(capture, estimate, TARGETS, MonteCarloSettings(iterations=21), seed=1)
+    assert result.target_names == ("A@day1", "A@day2", "B")
+    # the draws scatter like the linearised u: the same noise model, the same per-session frames
+    u_draws = result.target_summary.std_uncertainty[1]
+    u_linear = result.target_linearised_u[1]
+    assert np.all((u_draws > 0.4 * u_linear) & (u_draws < 2.0 * u_linear)), (u_draws, u_linear)
