@@ -9,8 +9,9 @@ targets per pose; the names are declared in the scenario's ``[[targets]]``), and
 point's expanded uncertainty U(95) [mm] as the tracker reports it (k = 2, normal: the standard
 uncertainty of each coordinate is U / 2).
 
-A third (issue 29): ``session`` names the measurement session of each point (a tracker station, a day): every
-session has its own base registration, and a target declared ``per_session`` its own offset in each session.
+Issue 29 adds ``session``, which names the measurement session of each point (a tracker station, a day): every
+session has its own base registration, and a target declared ``per_session`` its own offset in each session; and
+a 6-DoF probe's ``orientation`` (a rotation per point, probe to tracker frame) with its ``orientation_u95``.
 """
 
 from __future__ import annotations
@@ -56,6 +57,12 @@ class Capture:
         ``session`` column (one session: the historical meaning).
     session_names : tuple of str
         Names of the sessions ``session`` indexes, in order of first appearance (empty when ``session`` is None).
+    orientation : ndarray, shape (n_points, 3, 3), or None
+        A 6-DoF probe's measured orientation at each point: the rotation from the probe frame to the tracker
+        frame; None: position only (the historical capture).
+    orientation_u95 : ndarray, shape (n_points,), or None
+        Expanded uncertainty U(95) of each orientation [rad] (k = 2, normal, per component of the rotation
+        vector); None: not given (an instrument may state it).
     """
 
     circle: np.ndarray
@@ -69,6 +76,8 @@ class Capture:
     u95: np.ndarray | None = None
     session: np.ndarray | None = None
     session_names: tuple[str, ...] = ()
+    orientation: np.ndarray | None = None
+    orientation_u95: np.ndarray | None = None
 
     def __post_init__(self):
         circle = np.asarray(self.circle)
@@ -106,10 +115,28 @@ class Capture:
                 where = f"point {bad[0] + 1}" if u95.shape == (n,) else f"shape {u95.shape}"
                 raise InputError(f"{self.source}: `u95_mm` must be one finite U(95) > 0 [mm] per point ({where})")
             object.__setattr__(self, "u95", _frozen(u95))
+        self._check_orientation(n)
         object.__setattr__(self, "circle", _frozen(circle, int))
         object.__setattr__(self, "direction", _frozen(direction, int))
         object.__setattr__(self, "readings", _frozen(readings))
         object.__setattr__(self, "points", _frozen(points))
+
+    def _check_orientation(self, n: int) -> None:
+        """The 6-DoF columns: one rotation matrix per point (orthonormal within 1e-6, right-handed), U(95) > 0."""
+        if self.orientation is not None:
+            rotations = np.asarray(self.orientation, dtype=float)
+            if rotations.shape != (n, 3, 3) or not np.all(np.isfinite(rotations)):
+                raise InputError(f"{self.source}: `orientation` must be one finite 3x3 rotation per point")
+            gram = np.einsum("pji,pjk->pik", rotations, rotations) - np.eye(3)
+            bad = np.flatnonzero((np.abs(gram).max(axis=(1, 2)) > 1e-6) | (np.linalg.det(rotations) <= 0))
+            if bad.size:
+                raise InputError(f"{self.source}: point {bad[0] + 1}: the orientation is not a rotation")
+            object.__setattr__(self, "orientation", _frozen(rotations))
+        if self.orientation_u95 is not None:
+            u95 = np.asarray(self.orientation_u95, dtype=float)
+            if self.orientation is None or u95.shape != (n,) or not np.all(np.isfinite(u95) & (u95 > 0)):
+                raise InputError(f"{self.source}: `orientation_u95` must be one U(95) > 0 per oriented point [rad]")
+            object.__setattr__(self, "orientation_u95", _frozen(u95))
 
     def _check_labels(self, column: str, n: int) -> None:
         """The ``target`` or ``session`` column: one whole index per point into distinct, non-empty names."""
@@ -146,6 +173,8 @@ class Capture:
             parts.append(f"sessions {', '.join(self.session_names)}")
         if self.u95 is not None:
             parts.append("u95_mm")
+        if self.orientation is not None:
+            parts.append("orientation")
         return f"Capture({self.source!r}: {', '.join(parts)})"
 
     @property
@@ -175,6 +204,10 @@ class Capture:
         """The same capture with other target positions (e.g. noisy copies)."""
         return replace(self, points=points)
 
+    def with_orientation(self, orientation) -> Capture:
+        """The same capture with other measured orientations (e.g. noisy copies)."""
+        return replace(self, orientation=orientation)
+
     def with_session(self, name: str) -> Capture:
         """The same capture with every point in session ``name`` (e.g. ``robotcal import --session``)."""
         return replace(self, session=np.zeros(self.n_points, dtype=int), session_names=(str(name),))
@@ -194,6 +227,8 @@ class Capture:
             u95=None if self.u95 is None else self.u95[rows],
             session=None if self.session is None else self.session[rows],
             session_names=self.session_names,
+            orientation=None if self.orientation is None else self.orientation[rows],
+            orientation_u95=None if self.orientation_u95 is None else self.orientation_u95[rows],
         )
 
 
@@ -202,7 +237,8 @@ def join_captures(parts, *, source: str) -> Capture:
 
     ``parts``: ``(capture, name)`` pairs; a capture with a ``target`` column keeps its own names (``name`` None),
     one without takes ``name`` for every point. ``u95_mm`` is kept only when every part has it; seeds are dropped
-    (a joined capture is no one simulation's). Sessions are kept: when any part has a ``session`` column, every
+    (a joined capture is no one simulation's); so are the orientations (with their U(95)) only when every part has
+    them. Sessions are kept: when any part has a ``session`` column, every
     part must have one (a part without one would fall in no session).
     """
     parts = list(parts)
@@ -225,6 +261,8 @@ def join_captures(parts, *, source: str) -> Capture:
         raise InputError(f"captures of different joint counts cannot be joined: {sorted(joints)}")
     every_u95 = all(capture.u95 is not None for capture, _ in parts)
     session, session_names = _joined_sessions([capture for capture, _ in parts])
+    oriented = all(capture.orientation is not None for capture, _ in parts)
+    every_u = oriented and all(capture.orientation_u95 is not None for capture, _ in parts)
     return Capture(
         circle=np.concatenate([capture.circle for capture, _ in parts]),
         direction=np.concatenate([capture.direction for capture, _ in parts]),
@@ -236,6 +274,8 @@ def join_captures(parts, *, source: str) -> Capture:
         u95=np.concatenate([capture.u95 for capture, _ in parts]) if every_u95 else None,
         session=session,
         session_names=session_names,
+        orientation=np.concatenate([capture.orientation for capture, _ in parts]) if oriented else None,
+        orientation_u95=np.concatenate([capture.orientation_u95 for capture, _ in parts]) if every_u else None,
     )
 
 

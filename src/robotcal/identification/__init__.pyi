@@ -65,11 +65,13 @@ from .records import CrossValidation as CrossValidation
 from .records import FitStatistics as FitStatistics
 from .records import Identifiability as Identifiability
 from .records import ModelChoice as ModelChoice
+from .records import ProbeFrame as ProbeFrame
 from .records import RefinementResult as RefinementResult
 from .records import RefinementUncertainty as RefinementUncertainty
 from .records import SessionFrame as SessionFrame
 from .refine import BASE_NAMES as BASE_NAMES
 from .refine import CRITERIA as CRITERIA
+from .refine import PROBE_NAMES as PROBE_NAMES
 from .refine import base_correction as base_correction
 from .refine import capture_target_index as capture_target_index
 from .refine import capture_turning_joints as capture_turning_joints

@@ -17,6 +17,7 @@ import numpy as np
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z
+from robotcal.identification._orientation import inverse_right_jacobian, rotation_log, vee
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.kinematics.forward import forward_kinematics, target_positions
@@ -209,6 +210,13 @@ class Problem:
     session_index: np.ndarray | None = None
     session_starts: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     rotation_length: float = 1.0
+    # a 6-DoF probe (points criterion, issue 29): the points with a measured orientation, their rotations (probe to
+    # tracker), the weight of their residuals [mm/rad], and the start of the probe's rotation in the flange frame,
+    # whose correction is the last row of the offsets block (angles times ``rotation_length``)
+    oriented: np.ndarray | None = None
+    measured_rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    orientation_weight: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    probe_start: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     @property
     def n_kinematic(self) -> int:
@@ -274,6 +282,77 @@ class Problem:
         return np.stack(
             [_corrected(self.session_start(s), self.session_correction(state, s)) for s in range(self.n_sessions)]
         )
+
+    def probe_rotation(self, state: State) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """The probe's rotation in the flange frame ``R_P = R_P0 C(u)``, the correction ``C`` and its three
+        derivatives (``u`` the last offsets row over ``rotation_length``)."""
+        angles = np.asarray(state.offsets[-1], dtype=float) / self.rotation_length
+        correction, _, derivatives = base_correction(np.r_[0.0, 0.0, 0.0, angles])
+        return self.probe_start @ correction, correction, derivatives
+
+    def orientation_part(self, state: State, jacobian: bool = True):
+        """Unweighted orientation residuals ``log(R_m^T R_T F R_P)`` ``(m, 3)`` [rad] of the oriented points and,
+        with ``jacobian``, their derivatives ``(m, 3, n_x)`` in the columns of :meth:`point_jacobian`."""
+        rows = self.oriented
+        q = self.joint_variables(state.extras)[rows]
+        flange = forward_kinematics(state.values, q)[:, :3, :3]
+        trackers = self.trackers(state)
+        session = np.zeros(rows.size, dtype=int) if self.session_index is None else self.session_index[rows]
+        probe, correction, probe_derivatives = self.probe_rotation(state)
+        model = trackers[session, :3, :3] @ flange @ probe
+        error = rotation_log(np.einsum("pji,pjk->pik", self.measured_rotations, model))
+        if not jacobian:
+            return error, None
+        n, m = state.values.shape[0], self.extra_free.size
+        width = 5 * n + m + self.offset_start.size
+        body = np.zeros((rows.size, 3, width))
+        # the flange's body-frame turn per parameter: dF e_j = d(F e_j)/dx - d(F 0)/dx, then vee(F^T dF)
+        moves = [self._flange_point_jacobian(state, q, rows, offset) for offset in np.eye(4, 3, -1)]
+        d_flange = np.stack([moves[j + 1] - moves[0] for j in range(3)], axis=2)  # (m, 3, 3, 5 n + m)
+        turn = vee(np.einsum("pji,pjkc->pikc", flange, d_flange).transpose(0, 3, 1, 2))  # (m, 5 n + m, 3)
+        body[:, :, : 5 * n + m] = np.einsum("ji,pcj->pic", probe, turn)
+        after = flange @ probe  # what a base turn is seen through
+        base = np.zeros((rows.size, 3, 6))
+        for s in range(self.n_sessions):
+            chosen = np.flatnonzero(session == s)
+            rotation, _, derivatives = base_correction(self.session_correction(state, s))
+            turns = np.stack([vee(rotation.T @ d) for d in derivatives], axis=-1)  # (3, 3)
+            seen = np.einsum("pji,jk->pik", after[chosen], turns)
+            if s == 0:
+                base[chosen, :, 3:] = seen
+            else:
+                column = 5 * n + m + 3 * len(self.unknown) + 6 * (s - 1) + 3
+                body[chosen, :, column : column + 3] = seen / self.rotation_length
+        probe_turns = np.stack([vee(correction.T @ d) for d in probe_derivatives], axis=-1)
+        body[:, :, width - 3 :] = probe_turns / self.rotation_length
+        inverse = inverse_right_jacobian(error)
+        body = np.einsum("pij,pjk->pik", inverse, body)
+        base = np.einsum("pij,pjk->pik", inverse, base)
+        use = np.r_[self.free.ravel(), self.extra_free, self.offset_free]
+        columns = [body[:, :, use]] + ([base[:, :, self.base_free]] if self.base_free.any() else [])
+        return error, np.concatenate(columns, axis=-1)
+
+    def _flange_point_jacobian(self, state: State, q, rows, offset) -> np.ndarray:
+        """``d (F r) / d (parameters, joint-model values)`` ``(m, 3, 5 n + m)`` of a flange point ``r``."""
+        n = state.values.shape[0]
+        mount = ReflectorMount(frame="flange", positions=offset)
+        _, group_jac, by_joint = target_jacobian(
+            state.values, q, np.full(rows.size, n - 1), mount, joint_variables=True
+        )
+        out = group_jac.reshape(rows.size, 3, -1)
+        if self.extra_free.size:
+            out = np.concatenate([out, by_joint @ self.joint_columns[rows]], axis=-1)
+        return out
+
+    def _stacked(self, state: State, residuals, jacobian=None):
+        """Position rows followed by the orientation rows of a 6-DoF capture (points criterion)."""
+        if self.oriented is None or self.criterion != "points":
+            return residuals, jacobian
+        error, turn = self.orientation_part(state, jacobian is not None)
+        residuals = np.concatenate([residuals, error.ravel()])
+        if jacobian is None:
+            return residuals, None
+        return residuals, np.concatenate([jacobian, turn.reshape(-1, turn.shape[-1])])
 
     def joint_variables(self, extras) -> np.ndarray:
         """``q + C(q) extras`` [rad] (``q`` itself for the geometric model)."""
@@ -343,10 +422,16 @@ class Problem:
     def _row_weights(self) -> np.ndarray | None:
         if self.criterion == "distances":
             return self.pair_weight
-        return None if self.point_weight is None else np.repeat(self.point_weight, 3)
+        weights = None if self.point_weight is None else np.repeat(self.point_weight, 3)
+        if self.oriented is None:
+            return weights
+        position = np.ones(3 * self.q.shape[0]) if weights is None else weights
+        return np.concatenate([position, np.repeat(self.orientation_weight, 3)])
 
     def residuals(self, x) -> np.ndarray:
         residuals = self.raw_residuals(x)
+        if self.oriented is not None and self.criterion == "points":
+            residuals, _ = self._stacked(self.unpack_all(x), residuals)
         weights = self._row_weights()
         return residuals if weights is None else residuals * weights
 
@@ -382,9 +467,11 @@ class Problem:
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``(m,)`` and Jacobian ``(m, n_x)`` at x (weighted where weights are given)."""
-        points, jac = self.point_jacobian(self.unpack_all(x))
+        state = self.unpack_all(x)
+        points, jac = self.point_jacobian(state)
         if self.criterion == "points":
             residuals, jacobian = (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
+            residuals, jacobian = self._stacked(state, residuals, jacobian)
         else:
             residuals = pdist(points)[self.pair_keep] - self.measured_distances
             jacobian = _pair_jacobian(points, jac, self.pair_i, self.pair_j)
@@ -395,9 +482,10 @@ class Problem:
 
     def jacobian_sample(self, x, rows: int) -> np.ndarray:
         """Jacobian at x on about ``rows`` evenly strided residuals (every pair, or point, k-th)."""
-        points, jac = self.point_jacobian(self.unpack_all(x))
+        state = self.unpack_all(x)
+        points, jac = self.point_jacobian(state)
         if self.criterion == "points":
-            return jac.reshape(-1, jac.shape[-1])
+            return self._stacked(state, points.ravel(), jac.reshape(-1, jac.shape[-1]))[1]
         stride = max(1, self.pair_i.size // rows)
         return _pair_jacobian(points, jac, self.pair_i[::stride], self.pair_j[::stride])
 

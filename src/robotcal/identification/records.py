@@ -24,6 +24,7 @@ __all__ = [
     "ModelChoice",
     "RefinementResult",
     "SessionFrame",
+    "ProbeFrame",
 ]
 
 
@@ -235,6 +236,26 @@ class SessionFrame:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class ProbeFrame:
+    """A 6-DoF probe's frame on the flange as a refinement estimated it (issue 29): its position is its target's
+    offset (``targets``), its rotation this.
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        From the probe frame to the flange frame {n}.
+    standard_uncertainty : ndarray, shape (3,)
+        Of the rotation's three corrections ``R = R_start Rz(rz) Ry(ry) Rx(rx)`` [rad] (NaN without a covariance).
+    orientation_rms_deg : float
+        RMS angle of the orientation residuals at the solution [deg].
+    """
+
+    rotation: np.ndarray
+    standard_uncertainty: np.ndarray
+    orientation_rms_deg: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RefinementResult:
     """Outcome of a refinement, shaped like SciPy's ``OptimizeResult``: the values and the solver's record, then
     named sub-records.
@@ -280,6 +301,8 @@ class RefinementResult:
     sessions : tuple of SessionFrame
         Points criterion on a capture with a ``session`` column: the base frame of every session (the first one's
         is ``tracker_from_base``); empty otherwise.
+    probe : ProbeFrame or None
+        Points criterion on a capture with orientations (a 6-DoF probe): the probe's rotation on the flange.
     """
 
     parameters: ParameterSet
@@ -301,6 +324,7 @@ class RefinementResult:
     cross_validation: CrossValidation | None = None
     model_choice: ModelChoice | None = None
     sessions: tuple[SessionFrame, ...] = ()
+    probe: ProbeFrame | None = None
 
     def __repr__(self) -> str:
         health = f", {self.health.verdict}" if self.health is not None else ""

@@ -165,19 +165,21 @@ from robotcal.identification.observability import conditioning, correlation_from
 from robotcal.identification.records import (
     FitStatistics,
     Identifiability,
+    ProbeFrame,
     RefinementResult,
     RefinementUncertainty,
     SessionFrame,
 )
 from robotcal.identification.settings import CRITERIA, RefinementSettings
 from robotcal.identification.targets import Target, resolve_targets, split_by_session
-from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel, lash_turns
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
 __all__ = [
     "CRITERIA",
     "BASE_NAMES",
+    "PROBE_NAMES",
     "RefinementSettings",
     "RefinementResult",
     "refine_parameters",
@@ -296,7 +298,7 @@ def refine_parameters(
         raise InputError(f"`settings` must be RefinementSettings; got {type(settings).__name__}")
     with single_blas_thread():
         began = time.perf_counter()
-        setup = _set_up(capture, start, reflector, settings, tracker_from_base, joint_model)
+        setup = _set_up(capture, start, reflector, settings, tracker_from_base, joint_model, instrument)
         selection = select_free(setup.probe, setup.candidates, setup.all_scale, settings.rank_tolerance)
         verdict = describe_held(setup, selection)
         if setup.strict and set(verdict.gauge + verdict.held) - set(verdict.accepted):  # refused before any fit
@@ -402,7 +404,9 @@ def _scales(measured, columns, n: int) -> np.ndarray:
     return np.concatenate([np.tile(kind_scale, n), extra_scale, [1.0, 1.0, 1.0] + [angle_scale] * 3])
 
 
-def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_from_base, joint_model) -> Setup:
+def _set_up(
+    capture, start, reflector, settings: RefinementSettings, tracker_from_base, joint_model, instrument=None
+) -> Setup:
     """Check the inputs, resolve the targets, weights, base frame and pairs, and build the problem on which the
     free set is chosen."""
     robot = start.robot
@@ -414,9 +418,12 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
     layout = _layout(capture, reflector, n)
     targets, unknown = layout.targets, layout.unknown
     session_names, session_index = _sessions(capture)
-    target_rows = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
     n_moved = max(len(session_names) - 1, 0) if criterion == "points" else 0  # sessions 2..S: their frames in the offsets
-    offset_start = np.concatenate([target_rows, np.zeros((2 * n_moved, 3))])
+    oriented = criterion == "points" and capture.orientation is not None  # a 6-DoF probe: its rotation, last
+    offset_start = np.concatenate(
+        [np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3), np.zeros((2 * n_moved, 3))]
+        + ([np.zeros((1, 3))] if oriented else [])
+    )
     sigmas = point_sigmas(capture) if settings.weights == "auto" else None
     point_weight = reference = None
     if sigmas is not None:
@@ -458,6 +465,8 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
     )  # fmt: skip
     if criterion == "points" and session_index is not None:
         probe = _session_starts(probe, start.values, offset_start, capture.source, session_names)
+    if oriented:
+        probe = _with_probe(probe, capture, instrument, State(start.values, extra_start, offset_start, np.zeros(6)))
     parameters = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     spread = commanded.max(axis=0) - commanded.min(axis=0)
     return Setup(
@@ -469,14 +478,58 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
         all_scale=_scales(measured, columns, n),
         offset_start=offset_start,
         offset_names=tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz")
-        + tuple(f"session.{name}.{axis}" for name in session_names[1 : 1 + n_moved] for axis in BASE_AXES),
+        + tuple(f"session.{name}.{axis}" for name in session_names[1 : 1 + n_moved] for axis in BASE_AXES)
+        + (PROBE_NAMES if oriented else ()),
         session_names=session_names if criterion == "points" else (),
         joint_model=joint_model,
         use_base=use_base,
         still=tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD)),
         weighted=sigmas is not None,
-        n_residuals=capture.n_points * 3 if criterion == "points" else int(pair_i.size),
+        n_residuals=capture.n_points * (6 if oriented else 3) if criterion == "points" else int(pair_i.size),
     )
+
+
+#: Names of the three corrections of a 6-DoF probe's rotation in the flange frame (``R_P = R_P0 Rz Ry Rx``).
+PROBE_NAMES = ("probe.rx", "probe.ry", "probe.rz")
+
+
+def _orientation_sigmas(capture: Capture, instrument) -> tuple[np.ndarray, float]:
+    """Standard uncertainty of each point's orientation [rad] and the points' reference position u [mm]: what
+    weighs an orientation residual against a position one (``u_position / u_angle`` [mm/rad])."""
+    if capture.orientation_u95 is not None:
+        angle = np.asarray(capture.orientation_u95, dtype=float) / 2.0
+    elif instrument is not None and instrument.orientation_standard_uncertainty:
+        angle = np.full(capture.n_points, instrument.orientation_standard_uncertainty)
+    else:
+        raise InputError(
+            f"{capture.source}: the capture has orientations but no stated orientation uncertainty: give a "
+            "`u95_deg` column or an instrument with an orientation term (e.g. preset 6dof-probe)"
+        )
+    sigmas = point_sigmas(capture)
+    if sigmas is None and instrument is not None and not instrument.is_noise_free:
+        sigmas = instrument.standard_uncertainty(capture.points)
+    if sigmas is None:
+        raise InputError(
+            f"{capture.source}: weighing orientation against position needs the positions' uncertainty too: give "
+            "a `u95_mm` column or the scenario's [instrument]"
+        )
+    return angle, float(np.sqrt(np.mean(np.square(sigmas))))
+
+
+def _with_probe(probe: Problem, capture: Capture, instrument, start: State) -> Problem:
+    """The problem with the orientation residuals of a 6-DoF capture (points criterion): every point oriented,
+    weights ``u_position / u_angle``, the probe's rotation started at the chordal mean of ``(T F)^T R_m``."""
+    angle, reference = _orientation_sigmas(capture, instrument)
+    oriented = replace(probe, oriented=np.arange(capture.n_points), measured_rotations=capture.orientation,
+                       orientation_weight=reference / angle)  # fmt: skip
+    q = oriented.joint_variables(start.extras)
+    flange = forward_kinematics(start.values, q)[:, :3, :3]
+    trackers = oriented.trackers(start)
+    session = np.zeros(capture.n_points, dtype=int) if probe.session_index is None else probe.session_index
+    seen = trackers[session, :3, :3] @ flange
+    u, _, vt = np.linalg.svd(np.einsum("pji,pjk->ik", seen, capture.orientation))
+    mean = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    return replace(oriented, probe_start=mean)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -721,7 +774,25 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
         njev=fit.njev, model=model, criterion=criterion, method=fit.method,
         wall_time_s=time.perf_counter() - began, fit=statistics, identifiability=identifiability,
         uncertainty=uncertainty, health=health, sessions=_session_frames(setup, fit, solved, uncertainty.covariance),
+        probe=_probe_frame(fit, solved, uncertainty.covariance),
     )  # fmt: skip
+
+
+def _probe_frame(fit: _Fit, solved: State, covariance) -> ProbeFrame | None:
+    """The 6-DoF probe's rotation with the standard uncertainties of its corrections (the last offsets row)."""
+    problem = fit.problem
+    if problem.oriented is None:
+        return None
+    sd = np.full(3, np.nan)
+    if covariance is not None:
+        bounds = np.cumsum([problem.n_kinematic, problem.n_extra, problem.n_offsets])
+        offset_sd = np.full(problem.offset_start.size, np.nan)
+        offset_sd[fit.selection.offset_free] = np.sqrt(np.clip(np.diag(covariance), 0.0, None))[bounds[1] : bounds[2]]
+        sd = offset_sd[-3:] / problem.rotation_length
+    error, _ = problem.orientation_part(solved, jacobian=False)
+    rms = float(np.rad2deg(np.sqrt(np.mean(np.sum(error**2, axis=1)))))
+    rotation = problem.probe_rotation(solved)[0]
+    return ProbeFrame(rotation=_frozen(rotation), standard_uncertainty=_frozen(sd), orientation_rms_deg=rms)
 
 
 def _session_frames(setup: Setup, fit: _Fit, solved: State, covariance) -> tuple[SessionFrame, ...]:

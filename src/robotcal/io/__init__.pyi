@@ -55,6 +55,12 @@ from .joints_files import points_csv as points_csv
 from .joints_files import read_backlash as read_backlash
 from .joints_files import summary_csv as summary_csv
 from .joints_files import write_joints_folder as write_joints_folder
+from .orientation import ORIENTATION_FORMS as ORIENTATION_FORMS
+from .orientation import QUATERNION_COLUMNS as QUATERNION_COLUMNS
+from .orientation import quaternions_from_rotations as quaternions_from_rotations
+from .orientation import rotations_from_euler as rotations_from_euler
+from .orientation import rotations_from_matrices as rotations_from_matrices
+from .orientation import rotations_from_quaternions as rotations_from_quaternions
 from .output import LOCK_SUFFIX as LOCK_SUFFIX
 from .output import MARKER as MARKER
 from .output import SIGNATURE as SIGNATURE

@@ -1,12 +1,14 @@
-"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,session][,u95_mm]`` (docs/scenario.md).
+"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,session][,u95_mm][,qw,qx,qy,qz][,u95_deg]``
+(docs/scenario.md).
 
 One row per measured point; ``circle`` = joint turned (1-based; 0 for a free pose on no circle, such
 as a validation capture), ``direction`` = +1/-1, joint
 readings ``q1..qN`` in degrees, target position ``x, y, z`` in the tracker frame in mm. Optional:
 ``target``, the name of the target measured (declared in the scenario's ``[[targets]]``; absent =
 the scenario's one target), and ``u95_mm``, the point's expanded uncertainty U(95) [mm] (k = 2,
-normal), and ``session``, the measurement session (tracker station, day) of the point. A file without them
-loads as before.
+normal), ``session``, the measurement session (tracker station, day) of the point, and a 6-DoF probe's
+orientation as a unit quaternion ``qw,qx,qy,qz`` (scalar first, probe to tracker frame) with its expanded
+uncertainty ``u95_deg`` [deg]. A file without them loads as before.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
+from robotcal.io.orientation import QUATERNION_COLUMNS, quaternions_from_rotations, rotations_from_quaternions
 
 __all__ = ["capture_to_csv", "read_capture", "read_capture_text", "write_capture"]
 
@@ -34,7 +37,10 @@ def capture_to_csv(capture: Capture) -> str:
         (["target"] if capture.target is not None else [])
         + (["session"] if capture.session is not None else [])
         + (["u95_mm"] if capture.u95 is not None else [])
+        + (list(QUATERNION_COLUMNS) if capture.orientation is not None else [])
+        + (["u95_deg"] if capture.orientation_u95 is not None else [])
     )
+    quaternions = None if capture.orientation is None else quaternions_from_rotations(capture.orientation)
     writer.writerow(["circle", "direction", *[f"q{i + 1}" for i in range(n)], "x", "y", "z", *extra])
     readings_deg = np.rad2deg(capture.readings)
     names, sessions = capture.point_targets, capture.point_sessions
@@ -46,6 +52,8 @@ def capture_to_csv(capture: Capture) -> str:
             + ([names[k]] if names is not None else [])
             + ([sessions[k]] if sessions is not None else [])
             + ([f"{capture.u95[k]:.12g}"] if capture.u95 is not None else [])
+            + ([f"{value:.12f}" for value in quaternions[k]] if quaternions is not None else [])
+            + ([f"{np.rad2deg(capture.orientation_u95[k]):.12g}"] if capture.orientation_u95 is not None else [])
         )
     return stream.getvalue()
 
@@ -116,14 +124,8 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
         raise InputError(f"{path}: line {lines[bad[0]]}, column `direction`: must be +1 or -1")
     target, names = _labels(header, records, lines, "target", path)
     session, session_names = _labels(header, records, lines, "session", path)
-    u95 = None
-    if "u95_mm" in header:
-        position = header.index("u95_mm")
-        u95 = np.empty(len(records) - 1)
-        for k, (line, row) in enumerate(records[1:]):
-            u95[k] = parse_finite(row[position], f"{path}: line {line}, column `u95_mm`")
-            if u95[k] <= 0:
-                raise InputError(f"{path}: line {line}, column `u95_mm`: U(95) must be > 0 mm; got {u95[k]:g}")
+    u95 = _positive(header, records, "u95_mm", path)
+    orientation, orientation_u95 = _orientation(header, records, path)
     return Capture(
         circle=circle.astype(int),
         direction=direction.astype(int),
@@ -136,7 +138,43 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
         u95=u95,
         session=session,
         session_names=session_names,
+        orientation=orientation,
+        orientation_u95=orientation_u95,
     )
+
+
+def _positive(header, records, column: str, path) -> np.ndarray | None:
+    """A column of numbers > 0 (``u95_mm``, ``u95_deg``); None when the header has no such column."""
+    if column not in header:
+        return None
+    position = header.index(column)
+    values = np.empty(len(records) - 1)
+    for k, (line, row) in enumerate(records[1:]):
+        values[k] = parse_finite(row[position], f"{path}: line {line}, column `{column}`")
+        if values[k] <= 0:
+            unit = column.rsplit("_", 1)[1]
+            raise InputError(f"{path}: line {line}, column `{column}`: U(95) must be > 0 {unit}; got {values[k]:g}")
+    return values
+
+
+def _orientation(header, records, path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The rotations of the ``qw,qx,qy,qz`` columns (all four or none) and their U(95) [rad] (``u95_deg``)."""
+    present = [column for column in QUATERNION_COLUMNS if column in header]
+    if not present:
+        if "u95_deg" in header:
+            raise InputError(f"{path}: column `u95_deg` without the orientation columns qw,qx,qy,qz")
+        return None, None
+    if len(present) != 4:
+        missing = ", ".join(c for c in QUATERNION_COLUMNS if c not in present)
+        raise InputError(f"{path}: the orientation needs the four columns qw,qx,qy,qz; missing {missing}")
+    positions = [header.index(column) for column in QUATERNION_COLUMNS]
+    quaternions = np.array(
+        [[parse_finite(row[p], f"{path}: line {line}, column `{header[p]}`") for p in positions]
+         for line, row in records[1:]]
+    )  # fmt: skip
+    rotations = rotations_from_quaternions(quaternions, source=str(path))
+    u95 = _positive(header, records, "u95_deg", path)
+    return rotations, None if u95 is None else np.deg2rad(u95)
 
 
 def _labels(header, records, lines, column: str, path) -> tuple[np.ndarray | None, tuple[str, ...]]:
