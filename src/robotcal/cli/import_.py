@@ -13,7 +13,9 @@ app = command_app()
 
 COLUMNS_HELP = (
     'Column map of a generic export: x="X [mm]",y=...,z=...[,name=...,u95=...,target=...,circle=...,direction=...] '
-    "(header names, or 1-based column numbers in a file without header). Default: Leica or plain name;x;y;z recognised."
+    "(header names, or 1-based column numbers in a file without header); a 6-DoF orientation as qw,qx,qy,qz "
+    "(quaternion), a,b,c (KUKA ABC, deg), roll,pitch,yaw (deg) or r11..r33, with u95_deg. Default: Leica or plain "
+    "name;x;y;z recognised."
 )
 
 

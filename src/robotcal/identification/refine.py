@@ -390,11 +390,15 @@ def _pairs(capture: Capture, commanded, pair_key, measured, sigmas, reference, s
     return pair_i, pair_j, pair_keep, distances, pair_weight
 
 
+def _radius(measured) -> float:
+    """L: the RMS radius of the measured point cloud about its centroid [mm]."""
+    return float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
+
+
 def _scales(measured, columns, n: int) -> np.ndarray:
     """The column scale ``(5 n + m + 6,)`` of the parameters, the joint-model values and the base corrections: 1 mm
     for lengths and translations, ``1/L`` rad for angles (module notes)."""
-    size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
-    angle_scale = 1.0 / max(size, 1.0)
+    angle_scale = 1.0 / max(_radius(measured), 1.0)
     kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
     # a joint-model value's unit step turns the joints by C(q) rad: about 1 mm at the cloud's radius once scaled
     extra_scale = np.zeros(0)
@@ -452,7 +456,6 @@ def _set_up(
         pair_i, pair_j, pair_keep, distances, pair_weight = _pairs(
             capture, commanded, layout.pair_key, measured, sigmas, reference, session_index
         )
-    size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
     probe = Problem(
         start=start.values.copy(), free=np.ones((n, 5), dtype=bool), base_start=base_start,
         base_free=np.full(6, use_base), q=q, turning=layout.turning, reflector=layout.reflector, measured=measured,
@@ -461,7 +464,7 @@ def _set_up(
         offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(len(unknown), offset_start.shape[0]),
         offset_free=np.ones(offset_start.size, dtype=bool), point_weight=point_weight, pair_weight=pair_weight,
         joint_columns=columns, extra_start=extra_start, extra_free=np.ones(extra_start.size, dtype=bool),
-        session_index=session_index if criterion == "points" else None, rotation_length=max(size, 1.0),
+        session_index=session_index if criterion == "points" else None, rotation_length=max(_radius(measured), 1.0),
     )  # fmt: skip
     if criterion == "points" and session_index is not None:
         probe = _session_starts(probe, start.values, offset_start, capture.source, session_names)

@@ -32,6 +32,8 @@ __all__ = [
     "quaternions_from_rotations",
     "rotations_from_euler",
     "rotations_from_matrices",
+    "ORIENTATION_KEYS",
+    "orientation_columns",
 ]
 
 #: The forms an export's orientation may take.
@@ -39,6 +41,14 @@ ORIENTATION_FORMS = ("quaternion", "abc", "rpy", "matrix")
 #: The capture CSV's orientation columns: a unit quaternion, scalar first.
 QUATERNION_COLUMNS = ("qw", "qx", "qy", "qz")
 _NORM_TOLERANCE = 1e-3
+_FORM_KEYS = {
+    "quaternion": QUATERNION_COLUMNS,
+    "abc": ("a", "b", "c"),
+    "rpy": ("roll", "pitch", "yaw"),
+    "matrix": tuple(f"r{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)),
+}
+#: Keys of an export's column map (``robotcal import --columns``) that give an orientation, and its U(95) [deg].
+ORIENTATION_KEYS = tuple(key for keys in _FORM_KEYS.values() for key in keys) + ("u95_deg",)
 
 
 def _rotation():
@@ -85,3 +95,33 @@ def rotations_from_matrices(elements, *, source: str = "orientation") -> np.ndar
     if bad.size:
         raise InputError(f"{source}: point {bad[0] + 1}: the matrix is not a rotation (within 1e-6)")
     return nearest
+
+
+def orientation_columns(values: dict, *, source: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The rotations ``(n, 3, 3)`` and their U(95) ``(n,)`` [rad] from an export's columns ``values`` (key ->
+    the column's numbers, the keys of :data:`ORIENTATION_KEYS` in one form); ``(None, None)`` without any."""
+    forms = [form for form, keys in _FORM_KEYS.items() if any(key in values for key in keys)]
+    if not forms:
+        if "u95_deg" in values:
+            raise InputError(f"{source}: an orientation U(95) (u95_deg) without an orientation")
+        return None, None
+    if len(forms) > 1:
+        raise InputError(f"{source}: the orientation is given in several forms ({', '.join(forms)}); map one")
+    form, keys = forms[0], _FORM_KEYS[forms[0]]
+    missing = [key for key in keys if key not in values]
+    if missing:
+        raise InputError(f"{source}: the {form} orientation needs the columns {', '.join(keys)}; missing {missing}")
+    numbers = np.column_stack([np.asarray(values[key], dtype=float) for key in keys])
+    if form == "quaternion":
+        rotations = rotations_from_quaternions(numbers, source=source)
+    elif form == "matrix":
+        rotations = rotations_from_matrices(numbers, source=source)
+    else:
+        rotations = rotations_from_euler(numbers, form)
+    u95 = None
+    if "u95_deg" in values:
+        u95 = np.deg2rad(np.asarray(values["u95_deg"], dtype=float))
+        bad = np.flatnonzero(~(u95 > 0))
+        if bad.size:
+            raise InputError(f"{source}: point {bad[0] + 1}: the orientation U(95) must be > 0 deg")
+    return rotations, u95

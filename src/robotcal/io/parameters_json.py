@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from robotcal.errors import InputError, RobotcalWarning
 from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
@@ -40,6 +40,8 @@ __all__ = [
     "read_sessions",
     "read_targets",
     "read_tracker_from_base",
+    "probe_to_dict",
+    "read_probe",
     "refined_sessions",
     "refined_targets",
     "sessions_to_dict",
@@ -200,6 +202,16 @@ class _SessionsPart(_JsonObject):
     sessions: dict[str, SessionEntry] | None = None
 
 
+class ProbeEntry(_JsonObject):
+    """The ``probe`` key: what robotcal reads of it (the rotation as a quaternion, scalar first)."""
+
+    quaternion: Annotated[list[TomlFloat], Field(min_length=4, max_length=4)]
+
+
+class _ProbePart(_JsonObject):
+    probe: ProbeEntry | None = None
+
+
 class _ProvenanceEntry(_JsonObject):
     """What robotcal reads of ``provenance``: the base frame a fit recorded (null: none)."""
 
@@ -293,12 +305,14 @@ def parameters_to_dict(
     targets: dict | None = None,
     joint_model_u=None,
     sessions: dict | None = None,
+    probe: dict | None = None,
 ) -> dict:
     """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
     nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
     :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets. An extended set
     adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units). ``sessions``
-    (from :func:`sessions_to_dict`) adds the key ``sessions``: the base frame of every measurement session."""
+    (from :func:`sessions_to_dict`) adds the key ``sessions``: the base frame of every measurement session;
+    ``probe`` (from :func:`probe_to_dict`) the key ``probe``: a 6-DoF probe's rotation on the flange."""
     robot = parameters.robot
     joints = []
     for i in range(robot.n_joints):
@@ -321,6 +335,8 @@ def parameters_to_dict(
         document["targets"] = targets
     if sessions:
         document["sessions"] = sessions
+    if probe:
+        document["probe"] = probe
     if parameters.joint_model is not None:
         document["joint_model"] = joint_model_to_dict(parameters.joint_model, joint_model_u)
     document["provenance"] = provenance or {}
@@ -334,10 +350,11 @@ def write_parameters(
     targets: dict | None = None,
     joint_model_u=None,
     sessions: dict | None = None,
+    probe: dict | None = None,
 ) -> Path:
     """Write a parameter JSON atomically (``targets``, ``joint_model_u``, ``sessions``: see
     :func:`parameters_to_dict`)."""
-    document = parameters_to_dict(parameters, provenance, targets, joint_model_u, sessions)
+    document = parameters_to_dict(parameters, provenance, targets, joint_model_u, sessions, probe)
     text = json.dumps(document, indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
 
@@ -370,6 +387,39 @@ def sessions_to_dict(frames) -> dict:
             "u": {key: None if not np.isfinite(value) else float(value) for key, value in zip(keys, u, strict=True)},
         }
     return out
+
+
+def probe_to_dict(result) -> dict | None:
+    """The ``probe`` key of a 6-DoF refinement: the probe's target (its position is that target's offset in
+    ``targets``), its rotation in the flange frame as a quaternion ``qw, qx, qy, qz`` and a matrix, the standard
+    uncertainties of the rotation's corrections ``u_deg`` (rx, ry, rz; null where not estimated) and the RMS of the
+    orientation residuals [deg]; None without orientations."""
+    from robotcal.io.orientation import quaternions_from_rotations
+
+    probe = result.probe
+    if probe is None:
+        return None
+    target = next((t.name for t in result.targets if t.frame == "flange"), None)
+    u = np.rad2deg(np.asarray(probe.standard_uncertainty, dtype=float))
+    return {
+        "target": target,
+        "quaternion": quaternions_from_rotations(probe.rotation[None])[0].tolist(),
+        "rotation": np.asarray(probe.rotation, dtype=float).tolist(),
+        "u_deg": [None if not np.isfinite(value) else float(value) for value in u],
+        "orientation_rms_deg": probe.orientation_rms_deg,
+    }
+
+
+def read_probe(path) -> np.ndarray | None:
+    """The probe's rotation in the flange frame (``probe.quaternion`` of a parameter JSON), None when absent."""
+    from robotcal.io.orientation import rotations_from_quaternions
+
+    path = Path(path)
+    data = read_json_file(path, kind="parameter JSON")
+    part: _ProbePart = validate_model(_ProbePart, data if isinstance(data, dict) else {}, str(path))
+    if part.probe is None:
+        return None
+    return rotations_from_quaternions([part.probe.quaternion], source=f"{path}: probe.quaternion")[0]
 
 
 def refined_sessions(result) -> dict | None:

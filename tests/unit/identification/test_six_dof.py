@@ -6,8 +6,9 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pytest
 
-from robotcal.errors import IdentifiabilityWarning
+from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z
 from robotcal.identification.refine import refine_parameters
 from robotcal.identification.targets import Target
@@ -51,3 +52,46 @@ def test_noise_free_six_dof_capture_recovers_the_robot_and_the_probe_frame():
     np.testing.assert_allclose(result.probe.rotation, PROBE_ROTATION, rtol=0, atol=1e-10)
     assert result.probe.orientation_rms_deg < 1e-8
     assert result.fit.residual_max < 1e-8
+
+
+# -- import: the orientation as exports give it ---------------------------------------------------------------
+
+
+def test_import_reads_quaternion_abc_and_rpy_alike(tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    from robotcal.io.tracker_import import import_tracker_capture
+
+    rotation = Rotation.from_euler("ZYX", [30.0, -15.0, 5.0], degrees=True)
+    w = [float(v) for v in rotation.as_quat()[[3, 0, 1, 2]]]
+    log = tmp_path / "joints.csv"
+    log.write_text("name,q1,q2,q3,q4,q5,q6\nP1,0,10,20,0,30,0\n", encoding="utf-8")
+    exports = {
+        "quaternion": ("Point;X [mm];Y [mm];Z [mm];qw;qx;qy;qz;u95_deg\n"
+                       f"P1;1;2;3;{w[0]!r};{w[1]!r};{w[2]!r};{w[3]!r};0.01\n", None),
+        "abc": ("Point;X [mm];Y [mm];Z [mm];A;B;C\nP1;1;2;3;30;-15;5\n", "x=X [mm],y=Y [mm],z=Z [mm],name=Point,a=A,b=B,c=C"),
+        "rpy": ("Point;X [mm];Y [mm];Z [mm];R;P;W\nP1;1;2;3;5;-15;30\n",
+                "x=X [mm],y=Y [mm],z=Z [mm],name=Point,roll=R,pitch=P,yaw=W"),
+    }  # fmt: skip
+    for form, (text, columns) in exports.items():
+        export = tmp_path / f"{form}.txt"
+        export.write_text(text, encoding="utf-8")
+        capture = import_tracker_capture(export, log, n_joints=6, columns=columns)
+        np.testing.assert_allclose(capture.orientation[0], rotation.as_matrix(), rtol=0, atol=1e-12, err_msg=form)
+    assert capture.orientation_u95 is None
+    quaternion = import_tracker_capture(tmp_path / "quaternion.txt", log, n_joints=6)
+    np.testing.assert_allclose(np.rad2deg(quaternion.orientation_u95), [0.01], rtol=1e-12)
+    with pytest.raises(InputError, match="qw, qx, qy, qz"):
+        (tmp_path / "bad.txt").write_text("Point;X [mm];Y [mm];Z [mm];qw;qx\nP1;1;2;3;1;0\n", encoding="utf-8")
+        import_tracker_capture(tmp_path / "bad.txt", log, n_joints=6)
+
+
+def test_capture_csv_round_trips_the_orientation(tmp_path):
+    from robotcal.io.capture_csv import read_capture, write_capture
+
+    capture = _capture()
+    path = write_capture(tmp_path / "six.csv", capture)
+    assert path.read_text().splitlines()[0].endswith("x,y,z,target,u95_mm,qw,qx,qy,qz,u95_deg")
+    again = read_capture(path, n_joints=6)
+    np.testing.assert_allclose(again.orientation, capture.orientation, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(again.orientation_u95, capture.orientation_u95, rtol=1e-12)
