@@ -171,6 +171,46 @@ def _print_tables(rows, captures: dict, views: tuple[str, ...]) -> None:
 
 
 _MOVED_KEYS = ("capture", "parameter_set", "rms_error_mm")
+_TURNED_KEYS = ("parameter_set", "view", "capture", "n_errors", "mean_error_deg", "max_error_deg", "rms_error_deg")
+
+
+def _issue29_parts(document, rows, captures, sets, scenario, files, views, bases, set_targets) -> tuple[list, tuple]:
+    """Sessions and 6-DoF probes (issue 29): the absolute rows of a capture from another station
+    (``station_moved``) and the orientation errors of the sets that estimated a probe's rotation on the captures
+    with orientations (``orientation``), both added to ``document`` when there are any."""
+    from robotcal import api
+    from robotcal.identification.evaluation import evaluate_orientation
+    from robotcal.io.parameters_json import read_probe
+
+    moved = [row for row in rows if row.station]
+    if moved:
+        document["station_moved"] = [{key: getattr(row, key) for key in _MOVED_KEYS} for row in moved]
+    turned: tuple = ()
+    if any(c.orientation is not None for c in captures.values()):
+        probes = {label: rotation for label, path in files.items() if (rotation := read_probe(path)) is not None}
+        reflectors = {name: api.capture_targets(scenario, c) for name, c in captures.items()}
+        turned = evaluate_orientation(
+            captures, sets, reflectors, probes, views=[v for v in views if v != "distances"], bases=bases,
+            set_targets=set_targets,
+        )  # fmt: skip
+    if turned:
+        document["orientation"] = [{key: getattr(row, key) for key in _TURNED_KEYS} for row in turned]
+    return moved, turned
+
+
+def _print_orientation(turned) -> None:
+    """One table of the orientation errors [deg] of the sets with a probe rotation, per capture and view."""
+    for capture_name, view in dict.fromkeys((row.capture, row.view) for row in turned):
+        table = FittedTable(
+            f"{capture_name}: orientation, {view} view",
+            [Column("parameter set", "name"), *(Column(h) for h in ("mean [deg]", "max [deg]", "RMS [deg]"))],
+        )
+        for row in turned:
+            if (row.capture, row.view) == (capture_name, view):
+                table.add_row(
+                    row.parameter_set, f"{row.mean_error_deg:.5f}", f"{row.max_error_deg:.5f}", f"{row.rms_error_deg:.5f}"
+                )
+        console.print(table)
 
 
 def _print_moved(moved) -> None:
@@ -251,8 +291,7 @@ def evaluate(
         document["settings"]["absolute_base_frames"] = base_notes
     if target_notes:
         document["settings"]["target_offsets"] = target_notes
-    if moved := [row for row in rows if row.station]:  # issue 29: captured from another station than recorded
-        document["station_moved"] = [{key: getattr(row, key) for key in _MOVED_KEYS} for row in moved]
+    moved, turned = _issue29_parts(document, rows, captures, sets, loaded, files, views, bases, set_targets)
     with result_folder(out, inputs=inputs, force=force, command="robotcal evaluate") as folder:
         write_evaluation_folder(folder, rows, document)
         if histories:
@@ -265,6 +304,7 @@ def evaluate(
     for label, note in target_notes.items():
         console.print(f"{label}: {note}", highlight=False, markup=False)
     _print_moved(moved)
+    _print_orientation(turned)
     console.print(
         f"wrote {out}/evaluation.csv, evaluation.json" + (", convergence.png" if histories else ""), highlight=False
     )

@@ -47,7 +47,7 @@ from robotcal.errors import InputError, RobotcalWarning
 from robotcal.geometry.registration import register_points
 from robotcal.identification._problem import capture_target_index, capture_turning_joints, measurement_pairs, pdist
 from robotcal.identification.targets import Target, resolve_targets, split_by_session
-from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
 __all__ = [
@@ -66,6 +66,9 @@ __all__ = [
     "STATION_RATIO",
     "STATION_FLOOR_MM",
     "station_moved",
+    "OrientationRow",
+    "orientation_errors",
+    "evaluate_orientation",
 ]
 
 #: A capture's absolute RMS error above ``STATION_RATIO`` times its registered RMS error plus ``STATION_FLOOR_MM``
@@ -309,12 +312,7 @@ def evaluate_parameters(
     _warn_guessed(captures, parameter_sets, reflectors, set_targets)
 
     def errors_of(view, capture, set_name, parameters, reflector):
-        offsets = (set_targets or {}).get(set_name) or {}
-        if offsets and not isinstance(reflector, ReflectorMount):
-            capture, given = split_by_session(capture, (reflector,) if isinstance(reflector, Target) else reflector)
-            reflector = tuple(
-                t.with_position(offsets[t.name]) if t.frame == "flange" and t.name in offsets else t for t in given
-            )
+        capture, reflector = _with_set_offsets(capture, reflector, (set_targets or {}).get(set_name))
         if view == "absolute":
             errors = absolute_errors(capture, parameters, reflector, bases[set_name])
             registered = point_errors(capture, parameters, reflector)
@@ -350,5 +348,87 @@ def evaluate_parameters(
                         improvement_pct=float(improvement),
                         station="moved" if moved else "",
                     )
+                )
+    return tuple(rows)
+
+
+def _with_set_offsets(capture: Capture, reflector, offsets):
+    """The capture and targets with the flange offsets a parameter set estimated (``offsets``: name -> xyz [mm])
+    in place of same-named targets' (a re-seated target split per session first)."""
+    if not offsets or isinstance(reflector, ReflectorMount):
+        return capture, reflector
+    capture, given = split_by_session(capture, (reflector,) if isinstance(reflector, Target) else reflector)
+    moved = tuple(t.with_position(offsets[t.name]) if t.frame == "flange" and t.name in offsets else t for t in given)
+    return capture, moved
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class OrientationRow:
+    """Orientation errors of one parameter set on one 6-DoF capture under one view [deg] (issue 29)."""
+
+    parameter_set: str
+    view: str
+    capture: str
+    n_errors: int
+    mean_error_deg: float
+    max_error_deg: float
+    rms_error_deg: float
+
+
+def orientation_errors(
+    capture: Capture, parameters: ParameterSet, reflector, probe_rotation, tracker_from_base=None
+) -> np.ndarray:
+    """Angle of ``R_m^T R_T F R_P`` per point [deg]: the measured orientation against the model's, the probe's
+    rotation ``R_P`` on the flange as a refinement estimated it. ``R_T``: the rotation of ``tracker_from_base`` (one
+    frame or a mapping of session name to frame, as :func:`absolute_errors`), or, without it, that of each
+    session's registration of the predicted points onto the measured ones (the points view)."""
+    from robotcal.identification._orientation import rotation_log
+
+    if capture.orientation is None:
+        raise InputError(f"{capture.source}: no orientation to evaluate (position-only capture)")
+    predicted = predicted_points(capture, parameters, reflector)
+    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(capture.readings))[:, :3, :3]
+    model = flange @ np.asarray(probe_rotation, dtype=float)
+    for session, rows in _session_groups(capture):
+        if tracker_from_base is None:
+            rotation = register_points(predicted[rows], capture.points[rows]).transform[:3, :3]
+        else:
+            rotation = _frame_of(tracker_from_base, session)[:3, :3]
+        model[rows] = rotation @ model[rows]
+    error = rotation_log(np.einsum("pji,pjk->pik", capture.orientation, model))
+    return np.rad2deg(np.linalg.norm(error, axis=1))
+
+
+def evaluate_orientation(
+    captures: Mapping[str, Capture],
+    parameter_sets: Mapping[str, ParameterSet],
+    reflectors,
+    probes: Mapping[str, np.ndarray],
+    *,
+    views=("points",),
+    bases: Mapping[str, object] | None = None,
+    set_targets: Mapping[str, Mapping[str, tuple]] | None = None,
+) -> tuple[OrientationRow, ...]:
+    """Orientation errors (:func:`orientation_errors`) of every set with a probe rotation (``probes``: set name ->
+    (3, 3)) on every capture with orientations, under the ``"points"`` and ``"absolute"`` views (the latter for
+    the sets ``bases`` gives a frame); the other sets and captures are left out."""
+    rows = []
+    for capture_name, capture in captures.items():
+        if capture.orientation is None:
+            continue
+        reflector = reflectors if isinstance(reflectors, ReflectorMount) else reflectors[capture_name]
+        for view in views:
+            for set_name, parameters in parameter_sets.items():
+                base = None if view == "points" else (bases or {}).get(set_name)
+                if set_name not in probes or (view == "absolute" and base is None):
+                    continue
+                measured, targets = _with_set_offsets(capture, reflector, (set_targets or {}).get(set_name))
+                errors = orientation_errors(measured, parameters, targets, probes[set_name], base)
+                rows.append(
+                    OrientationRow(
+                        parameter_set=set_name, view=view, capture=capture_name, n_errors=int(errors.size),
+                        mean_error_deg=float(errors.mean()), max_error_deg=float(errors.max()),
+                        rms_error_deg=float(np.sqrt(np.mean(errors**2))),
+                    )  # fmt: skip
                 )
     return tuple(rows)
