@@ -95,3 +95,29 @@ def test_capture_csv_round_trips_the_orientation(tmp_path):
     again = read_capture(path, n_joints=6)
     np.testing.assert_allclose(again.orientation, capture.orientation, rtol=0, atol=1e-11)
     np.testing.assert_allclose(again.orientation_u95, capture.orientation_u95, rtol=1e-12)
+
+
+# -- what the orientation adds to identifiability -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("poses", "unknown"), [(8, True), (8, False), (30, True)])
+def test_orientation_determines_what_positions_alone_hold(poses, unknown):
+    """The same poses with and without the orientations (the table of docs/refinement.md)."""
+    from dataclasses import replace
+
+    capture = _capture(poses=poses)
+    target = PROBE if unknown else Target(name="probe", frame="flange", positions=PROBE_OFFSET)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifiabilityWarning)
+        six = refine_parameters(capture, ParameterSet.nominal(ROBOT), target)
+        three = refine_parameters(replace(capture, orientation=None, orientation_u95=None), ParameterSet.nominal(ROBOT),
+                                  target)  # fmt: skip
+    free = six.identifiability.free  # J6 nominal in the truth: the 6-DoF fit recovers every free parameter
+    np.testing.assert_allclose(six.parameters.values[free], TRUTH.values[free], rtol=0, atol=1e-8)
+    assert three.fit.residual_max < 1e-8  # (its free parameters take up what it holds: confounded, not the truth)
+    held_six, held_three = set(six.identifiability.held), set(three.identifiability.held)
+    assert held_six <= held_three and held_six == ({"J6.d", "J6.theta", "J6.a", "J6.alpha"} if unknown else {"J6.alpha"})
+    if poses == 8:  # J5's theta, a, alpha (and, with a known offset, J6's d, theta, a) held without orientation
+        assert held_three - held_six
+        assert six.identifiability.condition_number < 0.2 * three.identifiability.condition_number
+    assert set(six.identifiability.free_names) >= {"probe.rx", "probe.ry", "probe.rz"}
