@@ -97,12 +97,15 @@ def test_refine_and_evaluate_over_two_stations(tmp_path):
 
 
 def test_import_session_option(tmp_path):
-    export = tmp_path / "plain.txt"
-    export.write_text("P1;1000;0;500\nP2;1010;0;500\nP3;1010;10;500\n", encoding="utf-8")
-    log = tmp_path / "joints.csv"
-    log.write_text("name,q1,q2,q3,q4,q5,q6\nP1,0,0,0,0,0,0\nP2,1,0,0,0,0,0\nP3,2,0,0,0,0,0\n", encoding="utf-8")
+    files = {
+        "plain.txt": "P1;1000;0;500\nP2;1010;0;500\nP3;1010;10;500\n",
+        "joints.csv": "name,q1,q2,q3,q4,q5,q6\nP1,0,0,0,0,0,0\nP2,1,0,0,0,0,0\nP3,2,0,0,0,0,0\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text, encoding="utf-8")
     out = tmp_path / "capture.csv"
-    result = invoke("import", export, "--joints", log, "--session", "station-2", "--units", "mm", "--out", out)
+    result = invoke("import", tmp_path / "plain.txt", "--joints", tmp_path / "joints.csv", "--session", "station-2",
+                    "--units", "mm", "--out", out)  # fmt: skip
     assert result.exit_code == 0, result.output
     assert out.read_text().splitlines()[0].endswith(",x,y,z,session")
     assert read_capture(out).point_sessions == ("station-2",) * 3

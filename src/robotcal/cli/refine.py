@@ -193,7 +193,7 @@ def refine(
         joint_model_u = result.uncertainty.joint_model_uncertainty
         write_parameters(
             out, result.parameters, provenance, refined_targets(result), joint_model_u=joint_model_u,
-            sessions=refined_sessions(result), probe=probe_to_dict(result),
+            extensions={"sessions": refined_sessions(result), "probe": probe_to_dict(result)},
         )  # fmt: skip
     _print_result(result, initial, start is not None, provenance, refinement_s)
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)

@@ -12,12 +12,15 @@ from .evaluation import STATION_RATIO as STATION_RATIO
 from .evaluation import VIEWS as VIEWS
 from .evaluation import EvaluationRow as EvaluationRow
 from .evaluation import GuessedOffsetWarning as GuessedOffsetWarning
+from .evaluation import OrientationRow as OrientationRow
 from .evaluation import StationMovedWarning as StationMovedWarning
 from .evaluation import absolute_errors as absolute_errors
 from .evaluation import distance_errors as distance_errors
 from .evaluation import distinct_pairs as distinct_pairs
+from .evaluation import evaluate_orientation as evaluate_orientation
 from .evaluation import evaluate_parameters as evaluate_parameters
 from .evaluation import guessed_targets as guessed_targets
+from .evaluation import orientation_errors as orientation_errors
 from .evaluation import point_errors as point_errors
 from .evaluation import predicted_points as predicted_points
 from .evaluation import station_moved as station_moved

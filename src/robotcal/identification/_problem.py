@@ -275,7 +275,11 @@ class Problem:
         return np.r_[state.offsets[row], state.offsets[row + 1] / self.rotation_length]
 
     def session_start(self, session: int) -> np.ndarray:
-        return self.base_start if session == 0 else self.session_starts[session - 1]
+        """The start frame of a session (points criterion: the first session's is ``base_start``)."""
+        start = self.base_start if session == 0 else self.session_starts[session - 1]
+        if start is None:
+            raise InputError("the distances criterion has no base frame")
+        return start
 
     def trackers(self, state: State) -> np.ndarray:
         """``tracker_from_base`` of every session ``(n_sessions, 4, 4)``."""
@@ -293,7 +297,7 @@ class Problem:
     def orientation_part(self, state: State, jacobian: bool = True):
         """Unweighted orientation residuals ``log(R_m^T R_T F R_P)`` ``(m, 3)`` [rad] of the oriented points and,
         with ``jacobian``, their derivatives ``(m, 3, n_x)`` in the columns of :meth:`point_jacobian`."""
-        rows = self.oriented
+        rows = np.arange(0) if self.oriented is None else self.oriented
         q = self.joint_variables(state.extras)[rows]
         flange = forward_kinematics(state.values, q)[:, :3, :3]
         trackers = self.trackers(state)
@@ -404,7 +408,7 @@ class Problem:
 
     def tracker(self, x_base) -> np.ndarray:
         """``tracker_from_base`` of the first session at the corrections ``x_base``."""
-        return _corrected(self.base_start, x_base)
+        return _corrected(self.session_start(0), x_base)
 
     def raw_residuals(self, x) -> np.ndarray:
         """Unweighted residuals [mm]: ``T p - m`` per coordinate (``T`` the point's session's), or

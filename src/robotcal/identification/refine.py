@@ -136,6 +136,14 @@ from robotcal.errors import IdentifiabilityError, InputError
 from robotcal.execution import single_blas_thread
 from robotcal.geometry.registration import register_points
 from robotcal.geometry.transforms import check_rigid_transform
+from robotcal.identification._frames import (
+    PROBE_NAMES,
+    capture_sessions,
+    probe_frame,
+    session_frames,
+    session_starts,
+    with_probe,
+)
 from robotcal.identification._free_set import (
     HeldNames,
     Selection,
@@ -165,14 +173,12 @@ from robotcal.identification.observability import conditioning, correlation_from
 from robotcal.identification.records import (
     FitStatistics,
     Identifiability,
-    ProbeFrame,
     RefinementResult,
     RefinementUncertainty,
-    SessionFrame,
 )
 from robotcal.identification.settings import CRITERIA, RefinementSettings
 from robotcal.identification.targets import Target, resolve_targets, split_by_session
-from robotcal.kinematics.forward import forward_kinematics, target_positions
+from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel, lash_turns
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
 
@@ -207,35 +213,6 @@ def _generic_directions(count: int, rows: int) -> np.ndarray:
     directions = np.random.default_rng(12345).normal(size=(count, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     return np.concatenate([directions, np.zeros((rows - count, 3))])
-
-
-def _sessions(capture: Capture) -> tuple[tuple[str, ...], np.ndarray | None]:
-    """The sessions the capture's points use (in order of first appearance) and each point's index into them;
-    ``((), None)`` for one session (no ``session`` column, or a single name in it)."""
-    if capture.session is None:
-        return (), None
-    used, first, index = np.unique(capture.session, return_index=True, return_inverse=True)
-    if used.size < 2:
-        return (), None
-    order = np.argsort(first)
-    rank = np.empty_like(order)
-    rank[order] = np.arange(order.size)
-    return tuple(capture.session_names[used[k]] for k in order), rank[index.ravel()]
-
-
-def _session_starts(probe: Problem, values, offset_start, source: str, names) -> Problem:
-    """The start frames of a capture of several sessions: each session's points registered (Horn) onto the start
-    model's; the first session's frame stays the given one when there is one."""
-    start = State(values, probe.extra_start, offset_start, np.zeros(6))
-    points = probe.base_points(start)
-    frames = []
-    for s in range(len(names)):
-        rows = np.flatnonzero(probe.session_index == s)
-        if rows.size < 3:
-            raise InputError(f"{source}: session {names[s]!r} has {rows.size} points; its base frame needs at least 3")
-        frames.append(register_points(points[rows], probe.measured[rows]).transform)
-    base_start = frames[0] if probe.base_start is None else probe.base_start
-    return replace(probe, base_start=base_start, session_starts=np.stack(frames[1:]))
 
 
 def refine_parameters(
@@ -421,7 +398,7 @@ def _set_up(
     measured = np.asarray(capture.points, dtype=float)
     layout = _layout(capture, reflector, n)
     targets, unknown = layout.targets, layout.unknown
-    session_names, session_index = _sessions(capture)
+    session_names, session_index = capture_sessions(capture)
     n_moved = max(len(session_names) - 1, 0) if criterion == "points" else 0  # sessions 2..S: their frames in the offsets
     oriented = criterion == "points" and capture.orientation is not None  # a 6-DoF probe: its rotation, last
     offset_start = np.concatenate(
@@ -467,9 +444,9 @@ def _set_up(
         session_index=session_index if criterion == "points" else None, rotation_length=max(_radius(measured), 1.0),
     )  # fmt: skip
     if criterion == "points" and session_index is not None:
-        probe = _session_starts(probe, start.values, offset_start, capture.source, session_names)
+        probe = session_starts(probe, start.values, offset_start, capture.source, session_names)
     if oriented:
-        probe = _with_probe(probe, capture, instrument, State(start.values, extra_start, offset_start, np.zeros(6)))
+        probe = with_probe(probe, capture, instrument, State(start.values, extra_start, offset_start, np.zeros(6)))
     parameters = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     spread = commanded.max(axis=0) - commanded.min(axis=0)
     return Setup(
@@ -490,49 +467,6 @@ def _set_up(
         weighted=sigmas is not None,
         n_residuals=capture.n_points * (6 if oriented else 3) if criterion == "points" else int(pair_i.size),
     )
-
-
-#: Names of the three corrections of a 6-DoF probe's rotation in the flange frame (``R_P = R_P0 Rz Ry Rx``).
-PROBE_NAMES = ("probe.rx", "probe.ry", "probe.rz")
-
-
-def _orientation_sigmas(capture: Capture, instrument) -> tuple[np.ndarray, float]:
-    """Standard uncertainty of each point's orientation [rad] and the points' reference position u [mm]: what
-    weighs an orientation residual against a position one (``u_position / u_angle`` [mm/rad])."""
-    if capture.orientation_u95 is not None:
-        angle = np.asarray(capture.orientation_u95, dtype=float) / 2.0
-    elif instrument is not None and instrument.orientation_standard_uncertainty:
-        angle = np.full(capture.n_points, instrument.orientation_standard_uncertainty)
-    else:
-        raise InputError(
-            f"{capture.source}: the capture has orientations but no stated orientation uncertainty: give a "
-            "`u95_deg` column or an instrument with an orientation term (e.g. preset 6dof-probe)"
-        )
-    sigmas = point_sigmas(capture)
-    if sigmas is None and instrument is not None and not instrument.is_noise_free:
-        sigmas = instrument.standard_uncertainty(capture.points)
-    if sigmas is None:
-        raise InputError(
-            f"{capture.source}: weighing orientation against position needs the positions' uncertainty too: give "
-            "a `u95_mm` column or the scenario's [instrument]"
-        )
-    return angle, float(np.sqrt(np.mean(np.square(sigmas))))
-
-
-def _with_probe(probe: Problem, capture: Capture, instrument, start: State) -> Problem:
-    """The problem with the orientation residuals of a 6-DoF capture (points criterion): every point oriented,
-    weights ``u_position / u_angle``, the probe's rotation started at the chordal mean of ``(T F)^T R_m``."""
-    angle, reference = _orientation_sigmas(capture, instrument)
-    oriented = replace(probe, oriented=np.arange(capture.n_points), measured_rotations=capture.orientation,
-                       orientation_weight=reference / angle)  # fmt: skip
-    q = oriented.joint_variables(start.extras)
-    flange = forward_kinematics(start.values, q)[:, :3, :3]
-    trackers = oriented.trackers(start)
-    session = np.zeros(capture.n_points, dtype=int) if probe.session_index is None else probe.session_index
-    seen = trackers[session, :3, :3] @ flange
-    u, _, vt = np.linalg.svd(np.einsum("pji,pjk->ik", seen, capture.orientation))
-    mean = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-    return replace(oriented, probe_start=mean)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -776,51 +710,9 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
         targets=tuple(targets), success=fit.success, status=fit.status, message=message, nfev=fit.nfev,
         njev=fit.njev, model=model, criterion=criterion, method=fit.method,
         wall_time_s=time.perf_counter() - began, fit=statistics, identifiability=identifiability,
-        uncertainty=uncertainty, health=health, sessions=_session_frames(setup, fit, solved, uncertainty.covariance),
-        probe=_probe_frame(fit, solved, uncertainty.covariance),
+        uncertainty=uncertainty, health=health, sessions=session_frames(setup, problem, selection, solved, uncertainty.covariance),
+        probe=probe_frame(problem, selection, solved, uncertainty.covariance),
     )  # fmt: skip
-
-
-def _probe_frame(fit: _Fit, solved: State, covariance) -> ProbeFrame | None:
-    """The 6-DoF probe's rotation with the standard uncertainties of its corrections (the last offsets row)."""
-    problem = fit.problem
-    if problem.oriented is None:
-        return None
-    sd = np.full(3, np.nan)
-    if covariance is not None:
-        bounds = np.cumsum([problem.n_kinematic, problem.n_extra, problem.n_offsets])
-        offset_sd = np.full(problem.offset_start.size, np.nan)
-        offset_sd[fit.selection.offset_free] = np.sqrt(np.clip(np.diag(covariance), 0.0, None))[bounds[1] : bounds[2]]
-        sd = offset_sd[-3:] / problem.rotation_length
-    error, _ = problem.orientation_part(solved, jacobian=False)
-    rms = float(np.rad2deg(np.sqrt(np.mean(np.sum(error**2, axis=1)))))
-    rotation = problem.probe_rotation(solved)[0]
-    return ProbeFrame(rotation=_frozen(rotation), standard_uncertainty=_frozen(sd), orientation_rms_deg=rms)
-
-
-def _session_frames(setup: Setup, fit: _Fit, solved: State, covariance) -> tuple[SessionFrame, ...]:
-    """The base frame of every session with the standard uncertainties of its corrections (empty for one
-    session); the first session's are the ``base.*`` corrections, the others' follow the unknown offsets."""
-    if not setup.session_names:
-        return ()
-    problem, selection = fit.problem, fit.selection
-    offset_sd = np.full(problem.offset_start.size, np.nan)
-    base_sd = np.full(6, np.nan)
-    if covariance is not None:
-        diagonal = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-        bounds = np.cumsum([problem.n_kinematic, problem.n_extra, problem.n_offsets])
-        offset_sd[selection.offset_free] = diagonal[bounds[1] : bounds[2]]
-        base_sd[selection.base_free] = diagonal[bounds[2] :]
-    trackers = problem.trackers(solved)
-    frames = []
-    for s, name in enumerate(setup.session_names):
-        sd = base_sd
-        if s > 0:
-            first = 3 * len(problem.unknown) + 6 * (s - 1)
-            sd = offset_sd[first : first + 6].copy()
-            sd[3:] /= problem.rotation_length
-        frames.append(SessionFrame(name=name, tracker_from_base=_frozen(trackers[s]), standard_uncertainty=_frozen(sd)))
-    return tuple(frames)
 
 
 def _identifiability(setup: Setup, fit: _Fit, jac: np.ndarray) -> Identifiability:

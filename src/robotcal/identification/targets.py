@@ -100,8 +100,8 @@ def split_by_session(capture: Capture, targets: Sequence[Target]) -> tuple[Captu
     split = [target for target in targets if target.per_session]
     if capture.session is None or capture.target is None or not split:
         return capture, tuple(targets)
-    labels = list(capture.point_targets)
-    sessions = capture.point_sessions
+    labels = list(capture.point_targets or ())
+    sessions = capture.point_sessions or ()
     names = {target.name for target in split}
     labels = [f"{label}{SESSION_SEPARATOR}{session}" if label in names else label for label, session in
               zip(labels, sessions, strict=True)]  # fmt: skip

@@ -56,7 +56,9 @@ from .joints_files import read_backlash as read_backlash
 from .joints_files import summary_csv as summary_csv
 from .joints_files import write_joints_folder as write_joints_folder
 from .orientation import ORIENTATION_FORMS as ORIENTATION_FORMS
+from .orientation import ORIENTATION_KEYS as ORIENTATION_KEYS
 from .orientation import QUATERNION_COLUMNS as QUATERNION_COLUMNS
+from .orientation import orientation_columns as orientation_columns
 from .orientation import quaternions_from_rotations as quaternions_from_rotations
 from .orientation import rotations_from_euler as rotations_from_euler
 from .orientation import rotations_from_matrices as rotations_from_matrices
@@ -77,11 +79,14 @@ from .output import write_marker as write_marker
 from .parameters_json import JointModelEntry as JointModelEntry
 from .parameters_json import JointValues as JointValues
 from .parameters_json import ParameterFile as ParameterFile
+from .parameters_json import ProbeEntry as ProbeEntry
 from .parameters_json import SessionEntry as SessionEntry
 from .parameters_json import joint_model_to_dict as joint_model_to_dict
 from .parameters_json import parameters_to_dict as parameters_to_dict
+from .parameters_json import probe_to_dict as probe_to_dict
 from .parameters_json import read_joint_model as read_joint_model
 from .parameters_json import read_parameters as read_parameters
+from .parameters_json import read_probe as read_probe
 from .parameters_json import read_sessions as read_sessions
 from .parameters_json import read_targets as read_targets
 from .parameters_json import read_tracker_from_base as read_tracker_from_base

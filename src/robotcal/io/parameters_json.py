@@ -304,15 +304,14 @@ def parameters_to_dict(
     provenance: dict | None = None,
     targets: dict | None = None,
     joint_model_u=None,
-    sessions: dict | None = None,
-    probe: dict | None = None,
+    extensions: dict | None = None,
 ) -> dict:
     """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
     nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
     :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets. An extended set
-    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units). ``sessions``
-    (from :func:`sessions_to_dict`) adds the key ``sessions``: the base frame of every measurement session;
-    ``probe`` (from :func:`probe_to_dict`) the key ``probe``: a 6-DoF probe's rotation on the flange."""
+    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units).
+    ``extensions`` adds its keys that have a value: ``sessions`` (:func:`sessions_to_dict`, the base frame of every
+    measurement session) and ``probe`` (:func:`probe_to_dict`, a 6-DoF probe's rotation on the flange)."""
     robot = parameters.robot
     joints = []
     for i in range(robot.n_joints):
@@ -333,10 +332,7 @@ def parameters_to_dict(
     }
     if targets:
         document["targets"] = targets
-    if sessions:
-        document["sessions"] = sessions
-    if probe:
-        document["probe"] = probe
+    document.update({key: value for key, value in (extensions or {}).items() if value})
     if parameters.joint_model is not None:
         document["joint_model"] = joint_model_to_dict(parameters.joint_model, joint_model_u)
     document["provenance"] = provenance or {}
@@ -349,12 +345,11 @@ def write_parameters(
     provenance: dict | None = None,
     targets: dict | None = None,
     joint_model_u=None,
-    sessions: dict | None = None,
-    probe: dict | None = None,
+    extensions: dict | None = None,
 ) -> Path:
-    """Write a parameter JSON atomically (``targets``, ``joint_model_u``, ``sessions``: see
+    """Write a parameter JSON atomically (``targets``, ``joint_model_u``, ``extensions``: see
     :func:`parameters_to_dict`)."""
-    document = parameters_to_dict(parameters, provenance, targets, joint_model_u, sessions, probe)
+    document = parameters_to_dict(parameters, provenance, targets, joint_model_u, extensions)
     text = json.dumps(document, indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
 

@@ -3,8 +3,6 @@ orientation, each with the instrument's noise."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -15,16 +13,13 @@ from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.generator import simulate_target_poses
 
-if TYPE_CHECKING:
-    from robotcal.identification.targets import Target
-
 __all__ = ["simulate_probe_poses"]
 
 
 def simulate_probe_poses(
     robot: RobotModel,
     readings: ArrayLike,
-    target: Target,
+    target,
     probe_rotation: ArrayLike,
     instrument: Instrument,
     tracker_from_base: ArrayLike,
@@ -41,7 +36,7 @@ def simulate_probe_poses(
 
     Parameters
     ----------
-    target : Target
+    target : robotcal.identification.targets.Target
         The probe's flange target (its name goes to the ``target`` column).
     probe_rotation : array_like, shape (3, 3)
         The probe frame's rotation in the flange frame {n}.
@@ -54,7 +49,7 @@ def simulate_probe_poses(
     exact_points : ndarray, shape (n_poses, 3)
     exact_rotations : ndarray, shape (n_poses, 3, 3)
     """
-    from robotcal.identification._orientation import rotation_exp
+    from scipy.spatial.transform import Rotation
 
     rng = np.random.default_rng(rng)
     probe_rotation = np.asarray(probe_rotation, dtype=float)
@@ -68,7 +63,8 @@ def simulate_probe_poses(
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
     flange = forward_kinematics(parameters.values, parameters.model_joint_variables(capture.readings))[:, :3, :3]
     rotations = np.asarray(tracker_from_base, dtype=float)[:3, :3] @ flange @ probe_rotation
-    measured = rotations @ rotation_exp(instrument.sample_orientation_noise(capture.n_points, rng=rng))
+    turns = Rotation.from_rotvec(instrument.sample_orientation_noise(capture.n_points, rng=rng)).as_matrix()
+    measured = rotations @ turns
     u95 = None if u95_deg is None else np.full(capture.n_points, np.deg2rad(u95_deg))
     measured_capture = Capture(
         circle=capture.circle, direction=capture.direction, readings=capture.readings, points=capture.points,

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,9 +13,6 @@ from robotcal.errors import InputError
 from robotcal.instruments import Instrument
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.generator import simulate_target_poses
-
-if TYPE_CHECKING:
-    from robotcal.identification.targets import Target
 
 __all__ = ["SimulatedSession", "simulate_sessions"]
 
@@ -46,7 +42,7 @@ class SimulatedSession:
 def simulate_sessions(
     robot: RobotModel,
     sessions: Sequence[SimulatedSession],
-    targets: Sequence[Target],
+    targets: Sequence,
     instrument: Instrument,
     *,
     true_parameters: ParameterSet | None = None,

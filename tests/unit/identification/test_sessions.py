@@ -197,8 +197,9 @@ def test_parameter_json_records_the_session_frames(tmp_path):
     capture, _ = simulate_sessions(ROBOT, _sessions(), TARGETS, NOISE_FREE, true_parameters=TRUTH)
     result = _refine(capture, ParameterSet.nominal(ROBOT))
     path = write_parameters(
-        tmp_path / "p.json", result.parameters, {}, refined_targets(result), sessions=refined_sessions(result)
-    )
+        tmp_path / "p.json", result.parameters, {}, refined_targets(result),
+        extensions={"sessions": refined_sessions(result)},
+    )  # fmt: skip
     frames = read_sessions(path)
     assert list(frames) == ["day1", "day2"]
     np.testing.assert_allclose(frames["day2"], result.sessions[1].tracker_from_base, rtol=0, atol=1e-12)
