@@ -66,6 +66,8 @@ __all__ = [
     "STATION_RATIO",
     "STATION_FLOOR_MM",
     "station_moved",
+    "fitted_targets",
+    "fit_frames",
     "OrientationRow",
     "orientation_errors",
     "evaluate_orientation",
@@ -180,7 +182,7 @@ def predicted_points(capture: Capture, parameters: ParameterSet, reflector) -> n
 
 def distinct_pairs(capture: Capture, reflector, n_joints: int) -> np.ndarray:
     """Which pairs of :func:`scipy.spatial.distance.pdist` order are distinct measurements (as the refinement's
-    distances criterion takes them), ``(n_points (n_points - 1) / 2,)`` bool."""
+    distances criterion takes them: of one session), ``(n_points (n_points - 1) / 2,)`` bool."""
     if isinstance(reflector, ReflectorMount):
         key = capture_target_index(capture, reflector)
     else:
@@ -188,7 +190,11 @@ def distinct_pairs(capture: Capture, reflector, n_joints: int) -> np.ndarray:
         targets, index = resolve_targets(*split_by_session(capture, given))
         is_joint = np.array([target.frame == "joint" for target in targets])
         key = index * (n_joints + 1) + np.where(is_joint[index], np.maximum(capture.circle - 1, 0) + 1, 0)
-    return measurement_pairs(capture.readings, key)[2]
+    keep = measurement_pairs(capture.readings, key)[2]
+    if capture.session is not None:  # a distance between two stations (sessions) is no measurement
+        pair_i, pair_j = np.triu_indices(capture.n_points, k=1)
+        keep &= capture.session[pair_i] == capture.session[pair_j]
+    return keep
 
 
 def _session_groups(capture: Capture) -> list[tuple[str | None, np.ndarray]]:
@@ -252,9 +258,6 @@ def distance_errors(capture: Capture, parameters: ParameterSet, reflector) -> np
     """
     predicted = predicted_points(capture, parameters, reflector)
     keep = distinct_pairs(capture, reflector, parameters.robot.n_joints)
-    if capture.session is not None:  # a distance between two stations is no measurement
-        pair_i, pair_j = np.triu_indices(capture.n_points, k=1)
-        keep &= capture.session[pair_i] == capture.session[pair_j]
     return np.abs(pdist(predicted) - pdist(capture.points))[keep]
 
 
@@ -432,3 +435,17 @@ def evaluate_orientation(
                     )  # fmt: skip
                 )
     return tuple(rows)
+
+
+def fitted_targets(capture: Capture, reflector, fit) -> tuple[Capture, object]:
+    """The capture and targets as a refinement ``fit`` saw them: a re-seated target split per session, and the
+    offsets it estimated (its ``targets``, by name) in place of the given ones."""
+    if not fit.targets or isinstance(reflector, ReflectorMount):
+        return capture, reflector
+    return _with_set_offsets(capture, reflector, {t.name: t.positions for t in fit.targets if not t.known})
+
+
+def fit_frames(fit):
+    """The base frame(s) a points-criterion refinement estimated: each session's (a mapping of session name to
+    frame, as :func:`absolute_errors` takes it) or its one ``tracker_from_base``."""
+    return {frame.name: frame.tracker_from_base for frame in fit.sessions} or fit.tracker_from_base

@@ -223,3 +223,15 @@ def test_measured_monte_carlo_runs_over_sessions():
     u_draws = result.target_summary.std_uncertainty[1]
     u_linear = result.target_linearised_u[1]
     assert np.all((u_draws > 0.4 * u_linear) & (u_draws < 2.0 * u_linear)), (u_draws, u_linear)
+
+
+@pytest.mark.parametrize("criterion", ["points", "distances"])
+def test_cross_validation_predicts_each_session_in_its_own_frame(criterion):
+    from robotcal.identification.model_choice import refine_model
+
+    capture, _ = simulate_sessions(ROBOT, _sessions(), TARGETS, NOISE_FREE, true_parameters=TRUTH)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifiabilityWarning)
+        result = refine_model(capture, ParameterSet.nominal(ROBOT), TARGETS,
+                              settings=RefinementSettings(criterion=criterion))  # fmt: skip
+    assert result.cross_validation.folds == 5 and result.cross_validation.cv_rms_mm < 1e-8
