@@ -22,7 +22,9 @@ tracker station); the absolute view takes, for a session that a parameter set re
 (``bases[set]`` a mapping of session name to frame), that frame, else the set's first frame. A capture (or
 session) whose absolute error is far above its registered one (:func:`station_moved`: the RMS above
 ``STATION_RATIO`` times the registered RMS plus ``STATION_FLOOR_MM``) was measured from another station than the
-recorded frame: its absolute rows carry ``station`` = ``"moved"`` and a :class:`StationMovedWarning` says so.
+recorded frame when every parameter set with a base frame shows it (a moved station moves them all; a set whose own
+model is off, e.g. an uncalibrated J1, moves only its own): the capture's absolute rows carry ``station`` =
+``"moved"`` and a :class:`StationMovedWarning` says so.
 
 Captures with a ``target`` column are evaluated point by point on their own targets (each capture may
 name its own); the unknown offsets are the ones the evaluated parameter set estimated. Where a set did not
@@ -145,11 +147,12 @@ def _warn_guessed(captures, parameter_sets, reflectors, set_targets) -> None:
         )
 
 
-def _warn_moved(capture_name: str, set_name: str, sessions) -> None:
+def _warn_moved(capture_name: str, set_names, sessions) -> None:
     which = "" if sessions == [None] else f" (session{'s' if len(sessions) > 1 else ''} {', '.join(sessions)})"
+    sets = ", ".join(repr(name) for name in set_names)
     warnings.warn(
         f"capture {capture_name!r}{which} was measured from another tracker station than the base frame of "
-        f"{set_name!r}: its absolute error is far above its error after registration, so the absolute view "
+        f"{sets}: its absolute error is far above its error after registration for every set, so the absolute view "
         "measures the station, not the parameters; give the capture a session the refinement estimated, or read "
         "the points view (each session registered on its own)",
         StationMovedWarning,
@@ -330,27 +333,26 @@ def evaluate_parameters(
             raise InputError(f"no reflector given for capture {capture_name!r}")
         for view in views:
             reference = None
-            for set_name, parameters in parameter_sets.items():
-                if view == "absolute" and bases.get(set_name) is None:
-                    continue  # no base frame for this set: left out of the absolute view (the caller says why)
-                errors, moved = errors_of(view, capture, set_name, parameters, reflector)
-                if moved:
-                    _warn_moved(capture_name, set_name, moved)
+            outcomes = {
+                set_name: errors_of(view, capture, set_name, parameters, reflector)
+                for set_name, parameters in parameter_sets.items()
+                if view != "absolute" or bases.get(set_name) is not None  # no base frame: left out (the caller says)
+            }
+            # a moved station moves every set's absolute errors; a set whose own model is off moves only its own
+            moved = sorted(set.intersection(*(set(m) for _, m in outcomes.values())), key=str) if outcomes else []
+            if moved:
+                _warn_moved(capture_name, list(outcomes), moved)
+            for set_name, (errors, _) in outcomes.items():
                 mean = float(errors.mean())
                 reference = mean if reference is None else reference
                 improvement = 100.0 * (1.0 - mean / reference) if reference > 0 else 0.0
                 rows.append(
                     EvaluationRow(
-                        parameter_set=set_name,
-                        view=view,
-                        capture=capture_name,
-                        n_errors=int(errors.size),
-                        mean_error_mm=mean,
-                        max_error_mm=float(errors.max()),
-                        rms_error_mm=float(np.sqrt(np.mean(errors**2))),
-                        improvement_pct=float(improvement),
+                        parameter_set=set_name, view=view, capture=capture_name, n_errors=int(errors.size),
+                        mean_error_mm=mean, max_error_mm=float(errors.max()),
+                        rms_error_mm=float(np.sqrt(np.mean(errors**2))), improvement_pct=float(improvement),
                         station="moved" if moved else "",
-                    )
+                    )  # fmt: skip
                 )
     return tuple(rows)
 

@@ -235,3 +235,24 @@ def test_cross_validation_predicts_each_session_in_its_own_frame(criterion):
         result = refine_model(capture, ParameterSet.nominal(ROBOT), TARGETS,
                               settings=RefinementSettings(criterion=criterion))  # fmt: skip
     assert result.cross_validation.folds == 5 and result.cross_validation.cv_rms_mm < 1e-8
+
+
+def test_a_set_whose_own_model_is_off_does_not_flag_the_station():
+    from robotcal.identification.evaluation import StationMovedWarning, evaluate_parameters
+
+    capture, _ = simulate_sessions(ROBOT, _sessions(), TARGETS, NOISE_FREE, true_parameters=TRUTH)
+    result = _refine(capture, ParameterSet.nominal(ROBOT))
+    frames = {frame.name: frame.tracker_from_base for frame in result.sessions}
+    offsets = {t.name: tuple(t.positions) for t in result.targets if not t.known}
+    values = result.parameters.values.copy()
+    values[0, 1] += np.deg2rad(0.5)  # J1.theta 0.5 deg off: a rigid turn of every point, ~5 mm at the flange
+    off = ParameterSet(robot=ROBOT, values=values)
+    sets = {"off": off, "refined": result.parameters}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StationMovedWarning)
+        rows = evaluate_parameters(
+            {"same": _held_out(STATION_2)}, sets, {"same": TARGETS}, views=("points", "absolute"),
+            bases=dict.fromkeys(sets, frames), set_targets=dict.fromkeys(sets, offsets),
+        )  # fmt: skip
+    absolute = {row.parameter_set: row for row in rows if row.view == "absolute"}
+    assert absolute["off"].rms_error_mm > 1.0 and not any(row.station for row in rows)
