@@ -351,6 +351,12 @@ def prepare_measured(
         tracker = register_points(predicted, capture.points).transform
     exact = _in_tracker(capture, predicted, tracker, reference.sessions)
     rotations, orientation_sd = _exact_rotations(capture, reference, tracker, stated)
+    if rotations is not None:
+        source += (
+            "; orientations: each point's u95_deg (k = 2, normal: u = U / 2 per rotation-vector component)"
+            if orientation_sd is not None
+            else f"; orientations: the instrument {stated.name!r}'s orientation_deg"
+        )
     return MeasuredProblem(
         capture=capture,
         reflector=reflector,
