@@ -79,15 +79,18 @@ def _orientation_sigmas(capture: Capture, instrument) -> tuple[np.ndarray, float
 def with_probe(probe: Problem, capture: Capture, instrument, start: State) -> Problem:
     """The problem with the orientation residuals of a 6-DoF capture (points criterion): every point oriented,
     weights ``u_position / u_angle``, the probe's rotation started at the chordal mean of ``(T F)^T R_m``."""
+    measured = capture.orientation
+    if measured is None:
+        raise InputError(f"{capture.source}: no orientations (a position-only capture)")
     angle, reference = _orientation_sigmas(capture, instrument)
-    oriented = replace(probe, oriented=np.arange(capture.n_points), measured_rotations=capture.orientation,
+    oriented = replace(probe, oriented=np.arange(capture.n_points), measured_rotations=measured,
                        orientation_weight=reference / angle)  # fmt: skip
     q = oriented.joint_variables(start.extras)
     flange = forward_kinematics(start.values, q)[:, :3, :3]
     trackers = oriented.trackers(start)
     session = np.zeros(capture.n_points, dtype=int) if probe.session_index is None else probe.session_index
     seen = trackers[session, :3, :3] @ flange
-    u, _, vt = np.linalg.svd(np.einsum("pji,pjk->ik", seen, capture.orientation))
+    u, _, vt = np.linalg.svd(np.einsum("pji,pjk->ik", seen, measured))
     mean = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
     return replace(oriented, probe_start=mean)
 
