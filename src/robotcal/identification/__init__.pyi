@@ -19,6 +19,8 @@ from .evaluation import distance_errors as distance_errors
 from .evaluation import distinct_pairs as distinct_pairs
 from .evaluation import evaluate_orientation as evaluate_orientation
 from .evaluation import evaluate_parameters as evaluate_parameters
+from .evaluation import fit_frames as fit_frames
+from .evaluation import fitted_targets as fitted_targets
 from .evaluation import guessed_targets as guessed_targets
 from .evaluation import orientation_errors as orientation_errors
 from .evaluation import point_errors as point_errors
