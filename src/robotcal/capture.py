@@ -1,6 +1,6 @@
 """The Capture: measured (or simulated) target positions with the joint readings of every point.
 
-This is the in-memory form of the capture CSV (``circle,direction,q1..qN,x,y,z[,target][,u95_mm]``,
+This is the in-memory form of the capture CSV (``circle,direction,q1..qN,x,y,z[,target][,session][,u95_mm]``,
 docs/scenario.md); it is what the generator produces and what identification consumes. Readings in
 radians, points in mm in the tracker frame.
 
@@ -8,12 +8,16 @@ Two optional columns (issue 14): ``target`` names the target each point was meas
 targets per pose; the names are declared in the scenario's ``[[targets]]``), and ``u95_mm`` is the
 point's expanded uncertainty U(95) [mm] as the tracker reports it (k = 2, normal: the standard
 uncertainty of each coordinate is U / 2).
+
+Issue 29 adds ``session``, which names the measurement session of each point (a tracker station, a day): every
+session has its own base registration, and a target declared ``per_session`` its own offset in each session; and
+a 6-DoF probe's ``orientation`` (a rotation per point, probe to tracker frame) with its ``orientation_u95``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -50,6 +54,17 @@ class Capture:
         Names of the targets ``target`` indexes (empty when ``target`` is None).
     u95 : ndarray, shape (n_points,), or None
         Expanded uncertainty U(95) of each point [mm] (k = 2, normal); None: not given.
+    session : ndarray of int, shape (n_points,), or None
+        Index into ``session_names`` of the measurement session (tracker station, day) of each point; None: no
+        ``session`` column (one session: the historical meaning).
+    session_names : tuple of str
+        Names of the sessions ``session`` indexes, in order of first appearance (empty when ``session`` is None).
+    orientation : ndarray, shape (n_points, 3, 3), or None
+        A 6-DoF probe's measured orientation at each point: the rotation from the probe frame to the tracker
+        frame; None: position only (the historical capture).
+    orientation_u95 : ndarray, shape (n_points,), or None
+        Expanded uncertainty U(95) of each orientation [rad] (k = 2, normal, per component of the rotation
+        vector); None: not given (an instrument may state it).
     """
 
     circle: np.ndarray
@@ -61,6 +76,10 @@ class Capture:
     target: np.ndarray | None = None
     target_names: tuple[str, ...] = ()
     u95: np.ndarray | None = None
+    session: np.ndarray | None = None
+    session_names: tuple[str, ...] = ()
+    orientation: np.ndarray | None = None
+    orientation_u95: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         circle = np.asarray(self.circle)
@@ -89,19 +108,8 @@ class Capture:
             bad = np.flatnonzero(~np.all(np.isfinite(array.reshape(n, -1)), axis=1))
             if bad.size:
                 raise InputError(f"{self.source}: point {bad[0] + 1} has NaN or infinite {name}")
-        if self.target is not None:
-            target = np.asarray(self.target)
-            names = tuple(str(name) for name in self.target_names)
-            if target.shape != (n,) or not np.all(target == np.round(target)):
-                raise InputError(f"{self.source}: `target` must hold one whole target index per point; got {target.shape}")
-            if target.size and (target.min() < 0 or target.max() >= len(names)):
-                raise InputError(f"{self.source}: `target` indexes {len(names)} target names; got {target.max()}")
-            if len(set(names)) != len(names) or any(not name.strip() for name in names):
-                raise InputError(f"{self.source}: target names must be distinct and not empty; got {names}")
-            object.__setattr__(self, "target", _frozen(target, int))
-            object.__setattr__(self, "target_names", names)
-        elif self.target_names:
-            raise InputError(f"{self.source}: `target_names` given without `target`")
+        for column in ("target", "session"):
+            self._check_labels(column, n)
         if self.u95 is not None:
             u95 = np.asarray(self.u95, dtype=float)
             bad = np.flatnonzero(~np.isfinite(u95) | (u95 <= 0)) if u95.shape == (n,) else np.array([0])
@@ -109,10 +117,45 @@ class Capture:
                 where = f"point {bad[0] + 1}" if u95.shape == (n,) else f"shape {u95.shape}"
                 raise InputError(f"{self.source}: `u95_mm` must be one finite U(95) > 0 [mm] per point ({where})")
             object.__setattr__(self, "u95", _frozen(u95))
+        self._check_orientation(n)
         object.__setattr__(self, "circle", _frozen(circle, int))
         object.__setattr__(self, "direction", _frozen(direction, int))
         object.__setattr__(self, "readings", _frozen(readings))
         object.__setattr__(self, "points", _frozen(points))
+
+    def _check_orientation(self, n: int) -> None:
+        """The 6-DoF columns: one rotation matrix per point (orthonormal within 1e-6, right-handed), U(95) > 0."""
+        if self.orientation is not None:
+            rotations = np.asarray(self.orientation, dtype=float)
+            if rotations.shape != (n, 3, 3) or not np.all(np.isfinite(rotations)):
+                raise InputError(f"{self.source}: `orientation` must be one finite 3x3 rotation per point")
+            gram = np.einsum("pji,pjk->pik", rotations, rotations) - np.eye(3)
+            bad = np.flatnonzero((np.abs(gram).max(axis=(1, 2)) > 1e-6) | (np.linalg.det(rotations) <= 0))
+            if bad.size:
+                raise InputError(f"{self.source}: point {bad[0] + 1}: the orientation is not a rotation")
+            object.__setattr__(self, "orientation", _frozen(rotations))
+        if self.orientation_u95 is not None:
+            u95 = np.asarray(self.orientation_u95, dtype=float)
+            if self.orientation is None or u95.shape != (n,) or not np.all(np.isfinite(u95) & (u95 > 0)):
+                raise InputError(f"{self.source}: `orientation_u95` must be one U(95) > 0 per oriented point [rad]")
+            object.__setattr__(self, "orientation_u95", _frozen(u95))
+
+    def _check_labels(self, column: str, n: int) -> None:
+        """The ``target`` or ``session`` column: one whole index per point into distinct, non-empty names."""
+        labels, names = getattr(self, column), tuple(str(name) for name in getattr(self, f"{column}_names"))
+        if labels is None:
+            if names:
+                raise InputError(f"{self.source}: `{column}_names` given without `{column}`")
+            return
+        index = np.asarray(labels)
+        if index.shape != (n,) or not np.all(index == np.round(index)):
+            raise InputError(f"{self.source}: `{column}` must hold one whole {column} index per point; got {index.shape}")
+        if index.size and (index.min() < 0 or index.max() >= len(names)):
+            raise InputError(f"{self.source}: `{column}` indexes {len(names)} {column} names; got {index.max()}")
+        if len(set(names)) != len(names) or any(not name.strip() for name in names):
+            raise InputError(f"{self.source}: {column} names must be distinct and not empty; got {names}")
+        object.__setattr__(self, column, _frozen(index, int))
+        object.__setattr__(self, f"{column}_names", names)
 
     @property
     def n_points(self) -> int:
@@ -128,8 +171,12 @@ class Capture:
             parts.append(f"{free} at free poses")
         if self.target_names:
             parts.append(f"targets {', '.join(self.target_names)}")
+        if self.session_names:
+            parts.append(f"sessions {', '.join(self.session_names)}")
         if self.u95 is not None:
             parts.append("u95_mm")
+        if self.orientation is not None:
+            parts.append("orientation")
         return f"Capture({self.source!r}: {', '.join(parts)})"
 
     @property
@@ -143,19 +190,29 @@ class Capture:
             return None
         return tuple(self.target_names[k] for k in self.target)
 
+    @property
+    def point_sessions(self) -> tuple[str, ...] | None:
+        """The session name of every point, or None without a ``session`` column."""
+        if self.session is None:
+            return None
+        return tuple(self.session_names[k] for k in self.session)
+
+    @property
+    def session_count(self) -> int:
+        """Number of measurement sessions (1 without a ``session`` column)."""
+        return max(len(self.session_names), 1)
+
     def with_points(self, points: ArrayLike) -> Capture:
         """The same capture with other target positions (e.g. noisy copies)."""
-        return Capture(
-            circle=self.circle,
-            direction=self.direction,
-            readings=self.readings,
-            points=np.asarray(points),
-            source=self.source,
-            seed=self.seed,
-            target=self.target,
-            target_names=self.target_names,
-            u95=self.u95,
-        )
+        return replace(self, points=points)
+
+    def with_orientation(self, orientation: ArrayLike) -> Capture:
+        """The same capture with other measured orientations (e.g. noisy copies)."""
+        return replace(self, orientation=orientation)
+
+    def with_session(self, name: str) -> Capture:
+        """The same capture with every point in session ``name`` (e.g. ``robotcal import --session``)."""
+        return replace(self, session=np.zeros(self.n_points, dtype=int), session_names=(str(name),))
 
     def select(self, rows: ArrayLike) -> Capture:
         """The capture restricted to ``rows`` (indices or a bool mask), every column kept."""
@@ -170,6 +227,10 @@ class Capture:
             target=None if self.target is None else self.target[rows],
             target_names=self.target_names,
             u95=None if self.u95 is None else self.u95[rows],
+            session=None if self.session is None else self.session[rows],
+            session_names=self.session_names,
+            orientation=None if self.orientation is None else self.orientation[rows],
+            orientation_u95=None if self.orientation_u95 is None else self.orientation_u95[rows],
         )
 
 
@@ -178,7 +239,9 @@ def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -
 
     ``parts``: ``(capture, name)`` pairs; a capture with a ``target`` column keeps its own names (``name`` None),
     one without takes ``name`` for every point. ``u95_mm`` is kept only when every part has it; seeds are dropped
-    (a joined capture is no one simulation's).
+    (a joined capture is no one simulation's); so are the orientations (with their U(95)) only when every part has
+    them. Sessions are kept: when any part has a ``session`` column, every
+    part must have one (a part without one would fall in no session).
     """
     parts = list(parts)
     if not parts:
@@ -199,6 +262,9 @@ def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -
     if len(joints) != 1:
         raise InputError(f"captures of different joint counts cannot be joined: {sorted(joints)}")
     every_u95 = all(capture.u95 is not None for capture, _ in parts)
+    session, session_names = _joined_sessions([capture for capture, _ in parts])
+    oriented = all(capture.orientation is not None for capture, _ in parts)
+    every_u = oriented and all(capture.orientation_u95 is not None for capture, _ in parts)
     return Capture(
         circle=np.concatenate([capture.circle for capture, _ in parts]),
         direction=np.concatenate([capture.direction for capture, _ in parts]),
@@ -208,4 +274,23 @@ def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -
         target=np.concatenate(index),
         target_names=tuple(names),
         u95=np.concatenate([capture.u95 for capture, _ in parts]) if every_u95 else None,
+        session=session,
+        session_names=session_names,
+        orientation=np.concatenate([capture.orientation for capture, _ in parts]) if oriented else None,
+        orientation_u95=np.concatenate([capture.orientation_u95 for capture, _ in parts]) if every_u else None,
     )
+
+
+def _joined_sessions(captures) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """The ``session`` column of captures joined one after the other (None when none has one)."""
+    if all(capture.session is None for capture in captures):
+        return None, ()
+    without = [capture.source for capture in captures if capture.session is None]
+    if without:
+        raise InputError(
+            f"{without[0]}: no `session` column, while other captures joined with it have one: give every capture "
+            "its session (a `session` column, or `robotcal import --session NAME`)"
+        )
+    labels = [name for capture in captures for name in capture.point_sessions]
+    names = tuple(dict.fromkeys(labels))
+    return np.array([names.index(name) for name in labels], dtype=int), names

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -39,6 +40,7 @@ def _borrow_offsets(scenario, set_targets: dict, labels, files: dict, captures: 
     used = {  # the unknown targets that points lie on
         name for capture in captures.values() for name in guessed_targets(capture, api.capture_targets(scenario, capture), {})
     }
+    unknown |= used  # a re-seated target's offsets: one per session, NAME@SESSION
     carriers = [label for label in labels if unknown & set(set_targets.get(label) or {})]
     notes = {}
     for label in labels:
@@ -59,12 +61,13 @@ def _borrow_offsets(scenario, set_targets: dict, labels, files: dict, captures: 
     return notes
 
 
-def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
+def _absolute_bases(scenario, provenances: dict, sessions: dict) -> tuple[dict, dict]:
     """Base frame of each parameter set for the absolute view, and a note per set saying where it comes from.
 
     ``provenances``: set name -> the parameter JSON's ``provenance`` (empty for the nominal set). The base
     frame a fit recorded (``provenance.tracker_from_base``: a refinement's estimated or held one, CPA's given
-    or registered one) is used as it is; a set without one (the nominal set, a distances-criterion refinement)
+    or registered one) is used as it is, and a refinement over sessions gives each session's frame (``sessions``: set
+    name -> session name -> frame, from the JSON's ``sessions``); a set without one (the nominal set, a distances-criterion refinement)
     is evaluated in the scenario's ``tracker_from_base``; without one it is left out of the absolute view (a note
     says so), and no set with a base frame at all is an error.
     """
@@ -74,6 +77,13 @@ def _absolute_bases(scenario, provenances: dict) -> tuple[dict, dict]:
     notes: dict[str, str] = {}
     for name, provenance in provenances.items():
         recorded = (provenance or {}).get("tracker_from_base")
+        if sessions.get(name):  # a refinement over sessions: each session's frame
+            bases[name] = sessions[name]
+            notes[name] = (
+                f"the base frames of sessions {', '.join(sessions[name])} recorded in its parameter JSON (sessions); "
+                "a capture of another session is evaluated in the first"
+            )
+            continue
         if recorded is not None:
             bases[name] = np.asarray(recorded, dtype=float)
             notes[name] = "the base frame recorded in its parameter JSON (provenance.tracker_from_base)"
@@ -111,10 +121,10 @@ def _convergence(path: Path) -> dict | None:
     return None
 
 
-def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dict, dict, dict, dict]:
-    """The named sets of ``--params`` (after the nominal one), with each file's provenance, flange targets, path
-    and convergence history (of the sets that record one)."""
-    from robotcal.io.parameters_json import read_parameters, read_targets
+def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dict, dict, dict, dict, dict]:
+    """The named sets of ``--params`` (after the nominal one), with each file's provenance, flange targets, path,
+    convergence history (of the sets that record one) and session frames."""
+    from robotcal.io.parameters_json import read_parameters, read_sessions, read_targets
     from robotcal.kinematics.model import ParameterSet
 
     used: set[str] = set()
@@ -125,6 +135,7 @@ def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dic
     histories = {}
     provenances: dict = {"nominal": {}} if nominal else {}
     set_targets: dict = {}
+    sessions: dict = {}
     files: dict[str, Path] = {}
     for path in params:
         label = _label(path, used)
@@ -132,10 +143,11 @@ def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dic
         sets[label] = read_parameters(path, robot)
         provenances[label] = (json.loads(path.read_text(encoding="utf-8")) or {}).get("provenance") or {}
         set_targets[label] = read_targets(path)
+        sessions[label] = read_sessions(path)
         history = _convergence(path)
         if history is not None:
             histories[label] = history
-    return sets, provenances, set_targets, files, histories
+    return sets, provenances, set_targets, files, histories, sessions
 
 
 def _print_tables(rows, captures: dict, views: tuple[str, ...]) -> None:
@@ -157,6 +169,61 @@ def _print_tables(rows, captures: dict, views: tuple[str, ...]) -> None:
                         f"{row.improvement_pct:.2f}",
                     )
             console.print(table)
+
+
+_MOVED_KEYS = ("capture", "parameter_set", "rms_error_mm")
+_TURNED_KEYS = ("parameter_set", "view", "capture", "n_errors", "mean_error_deg", "max_error_deg", "rms_error_deg")
+
+
+def _issue29_parts(document, rows, captures, sets, scenario, files, views, bases, set_targets) -> tuple[list, tuple]:
+    """Sessions and 6-DoF probes (issue 29): the absolute rows of a capture from another station
+    (``station_moved``) and the orientation errors of the sets that estimated a probe's rotation on the captures
+    with orientations (``orientation``), both added to ``document`` when there are any."""
+    from robotcal import api
+    from robotcal.identification.evaluation import evaluate_orientation
+    from robotcal.io.parameters_json import read_probe
+
+    moved = [row for row in rows if row.station]
+    if moved:
+        document["station_moved"] = [{key: getattr(row, key) for key in _MOVED_KEYS} for row in moved]
+    turned: tuple = ()
+    if any(c.orientation is not None for c in captures.values()):
+        probes = {label: rotation for label, path in files.items() if (rotation := read_probe(path)) is not None}
+        reflectors = {name: api.capture_targets(scenario, c) for name, c in captures.items()}
+        turned = evaluate_orientation(
+            captures, sets, reflectors, probes, views=[v for v in views if v != "distances"], bases=bases,
+            set_targets=set_targets,
+        )  # fmt: skip
+    if turned:
+        document["orientation"] = [{key: getattr(row, key) for key in _TURNED_KEYS} for row in turned]
+    return moved, turned
+
+
+def _print_orientation(turned) -> None:
+    """One table of the orientation errors [deg] of the sets with a probe rotation, per capture and view."""
+    for capture_name, view in dict.fromkeys((row.capture, row.view) for row in turned):
+        table = FittedTable(
+            f"{capture_name}: orientation, {view} view",
+            [Column("parameter set", "name"), *(Column(h) for h in ("mean [deg]", "max [deg]", "RMS [deg]"))],
+        )
+        for row in turned:
+            if (row.capture, row.view) == (capture_name, view):
+                table.add_row(
+                    row.parameter_set, f"{row.mean_error_deg:.5f}", f"{row.max_error_deg:.5f}", f"{row.rms_error_deg:.5f}"
+                )
+        console.print(table)
+
+
+def _print_moved(moved) -> None:
+    """One line per absolute row of a capture measured from another station than the set's base frame."""
+    for row in moved:
+        console.print(
+            f"absolute view, {row.parameter_set} on {row.capture}: FLAGGED, measured from another tracker station "
+            f"than the recorded base frame (absolute RMS {row.rms_error_mm:.4g} mm, far above the registered one): "
+            "these absolute errors measure the station, not the parameters; read the points view",
+            highlight=False,
+            markup=False,
+        )
 
 
 @app.command()
@@ -181,6 +248,7 @@ def evaluate(
 ) -> None:
     """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
     from robotcal import api
+    from robotcal.identification.evaluation import StationMovedWarning
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
     from robotcal.io.scenario import load_scenario
@@ -190,7 +258,7 @@ def evaluate(
     loaded = load_scenario(scenario)
     inputs += existing_inputs(*loaded.files)
     robot = loaded.robot
-    sets, provenances, set_targets, files, histories = _parameter_sets(params, robot, nominal)
+    sets, provenances, set_targets, files, histories, sessions = _parameter_sets(params, robot, nominal)
     if not sets:
         raise InputError("nothing to evaluate: give --params or keep --nominal")
     captures = {}
@@ -205,8 +273,10 @@ def evaluate(
     )
     target_notes = _borrow_offsets(loaded, set_targets, list(sets), files, captures)
     views = ("points", "distances", "absolute") if absolute else ("points", "distances")
-    bases, base_notes = _absolute_bases(loaded, provenances) if absolute else (None, {})
-    rows = api.evaluate(captures, sets, loaded, views=views, bases=bases, set_targets=set_targets)
+    bases, base_notes = _absolute_bases(loaded, provenances, sessions) if absolute else (None, {})
+    with warnings.catch_warnings():  # said below, row by row, with the absolute RMS
+        warnings.simplefilter("ignore", StationMovedWarning)
+        rows = api.evaluate(captures, sets, loaded, views=views, bases=bases, set_targets=set_targets)
     document = evaluation_document(
         rows,
         loaded,
@@ -222,6 +292,7 @@ def evaluate(
         document["settings"]["absolute_base_frames"] = base_notes
     if target_notes:
         document["settings"]["target_offsets"] = target_notes
+    moved, turned = _issue29_parts(document, rows, captures, sets, loaded, files, views, bases, set_targets)
     with result_folder(out, inputs=inputs, force=force, command="robotcal evaluate") as folder:
         write_evaluation_folder(folder, rows, document)
         if histories:
@@ -233,6 +304,8 @@ def evaluate(
         console.print(f"absolute view, {label}: {note}", highlight=False, markup=False)
     for label, note in target_notes.items():
         console.print(f"{label}: {note}", highlight=False, markup=False)
+    _print_moved(moved)
+    _print_orientation(turned)
     console.print(
         f"wrote {out}/evaluation.csv, evaluation.json" + (", convergence.png" if histories else ""), highlight=False
     )

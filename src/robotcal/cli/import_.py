@@ -17,8 +17,21 @@ app = command_app()
 
 COLUMNS_HELP = (
     'Column map of a generic export: x="X [mm]",y=...,z=...[,name=...,u95=...,target=...,circle=...,direction=...] '
-    "(header names, or 1-based column numbers in a file without header). Default: Leica or plain name;x;y;z recognised."
+    "(header names, or 1-based column numbers in a file without header); a 6-DoF orientation as qw,qx,qy,qz "
+    "(quaternion), a,b,c (KUKA ABC, deg), roll,pitch,yaw (deg) or r11..r33, with u95_deg. Default: Leica or plain "
+    "name;x;y;z recognised."
 )
+
+
+def _with_session(capture, session: str | None):
+    """The capture in session ``session`` (``--session``), unchanged without it."""
+    if session is None:
+        return capture
+    if not session.strip():
+        from robotcal.errors import InputError
+
+        raise InputError("--session: the session name must not be empty")
+    return capture.with_session(session.strip())
 
 
 @app.command("import")
@@ -58,6 +71,10 @@ def import_(
             "reflector serial, which it renames); or VALUE=NAME,... to rename each value of the target column.",
         ),
     ] = None,
+    session: Annotated[
+        str | None,
+        typer.Option("--session", help="Session of every point (tracker station, day): one base frame per session."),
+    ] = None,
     robot: Annotated[
         str | None, typer.Option("--robot", "-r", help="Robot name or TOML: checks the number of joint columns.")
     ] = None,
@@ -88,11 +105,12 @@ def import_(
         join=cast(Literal["name", "order"], join),  # any other text: InputError from the join itself
         encoding=encoding, target=target,
     )  # fmt: skip
+    capture = _with_session(capture, session)
     with result_file(out, inputs=inputs, force=force):
         write_capture(out, capture)
     poses = len({tuple(row) for row in capture.readings.tolist()})
     targets = f", targets {', '.join(capture.target_names)}" if capture.target is not None else ""
-    u95 = ", U(95) per point" if capture.u95 is not None else ""
+    u95 = (", U(95) per point" if capture.u95 is not None else "") + (f", session {session}" if session else "")
     console.print(
         f"wrote {out}: {capture.n_points} points at {poses} poses ({points.layout} export in {points.unit}{targets}{u95})",
         highlight=False,

@@ -154,7 +154,13 @@ def refine(
     from robotcal import api
     from robotcal.io.capture_csv import read_capture
     from robotcal.io.joints_files import read_backlash
-    from robotcal.io.parameters_json import read_parameters, refined_targets, write_parameters
+    from robotcal.io.parameters_json import (
+        probe_to_dict,
+        read_parameters,
+        refined_sessions,
+        refined_targets,
+        write_parameters,
+    )
     from robotcal.io.provenance import refine_provenance
     from robotcal.io.scenario import load_scenario
     from robotcal.kinematics.model import ParameterSet
@@ -187,7 +193,10 @@ def refine(
     provenance = refine_provenance(result, measured, str(start) if start is not None else "nominal", scenario=loaded)
     with result_file(out, inputs=inputs, force=force):
         joint_model_u = result.uncertainty.joint_model_uncertainty
-        write_parameters(out, result.parameters, provenance, refined_targets(result), joint_model_u=joint_model_u)
+        write_parameters(
+            out, result.parameters, provenance, refined_targets(result), joint_model_u=joint_model_u,
+            extensions={"sessions": refined_sessions(result), "probe": probe_to_dict(result)},
+        )  # fmt: skip
     _print_result(result, initial, start is not None, provenance, refinement_s)
     assert result.health is not None  # every refinement judges its fit
     console.print(f"wrote {out}" + (" (marked FAILED)" if result.health.failed else ""), highlight=False)
@@ -212,6 +221,8 @@ def _check_options(criterion: str, weights: str, estimate_base: bool, model: str
 
 def _print_result(result: RefinementResult, initial: ParameterSet, given: bool, provenance: dict, refinement_s) -> None:
     """The parameter table, the refinement's summary, the joint model and the model choice."""
+    import numpy as np
+
     criterion = result.criterion
     console.print(  # angles wrapped into (-180, 180] deg, as in the JSON
         parameter_table(
@@ -238,6 +249,15 @@ def _print_result(result: RefinementResult, initial: ParameterSet, given: bool, 
     if result.tracker_from_base is not None:
         base = "estimated" if identifiability.base_free.any() else "held (scenario's tracker_from_base)"
         summary.add_row("base frame", base)
+    for frame in result.sessions:  # each measurement session's base frame: its origin and largest u
+        x, y, z = frame.tracker_from_base[:3, 3]
+        u = frame.standard_uncertainty
+        spread = "held" if not np.isfinite(u).any() else f"u {np.nanmax(u[:3]):.3g} mm, {np.rad2deg(np.nanmax(u[3:])):.3g} deg"
+        summary.add_row(f"session {frame.name} base origin [mm]", f"{x:.3f}, {y:.3f}, {z:.3f} ({spread})")
+    if result.probe is not None:  # a 6-DoF probe: its rotation on the flange, and the orientation residual
+        angles = np.rad2deg(result.probe.standard_uncertainty)
+        summary.add_row("probe rotation u (rx, ry, rz) [deg]", ", ".join(f"{a:.3g}" for a in angles))
+        summary.add_row("orientation residual RMS [deg]", f"{result.probe.orientation_rms_deg:.4g}")
     summary.add_row("held (gauge: a base motion)", ", ".join(identifiability.gauge) or "-")
     summary.add_row("held (not determined)", ", ".join(identifiability.held) or "-")
     summary.add_row("free, tied to held ones", ", ".join(identifiability.confounded) or "-")

@@ -17,6 +17,7 @@ import numpy as np
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z
+from robotcal.identification._orientation import inverse_right_jacobian, rotation_log, vee
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.kinematics.forward import forward_kinematics, target_positions
@@ -25,6 +26,7 @@ from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, ReflectorMount
 
 __all__ = [
+    "BASE_AXES",
     "BASE_NAMES",
     "Problem",
     "State",
@@ -44,7 +46,8 @@ if TYPE_CHECKING:
 
 #: Names of the six ``tracker_from_base`` corrections (points criterion): translation [mm], then
 #: rotation angles [rad] of ``Rz(rz) Ry(ry) Rx(rx)``, applied on the base side of the start transform.
-BASE_NAMES = ("base.tx", "base.ty", "base.tz", "base.rx", "base.ry", "base.rz")
+BASE_AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
+BASE_NAMES = tuple(f"base.{axis}" for axis in BASE_AXES)
 _PAIR_CHUNK = 32768
 
 
@@ -122,6 +125,15 @@ def base_correction(x_base: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[n
     return rotation, x_base[..., :3].copy(), derivatives
 
 
+def _corrected(start: np.ndarray, correction) -> np.ndarray:
+    """``start @ [R(correction) | t]``: a base frame with its six corrections applied on the base side."""
+    rotation, shift, _ = base_correction(correction)
+    delta = np.eye(4)
+    delta[:3, :3] = rotation
+    delta[:3, 3] = shift
+    return start @ delta
+
+
 def _unit(diff: np.ndarray) -> np.ndarray:
     """Rows of ``diff (m, 3)`` normalised; 0 where a model distance is 0 (|x| has no derivative there)."""
     norm = np.linalg.norm(diff, axis=1, keepdims=True)
@@ -191,6 +203,20 @@ class Problem:
     joint_columns: np.ndarray | None = None  # (n_points, n, m)
     extra_start: np.ndarray = field(default_factory=lambda: np.zeros(0))
     extra_free: np.ndarray = field(default_factory=_no_flags)
+    # measurement sessions (points criterion, issue 29): the session of each point (None: one session), the start
+    # transforms of sessions 2..S, whose corrections follow the unknown offsets in the offsets block (a translation
+    # row [mm], then a rotation row [rad] times ``rotation_length`` [mm], so that a unit of either moves the
+    # points by about 1 mm)
+    session_index: np.ndarray | None = None
+    session_starts: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    rotation_length: float = 1.0
+    # a 6-DoF probe (points criterion, issue 29): the points with a measured orientation, their rotations (probe to
+    # tracker), the weight of their residuals [mm/rad], and the start of the probe's rotation in the flange frame,
+    # whose correction is the last row of the offsets block (angles times ``rotation_length``)
+    oriented: np.ndarray | None = None
+    measured_rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    orientation_weight: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    probe_start: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     @property
     def n_kinematic(self) -> int:
@@ -231,6 +257,107 @@ class Problem:
             ]
         )
 
+    @property
+    def n_sessions(self) -> int:
+        return 1 + self.session_starts.shape[0]
+
+    def session_rows(self) -> list[np.ndarray]:
+        """The points of each session (every point for one session)."""
+        if self.session_index is None:
+            return [np.arange(self.q.shape[0])]
+        return [np.flatnonzero(self.session_index == s) for s in range(self.n_sessions)]
+
+    def session_correction(self, state: State, session: int) -> np.ndarray:
+        """The six corrections ``(tx, ty, tz [mm], rx, ry, rz [rad])`` of a session's base frame (0: ``x_base``)."""
+        if session == 0:
+            return np.asarray(state.x_base, dtype=float)
+        row = len(self.unknown) + 2 * (session - 1)
+        return np.r_[state.offsets[row], state.offsets[row + 1] / self.rotation_length]
+
+    def session_start(self, session: int) -> np.ndarray:
+        """The start frame of a session (points criterion: the first session's is ``base_start``)."""
+        start = self.base_start if session == 0 else self.session_starts[session - 1]
+        if start is None:
+            raise InputError("the distances criterion has no base frame")
+        return start
+
+    def trackers(self, state: State) -> np.ndarray:
+        """``tracker_from_base`` of every session ``(n_sessions, 4, 4)``."""
+        return np.stack(
+            [_corrected(self.session_start(s), self.session_correction(state, s)) for s in range(self.n_sessions)]
+        )
+
+    def probe_rotation(self, state: State) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """The probe's rotation in the flange frame ``R_P = R_P0 C(u)``, the correction ``C`` and its three
+        derivatives (``u`` the last offsets row over ``rotation_length``)."""
+        angles = np.asarray(state.offsets[-1], dtype=float) / self.rotation_length
+        correction, _, derivatives = base_correction(np.r_[0.0, 0.0, 0.0, angles])
+        return self.probe_start @ correction, correction, derivatives
+
+    def orientation_part(self, state: State, jacobian: bool = True):
+        """Unweighted orientation residuals ``log(R_m^T R_T F R_P)`` ``(m, 3)`` [rad] of the oriented points and,
+        with ``jacobian``, their derivatives ``(m, 3, n_x)`` in the columns of :meth:`point_jacobian`."""
+        rows = np.arange(0) if self.oriented is None else self.oriented
+        q = self.joint_variables(state.extras)[rows]
+        flange = forward_kinematics(state.values, q)[:, :3, :3]
+        trackers = self.trackers(state)
+        session = np.zeros(rows.size, dtype=int) if self.session_index is None else self.session_index[rows]
+        probe, correction, probe_derivatives = self.probe_rotation(state)
+        model = trackers[session, :3, :3] @ flange @ probe
+        error = rotation_log(np.einsum("pji,pjk->pik", self.measured_rotations, model))
+        if not jacobian:
+            return error, None
+        n, m = state.values.shape[0], self.extra_free.size
+        width = 5 * n + m + self.offset_start.size
+        body = np.zeros((rows.size, 3, width))
+        # the flange's body-frame turn per parameter: dF e_j = d(F e_j)/dx - d(F 0)/dx, then vee(F^T dF)
+        moves = [self._flange_point_jacobian(state, q, rows, offset) for offset in np.eye(4, 3, -1)]
+        d_flange = np.stack([moves[j + 1] - moves[0] for j in range(3)], axis=2)  # (m, 3, 3, 5 n + m)
+        turn = vee(np.einsum("pji,pjkc->pikc", flange, d_flange).transpose(0, 3, 1, 2))  # (m, 5 n + m, 3)
+        body[:, :, : 5 * n + m] = np.einsum("ji,pcj->pic", probe, turn)
+        after = flange @ probe  # what a base turn is seen through
+        base = np.zeros((rows.size, 3, 6))
+        for s in range(self.n_sessions):
+            chosen = np.flatnonzero(session == s)
+            rotation, _, derivatives = base_correction(self.session_correction(state, s))
+            turns = np.stack([vee(rotation.T @ d) for d in derivatives], axis=-1)  # (3, 3)
+            seen = np.einsum("pji,jk->pik", after[chosen], turns)
+            if s == 0:
+                base[chosen, :, 3:] = seen
+            else:
+                column = 5 * n + m + 3 * len(self.unknown) + 6 * (s - 1) + 3
+                body[chosen, :, column : column + 3] = seen / self.rotation_length
+        probe_turns = np.stack([vee(correction.T @ d) for d in probe_derivatives], axis=-1)
+        body[:, :, width - 3 :] = probe_turns / self.rotation_length
+        inverse = inverse_right_jacobian(error)
+        body = np.einsum("pij,pjk->pik", inverse, body)
+        base = np.einsum("pij,pjk->pik", inverse, base)
+        use = np.r_[self.free.ravel(), self.extra_free, self.offset_free]
+        columns = [body[:, :, use]] + ([base[:, :, self.base_free]] if self.base_free.any() else [])
+        return error, np.concatenate(columns, axis=-1)
+
+    def _flange_point_jacobian(self, state: State, q, rows, offset) -> np.ndarray:
+        """``d (F r) / d (parameters, joint-model values)`` ``(m, 3, 5 n + m)`` of a flange point ``r``."""
+        n = state.values.shape[0]
+        mount = ReflectorMount(frame="flange", positions=offset)
+        _, group_jac, by_joint = target_jacobian(
+            state.values, q, np.full(rows.size, n - 1), mount, joint_variables=True
+        )
+        out = group_jac.reshape(rows.size, 3, -1)
+        if self.extra_free.size:
+            out = np.concatenate([out, by_joint @ self.joint_columns[rows]], axis=-1)
+        return out
+
+    def _stacked(self, state: State, residuals, jacobian=None):
+        """Position rows followed by the orientation rows of a 6-DoF capture (points criterion)."""
+        if self.oriented is None or self.criterion != "points":
+            return residuals, jacobian
+        error, turn = self.orientation_part(state, jacobian is not None)
+        residuals = np.concatenate([residuals, error.ravel()])
+        if jacobian is None:
+            return residuals, None
+        return residuals, np.concatenate([jacobian, turn.reshape(-1, turn.shape[-1])])
+
     def joint_variables(self, extras) -> np.ndarray:
         """``q + C(q) extras`` [rad] (``q`` itself for the geometric model)."""
         if self.joint_columns is None:
@@ -264,7 +391,7 @@ class Problem:
         n_points, n = q.shape
         m = self.extra_free.size
         points = np.empty((n_points, 3))
-        jac = np.zeros((n_points, 3, 5 * n + m + 3 * len(self.unknown)))
+        jac = np.zeros((n_points, 3, 5 * n + m + self.offset_start.size))  # session columns: point_jacobian
         groups = [(np.arange(n_points), self.reflector, None)] if not self.targets else self._groups(state.offsets)
         for rows, mount, slot in groups:
             group_points, group_jac, by_joint = target_jacobian(
@@ -281,21 +408,21 @@ class Problem:
         return points, jac
 
     def tracker(self, x_base) -> np.ndarray:
-        assert self.base_start is not None  # the points criterion always has a tracker start
-        rotation, shift, _ = base_correction(x_base)
-        delta = np.eye(4)
-        delta[:3, :3] = rotation
-        delta[:3, 3] = shift
-        return self.base_start @ delta
+        """``tracker_from_base`` of the first session at the corrections ``x_base``."""
+        return _corrected(self.session_start(0), x_base)
 
     def raw_residuals(self, x) -> np.ndarray:
-        """Unweighted residuals [mm]: ``T p - m`` per coordinate, or ``|p_i - p_j| - |m_i - m_j|``."""
+        """Unweighted residuals [mm]: ``T p - m`` per coordinate (``T`` the point's session's), or
+        ``|p_i - p_j| - |m_i - m_j|``."""
         state = self.unpack_all(x)
         points = self.base_points(state)
         if self.criterion == "distances":
             return pdist(points)[self.pair_keep] - self.measured_distances
-        tracker = self.tracker(state.x_base)
-        return (points @ tracker[:3, :3].T + tracker[:3, 3] - self.measured).ravel()
+        trackers = self.trackers(state)
+        in_tracker = np.empty_like(points)
+        for s, rows in enumerate(self.session_rows()):
+            in_tracker[rows] = points[rows] @ trackers[s, :3, :3].T + trackers[s, :3, 3]
+        return (in_tracker - self.measured).ravel()
 
     def _pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """The distances criterion's point pairs ``(pair_i, pair_j)``."""
@@ -305,10 +432,16 @@ class Problem:
     def _row_weights(self) -> np.ndarray | None:
         if self.criterion == "distances":
             return self.pair_weight
-        return None if self.point_weight is None else np.repeat(self.point_weight, 3)
+        weights = None if self.point_weight is None else np.repeat(self.point_weight, 3)
+        if self.oriented is None:
+            return weights
+        position = np.ones(3 * self.q.shape[0]) if weights is None else weights
+        return np.concatenate([position, np.repeat(self.orientation_weight, 3)])
 
     def residuals(self, x) -> np.ndarray:
         residuals = self.raw_residuals(x)
+        if self.oriented is not None and self.criterion == "points":
+            residuals, _ = self._stacked(self.unpack_all(x), residuals)
         weights = self._row_weights()
         return residuals if weights is None else residuals * weights
 
@@ -316,27 +449,39 @@ class Problem:
         """Tracker-frame (points criterion) or base-frame (distances) points ``(n_points, 3)`` and
         ``d points / d x`` ``(n_points, 3, n_x)``."""
         points, jac = self.base_jacobian(state)
-        jac = jac[:, :, np.r_[self.free.ravel(), self.extra_free, self.offset_free]]
+        use = np.r_[self.free.ravel(), self.extra_free, self.offset_free]
         if self.criterion == "distances":
-            return points, jac
-        assert self.base_start is not None  # the points criterion always has a tracker start
-        rotation, shift, derivatives = base_correction(state.x_base)
-        r0 = self.base_start[:3, :3]
-        total = r0 @ rotation
-        columns = [np.einsum("ij,pjk->pik", total, jac)]
-        base = [np.broadcast_to(r0[:, axis], points.shape) for axis in range(3)]
-        base += [points @ (r0 @ derivative).T for derivative in derivatives]
-        chosen = [base[k] for k in np.flatnonzero(self.base_free)]
-        if chosen:
-            columns.append(np.stack(chosen, axis=-1))
-        tracker_points = points @ total.T + r0 @ shift + self.base_start[:3, 3]
+            return points, jac[:, :, use]
+        own = jac.shape[-1] - self.offset_start.size + 3 * len(self.unknown)  # the first session column
+        tracker_points = np.empty_like(points)
+        base = np.zeros(points.shape + (6,))
+        for s, rows in enumerate(self.session_rows()):
+            start = self.session_start(s)
+            rotation, shift, derivatives = base_correction(self.session_correction(state, s))
+            r0 = start[:3, :3]
+            total = r0 @ rotation
+            jac[rows] = np.einsum("ij,pjk->pik", total, jac[rows])
+            fields = [np.broadcast_to(r0[:, axis], (rows.size, 3)) for axis in range(3)]
+            fields += [points[rows] @ (r0 @ derivative).T for derivative in derivatives]
+            if s == 0:
+                base[rows] = np.stack(fields, axis=-1)
+            else:  # the session's translation, then its rotation per unit of rotation_length
+                column = own + 6 * (s - 1)
+                jac[rows, :, column : column + 3] = np.stack(fields[:3], axis=-1)
+                jac[rows, :, column + 3 : column + 6] = np.stack(fields[3:], axis=-1) / self.rotation_length
+            tracker_points[rows] = points[rows] @ total.T + r0 @ shift + start[:3, 3]
+        columns = [jac[:, :, use]]
+        if self.base_free.any():
+            columns.append(base[:, :, self.base_free])
         return tracker_points, np.concatenate(columns, axis=-1)
 
     def evaluate(self, x) -> tuple[np.ndarray, np.ndarray]:
         """Residuals ``(m,)`` and Jacobian ``(m, n_x)`` at x (weighted where weights are given)."""
-        points, jac = self.point_jacobian(self.unpack_all(x))
+        state = self.unpack_all(x)
+        points, jac = self.point_jacobian(state)
         if self.criterion == "points":
             residuals, jacobian = (points - self.measured).ravel(), jac.reshape(-1, jac.shape[-1])
+            residuals, jacobian = self._stacked(state, residuals, jacobian)
         else:
             residuals = pdist(points)[self.pair_keep] - self.measured_distances
             jacobian = _pair_jacobian(points, jac, *self._pairs())
@@ -347,12 +492,12 @@ class Problem:
 
     def jacobian_sample(self, x, rows: int) -> np.ndarray:
         """Jacobian at x on about ``rows`` evenly strided residuals (every pair, or point, k-th)."""
-        points, jac = self.point_jacobian(self.unpack_all(x))
+        state = self.unpack_all(x)
+        points, jac = self.point_jacobian(state)
         if self.criterion == "points":
-            return jac.reshape(-1, jac.shape[-1])
-        pair_i, pair_j = self._pairs()
-        stride = max(1, pair_i.size // rows)
-        return _pair_jacobian(points, jac, pair_i[::stride], pair_j[::stride])
+            return self._stacked(state, points.ravel(), jac.reshape(-1, jac.shape[-1]))[1]
+        stride = max(1, self.pair_i.size // rows)
+        return _pair_jacobian(points, jac, self.pair_i[::stride], self.pair_j[::stride])
 
     def noise_map(self, x) -> scipy.sparse.csr_matrix | None:
         """``G = d residuals / d measured points`` ``(m, 3 n_points)`` for distances; None = identity."""
@@ -439,6 +584,7 @@ class Setup:
     still: tuple[str, ...]
     weighted: bool
     n_residuals: int
+    session_names: tuple[str, ...] = ()  # points criterion, several sessions: their names (the first: the reference)
 
     @property
     def criterion(self) -> str:

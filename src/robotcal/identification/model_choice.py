@@ -52,7 +52,13 @@ from robotcal.capture import Capture
 from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from robotcal.execution import open_executor
 from robotcal.identification._problem import pdist
-from robotcal.identification.evaluation import distinct_pairs, predicted_points
+from robotcal.identification.evaluation import (
+    absolute_errors,
+    distinct_pairs,
+    fit_frames,
+    fitted_targets,
+    predicted_points,
+)
 from robotcal.identification.records import CrossValidation, ModelChoice, RefinementResult
 from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import (
@@ -171,16 +177,9 @@ def pose_folds(capture: Capture, folds: int, seed: int) -> np.ndarray:
 def _held_out_residuals(capture: Capture, held: np.ndarray, fit, targets) -> np.ndarray:
     """The fold fit's residuals on the points it did not see [mm]: per point (points criterion) or per pair with
     at least one held-out point (distances)."""
-    if fit.targets:  # the fold's estimated offsets, by name
-        estimated = {target.name: target for target in fit.targets}
-        targets = tuple(
-            estimated.get(target.name, target) for target in ((targets,) if isinstance(targets, Target) else targets)
-        )
-    if fit.criterion == "points":
-        part = capture.select(held)
-        predicted = predicted_points(part, fit.parameters, targets)
-        tracker = np.asarray(fit.tracker_from_base, dtype=float)
-        return np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - part.points, axis=1)
+    capture, targets = fitted_targets(capture, targets, fit)  # the fold's estimated offsets (issue 29: per session)
+    if fit.criterion == "points":  # each session in its own estimated frame
+        return absolute_errors(capture.select(held), fit.parameters, targets, fit_frames(fit))
     predicted = predicted_points(capture, fit.parameters, targets)
     keep = distinct_pairs(capture, targets, capture.n_joints)
     pair_i, pair_j = np.triu_indices(capture.n_points, k=1)

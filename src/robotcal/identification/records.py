@@ -23,6 +23,8 @@ __all__ = [
     "CrossValidation",
     "ModelChoice",
     "RefinementResult",
+    "SessionFrame",
+    "ProbeFrame",
 ]
 
 
@@ -214,6 +216,46 @@ class ModelChoice:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class SessionFrame:
+    """The base frame of one measurement session (tracker station, day; issue 29), as a refinement estimated it.
+
+    Attributes
+    ----------
+    name : str
+        The session's name (the capture's ``session`` column).
+    tracker_from_base : ndarray, shape (4, 4)
+        ``p_tracker = T p_base`` in that session [mm].
+    standard_uncertainty : ndarray, shape (6,)
+        Of its six corrections ``tx, ty, tz`` [mm], ``rx, ry, rz`` [rad] (``T = T_start [Rz Ry Rx | t]``); NaN
+        where held (the first session's frame when the base frame is given) or without a covariance.
+    """
+
+    name: str
+    tracker_from_base: np.ndarray
+    standard_uncertainty: np.ndarray
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ProbeFrame:
+    """A 6-DoF probe's frame on the flange as a refinement estimated it (issue 29): its position is its target's
+    offset (``targets``), its rotation this.
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        From the probe frame to the flange frame {n}.
+    standard_uncertainty : ndarray, shape (3,)
+        Of the rotation's three corrections ``R = R_start Rz(rz) Ry(ry) Rx(rx)`` [rad] (NaN without a covariance).
+    orientation_rms_deg : float
+        RMS angle of the orientation residuals at the solution [deg].
+    """
+
+    rotation: np.ndarray
+    standard_uncertainty: np.ndarray
+    orientation_rms_deg: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RefinementResult:
     """Outcome of a refinement, shaped like SciPy's ``OptimizeResult``: the values and the solver's record, then
     named sub-records.
@@ -256,6 +298,11 @@ class RefinementResult:
         without folds.
     model_choice : ModelChoice or None
         With ``model="auto"``: every candidate's cross-validation and why the model was chosen.
+    sessions : tuple of SessionFrame
+        Points criterion on a capture with a ``session`` column: the base frame of every session (the first one's
+        is ``tracker_from_base``); empty otherwise.
+    probe : ProbeFrame or None
+        Points criterion on a capture with orientations (a 6-DoF probe): the probe's rotation on the flange.
     """
 
     parameters: ParameterSet
@@ -276,6 +323,8 @@ class RefinementResult:
     health: FitHealth | None = None
     cross_validation: CrossValidation | None = None
     model_choice: ModelChoice | None = None
+    sessions: tuple[SessionFrame, ...] = ()
+    probe: ProbeFrame | None = None
 
     def __repr__(self) -> str:
         health = f", {self.health.verdict}" if self.health is not None else ""

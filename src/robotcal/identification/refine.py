@@ -136,6 +136,14 @@ from robotcal.errors import IdentifiabilityError, InputError
 from robotcal.execution import single_blas_thread
 from robotcal.geometry.registration import register_points
 from robotcal.geometry.transforms import check_rigid_transform
+from robotcal.identification._frames import (
+    PROBE_NAMES,
+    capture_sessions,
+    probe_frame,
+    session_frames,
+    session_starts,
+    with_probe,
+)
 from robotcal.identification._free_set import (
     HeldNames,
     Selection,
@@ -146,6 +154,7 @@ from robotcal.identification._free_set import (
     selection_key,
 )
 from robotcal.identification._problem import (
+    BASE_AXES,
     BASE_NAMES,
     Problem,
     Setup,
@@ -161,9 +170,14 @@ from robotcal.identification._problem import (
 )
 from robotcal.identification.health import refine_health
 from robotcal.identification.observability import conditioning, correlation_from_covariance, triangular_factor
-from robotcal.identification.records import FitStatistics, Identifiability, RefinementResult, RefinementUncertainty
+from robotcal.identification.records import (
+    FitStatistics,
+    Identifiability,
+    RefinementResult,
+    RefinementUncertainty,
+)
 from robotcal.identification.settings import CRITERIA, RefinementSettings
-from robotcal.identification.targets import Target, resolve_targets
+from robotcal.identification.targets import Target, resolve_targets, split_by_session
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.joint_model import JOINT_MODEL_GROUPS, JointModel, lash_turns
 from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSet, ReflectorMount
@@ -171,6 +185,7 @@ from robotcal.kinematics.model import LENGTH_KINDS, PARAMETER_KINDS, ParameterSe
 __all__ = [
     "CRITERIA",
     "BASE_NAMES",
+    "PROBE_NAMES",
     "RefinementSettings",
     "RefinementResult",
     "refine_parameters",
@@ -192,10 +207,12 @@ _MAX_REFITS = 3
 _DEFAULT_SETTINGS = RefinementSettings()
 
 
-def _generic_directions(count: int) -> np.ndarray:
-    """``(count, 3)`` fixed unit vectors in generic directions (seeded), one per unknown offset."""
+def _generic_directions(count: int, rows: int) -> np.ndarray:
+    """``(rows, 3)``: fixed unit vectors in generic directions (seeded), one per unknown offset (the first
+    ``count`` rows), then zeros (the session frames' rows)."""
     directions = np.random.default_rng(12345).normal(size=(count, 3))
-    return directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.concatenate([directions, np.zeros((rows - count, 3))])
 
 
 def refine_parameters(
@@ -258,7 +275,7 @@ def refine_parameters(
         raise InputError(f"`settings` must be RefinementSettings; got {type(settings).__name__}")
     with single_blas_thread():
         began = time.perf_counter()
-        setup = _set_up(capture, start, reflector, settings, tracker_from_base, joint_model)
+        setup = _set_up(capture, start, reflector, settings, tracker_from_base, joint_model, instrument)
         selection = select_free(setup.probe, setup.candidates, setup.all_scale, settings.rank_tolerance)
         verdict = describe_held(setup, selection)
         if setup.strict and set(verdict.gauge + verdict.held) - set(verdict.accepted):  # refused before any fit
@@ -310,7 +327,7 @@ def _layout(capture: Capture, reflector, n: int) -> _Layout:
         turning = capture_turning_joints(capture, reflector)
         return _Layout((), None, (), turning, capture_target_index(capture, reflector), reflector)
     given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
-    targets, target_index = resolve_targets(capture, given)
+    targets, target_index = resolve_targets(*split_by_session(capture, given))
     turning = np.maximum(capture.circle - 1, 0)
     for t, target in enumerate(targets):
         if target.frame == "joint":
@@ -329,9 +346,14 @@ def _layout(capture: Capture, reflector, n: int) -> _Layout:
     return _Layout(targets, target_index, unknown, turning, pair_key, targets[0].mount)
 
 
-def _pairs(capture: Capture, commanded, pair_key, measured, sigmas, reference):
-    """The distances criterion's kept pairs, measured distances and pair weights."""
+def _pairs(capture: Capture, commanded, pair_key, measured, sigmas, reference, sessions):
+    """The distances criterion's kept pairs, measured distances and pair weights; with ``sessions`` (the session
+    of each point) only pairs within a session: a distance between two tracker stations is no measurement."""
     pair_i, pair_j, pair_keep = measurement_pairs(commanded, pair_key)
+    if sessions is not None:
+        within = sessions[pair_i] == sessions[pair_j]
+        pair_keep[np.flatnonzero(pair_keep)[~within]] = False
+        pair_i, pair_j = pair_i[within], pair_j[within]
     distances = pdist(measured)[pair_keep]
     pair_weight = None
     if sigmas is not None:
@@ -345,11 +367,15 @@ def _pairs(capture: Capture, commanded, pair_key, measured, sigmas, reference):
     return pair_i, pair_j, pair_keep, distances, pair_weight
 
 
+def _radius(measured) -> float:
+    """L: the RMS radius of the measured point cloud about its centroid [mm]."""
+    return float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
+
+
 def _scales(measured, columns, n: int) -> np.ndarray:
     """The column scale ``(5 n + m + 6,)`` of the parameters, the joint-model values and the base corrections: 1 mm
     for lengths and translations, ``1/L`` rad for angles (module notes)."""
-    size = float(np.sqrt(np.mean(np.sum((measured - measured.mean(axis=0)) ** 2, axis=1))))
-    angle_scale = 1.0 / max(size, 1.0)
+    angle_scale = 1.0 / max(_radius(measured), 1.0)
     kind_scale = np.array([1.0 if kind in LENGTH_KINDS else angle_scale for kind in PARAMETER_KINDS])
     # a joint-model value's unit step turns the joints by C(q) rad: about 1 mm at the cloud's radius once scaled
     extra_scale = np.zeros(0)
@@ -359,7 +385,9 @@ def _scales(measured, columns, n: int) -> np.ndarray:
     return np.concatenate([np.tile(kind_scale, n), extra_scale, [1.0, 1.0, 1.0] + [angle_scale] * 3])
 
 
-def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_from_base, joint_model) -> Setup:
+def _set_up(
+    capture, start, reflector, settings: RefinementSettings, tracker_from_base, joint_model, instrument=None
+) -> Setup:
     """Check the inputs, resolve the targets, weights, base frame and pairs, and build the problem on which the
     free set is chosen."""
     robot = start.robot
@@ -370,7 +398,13 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
     measured = np.asarray(capture.points, dtype=float)
     layout = _layout(capture, reflector, n)
     targets, unknown = layout.targets, layout.unknown
-    offset_start = np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3)
+    session_names, session_index = capture_sessions(capture)
+    n_moved = max(len(session_names) - 1, 0) if criterion == "points" else 0  # sessions 2..S: their frames in the offsets
+    oriented = criterion == "points" and capture.orientation is not None  # a 6-DoF probe: its rotation, last
+    offset_start = np.concatenate(
+        [np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3), np.zeros((2 * n_moved, 3))]
+        + ([np.zeros((1, 3))] if oriented else [])
+    )
     sigmas = point_sigmas(capture) if settings.weights == "auto" else None
     point_weight = reference = None
     if sigmas is not None:
@@ -388,26 +422,31 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
     columns = None if joint_model is None or joint_model.is_empty else joint_model.columns(commanded)
     extra_start = np.zeros(0) if columns is None else np.asarray(joint_model.values, dtype=float)
     base_start = None
-    if criterion == "points" and tracker_from_base is None:
+    if criterion == "points" and tracker_from_base is None and session_index is None:
         start_q = q if columns is None else q + columns @ extra_start
         nominal_points = target_positions(start.values, start_q, layout.turning, layout.reflector)
         base_start = register_points(nominal_points, measured).transform
-    elif criterion == "points":
+    elif criterion == "points" and tracker_from_base is not None:
         base_start = check_rigid_transform(tracker_from_base, "tracker_from_base")
     pair_i = pair_j = distances = pair_keep = pair_weight = None
     if criterion == "distances":
         pair_i, pair_j, pair_keep, distances, pair_weight = _pairs(
-            capture, commanded, layout.pair_key, measured, sigmas, reference
+            capture, commanded, layout.pair_key, measured, sigmas, reference, session_index
         )
     probe = Problem(
         start=start.values.copy(), free=np.ones((n, 5), dtype=bool), base_start=base_start,
         base_free=np.full(6, use_base), q=q, turning=layout.turning, reflector=layout.reflector, measured=measured,
         criterion=criterion, pair_i=pair_i, pair_j=pair_j, pair_keep=pair_keep, measured_distances=distances,
         targets=targets, target_index=layout.target_index, unknown=unknown,
-        offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(offset_start.shape[0]),
+        offset_start=offset_start + _GENERIC_OFFSET_MM * _generic_directions(len(unknown), offset_start.shape[0]),
         offset_free=np.ones(offset_start.size, dtype=bool), point_weight=point_weight, pair_weight=pair_weight,
         joint_columns=columns, extra_start=extra_start, extra_free=np.ones(extra_start.size, dtype=bool),
+        session_index=session_index if criterion == "points" else None, rotation_length=max(_radius(measured), 1.0),
     )  # fmt: skip
+    if criterion == "points" and session_index is not None:
+        probe = session_starts(probe, start.values, offset_start, capture.source, session_names)
+    if oriented:
+        probe = with_probe(probe, capture, instrument, State(start.values, extra_start, offset_start, np.zeros(6)))
     parameters = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     spread = commanded.max(axis=0) - commanded.min(axis=0)
     return Setup(
@@ -418,12 +457,15 @@ def _set_up(capture, start, reflector, settings: RefinementSettings, tracker_fro
         candidates=np.r_[parameters.ravel(), np.ones(extra_start.size, dtype=bool)],
         all_scale=_scales(measured, columns, n),
         offset_start=offset_start,
-        offset_names=tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz"),
+        offset_names=tuple(f"target.{targets[t].name}.{axis}" for t in unknown for axis in "xyz")
+        + tuple(f"session.{name}.{axis}" for name in session_names[1 : 1 + n_moved] for axis in BASE_AXES)
+        + (PROBE_NAMES if oriented else ()),
+        session_names=session_names if criterion == "points" else (),
         joint_model=joint_model,
         use_base=use_base,
         still=tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD)),
         weighted=sigmas is not None,
-        n_residuals=capture.n_points * 3 if pair_i is None else int(pair_i.size),  # pairs: the distances criterion
+        n_residuals=capture.n_points * (6 if oriented else 3) if criterion == "points" else int(pair_i.size),
     )
 
 
@@ -631,7 +673,8 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
     """The result: values at the solution, residual statistics (per point, unweighted, mm), conditioning, the
     linearised covariance from the Jacobian of the rank test at the solution, and the fit health."""
     start, criterion, problem = setup.start, setup.criterion, fit.problem
-    values, extras, offsets, x_base = problem.unpack_all(fit.x)
+    solved = problem.unpack_all(fit.x)
+    values, extras, offsets, x_base = solved
     selection = fit.selection
     residuals, jac_all = fit.evaluated
     use = np.r_[selection.free.ravel(), selection.extra_free, selection.offset_free]
@@ -669,7 +712,8 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
         targets=tuple(targets), success=fit.success, status=fit.status, message=message, nfev=fit.nfev,
         njev=fit.njev, model=model, criterion=criterion, method=fit.method,
         wall_time_s=time.perf_counter() - began, fit=statistics, identifiability=identifiability,
-        uncertainty=uncertainty, health=health,
+        uncertainty=uncertainty, health=health, sessions=session_frames(setup, problem, selection, solved, uncertainty.covariance),
+        probe=probe_frame(problem, selection, solved, uncertainty.covariance),
     )  # fmt: skip
 
 

@@ -16,7 +16,7 @@ unknown ones).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,7 +26,7 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.kinematics.model import ReflectorMount
 
-__all__ = ["Target", "resolve_targets", "point_target_index"]
+__all__ = ["SESSION_SEPARATOR", "Target", "resolve_targets", "point_target_index", "split_by_session"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -42,12 +42,16 @@ class Target:
         flange target (frame {n}) [mm]; for an unknown flange offset, the start of its estimate.
     known : bool
         False: a flange offset the refinement estimates.
+    per_session : bool
+        An unknown flange offset that is re-seated between measurement sessions (issue 29): each session of a
+        capture with a ``session`` column has its own offset, named ``NAME@SESSION`` (:func:`split_by_session`).
     """
 
     name: str
     frame: str
     positions: np.ndarray
     known: bool = True
+    per_session: bool = False
 
     def __post_init__(self) -> None:
         if self.frame not in ("joint", "flange"):
@@ -63,6 +67,8 @@ class Target:
             raise InputError(f"target {self.name!r}: positions must be finite")
         if self.frame == "joint" and not self.known:
             raise InputError(f"target {self.name!r}: only a flange target's offset can be unknown")
+        if self.per_session and self.known:
+            raise InputError(f"target {self.name!r}: only an unknown flange offset can differ per session")
         object.__setattr__(self, "positions", _frozen(positions))
 
     @property
@@ -77,7 +83,40 @@ class Target:
 
     def with_position(self, position: ArrayLike) -> Target:
         """The same target at another flange offset (e.g. the refined estimate), still marked unknown."""
-        return Target(name=self.name, frame=self.frame, positions=np.asarray(position), known=self.known)
+        return Target(
+            name=self.name, frame=self.frame, positions=np.asarray(position), known=self.known, per_session=self.per_session
+        )
+
+
+#: Separates a re-seated target's name from its session's in the name of its per-session offset.
+SESSION_SEPARATOR = "@"
+
+
+def split_by_session(capture: Capture, targets: Sequence[Target]) -> tuple[Capture, tuple[Target, ...]]:
+    """The capture and targets with every ``per_session`` target split into one target per session.
+
+    A point of session ``S`` on a re-seated target ``A`` is then on target ``A@S`` (an unknown offset of its own,
+    starting at ``A``'s guess); the other targets and a capture without ``session`` column come back unchanged.
+    """
+    split = [target for target in targets if target.per_session]
+    if capture.session is None or capture.target is None or not split:
+        return capture, tuple(targets)
+    labels = list(capture.point_targets or ())
+    sessions = capture.point_sessions or ()
+    names = {target.name for target in split}
+    labels = [f"{label}{SESSION_SEPARATOR}{session}" if label in names else label for label, session in
+              zip(labels, sessions, strict=True)]  # fmt: skip
+    used = tuple(dict.fromkeys(labels))
+    lookup = {name: k for k, name in enumerate(used)}
+    relabelled = replace(capture, target=np.array([lookup[label] for label in labels], dtype=int), target_names=used)
+    expanded: list[Target] = []
+    for target in targets:
+        if target.per_session:
+            for session in capture.session_names:
+                expanded.append(replace(target, name=f"{target.name}{SESSION_SEPARATOR}{session}", per_session=False))
+        else:
+            expanded.append(target)
+    return relabelled, tuple(expanded)
 
 
 def point_target_index(capture: Capture, targets: Sequence[Target]) -> np.ndarray:

@@ -54,6 +54,10 @@ class Instrument:
     coverage_factor : float
         k of the ``normal`` policy (2: U is the 95 % half-width).
     description : str
+    orientation_rad : float or None
+        A 6-DoF probe's orientation error bound U [rad] (issue 29), under the same noise policy: each component of
+        the rotation vector uniform in ``[-U, U]``, or normal with ``sigma = U / coverage_factor``; None: the
+        instrument measures positions only.
     """
 
     name: str = "custom"
@@ -62,6 +66,7 @@ class Instrument:
     noise: str = "uniform"
     coverage_factor: float = 2.0
     description: str = ""
+    orientation_rad: float | None = None
 
     def __post_init__(self) -> None:
         for attr in ("a_mm", "b_mm_per_m", "coverage_factor"):
@@ -70,6 +75,11 @@ class Instrument:
                 raise InputError(f"instrument {self.name!r}: `{attr}` must be a finite number >= 0; got {value!r}")
         if self.coverage_factor == 0:
             raise InputError(f"instrument {self.name!r}: `coverage_factor` must be > 0")
+        if self.orientation_rad is not None and (
+            not isinstance(self.orientation_rad, (int, float)) or not np.isfinite(self.orientation_rad)
+            or self.orientation_rad < 0
+        ):  # fmt: skip
+            raise InputError(f"instrument {self.name!r}: `orientation_rad` must be a finite number >= 0")
         if self.noise not in NOISE_POLICIES:
             raise InputError(f"instrument {self.name!r}: `noise` must be one of {NOISE_POLICIES}; got {self.noise!r}")
 
@@ -95,3 +105,19 @@ class Instrument:
         if self.noise == "uniform":
             return rng.uniform(-1.0, 1.0, size=points.shape) * bound
         return rng.standard_normal(size=points.shape) * (bound / self.coverage_factor)
+
+    @property
+    def orientation_standard_uncertainty(self) -> float | None:
+        """Standard uncertainty of each rotation-vector component of a measured orientation [rad]:
+        ``U/sqrt(3)`` (uniform) or ``U/k`` (normal); None for a position-only instrument."""
+        if self.orientation_rad is None:
+            return None
+        return self.orientation_rad / (np.sqrt(3.0) if self.noise == "uniform" else self.coverage_factor)
+
+    def sample_orientation_noise(self, count: int, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """Random rotation vectors ``(count, 3)`` [rad] of orientation errors, drawn from ``rng``."""
+        rng = np.random.default_rng(rng)
+        bound = 0.0 if self.orientation_rad is None else self.orientation_rad
+        if self.noise == "uniform":
+            return rng.uniform(-1.0, 1.0, size=(count, 3)) * bound
+        return rng.standard_normal(size=(count, 3)) * (bound / self.coverage_factor)

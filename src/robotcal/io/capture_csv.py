@@ -1,11 +1,14 @@
-"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,u95_mm]`` (docs/scenario.md).
+"""Capture CSV: ``circle,direction,q1..qN,x,y,z[,target][,session][,u95_mm][,qw,qx,qy,qz][,u95_deg]``
+(docs/scenario.md).
 
 One row per measured point; ``circle`` = joint turned (1-based; 0 for a free pose on no circle, such
 as a validation capture), ``direction`` = +1/-1, joint
 readings ``q1..qN`` in degrees, target position ``x, y, z`` in the tracker frame in mm. Optional:
 ``target``, the name of the target measured (declared in the scenario's ``[[targets]]``; absent =
 the scenario's one target), and ``u95_mm``, the point's expanded uncertainty U(95) [mm] (k = 2,
-normal). A file without them loads as before.
+normal), ``session``, the measurement session (tracker station, day) of the point, and a 6-DoF probe's
+orientation as a unit quaternion ``qw,qx,qy,qz`` (scalar first, probe to tracker frame) with its expanded
+uncertainty ``u95_deg`` [deg]. A file without them loads as before.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
+from robotcal.io.orientation import QUATERNION_COLUMNS, quaternions_from_rotations, rotations_from_quaternions
 
 __all__ = ["capture_to_csv", "read_capture", "read_capture_text", "write_capture"]
 
@@ -30,17 +34,27 @@ def capture_to_csv(capture: Capture) -> str:
     stream = io.StringIO()
     writer = csv.writer(stream, lineterminator="\n")
     n = capture.n_joints
-    extra = (["target"] if capture.target is not None else []) + (["u95_mm"] if capture.u95 is not None else [])
+    extra = (
+        (["target"] if capture.target is not None else [])
+        + (["session"] if capture.session is not None else [])
+        + (["u95_mm"] if capture.u95 is not None else [])
+        + (list(QUATERNION_COLUMNS) if capture.orientation is not None else [])
+        + (["u95_deg"] if capture.orientation_u95 is not None else [])
+    )
+    quaternions = None if capture.orientation is None else quaternions_from_rotations(capture.orientation)
     writer.writerow(["circle", "direction", *[f"q{i + 1}" for i in range(n)], "x", "y", "z", *extra])
     readings_deg = np.rad2deg(capture.readings)
-    names = capture.point_targets
+    names, sessions = capture.point_targets, capture.point_sessions
     for k in range(capture.n_points):
         writer.writerow(
             [int(capture.circle[k]), int(capture.direction[k])]
             + [f"{value:.12f}" for value in readings_deg[k]]
             + [f"{value:.12f}" for value in capture.points[k]]
             + ([names[k]] if names is not None else [])
+            + ([sessions[k]] if sessions is not None else [])
             + ([f"{capture.u95[k]:.12g}"] if capture.u95 is not None else [])
+            + ([f"{value:.12f}" for value in quaternions[k]] if quaternions is not None else [])
+            + ([f"{np.rad2deg(capture.orientation_u95[k]):.12g}"] if capture.orientation_u95 is not None else [])
         )
     return stream.getvalue()
 
@@ -109,23 +123,10 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
     bad = np.flatnonzero(~np.isin(direction, (-1.0, 1.0)))
     if bad.size:
         raise InputError(f"{path}: line {lines[bad[0]]}, column `direction`: must be +1 or -1")
-    target = names = u95 = None
-    if "target" in header:
-        position = header.index("target")
-        labels = [row[position].strip() for _, row in records[1:]]
-        empty = [k for k, label in enumerate(labels) if not label]
-        if empty:
-            raise InputError(f"{path}: line {lines[empty[0]]}, column `target`: empty target name")
-        names = tuple(dict.fromkeys(labels))
-        lookup = {name: k for k, name in enumerate(names)}
-        target = np.array([lookup[label] for label in labels], dtype=int)
-    if "u95_mm" in header:
-        position = header.index("u95_mm")
-        u95 = np.empty(len(records) - 1)
-        for k, (line, row) in enumerate(records[1:]):
-            u95[k] = parse_finite(row[position], f"{path}: line {line}, column `u95_mm`")
-            if u95[k] <= 0:
-                raise InputError(f"{path}: line {line}, column `u95_mm`: U(95) must be > 0 mm; got {u95[k]:g}")
+    target, names = _labels(header, records, lines, "target", path)
+    session, session_names = _labels(header, records, lines, "session", path)
+    u95 = _positive(header, records, "u95_mm", path)
+    orientation, orientation_u95 = _orientation(header, records, path)
     return Capture(
         circle=circle.astype(int),
         direction=direction.astype(int),
@@ -134,6 +135,59 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
         source=str(path),
         seed=seed,
         target=target,
-        target_names=names or (),
+        target_names=names,
         u95=u95,
+        session=session,
+        session_names=session_names,
+        orientation=orientation,
+        orientation_u95=orientation_u95,
     )
+
+
+def _positive(header, records, column: str, path) -> np.ndarray | None:
+    """A column of numbers > 0 (``u95_mm``, ``u95_deg``); None when the header has no such column."""
+    if column not in header:
+        return None
+    position = header.index(column)
+    values = np.empty(len(records) - 1)
+    for k, (line, row) in enumerate(records[1:]):
+        values[k] = parse_finite(row[position], f"{path}: line {line}, column `{column}`")
+        if values[k] <= 0:
+            unit = column.rsplit("_", 1)[1]
+            raise InputError(f"{path}: line {line}, column `{column}`: U(95) must be > 0 {unit}; got {values[k]:g}")
+    return values
+
+
+def _orientation(header, records, path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The rotations of the ``qw,qx,qy,qz`` columns (all four or none) and their U(95) [rad] (``u95_deg``)."""
+    present = [column for column in QUATERNION_COLUMNS if column in header]
+    if not present:
+        if "u95_deg" in header:
+            raise InputError(f"{path}: column `u95_deg` without the orientation columns qw,qx,qy,qz")
+        return None, None
+    if len(present) != 4:
+        missing = ", ".join(c for c in QUATERNION_COLUMNS if c not in present)
+        raise InputError(f"{path}: the orientation needs the four columns qw,qx,qy,qz; missing {missing}")
+    positions = [header.index(column) for column in QUATERNION_COLUMNS]
+    quaternions = np.array(
+        [[parse_finite(row[p], f"{path}: line {line}, column `{header[p]}`") for p in positions]
+         for line, row in records[1:]]
+    )  # fmt: skip
+    rotations = rotations_from_quaternions(quaternions, source=str(path))
+    u95 = _positive(header, records, "u95_deg", path)
+    return rotations, None if u95 is None else np.deg2rad(u95)
+
+
+def _labels(header, records, lines, column: str, path) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """A column of names (``target``, ``session``): the index of each row's name and the names in order of first
+    appearance; ``(None, ())`` when the header has no such column."""
+    if column not in header:
+        return None, ()
+    position = header.index(column)
+    labels = [row[position].strip() for _, row in records[1:]]
+    empty = [k for k, label in enumerate(labels) if not label]
+    if empty:
+        raise InputError(f"{path}: line {lines[empty[0]]}, column `{column}`: empty {column} name")
+    names = tuple(dict.fromkeys(labels))
+    lookup = {name: k for k, name in enumerate(names)}
+    return np.array([lookup[label] for label in labels], dtype=int), names

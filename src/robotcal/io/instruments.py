@@ -9,6 +9,7 @@ from __future__ import annotations
 from functools import cache
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, RootModel, field_validator, model_validator
 
 from robotcal.instruments import Instrument
@@ -29,6 +30,7 @@ class InstrumentPreset(BaseModel):
     min_distance_m: TomlFloat | None = Field(default=None, ge=0)
     max_distance_m: TomlFloat | None = Field(default=None, gt=0)
     reflector_acceptance_deg: TomlFloat | None = Field(default=None, gt=0, le=180)
+    orientation_deg: TomlFloat | None = Field(default=None, ge=0)  # a 6-DoF probe's orientation U [deg]
 
     @model_validator(mode="after")
     def _range(self) -> InstrumentPreset:
@@ -64,6 +66,7 @@ class InstrumentTable(BaseModel):
     b_um_per_m: TomlFloat | None = Field(default=None, ge=0)
     noise: Literal["uniform", "normal"] = "uniform"
     coverage_factor: TomlFloat = Field(default=2.0, gt=0)
+    orientation_deg: TomlFloat | None = Field(default=None, ge=0)  # a 6-DoF probe's orientation U [deg]
 
     @field_validator("preset")
     @classmethod
@@ -87,13 +90,14 @@ def make_instrument(
     b_um_per_m: float | None = None,
     noise: str = "uniform",
     coverage_factor: float = 2.0,
+    orientation_deg: float | None = None,
 ) -> Instrument:
     """Instrument from a preset and/or explicit terms (explicit values override the preset's).
 
     The terms are validated by :class:`InstrumentTable`: a boolean (``true`` in a TOML file) or a text is an
     :class:`InputError` naming the key, never read as 1 or 0.
     """
-    terms = {"preset": preset, "a_um": a_um, "b_um_per_m": b_um_per_m, "noise": noise}
+    terms = {"preset": preset, "a_um": a_um, "b_um_per_m": b_um_per_m, "noise": noise, "orientation_deg": orientation_deg}
     source = "instrument" if preset is None else f"instrument {preset!r}"
     table: InstrumentTable = validate_model(InstrumentTable, terms | {"coverage_factor": coverage_factor}, source)
     name, description, a_um, b_um_per_m = "custom", "", table.a_um, table.b_um_per_m
@@ -102,6 +106,7 @@ def make_instrument(
         name, description = table.preset, entry.get("description", "")
         a_um = entry["a_um"] if a_um is None else a_um
         b_um_per_m = entry["b_um_per_m"] if b_um_per_m is None else b_um_per_m
+        orientation_deg = entry.get("orientation_deg") if orientation_deg is None else orientation_deg
     assert a_um is not None and b_um_per_m is not None  # InstrumentTable: a preset or both terms
     return Instrument(
         name=name,
@@ -110,4 +115,5 @@ def make_instrument(
         noise=table.noise,
         coverage_factor=table.coverage_factor,
         description=description,
+        orientation_rad=None if orientation_deg is None else float(np.deg2rad(orientation_deg)),
     )

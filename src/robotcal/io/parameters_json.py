@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from pydantic import AfterValidator, BaseModel, ConfigDict
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from robotcal.errors import InputError, RobotcalWarning
 from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
@@ -44,9 +44,14 @@ __all__ = [
     "parameters_to_dict",
     "read_joint_model",
     "read_parameters",
+    "read_sessions",
     "read_targets",
     "read_tracker_from_base",
+    "probe_to_dict",
+    "read_probe",
+    "refined_sessions",
     "refined_targets",
+    "sessions_to_dict",
     "targets_to_dict",
     "write_parameters",
 ]
@@ -195,6 +200,26 @@ class _TargetsPart(_JsonObject):
     targets: dict[str, TargetEntry] | None = None
 
 
+class SessionEntry(_JsonObject):
+    """One entry of ``sessions``: a session's base frame (what robotcal reads of it)."""
+
+    tracker_from_base: Matrix4
+
+
+class _SessionsPart(_JsonObject):
+    sessions: dict[str, SessionEntry] | None = None
+
+
+class ProbeEntry(_JsonObject):
+    """The ``probe`` key: what robotcal reads of it (the rotation as a quaternion, scalar first)."""
+
+    quaternion: Annotated[list[TomlFloat], Field(min_length=4, max_length=4)]
+
+
+class _ProbePart(_JsonObject):
+    probe: ProbeEntry | None = None
+
+
 class _ProvenanceEntry(_JsonObject):
     """What robotcal reads of ``provenance``: the base frame a fit recorded (null: none)."""
 
@@ -283,13 +308,18 @@ def _check_deflection(model: JointModel, robot: RobotModel, display_values: Sequ
 
 
 def parameters_to_dict(
-    parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None,
+    parameters: ParameterSet,
+    provenance: dict | None = None,
+    targets: dict | None = None,
     joint_model_u: ArrayLike | None = None,
+    extensions: dict | None = None,
 ) -> dict:
     """The parameter JSON document; angles in degrees within 180 deg of their nominal value (the branch of the
     nominal: see :func:`robotcal.identification.refine.wrap_angles`). ``targets`` (from
     :func:`targets_to_dict`) adds the key ``targets``: the refined (estimated) target offsets. An extended set
-    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units)."""
+    adds ``joint_model`` (module notes), ``joint_model_u`` its standard uncertainties (core units).
+    ``extensions`` adds its keys that have a value: ``sessions`` (:func:`sessions_to_dict`, the base frame of every
+    measurement session) and ``probe`` (:func:`probe_to_dict`, a 6-DoF probe's rotation on the flange)."""
     robot = parameters.robot
     joints = []
     for i in range(robot.n_joints):
@@ -310,6 +340,7 @@ def parameters_to_dict(
     }
     if targets:
         document["targets"] = targets
+    document.update({key: value for key, value in (extensions or {}).items() if value})
     if parameters.joint_model is not None:
         document["joint_model"] = joint_model_to_dict(parameters.joint_model, joint_model_u)
     document["provenance"] = provenance or {}
@@ -317,11 +348,17 @@ def parameters_to_dict(
 
 
 def write_parameters(
-    path: str | os.PathLike[str], parameters: ParameterSet, provenance: dict | None = None, targets: dict | None = None,
+    path: str | os.PathLike[str],
+    parameters: ParameterSet,
+    provenance: dict | None = None,
+    targets: dict | None = None,
     joint_model_u: ArrayLike | None = None,
+    extensions: dict | None = None,
 ) -> Path:
-    """Write a parameter JSON atomically (``targets``, ``joint_model_u``: see :func:`parameters_to_dict`)."""
-    text = json.dumps(parameters_to_dict(parameters, provenance, targets, joint_model_u), indent=2, allow_nan=False)
+    """Write a parameter JSON atomically (``targets``, ``joint_model_u``, ``extensions``: see
+    :func:`parameters_to_dict`)."""
+    document = parameters_to_dict(parameters, provenance, targets, joint_model_u, extensions)
+    text = json.dumps(document, indent=2, allow_nan=False)
     return atomic_write_text(path, text + "\n")
 
 
@@ -337,6 +374,78 @@ def read_targets(path: str | os.PathLike[str]) -> dict:
         for name, entry in entries.items()
         if entry.frame == "flange" and entry.flange_mm is not None
     }
+
+
+def sessions_to_dict(frames) -> dict:
+    """The ``sessions`` key: per session (in the refinement's order, the first its reference) its
+    ``tracker_from_base`` [mm] and the standard uncertainties ``u`` of its corrections (``T = T_start [Rz Ry Rx |
+    t]``: ``tx_mm, ty_mm, tz_mm, rx_deg, ry_deg, rz_deg``; null where held)."""
+    keys = ("tx_mm", "ty_mm", "tz_mm", "rx_deg", "ry_deg", "rz_deg")
+    out = {}
+    for frame in frames:
+        u = np.asarray(frame.standard_uncertainty, dtype=float).copy()
+        u[3:] = np.rad2deg(u[3:])
+        out[frame.name] = {
+            "tracker_from_base": np.asarray(frame.tracker_from_base, dtype=float).tolist(),
+            "u": {key: None if not np.isfinite(value) else float(value) for key, value in zip(keys, u, strict=True)},
+        }
+    return out
+
+
+def probe_to_dict(result) -> dict | None:
+    """The ``probe`` key of a 6-DoF refinement: the probe's target (its position is that target's offset in
+    ``targets``), its rotation in the flange frame as a quaternion ``qw, qx, qy, qz`` and a matrix, the standard
+    uncertainties of the rotation's corrections ``u_deg`` (rx, ry, rz; null where not estimated) and the RMS of the
+    orientation residuals [deg]; None without orientations."""
+    from robotcal.io.orientation import quaternions_from_rotations
+
+    probe = result.probe
+    if probe is None:
+        return None
+    target = next((t.name for t in result.targets if t.frame == "flange"), None)
+    u = np.rad2deg(np.asarray(probe.standard_uncertainty, dtype=float))
+    return {
+        "target": target,
+        "quaternion": quaternions_from_rotations(probe.rotation[None])[0].tolist(),
+        "rotation": np.asarray(probe.rotation, dtype=float).tolist(),
+        "u_deg": [None if not np.isfinite(value) else float(value) for value in u],
+        "orientation_rms_deg": probe.orientation_rms_deg,
+    }
+
+
+def read_probe(path) -> np.ndarray | None:
+    """The probe's rotation in the flange frame (``probe.quaternion`` of a parameter JSON), None when absent."""
+    from robotcal.io.orientation import rotations_from_quaternions
+
+    path = Path(path)
+    data = read_json_file(path, kind="parameter JSON")
+    part: _ProbePart = validate_model(_ProbePart, data if isinstance(data, dict) else {}, str(path))
+    if part.probe is None:
+        return None
+    return rotations_from_quaternions([part.probe.quaternion], source=f"{path}: probe.quaternion")[0]
+
+
+def refined_sessions(result) -> dict | None:
+    """The parameter JSON's ``sessions`` key of a refinement over several sessions, None otherwise."""
+    return sessions_to_dict(result.sessions) if result.sessions else None
+
+
+def read_sessions(path) -> dict[str, np.ndarray]:
+    """The ``sessions`` key of a parameter JSON: ``{session: tracker_from_base (4, 4) [mm]}`` in the file's order
+    (empty when absent); a frame that is not a rigid 4x4 transform is an :class:`InputError` naming the key."""
+    from robotcal.geometry.transforms import check_rigid_transform
+
+    path = Path(path)
+    data = read_json_file(path, kind="parameter JSON")
+    part: _SessionsPart = validate_model(_SessionsPart, data if isinstance(data, dict) else {}, str(path))
+    frames = {}
+    for name, entry in (part.sessions or {}).items():
+        key = f"sessions.{name}.tracker_from_base"
+        try:
+            frames[name] = check_rigid_transform(np.asarray(entry.tracker_from_base, dtype=float), f"{path}: {key}")
+        except InputError as exc:
+            raise InputError(f"{path}: key `{key}` must be a 4x4 rigid transform ({exc})") from None
+    return frames
 
 
 def read_tracker_from_base(path: str | os.PathLike[str]) -> np.ndarray | None:

@@ -116,6 +116,7 @@ class TargetTable(_Strict):
     flange_mm: list[TomlFloat] | Literal["unknown"] | None = None  # [x, y, z]: its length checked when read
     guess_mm: list[TomlFloat] | None = None
     reflector_mm: list[XYZList] | None = None  # one per joint (their count: the robot's)
+    per_session: bool = False  # an unknown offset re-seated between measurement sessions: one offset per session
 
     @model_validator(mode="after")
     def _one_position(self) -> TargetTable:
@@ -123,6 +124,8 @@ class TargetTable(_Strict):
             raise ValueError("give exactly one of `flange_mm` (a flange target) and `reflector_mm` (per joint)")
         if self.guess_mm is not None and self.flange_mm != "unknown":
             raise ValueError('`guess_mm` is the start of an unknown offset: it needs `flange_mm = "unknown"`')
+        if self.per_session and self.flange_mm != "unknown":
+            raise ValueError('`per_session` re-seats an unknown offset: it needs `flange_mm = "unknown"`')
         return self
 
 
@@ -593,7 +596,9 @@ def _targets(tables: list[TargetTable], n: int, source: str) -> tuple[Target, ..
         if len(position) != 3:  # not by type: a union's error would name both of flange_mm's types
             what = "flange_mm" if known else "guess_mm"
             raise InputError(f"{source}: key `{key}.{what}` must be [x, y, z] mm; got {len(position)} values")
-        targets.append(Target(name=table.name, frame="flange", positions=np.asarray(position), known=known))
+        targets.append(
+            Target(name=table.name, frame="flange", positions=np.asarray(position), known=known, per_session=table.per_session)
+        )
     return tuple(targets)
 
 

@@ -44,6 +44,7 @@ from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.io._validation import MAX_LINE_CHARS, csv_rows, read_text_file
+from robotcal.io.orientation import ORIENTATION_KEYS, orientation_columns
 
 __all__ = [
     "UNITS_MM",
@@ -64,7 +65,7 @@ _UNIT_ALIASES = {
 }  # fmt: skip
 #: Header names of a point-name column (lower case).
 NAME_HEADERS = ("name", "point", "point name", "point id", "pointid", "id", "label", "pose")
-MAP_KEYS = ("x", "y", "z", "name", "u95", "target", "circle", "direction")
+MAP_KEYS = ("x", "y", "z", "name", "u95", "target", "circle", "direction", *ORIENTATION_KEYS)
 #: A unit bracket ends a header: ``X [mm]``. Only square brackets: ``U(95)`` is a name, not the unit "95".
 _UNIT_IN_HEADER = re.compile(r"^(?P<base>.*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+([eE][+-]?\d+)?$")
@@ -84,6 +85,9 @@ class TrackerPoints:
         Expanded uncertainty U(95) [mm] of each point (k = 2), when the export gives one.
     target, circle, direction : tuple or ndarray or None
         Optional per-point columns (target names; circle and direction as integers).
+    orientation, orientation_u95 : ndarray or None
+        A 6-DoF probe's orientation per point, ``(n_points, 3, 3)`` (probe to tracker frame), and its U(95) [rad]
+        (:func:`robotcal.io.orientation.orientation_columns`).
     lines : ndarray of int, shape (n_points,)
         Line of the file each point was read from (for error messages).
     layout : str
@@ -103,6 +107,8 @@ class TrackerPoints:
     target: tuple[str, ...] | None = None
     circle: np.ndarray | None = None
     direction: np.ndarray | None = None
+    orientation: np.ndarray | None = None
+    orientation_u95: np.ndarray | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "points", _frozen(np.asarray(self.points, dtype=float)))
@@ -351,7 +357,7 @@ def _auto_columns(header: list[str]) -> tuple[dict[str, int], str]:
             key = "u95"
         elif base in NAME_HEADERS:
             key = "name"
-        elif base in ("target", "circle", "direction"):
+        elif base in ("target", "circle", "direction", "qw", "qx", "qy", "qz", "u95_deg"):  # others: --columns
             key = base
         if key is not None and key not in positions:
             positions[key] = position
@@ -450,6 +456,7 @@ def read_tracker_export(
             )
     names = _texts(values["name"]) if "name" in values else None
     target = _texts(values["target"]) if "target" in values else None
+    orientation, orientation_u95 = orientation_columns(values, source=str(source))
     if check_names:
         _check_unique_names(names, target, lines, source, column_name("name") if names else "")
     return TrackerPoints(
@@ -463,6 +470,8 @@ def read_tracker_export(
         target=target,
         circle=np.asarray(values["circle"]) if "circle" in values else None,
         direction=np.asarray(values["direction"]) if "direction" in values else None,
+        orientation=orientation,
+        orientation_u95=orientation_u95,
     )
 
 
@@ -787,6 +796,8 @@ def join_points_to_readings(
         target=target_index,
         target_names=target_names,
         u95=points.u95,
+        orientation=points.orientation,
+        orientation_u95=points.orientation_u95,
     )
 
 

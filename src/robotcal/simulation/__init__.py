@@ -20,11 +20,13 @@ axis, so its points lie 100 mm from the base origin:
 [100.0, 100.0, 100.0, 100.0, 100.0]
 """
 
-from robotcal.simulation import generator, perturb, plan, poses
+from robotcal.simulation import generator, perturb, plan, poses, probe, sessions
 from robotcal.simulation.generator import *
 from robotcal.simulation.perturb import *
 from robotcal.simulation.plan import *
 from robotcal.simulation.poses import *
+from robotcal.simulation.probe import *
+from robotcal.simulation.sessions import *
 
 # every public name of the modules, each listed once, in its module's __all__
-__all__ = [*generator.__all__, *perturb.__all__, *plan.__all__, *poses.__all__]
+__all__ = [*generator.__all__, *perturb.__all__, *plan.__all__, *poses.__all__, *probe.__all__, *sessions.__all__]

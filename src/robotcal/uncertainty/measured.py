@@ -75,9 +75,9 @@ from robotcal.identification.refine import (
     refine_parameters,
     wrap_angles,
 )
-from robotcal.identification.targets import Target, resolve_targets
+from robotcal.identification.targets import Target, resolve_targets, split_by_session
 from robotcal.instruments import Instrument
-from robotcal.kinematics.forward import target_positions
+from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.uncertainty.montecarlo import (
     LinearisedResult,
@@ -137,6 +137,11 @@ class MeasuredProblem:
         Where the noise comes from, in words (recorded in the files).
     options : dict
         Keyword arguments of every draw's :func:`refine_parameters` call.
+    exact_rotations : ndarray, shape (n_points, 3, 3), or None
+        A 6-DoF capture (issue 29): the probe's orientation at every pose through the estimate, tracker frame.
+    orientation_sd : ndarray, shape (n_points,), or None
+        Standard deviation of each rotation-vector component of the orientation noise [rad] (``u95_deg / 2``);
+        None with ``exact_rotations``: the instrument's orientation term gives it.
     """
 
     capture: Capture
@@ -147,6 +152,8 @@ class MeasuredProblem:
     instrument: Instrument | None
     noise_source: str
     options: dict = field(default_factory=dict)
+    exact_rotations: np.ndarray | None = None
+    orientation_sd: np.ndarray | None = None
 
     @property
     def robot(self):
@@ -238,6 +245,18 @@ def _base_points(capture: Capture, parameters: ParameterSet, reflector) -> np.nd
     return points
 
 
+def _in_tracker(capture: Capture, predicted: np.ndarray, tracker, sessions) -> np.ndarray:
+    """The predicted points in the tracker frame: each session's in its own frame (``sessions``, the reference's
+    :class:`~robotcal.identification.records.SessionFrame`), else all in ``tracker``."""
+    if not sessions:
+        return apply_transform(tracker, predicted)
+    exact = np.empty_like(predicted)
+    for frame in sessions:
+        rows = np.flatnonzero(capture.session == capture.session_names.index(frame.name))
+        exact[rows] = apply_transform(frame.tracker_from_base, predicted[rows])
+    return exact
+
+
 def _noise_model(capture: Capture, instrument: Instrument | None) -> tuple[np.ndarray | None, Instrument | None, str]:
     sigmas = point_sigmas(capture)
     if sigmas is not None:
@@ -293,11 +312,16 @@ def prepare_measured(
             f"the estimate is for robot {estimate.robot.name!r} ({estimate.robot.n_joints} joints); the capture has "
             f"{capture.n_joints} joint readings per point"
         )
+    stated = instrument  # a 6-DoF capture's refinement may need its orientation term
     noise_sd, instrument, source = _noise_model(capture, instrument)
+    if not isinstance(reflector, ReflectorMount):  # a re-seated target: one target per session (NAME@SESSION)
+        capture, reflector = split_by_session(capture, (reflector,) if isinstance(reflector, Target) else reflector)
     reflector = _with_offsets(reflector, offsets)
     base = True if criterion == "points" and estimate_base else None
     settings = RefinementSettings(criterion=criterion, weights=weights, estimate_base=base)
     options: dict = {"settings": settings, "tracker_from_base": tracker_from_base if criterion == "points" else None}
+    if capture.orientation is not None:
+        options["instrument"] = stated
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)  # the user saw them when refining
         reference = refine_parameters(capture, estimate, reflector, **options)
@@ -325,7 +349,14 @@ def prepare_measured(
         options["settings"] = replace(settings, estimate_base=bool(np.any(reference.identifiability.base_free)))
     else:  # distances: no base frame; any rigid placement gives the same distances
         tracker = register_points(predicted, capture.points).transform
-    exact = apply_transform(tracker, predicted)
+    exact = _in_tracker(capture, predicted, tracker, reference.sessions)
+    rotations, orientation_sd = _exact_rotations(capture, reference, tracker, stated)
+    if rotations is not None:
+        source += (
+            "; orientations: each point's u95_deg (k = 2, normal: u = U / 2 per rotation-vector component)"
+            if orientation_sd is not None
+            else f"; orientations: the instrument {stated.name!r}'s orientation_deg"
+        )
     return MeasuredProblem(
         capture=capture,
         reflector=reflector,
@@ -335,7 +366,30 @@ def prepare_measured(
         instrument=instrument,
         noise_source=source,
         options=options,
+        exact_rotations=rotations,
+        orientation_sd=orientation_sd,
     )
+
+
+def _exact_rotations(capture: Capture, reference: RefinementResult, tracker, instrument):
+    """A 6-DoF capture's orientations through the reference ``R_T F R_P`` and their noise's standard deviation
+    per rotation-vector component [rad] (``u95_deg / 2``; None: the instrument's); ``(None, None)`` otherwise."""
+    if reference.probe is None:
+        return None, None
+    parameters = reference.parameters
+    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(capture.readings))[:, :3, :3]
+    rotations = flange @ reference.probe.rotation
+    frames = {frame.name: frame.tracker_from_base for frame in reference.sessions}
+    for k, name in enumerate(capture.session_names if frames else ()):
+        rows = capture.session == k
+        rotations[rows] = frames[name][:3, :3] @ rotations[rows]
+    if not frames:
+        rotations = np.asarray(tracker, dtype=float)[:3, :3] @ rotations
+    if capture.orientation_u95 is not None:
+        return _frozen(rotations), _frozen(capture.orientation_u95 / 2.0)
+    if instrument is None or not instrument.orientation_standard_uncertainty:
+        raise InputError(f"{capture.source}: no orientation noise to simulate: give `u95_deg` or the instrument's")
+    return _frozen(rotations), None
 
 
 def _block_generator(seed: int, block: int) -> np.random.Generator:
@@ -349,15 +403,31 @@ def draw_noise(problem: MeasuredProblem, rng: np.random.Generator) -> np.ndarray
     return problem.instrument.sample_noise(problem.exact_points, rng=rng)
 
 
-def _refine_draw(problem: MeasuredProblem, points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def draw_rotations(problem: MeasuredProblem, rng: np.random.Generator) -> np.ndarray | None:
+    """One draw's measured orientations of a 6-DoF capture (drawn after the positions' noise): the exact ones
+    turned by a rotation vector ``N(0, (U95/2)^2)`` per component (or the instrument's); None without them."""
+    from robotcal.identification._orientation import rotation_exp
+
+    if problem.exact_rotations is None:
+        return None
+    count = problem.exact_rotations.shape[0]
+    if problem.orientation_sd is not None:
+        turns = rng.standard_normal((count, 3)) * problem.orientation_sd[:, None]
+    else:
+        turns = problem.options["instrument"].sample_orientation_noise(count, rng=rng)
+    return problem.exact_rotations @ rotation_exp(turns)
+
+
+def _refine_draw(problem: MeasuredProblem, points: np.ndarray, rotations=None) -> tuple[np.ndarray, np.ndarray] | None:
     """Parameters ``(n, 5)`` and unknown offsets ``(k, 3)`` of one noisy copy; None when the draw failed."""
     reference = problem.reference
+    capture = problem.capture.with_points(points)
+    if rotations is not None:
+        capture = capture.with_orientation(rotations)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IdentifiabilityWarning)
-            result = refine_parameters(
-                problem.capture.with_points(points), reference.parameters, problem.reflector, **problem.options
-            )
+            result = refine_parameters(capture, reference.parameters, problem.reflector, **problem.options)
     except (RobotcalError, np.linalg.LinAlgError, ValueError):
         return None
     if not result.success or result.identifiability.free_names != reference.identifiability.free_names:
@@ -377,7 +447,9 @@ def measured_block(problem: MeasuredProblem, seed: int, item: tuple[int, int]) -
     offsets = np.full((size, k, 3), np.nan)
     for draw in range(size):
         check_stop()  # in a pool worker: end the block when the pool shuts down
-        outcome = _refine_draw(problem, problem.exact_points + draw_noise(problem, rng))
+        points = problem.exact_points + draw_noise(problem, rng)
+        rotations = draw_rotations(problem, rng)
+        outcome = _refine_draw(problem, points) if rotations is None else _refine_draw(problem, points, rotations)
         if outcome is not None:
             values[draw], offsets[draw] = outcome
     return values, offsets
