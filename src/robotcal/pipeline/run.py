@@ -314,8 +314,12 @@ class _Run:
             figures=self.figures,
             step=self.step("uncertainty"),
             poses=self.results["poses"],
+            joints=self.results.get("joints"),
         )
-        self.results["montecarlo"] = output.value
+        value = dict(output.value)
+        # the deployed values: the refinement's estimate corrected for the bias its Monte Carlo measures
+        self.results["deployed"] = value.pop("deployed", self.results["refined"][stages.DEPLOYED].parameters)
+        self.results["montecarlo"] = value
         return output
 
     def _tcp(self) -> stages.StageOutput:
@@ -324,7 +328,8 @@ class _Run:
             targets=self.plan.tcp,
             draws=self.results["montecarlo"]["refined"],
             validation=self.results["validation"],
-            deployed=self.results["refined"][stages.DEPLOYED].parameters,
+            deployed=self.results["deployed"],
+            estimate=self.results["refined"][stages.DEPLOYED].parameters,
             workspace_seed=self.plan.seeds["workspace"],
             out=self.out,
             figures=self.figures,
@@ -349,7 +354,7 @@ class _Run:
         models = {
             "nominal": self.results["nominal"],
             "cpa": self.results["cpa"],
-            "refined": self.results["refined"][stages.DEPLOYED].parameters,
+            "refined": self.results.get("deployed", self.results["refined"][stages.DEPLOYED].parameters),
         }
         output = stages.iso9283_stage(
             self.plan.scenario,

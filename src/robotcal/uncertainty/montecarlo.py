@@ -44,7 +44,7 @@ import numpy as np
 
 from robotcal.errors import InputError, RobotcalError
 from robotcal.execution import open_executor, single_blas_thread
-from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel
+from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
 from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block
 from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
@@ -310,6 +310,31 @@ class MonteCarloResult:
         """The estimator's bias at :attr:`centre`, ``mean - centre`` [mm, rad], shape (n_joints, 5); 0 where
         a parameter is not determined by the model."""
         return np.where(self.identified, self.summary.mean - self.centre, 0.0)
+
+    @property
+    def extra_bias(self) -> np.ndarray:
+        """The same for the joint-model values, ``mean - extra_true`` ``(m,)``; 0 where not estimated."""
+        if self.extra_summary is None:
+            return np.zeros(0)
+        return np.where(self.extra_identified, self.extra_summary.mean - self.extra_true, 0.0)
+
+    def corrected(self, estimate: ParameterSet) -> ParameterSet:
+        """``estimate`` corrected for the bias the draws measure: the value to deploy (docs/uncertainty.md,
+        "The measurand").
+
+        The Monte Carlo simulated at ``estimate`` (its :attr:`centre`) measures the estimator's bias there,
+        which the capture's recognised systematic effects (the joint errors the joints stage measured) and the
+        estimator's non-linearity give; GUM (JCGM 100 §3.2.4) corrects a result for recognised systematic
+        effects. The corrected values ``centre - bias`` (and ``extra_true - extra_bias`` for the joint model)
+        are the centre of :meth:`interval` and :meth:`extra_interval`, which therefore contain them.
+        """
+        if estimate.robot.n_joints != self.robot.n_joints:
+            raise InputError(f"`estimate` has {estimate.robot.n_joints} joints; the draws {self.robot.n_joints}")
+        values = np.where(self.identified, self.centre - self.bias, estimate.values)
+        joint_model = estimate.joint_model
+        if self.is_extended and joint_model is not None and joint_model.names == self.joint_model.names:
+            joint_model = joint_model.with_values(joint_model.values - self.extra_bias)
+        return dataclasses.replace(estimate, values=values, joint_model=joint_model)
 
 
 # ------------------------------------------------------------------------------------ statistics
