@@ -356,7 +356,7 @@ def identify(
     if check and instrument is not None:
         check_capture(capture, robot, mount, instrument, options=options)
     result = identify_cpa(capture, robot, mount, tracker_from_base=tracker_from_base, options=options)
-    verdict = cpa_health(result, capture, instrument)
+    verdict = cpa_health(result, capture, instrument, None if scenario is None else scenario.repeatability_mm)
     if health != "off":
         report_health(verdict, source=capture.source, strict=health == "strict")
     return dataclasses.replace(result, health=verdict)
@@ -448,6 +448,7 @@ def refine(
     capture = _capture(capture, robot)
     choice = model_choice_settings(scenario, model, folds)
     if settings is None:
+        options.setdefault("repeatability_mm", None if scenario is None else scenario.repeatability_mm)
         settings = RefinementSettings(criterion=criterion, **options)
     elif options or criterion != "points":
         raise InputError("give `settings` or `criterion` and the options, not both")
@@ -575,6 +576,7 @@ def monte_carlo_problem(
         true_parameters=truth, joint_errors=joint_errors, joint_limits=joint_limits or "warn", model=model,
         criterion=criterion, poses=pose_readings, poses_target=pose_target,
         joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
+        repeatability_mm=None if scenario is None else scenario.repeatability_mm,
     )  # fmt: skip
 
 

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robotcal.geometry.registration import register_points
+from robotcal.identification.health import repeatability_sigma
 from robotcal.kinematics.forward import target_positions
 from robotcal.uncertainty.tcp import position_covariance
 
@@ -29,7 +30,8 @@ __all__ = ["check_validation_consistency"]
 
 METHOD = (
     "predicted = sqrt(mean over poses of tr V_p), V_p the covariance of the validation target position "
-    "over the Monte Carlo draws; instrument = sqrt(mean of 3 sigma_p^2) from U(L); expected = "
+    "over the Monte Carlo draws; instrument = sqrt(mean of 3 sigma_p^2) from U(L) (with the robot's repeatability "
+    "sigma_r^2 = (RP / 3.616)^2 added to sigma_p^2 when stated); expected = "
     "sqrt(predicted^2 + instrument^2); observed = RMS of |T p(estimate) - measured|"
 )
 
@@ -46,6 +48,7 @@ def check_validation_consistency(
     joint_model: JointModel | None = None,
     extra_draws: np.ndarray | None = None,
     model: str = "refined",
+    repeatability_mm: float | None = None,
 ) -> dict[str, Any]:
     """Predicted, instrument, expected and observed RMS errors at the validation points [mm].
 
@@ -66,6 +69,9 @@ def check_validation_consistency(
         of the error).
     model : str
         Name of the model, recorded.
+    repeatability_mm : float, optional
+        The robot's ISO 9283 pose repeatability RP [mm] (the noise budget): its scatter, ``3 sigma_r^2`` per point
+        (:func:`robotcal.identification.health.repeatability_sigma`), adds to the instrument's.
 
     Returns
     -------
@@ -86,7 +92,7 @@ def check_validation_consistency(
         robot, values, validation.readings, tool=target.positions[0], joint_model=joint_model, extra_draws=extra_draws
     )
     traces = np.trace(covariance, axis1=1, axis2=2)
-    noise = 3.0 * instrument.standard_uncertainty(measured) ** 2
+    noise = 3.0 * (instrument.standard_uncertainty(measured) ** 2 + repeatability_sigma(repeatability_mm) ** 2)
     expected = float(np.sqrt(np.mean(traces + noise)))
     observed_rms = float(np.sqrt(np.mean(observed**2)))
     return {
@@ -101,4 +107,5 @@ def check_validation_consistency(
         "observed_mean_mm": float(observed.mean()),
         "ratio": observed_rms / expected if expected > 0 else None,
         "method": METHOD,
+        **({} if repeatability_mm is None else {"repeatability_mm": float(repeatability_mm)}),
     }

@@ -79,7 +79,7 @@ def _noise(
     noise = np.empty(shape) if out is None else out
     if problem.instrument.is_noise_free:
         noise[...] = 0.0
-        return noise
+        return _add_repeatability(problem, noise, rng)
     # The bound of every coordinate as one row of 3 n_points numbers: the in-place product then runs
     # along whole draws rather than 3 numbers at a time (the same products, in long inner loops).
     bound = np.repeat(problem.error_bound, 3)
@@ -92,6 +92,15 @@ def _noise(
         bound = bound / problem.instrument.coverage_factor
     flat = noise.reshape(n_draws, -1)  # a view: the product is made in place (millions of numbers)
     flat *= bound
+    return _add_repeatability(problem, noise, rng)
+
+
+def _add_repeatability(problem: MonteCarloProblem, noise: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The robot's pose scatter (the noise budget), isotropic normal of ``problem.repeatability_sd`` per coordinate,
+    added to ``noise`` in place, drawn after the instrument's errors from the same generator (none when 0: the
+    draws of a problem without it are unchanged)."""
+    if problem.repeatability_sd > 0.0:
+        noise += problem.repeatability_sd * rng.standard_normal(noise.shape)
     return noise
 
 
