@@ -324,7 +324,8 @@ def uncertainty_stage(
                 document = parameters_to_dict(corrected, provenance)
                 written[DEPLOYED_FILE] = write_json(folder / DEPLOYED_FILE, document)
         documents.update(_in(name, written, out / name))
-        figures.draw("robotcal.plots.montecarlo:write_histograms", result, out / name)
+        deployed_values = {} if name == "uncertainty" else {"deployed": corrected}
+        figures.draw("robotcal.plots.montecarlo:write_histograms", result, out / name, **deployed_values)
     rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in results.values()]
     detail = (
         f"CPA {results['cpa'].n_draws:,} draws ({rates[0]:,.0f}/s), "
