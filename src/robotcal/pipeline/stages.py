@@ -41,7 +41,7 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
 from robotcal.simulation.generator import JointErrorModel
-from robotcal.uncertainty.joint_errors import measured_joint_errors
+from robotcal.uncertainty.joint_errors import backlash_uncertainty, measured_joint_errors
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
 
 __all__ = [
@@ -295,6 +295,7 @@ def uncertainty_stage(
     Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult, "deployed": ParameterSet}``.
     """
     joint_errors = measured_errors(scenario, joints, deployed)
+    lash_u = None if joints is None else backlash_uncertainty(joints.diagnostics)
     total = montecarlo.iterations + refined_montecarlo.iterations
     results = {}
     for model, settings, parameters, done in (
@@ -309,6 +310,7 @@ def uncertainty_stage(
             criterion=DEPLOYED,
             rng=seed,
             joint_errors=joint_errors,
+            backlash_u=lash_u,
             progress=lambda count, expected, done=done: step(done + count, total, "draws"),
             **({"poses": poses} if model == "refined" and poses is not None else {}),
         )
@@ -340,7 +342,7 @@ def measured_errors(scenario: Scenario, joints: api.JointAnalysis | None, estima
     if joints is None:
         return JointErrorModel.zeros(scenario.robot.n_joints)
     return measured_joint_errors(
-        joints.diagnostics, joints.harmonics, estimate, scenario.plan, scenario.tracker_from_base,
+        joints.diagnostics, estimate, scenario.plan, scenario.tracker_from_base,
         circle_fit=scenario.identification.circle_fit,
     )  # fmt: skip
 

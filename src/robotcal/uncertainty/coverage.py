@@ -270,8 +270,8 @@ def coverage_study(
                     interval, result = (refined.parameters.values - z * u, refined.parameters.values + z * u), None
                 else:
                     centre = cpa if method == "cpa-mc" else refined.parameters
-                    errors = _measured(setup, capture, centre) if measured_joint_errors else setup.joint_errors
-                    result = _monte_carlo_at(setup, centre, method, settings, mc_seed, errors)
+                    errors = _measured(setup, capture, centre) if measured_joint_errors else (setup.joint_errors, None)
+                    result = _monte_carlo_at(setup, centre, method, settings, mc_seed, *errors)
                     interval, u = result.interval(), result.summary.std_uncertainty
                 records.add(method, interval, u, result, truth.values, checked, tcp, coverage)
             if progress is not None:
@@ -354,28 +354,31 @@ def _estimates(setup: _Setup, truth: ParameterSet, capture_seed: int):
     return cpa, refined, capture
 
 
-def _measured(setup: _Setup, capture, centre: ParameterSet) -> JointErrorModel:
-    """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``."""
-    from robotcal.diagnostics.harmonics import fit_harmonics
+def _measured(setup: _Setup, capture, centre: ParameterSet) -> tuple[JointErrorModel, np.ndarray]:
+    """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``, and
+    the standard uncertainty of their backlash [rad]."""
     from robotcal.diagnostics.joints import analyze_joints
-    from robotcal.uncertainty.joint_errors import measured_joint_errors
+    from robotcal.uncertainty.joint_errors import backlash_uncertainty, measured_joint_errors
 
     method = setup.options.circle_fit
     diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)  # type: ignore[arg-type]
-    return measured_joint_errors(
-        diagnostics, fit_harmonics(diagnostics), centre, setup.plan, setup.tracker_from_base, circle_fit=method
+    errors = measured_joint_errors(
+        diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method
     )
+    return errors, backlash_uncertainty(diagnostics)
 
 
-def _monte_carlo_at(setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None):
+def _monte_carlo_at(
+    setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None, backlash_u=None
+):
     """The Monte Carlo a user is given for one capture: simulated at its estimate ``centre`` (module notes), with
-    ``joint_errors``."""
+    ``joint_errors`` (and the standard uncertainty ``backlash_u`` of their backlash, when measured)."""
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
 
     problem = prepare_monte_carlo(
         setup.robot, setup.plan, setup.instrument, setup.tracker_from_base, options=setup.options,
         true_parameters=centre, joint_errors=joint_errors, joint_limits=setup.joint_limits,
-        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion,
+        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion, backlash_u=backlash_u,
     )  # fmt: skip
     return run_monte_carlo(problem, settings, seed=seed, linearised=False)
 

@@ -29,7 +29,7 @@ from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem
 if TYPE_CHECKING:
     from robotcal.uncertainty.refined_kernel import RefinedModel
 
-__all__ = ["draw_block"]
+__all__ = ["draw_block", "solve_points"]
 
 #: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
 REFINE_BATCH = 500
@@ -147,6 +147,20 @@ def draw_block(
             raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
         values[start : start + count] = result[:count]
     return values
+
+
+def solve_points(problem: MonteCarloProblem, points: np.ndarray) -> np.ndarray:
+    """The outputs (rows as :func:`draw_block`'s) of captures whose measured points are ``points (k, n_points, 3)``
+    [mm]: what a draw computes, without drawing (a noise-free capture of other joint errors, say)."""
+    points = np.asarray(points, dtype=float)
+    count = points.shape[0]
+    if count == 1:
+        points = np.concatenate([points, points])
+    batch = identify_cpa_batch(points[:, : problem.n_circle], problem.structure, problem.tracker_from_base, residuals=False)
+    result = batch.values.reshape(batch.values.shape[0], -1)
+    if problem.refined is not None:
+        result = _refine_draws(problem.refined, points, batch)
+    return result[:count]
 
 
 def _refine_draws(model: RefinedModel, points: np.ndarray, batch, solver: str = "gauss-newton") -> np.ndarray:

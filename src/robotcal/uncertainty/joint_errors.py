@@ -23,14 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from robotcal.diagnostics.harmonics import HarmonicModel
 from robotcal.diagnostics.joints import JointDiagnostics, analyze_joints
 from robotcal.instruments import Instrument
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import JointErrorModel, simulate_capture
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["measured_joint_errors"]
+__all__ = ["backlash_uncertainty", "measured_joint_errors"]
 
 #: The eccentricity shapes fitted, two per group (sine and cosine of the same harmonic): per shape the
 #: (amplitude, phase [rad], harmonic order) of the terms dx, dy, dz. A once-per-turn run-out of the axis,
@@ -45,7 +44,9 @@ _SHAPES = (
 #: A combination of the shapes is fitted only where the circles show at least this fraction of it (RMS of the
 #: eccentricity it leaves after the circle fits, per unit amplitude): a short arc leaves an order-2 shape mostly to
 #: the circle fit, and what the capture cannot show is not amplified out of its noise (it stays 0).
-_SHOWN = 0.15
+_SHOWN = 0.3
+#: The eccentricity is kept only when it stands out of the circle's noise at this level (:func:`_shown_fit`).
+_SIGNIFICANCE = 0.99
 #: Amplitude of the unit responses [mm]: small enough that the circle fits respond linearly.
 _PROBE_MM = 1e-3
 _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
@@ -53,19 +54,18 @@ _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
 
 def measured_joint_errors(
     diagnostics: JointDiagnostics,
-    harmonics: HarmonicModel,
     estimate: ParameterSet,
     plan: CapturePlan,
     tracker_from_base,
     *,
     circle_fit: str = "geometric",
 ) -> JointErrorModel:
-    """The joint error model of a capture's joints stage, in the simulation's form (module notes).
+    """The joint error model the joints stage measured, in the simulation's form (module notes).
 
     Parameters
     ----------
-    diagnostics, harmonics
-        The joints stage's analysis of the capture (:class:`robotcal.studies.JointAnalysis`).
+    diagnostics : JointDiagnostics
+        The joints stage's analysis of the capture (:class:`robotcal.studies.JointAnalysis` ``.diagnostics``).
     estimate : ParameterSet
         The robot the Monte Carlo simulates (the calibration's estimate) [mm, rad].
     plan : CapturePlan
@@ -79,8 +79,7 @@ def measured_joint_errors(
     JointErrorModel
         Deterministic (``noise_sd`` 0): amplitudes [mm], periods and phases [rad], backlash [rad].
     """
-    robot = estimate.robot
-    n = robot.n_joints
+    n = estimate.robot.n_joints
     backlash = np.zeros(n)
     for row in diagnostics.summary():
         if np.isfinite(row.backlash_angle_mean):
@@ -90,14 +89,30 @@ def measured_joint_errors(
     ]
     amplitude, phase = np.zeros((n, 5)), np.zeros((n, 5))
     period = np.tile(2.0 * np.pi / np.array([1.0, 1.0, 2.0, 1.0, 1.0]), (n, 1))
-    for joint, reading in responses[0]["readings"].items():
-        measured = np.concatenate([harmonics.predict(joint, q, reading) for q in ("radial", "axial")])
-        design = np.stack([response[joint] for response in responses], axis=1)
-        c = _shown_fit(design, measured) * _PROBE_MM
+    for circle in diagnostics.circles:
+        if circle.joint not in responses[0] or not np.isfinite(circle.noise_sigma):
+            continue
+        design = np.stack([_at(response[circle.joint], circle.reading) for response in responses], axis=1)
+        c = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma) * _PROBE_MM
         run_out, run_phase = np.hypot(c[0], c[1]), np.arctan2(c[1], c[0])
-        amplitude[joint - 1, :3] = run_out, run_out, np.hypot(c[2], c[3])
-        phase[joint - 1, :3] = run_phase, run_phase + 0.5 * np.pi, np.arctan2(c[3], c[2])
+        amplitude[circle.joint - 1, :3] = run_out, run_out, np.hypot(c[2], c[3])
+        phase[circle.joint - 1, :3] = run_phase, run_phase + 0.5 * np.pi, np.arctan2(c[3], c[2])
     return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((n, 5)), backlash=backlash)
+
+
+def backlash_uncertainty(diagnostics: JointDiagnostics) -> np.ndarray:
+    """Standard uncertainty of each joint's measured backlash angle ``(n_joints,)`` [rad]: the standard deviation of
+    its pairs' angles over the square root of their number (turnaround pairs left out; 0 with fewer than 2).
+
+    The backlash the Monte Carlo simulates is measured, so the bias it gives, and the correction of the deployed
+    values for it, carry this uncertainty (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_u`).
+    """
+    u = np.zeros(diagnostics.n_joints)
+    for circle in diagnostics.circles:
+        angles = circle.backlash_angle[~circle.turnaround]
+        if angles.size >= 2:
+            u[circle.joint - 1] = float(np.std(angles, ddof=1)) / np.sqrt(angles.size)
+    return u
 
 
 def _shape_model(n_joints: int, shape) -> JointErrorModel:
@@ -110,20 +125,37 @@ def _shape_model(n_joints: int, shape) -> JointErrorModel:
 
 
 def _eccentricity(errors: JointErrorModel, estimate, plan, tracker_from_base, circle_fit) -> dict:
-    """Per joint (1-based): the radial then axial eccentricity the noise-free circles show with ``errors``, and
-    under the key ``"readings"`` the turning joint's readings of every circle [rad]."""
+    """Per joint (1-based): the turning joint's readings [rad] and the radial and axial eccentricity [mm] the
+    noise-free circles of the plan show with ``errors``."""
     capture, _ = simulate_capture(
         estimate.robot, plan, _NOISE_FREE, tracker_from_base, true_parameters=estimate, joint_errors=errors,
         joint_limits="ignore", rng=0,
     )  # fmt: skip
     analysis = analyze_joints(capture, backlash=False, method=circle_fit)  # type: ignore[arg-type]
-    out: dict = {circle.joint: np.concatenate([circle.radial, circle.axial]) for circle in analysis.circles}
-    out["readings"] = {circle.joint: circle.reading for circle in analysis.circles}
-    return out
+    return {circle.joint: (circle.reading, circle.radial, circle.axial) for circle in analysis.circles}
 
 
-def _shown_fit(design: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """Least squares ``design c = measured`` over the singular directions the circles show (:data:`_SHOWN`)."""
+def _at(response: tuple, readings: np.ndarray) -> np.ndarray:
+    """A shape's radial then axial eccentricity at ``readings`` (interpolated in the reading; the forward and
+    return points of one reading, which a shape moves alike, averaged)."""
+    simulated, radial, axial = response
+    grid, index = np.unique(simulated, return_inverse=True)
+    count = np.bincount(index, minlength=grid.size)
+    mean = [np.bincount(index, weights=values, minlength=grid.size) / count for values in (radial, axial)]
+    return np.concatenate([np.interp(readings, grid, values) for values in mean])
+
+
+def _shown_fit(design: np.ndarray, measured: np.ndarray, noise_sigma: float) -> np.ndarray:
+    """Least squares ``design c = measured`` over the singular directions the circles show (:data:`_SHOWN`); zero
+    unless the fitted eccentricity stands out of the noise (chi-squared test at :data:`_SIGNIFICANCE` of its squared
+    norm over ``noise_sigma^2``, as many degrees of freedom as directions shown): a noise-only capture gives none."""
+    from scipy.stats import chi2  # scipy.stats is slow to import: only when a joints analysis is converted
+
     left, singular, right = np.linalg.svd(design, full_matrices=False)
     shown = singular / np.sqrt(design.shape[0]) >= _SHOWN * _PROBE_MM
-    return right[shown].T @ ((left[:, shown].T @ measured) / singular[shown])
+    projection = left[:, shown].T @ measured
+    if not shown.any():
+        return np.zeros(design.shape[1])
+    if noise_sigma > 0 and float(projection @ projection) <= noise_sigma**2 * chi2.ppf(_SIGNIFICANCE, int(shown.sum())):
+        return np.zeros(design.shape[1])
+    return right[shown].T @ (projection / singular[shown])

@@ -56,6 +56,7 @@ from robotcal.uncertainty.statistics import (
     coverage_interval,
     numerical_tolerance,
     summarize_draws,
+    widened_interval,
 )
 
 if TYPE_CHECKING:
@@ -224,6 +225,9 @@ class MonteCarloResult:
         Joint-model values the refinement estimates (the others stay 0 in every draw).
     extra_true : ndarray, shape (m,)
         The values of the robot the capture was simulated from (the centre of :meth:`extra_interval`).
+    correction_shifts : ndarray, shape (k, 5 n + m), or None
+        How the bias moves with each measured joint error of stated uncertainty
+        (:attr:`MonteCarloProblem.correction_shifts`): the bias correction's uncertainty, :attr:`correction_u`.
     """
 
     robot: RobotModel
@@ -250,6 +254,7 @@ class MonteCarloResult:
     extra_summary: SampleSummary | None = None
     extra_identified: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    correction_shifts: np.ndarray | None = None
 
     @property
     def is_extended(self) -> bool:
@@ -269,7 +274,34 @@ class MonteCarloResult:
         draws' interval moved by twice the bias against :attr:`extra_true`, as :meth:`interval`."""
         low, high = self.extra_summary.interval(self.settings.interval)
         moved_low, moved_high = bias_corrected_interval(low, high, self.extra_summary.mean, self.extra_true)
+        moved_low, moved_high = widened_interval(
+            moved_low, moved_high, self.extra_true - self.extra_bias, self.extra_correction_u, self.settings.coverage
+        )
         return np.where(self.extra_identified, moved_low, low), np.where(self.extra_identified, moved_high, high)
+
+    @property
+    def correction_u(self) -> np.ndarray:
+        """Standard uncertainty of the bias correction ``(n_joints, 5)`` [mm, rad]: the root sum of squares of
+        :attr:`correction_shifts` (the measured joint errors' uncertainty, propagated); zeros without them."""
+        n = self.robot.n_joints
+        if self.correction_shifts is None or self.correction_shifts.size == 0:
+            return np.zeros((n, 5))
+        u = np.sqrt(np.sum(self.correction_shifts[:, : 5 * n] ** 2, axis=0)).reshape(n, 5)
+        return np.where(self.identified, u, 0.0)
+
+    @property
+    def extra_correction_u(self) -> np.ndarray:
+        """The same for the joint-model values ``(m,)``."""
+        n, m = self.robot.n_joints, self.extra_true.size
+        if self.correction_shifts is None or self.correction_shifts.size == 0 or m == 0:
+            return np.zeros(m)
+        return np.sqrt(np.sum(self.correction_shifts[:, 5 * n :] ** 2, axis=0))
+
+    @property
+    def combined_u(self) -> np.ndarray:
+        """The standard uncertainty of the deployed values ``(n_joints, 5)``: the draws' u and the bias
+        correction's :attr:`correction_u` in quadrature [mm, rad]."""
+        return np.hypot(self.summary.std_uncertainty, self.correction_u)
 
     @property
     def centre(self) -> np.ndarray:
@@ -298,11 +330,16 @@ class MonteCarloResult:
         The draws' interval moved by twice the bias, ``[low - 2 b, high - 2 b]`` with ``b`` = :attr:`bias`
         (:func:`robotcal.uncertainty.statistics.bias_corrected_interval`): draws simulated at an estimate
         are centred on estimate + bias, i.e. on truth + 2 bias; moved, the interval is centred on the
-        bias-corrected estimate and keeps the draws' shape. Parameters the model does not determine
-        (``identified`` False) keep the value they have in every draw.
+        bias-corrected estimate and keeps the draws' shape. Where the bias comes from measured joint errors of
+        stated uncertainty, each end is moved away from that centre to cover the bias correction's uncertainty too
+        (:attr:`correction_u`, :func:`robotcal.uncertainty.statistics.widened_interval`). Parameters the model does
+        not determine (``identified`` False) keep the value they have in every draw.
         """
         low, high = self.draws_interval()
         corrected_low, corrected_high = bias_corrected_interval(low, high, self.summary.mean, self.centre)
+        corrected_low, corrected_high = widened_interval(
+            corrected_low, corrected_high, self.centre - self.bias, self.correction_u, self.settings.coverage
+        )
         return np.where(self.identified, corrected_low, low), np.where(self.identified, corrected_high, high)
 
     @property
@@ -523,6 +560,7 @@ def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool
         extra_summary=extra_summary,
         extra_identified=problem.identified_all[5 * n :],
         extra_true=problem.extra_true,
+        correction_shifts=problem.correction_shifts if problem.correction_shifts.size else None,
     )
 
 

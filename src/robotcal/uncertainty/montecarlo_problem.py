@@ -82,6 +82,10 @@ class MonteCarloProblem:
         The robot's pose scatter per coordinate [mm] (the noise budget: the stated ISO 9283 repeatability RP /
         3.616, :func:`robotcal.identification.health.repeatability_sigma`), added to every point of every draw as
         isotropic normal noise after the instrument's; 0 when not stated.
+    correction_shifts : ndarray, shape (k, 5 n + m)
+        Per measured joint error of known standard uncertainty (``backlash_u``), how the noise-free solution, and
+        so the bias, moves when that joint error is one standard uncertainty larger (rows as a draw's outputs);
+        their root sum of squares is the standard uncertainty of the bias correction. Empty when not asked for.
     """
 
     robot: RobotModel
@@ -101,6 +105,7 @@ class MonteCarloProblem:
     n_circle: int = -1
     extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
     repeatability_sd: float = 0.0
+    correction_shifts: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     def __post_init__(self):
         if self.n_circle < 0:
@@ -139,6 +144,7 @@ def prepare_monte_carlo(
     poses_target: Target | None = None,
     joint_model: JointModel | None = None,
     repeatability_mm: float | None = None,
+    backlash_u=None,
 ) -> MonteCarloProblem:
     """Simulate the noise-free capture once and check that CPA can identify it.
 
@@ -167,6 +173,9 @@ def prepare_monte_carlo(
     repeatability_mm : float, optional
         The robot's ISO 9283 pose repeatability RP [mm]: every draw adds its scatter to every point
         (:attr:`MonteCarloProblem.repeatability_sd`).
+    backlash_u : array_like, shape (n_joints,), optional
+        Standard uncertainty of the backlash angles of ``joint_errors`` [rad] (measured, as by the joints stage):
+        the problem then holds how the bias moves with each (:attr:`MonteCarloProblem.correction_shifts`).
     """
     if model not in MODELS:
         raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
@@ -189,7 +198,7 @@ def prepare_monte_carlo(
             repeatability_sd=repeatability_sd,
         )  # fmt: skip
         values, identified = refined.reference_values, reference.identified | refined.free
-    return MonteCarloProblem(
+    problem = MonteCarloProblem(
         robot=robot,
         true_parameters=true_parameters,
         capture=capture,
@@ -208,6 +217,30 @@ def prepare_monte_carlo(
         extra_true=extra_true,
         repeatability_sd=repeatability_sd,
     )
+    if backlash_u is None or not np.any(np.asarray(backlash_u, dtype=float) > 0):
+        return problem
+    shifts = _correction_shifts(problem, plan, joint_errors, np.asarray(backlash_u, dtype=float), joint_limits)
+    return dataclasses.replace(problem, correction_shifts=shifts)
+
+
+def _correction_shifts(problem: MonteCarloProblem, plan, joint_errors, backlash_u: np.ndarray, joint_limits):
+    """:attr:`MonteCarloProblem.correction_shifts`: the noise-free capture re-simulated with each backlash one
+    standard uncertainty larger, solved as a draw is, minus the noise-free solution (a linear propagation of the
+    measured backlash's uncertainty to the bias, JCGM 100 §5.1.2)."""
+    from robotcal.uncertainty.draws import solve_points
+
+    base = JointErrorModel.zeros(problem.robot.n_joints) if joint_errors is None else joint_errors
+    captures = [problem.exact_points]
+    for joint in np.flatnonzero(backlash_u > 0):
+        lash = np.array(base.backlash)
+        lash[joint] += backlash_u[joint]
+        _, exact = _noise_free_capture(
+            problem.robot, plan, problem.tracker_from_base, problem.true_parameters,
+            dataclasses.replace(base, backlash=lash), joint_limits,
+        )  # fmt: skip
+        captures.append(np.concatenate([exact, problem.exact_points[problem.n_circle :]]))
+    values = solve_points(problem, np.stack(captures))
+    return values[1:] - values[0]
 
 
 def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits):
