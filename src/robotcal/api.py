@@ -540,7 +540,7 @@ def monte_carlo_problem(
     criterion: Criterion = "points",
     poses: Capture | PathLike | None = None,
     joint_model: JointModel | None = None,
-    backlash_u: Any = None,
+    joint_error_sources: Any = None,
 ) -> MonteCarloProblem:
     """The Monte Carlo problem (:func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`) of a capture plan:
     every input check happens here, before any draw. Arguments as for :func:`monte_carlo`."""
@@ -577,7 +577,7 @@ def monte_carlo_problem(
         true_parameters=truth, joint_errors=joint_errors, joint_limits=joint_limits or "warn", model=model,
         criterion=criterion, poses=pose_readings, poses_target=pose_target,
         joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
-        repeatability_mm=None if scenario is None else scenario.repeatability_mm, backlash_u=backlash_u,
+        repeatability_mm=None if scenario is None else scenario.repeatability_mm, joint_error_sources=joint_error_sources,
     )  # fmt: skip
 
 
@@ -607,7 +607,7 @@ def monte_carlo(
     progress: Callable[[int, int | None], None] | None = None,
     poses: Capture | PathLike | None = None,
     joint_model: JointModel | None = None,
-    backlash_u: Any = None,
+    joint_error_sources: Any = None,
 ) -> MonteCarloResult:
     """GUM Supplement 1 Monte Carlo of a calibration by Circle Point Analysis (thesis ch. 5.2.3).
 
@@ -637,9 +637,10 @@ def monte_carlo(
         for ``"refined"`` (where it costs as much as many draws).
     progress : callable, optional
         ``progress(draws_done, draws_total)`` after every block.
-    backlash_u : array_like, shape (n_joints,), optional
-        Standard uncertainty [rad] of the backlash of ``joint_errors`` when it was measured (the joints stage):
-        the bias correction's uncertainty (``result.correction_u``) widens the stated interval.
+    joint_error_sources : sequence of JointErrorModel, optional
+        Where ``joint_errors`` were measured (the joints stage, :func:`robotcal.uncertainty.joint_errors.
+        measured_joint_errors`): each measured input one standard uncertainty larger; the bias correction's
+        uncertainty (``result.correction_u``) then widens the stated interval.
 
     Returns
     -------
@@ -669,7 +670,7 @@ def monte_carlo(
     problem = monte_carlo_problem(
         robot, plan=plan, instrument=instrument, tracker_from_base=tracker_from_base, parameters=parameters,
         options=options, joint_errors=joint_errors, joint_limits=joint_limits, model=model, criterion=criterion,
-        poses=poses, joint_model=joint_model, backlash_u=backlash_u,
+        poses=poses, joint_model=joint_model, joint_error_sources=joint_error_sources,
     )  # fmt: skip
     seed = seed_from(rng, scenario.montecarlo.seed if scenario is not None and scenario.montecarlo else None)
     linearised = model == "cpa" if linearised is None else linearised

@@ -61,6 +61,7 @@ CSV_COLUMNS = (
     "estimate",
     "deployed",
     "bias_treatment",
+    "correction_u",
 )
 #: ``bias_treatment`` of a deployed model's rows: its value is the estimate corrected for the bias.
 BIAS_SUBTRACTED = "subtracted: deployed = estimate - bias"
@@ -92,7 +93,9 @@ def uncertainty_rows(result: MonteCarloResult, deployed: ParameterSet | None = N
 
     ``estimate`` is the value the Monte Carlo was simulated at (:attr:`MonteCarloResult.centre`); ``deployed``
     (given: the value deployed, ``result.corrected(estimate)``, the centre of ``coverage_low/high``; else empty)
-    and ``bias_treatment`` say what was done with the bias."""
+    and ``bias_treatment`` say what was done with the bias; ``correction_u`` is the standard uncertainty of that
+    correction (from the measured joint errors', :attr:`MonteCarloResult.correction_u`), which ``coverage_low/high``
+    include (the deployed value's u: ``std_uncertainty`` and ``correction_u`` in quadrature)."""
     scale = _scale(result)
     summary = result.summary
     low, high = result.interval()  # for the measurand: the draws' interval moved by twice the bias
@@ -120,6 +123,7 @@ def uncertainty_rows(result: MonteCarloResult, deployed: ParameterSet | None = N
         "draws_low": flat(draws_low),
         "draws_high": flat(draws_high),
         "estimate": flat(result.centre),
+        "correction_u": flat(result.correction_u),
     }
     if deployed is not None:
         columns["deployed"] = flat(deployed.values)
@@ -175,6 +179,7 @@ def _joint_model_rows(result: MonteCarloResult, deployed: ParameterSet | None) -
         "draws_low": draws_low,
         "draws_high": draws_high,
         "estimate": result.extra_true,
+        "correction_u": result.extra_correction_u,
     }
     if deployed is not None and deployed.joint_model is not None and deployed.joint_model.names == model.names:
         columns["deployed"] = deployed.joint_model.values

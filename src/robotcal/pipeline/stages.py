@@ -41,7 +41,7 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
 from robotcal.simulation.generator import JointErrorModel
-from robotcal.uncertainty.joint_errors import backlash_uncertainty, measured_joint_errors
+from robotcal.uncertainty.joint_errors import MeasuredJointErrors, measured_joint_errors
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
 
 __all__ = [
@@ -294,8 +294,7 @@ def uncertainty_stage(
     once both are computed (a failure or an interrupt while computing leaves neither).
     Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult, "deployed": ParameterSet}``.
     """
-    joint_errors = measured_errors(scenario, joints, deployed)
-    lash_u = None if joints is None else backlash_uncertainty(joints.diagnostics)
+    measured = measured_errors(scenario, joints, deployed)
     total = montecarlo.iterations + refined_montecarlo.iterations
     results = {}
     for model, settings, parameters, done in (
@@ -309,8 +308,8 @@ def uncertainty_stage(
             model=model,
             criterion=DEPLOYED,
             rng=seed,
-            joint_errors=joint_errors,
-            backlash_u=lash_u,
+            joint_errors=measured.model,
+            joint_error_sources=measured.sources,
             progress=lambda count, expected, done=done: step(done + count, total, "draws"),
             **({"poses": poses} if model == "refined" and poses is not None else {}),
         )
@@ -336,11 +335,14 @@ def uncertainty_stage(
     return StageOutput({**results, "deployed": corrected}, documents, detail)
 
 
-def measured_errors(scenario: Scenario, joints: api.JointAnalysis | None, estimate: ParameterSet) -> JointErrorModel:
-    """The joint errors a calibration's Monte Carlo simulates: those the joints stage measured from the capture
-    (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`), none without a joints analysis."""
+def measured_errors(
+    scenario: Scenario, joints: api.JointAnalysis | None, estimate: ParameterSet
+) -> MeasuredJointErrors:
+    """The joint errors a calibration's Monte Carlo simulates: those the joints stage measured from the capture,
+    with their uncertainty (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`); none without a joints
+    analysis."""
     if joints is None:
-        return JointErrorModel.zeros(scenario.robot.n_joints)
+        return MeasuredJointErrors(model=JointErrorModel.zeros(scenario.robot.n_joints))
     return measured_joint_errors(
         joints.diagnostics, estimate, scenario.plan, scenario.tracker_from_base,
         circle_fit=scenario.identification.circle_fit,

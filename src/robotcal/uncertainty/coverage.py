@@ -354,31 +354,29 @@ def _estimates(setup: _Setup, truth: ParameterSet, capture_seed: int):
     return cpa, refined, capture
 
 
-def _measured(setup: _Setup, capture, centre: ParameterSet) -> tuple[JointErrorModel, np.ndarray]:
+def _measured(setup: _Setup, capture, centre: ParameterSet) -> tuple[JointErrorModel, tuple]:
     """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``, and
-    the standard uncertainty of their backlash [rad]."""
+    their uncertainty's sources (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`)."""
     from robotcal.diagnostics.joints import analyze_joints
-    from robotcal.uncertainty.joint_errors import backlash_uncertainty, measured_joint_errors
+    from robotcal.uncertainty.joint_errors import measured_joint_errors
 
     method = setup.options.circle_fit
     diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)  # type: ignore[arg-type]
-    errors = measured_joint_errors(
-        diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method
-    )
-    return errors, backlash_uncertainty(diagnostics)
+    measured = measured_joint_errors(diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method)
+    return measured.model, measured.sources
 
 
 def _monte_carlo_at(
-    setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None, backlash_u=None
+    setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None, sources=None
 ):
     """The Monte Carlo a user is given for one capture: simulated at its estimate ``centre`` (module notes), with
-    ``joint_errors`` (and the standard uncertainty ``backlash_u`` of their backlash, when measured)."""
+    ``joint_errors`` (and, when measured, the ``sources`` of their uncertainty)."""
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
 
     problem = prepare_monte_carlo(
         setup.robot, setup.plan, setup.instrument, setup.tracker_from_base, options=setup.options,
         true_parameters=centre, joint_errors=joint_errors, joint_limits=setup.joint_limits,
-        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion, backlash_u=backlash_u,
+        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion, joint_error_sources=sources,
     )  # fmt: skip
     return run_monte_carlo(problem, settings, seed=seed, linearised=False)
 

@@ -21,6 +21,8 @@ predicts at the same readings. The translational lash and the tilt terms ``ex, e
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from robotcal.diagnostics.joints import JointDiagnostics, analyze_joints
@@ -29,7 +31,7 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import JointErrorModel, simulate_capture
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["backlash_uncertainty", "measured_joint_errors"]
+__all__ = ["MeasuredJointErrors", "measured_joint_errors"]
 
 #: The eccentricity shapes fitted, two per group (sine and cosine of the same harmonic): per shape the
 #: (amplitude, phase [rad], harmonic order) of the terms dx, dy, dz. A once-per-turn run-out of the axis,
@@ -52,6 +54,26 @@ _PROBE_MM = 1e-3
 _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MeasuredJointErrors:
+    """The joint errors a joints analysis measured, in the simulation's form, with their uncertainty.
+
+    Attributes
+    ----------
+    model : JointErrorModel
+        The measured values (deterministic: ``noise_sd`` 0): amplitudes [mm], periods and phases [rad], backlash
+        [rad].
+    sources : tuple of JointErrorModel
+        One per independent measured input of non-zero standard uncertainty (a joint's backlash, a direction of a
+        joint's eccentricity the circle shows): ``model`` with that input moved by one standard uncertainty. A
+        Monte Carlo propagates them to the bias correction (``joint_error_sources`` of
+        :func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`).
+    """
+
+    model: JointErrorModel
+    sources: tuple[JointErrorModel, ...] = ()
+
+
 def measured_joint_errors(
     diagnostics: JointDiagnostics,
     estimate: ParameterSet,
@@ -59,8 +81,8 @@ def measured_joint_errors(
     tracker_from_base,
     *,
     circle_fit: str = "geometric",
-) -> JointErrorModel:
-    """The joint error model the joints stage measured, in the simulation's form (module notes).
+) -> MeasuredJointErrors:
+    """The joint errors the joints stage measured, in the simulation's form, and their uncertainty (module notes).
 
     Parameters
     ----------
@@ -73,46 +95,50 @@ def measured_joint_errors(
     tracker_from_base : array_like, shape (4, 4)
     circle_fit : {"geometric", "algebraic"}
         The joints stage's in-plane circle fit.
-
-    Returns
-    -------
-    JointErrorModel
-        Deterministic (``noise_sd`` 0): amplitudes [mm], periods and phases [rad], backlash [rad].
     """
     n = estimate.robot.n_joints
-    backlash = np.zeros(n)
-    for row in diagnostics.summary():
-        if np.isfinite(row.backlash_angle_mean):
-            backlash[row.joint - 1] = max(row.backlash_angle_mean, 0.0)
+    backlash, backlash_u = np.zeros(n), np.zeros(n)
+    for circle in diagnostics.circles:
+        angles = circle.backlash_angle[~circle.turnaround]
+        if angles.size:
+            backlash[circle.joint - 1] = max(float(angles.mean()), 0.0)
+        if angles.size >= 2:
+            backlash_u[circle.joint - 1] = float(np.std(angles, ddof=1)) / np.sqrt(angles.size)
     responses = [
         _eccentricity(_shape_model(n, shape), estimate, plan, tracker_from_base, circle_fit) for shape in _SHAPES
     ]
-    amplitude, phase = np.zeros((n, 5)), np.zeros((n, 5))
-    period = np.tile(2.0 * np.pi / np.array([1.0, 1.0, 2.0, 1.0, 1.0]), (n, 1))
+    coefficients = np.zeros((n, len(_SHAPES)))
+    steps = []  # (joint, one standard uncertainty along a direction the circle shows) [mm]
     for circle in diagnostics.circles:
         if circle.joint not in responses[0] or not np.isfinite(circle.noise_sigma):
             continue
         design = np.stack([_at(response[circle.joint], circle.reading) for response in responses], axis=1)
-        c = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma) * _PROBE_MM
-        run_out, run_phase = np.hypot(c[0], c[1]), np.arctan2(c[1], c[0])
-        amplitude[circle.joint - 1, :3] = run_out, run_out, np.hypot(c[2], c[3])
-        phase[circle.joint - 1, :3] = run_phase, run_phase + 0.5 * np.pi, np.arctan2(c[3], c[2])
+        value, directions = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma)
+        coefficients[circle.joint - 1] = value * _PROBE_MM
+        steps.extend((circle.joint - 1, step * _PROBE_MM) for step in directions)
+    sources = []
+    for joint in np.flatnonzero(backlash_u > 0):
+        moved = backlash.copy()
+        moved[joint] += backlash_u[joint]
+        sources.append(_model(coefficients, moved))
+    for joint, step in steps:
+        moved = coefficients.copy()
+        moved[joint] += step
+        sources.append(_model(moved, backlash))
+    return MeasuredJointErrors(model=_model(coefficients, backlash), sources=tuple(sources))
+
+
+def _model(coefficients: np.ndarray, backlash: np.ndarray) -> JointErrorModel:
+    """The joint error model of the shapes' ``coefficients (n, 4)`` [mm] (:data:`_SHAPES`) and ``backlash`` [rad]."""
+    n = coefficients.shape[0]
+    amplitude, phase = np.zeros((n, 5)), np.zeros((n, 5))
+    period = np.tile(2.0 * np.pi / np.array([1.0, 1.0, 2.0, 1.0, 1.0]), (n, 1))
+    run_out = np.hypot(coefficients[:, 0], coefficients[:, 1])
+    run_phase = np.arctan2(coefficients[:, 1], coefficients[:, 0])
+    axial, axial_phase = np.hypot(coefficients[:, 2], coefficients[:, 3]), np.arctan2(coefficients[:, 3], coefficients[:, 2])
+    amplitude[:, :3] = np.stack([run_out, run_out, axial], axis=1)
+    phase[:, :3] = np.stack([run_phase, run_phase + 0.5 * np.pi, axial_phase], axis=1)
     return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((n, 5)), backlash=backlash)
-
-
-def backlash_uncertainty(diagnostics: JointDiagnostics) -> np.ndarray:
-    """Standard uncertainty of each joint's measured backlash angle ``(n_joints,)`` [rad]: the standard deviation of
-    its pairs' angles over the square root of their number (turnaround pairs left out; 0 with fewer than 2).
-
-    The backlash the Monte Carlo simulates is measured, so the bias it gives, and the correction of the deployed
-    values for it, carry this uncertainty (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_u`).
-    """
-    u = np.zeros(diagnostics.n_joints)
-    for circle in diagnostics.circles:
-        angles = circle.backlash_angle[~circle.turnaround]
-        if angles.size >= 2:
-            u[circle.joint - 1] = float(np.std(angles, ddof=1)) / np.sqrt(angles.size)
-    return u
 
 
 def _shape_model(n_joints: int, shape) -> JointErrorModel:
@@ -145,17 +171,20 @@ def _at(response: tuple, readings: np.ndarray) -> np.ndarray:
     return np.concatenate([np.interp(readings, grid, values) for values in mean])
 
 
-def _shown_fit(design: np.ndarray, measured: np.ndarray, noise_sigma: float) -> np.ndarray:
-    """Least squares ``design c = measured`` over the singular directions the circles show (:data:`_SHOWN`); zero
-    unless the fitted eccentricity stands out of the noise (chi-squared test at :data:`_SIGNIFICANCE` of its squared
-    norm over ``noise_sigma^2``, as many degrees of freedom as directions shown): a noise-only capture gives none."""
+def _shown_fit(design: np.ndarray, measured: np.ndarray, noise_sigma: float) -> tuple[np.ndarray, list]:
+    """Least squares ``design c = measured`` over the singular directions the circles show (:data:`_SHOWN`), and
+    one standard uncertainty step along each of them (``noise_sigma`` per point: ``noise_sigma / s_i`` along the
+    right singular vector ``v_i``). The value is zero unless the fitted eccentricity stands out of the noise (a
+    chi-squared test at :data:`_SIGNIFICANCE` of its squared norm over ``noise_sigma^2``, as many degrees of
+    freedom as directions shown): a noise-only capture gives none, and the steps still state how much could hide."""
     from scipy.stats import chi2  # scipy.stats is slow to import: only when a joints analysis is converted
 
     left, singular, right = np.linalg.svd(design, full_matrices=False)
     shown = singular / np.sqrt(design.shape[0]) >= _SHOWN * _PROBE_MM
+    steps = [noise_sigma / s * v for s, v in zip(singular[shown], right[shown], strict=True)] if noise_sigma > 0 else []
     projection = left[:, shown].T @ measured
     if not shown.any():
-        return np.zeros(design.shape[1])
+        return np.zeros(design.shape[1]), steps
     if noise_sigma > 0 and float(projection @ projection) <= noise_sigma**2 * chi2.ppf(_SIGNIFICANCE, int(shown.sum())):
-        return np.zeros(design.shape[1])
-    return right[shown].T @ (projection / singular[shown])
+        return np.zeros(design.shape[1]), steps
+    return right[shown].T @ (projection / singular[shown]), steps

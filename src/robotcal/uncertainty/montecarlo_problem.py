@@ -144,7 +144,7 @@ def prepare_monte_carlo(
     poses_target: Target | None = None,
     joint_model: JointModel | None = None,
     repeatability_mm: float | None = None,
-    backlash_u=None,
+    joint_error_sources=None,
 ) -> MonteCarloProblem:
     """Simulate the noise-free capture once and check that CPA can identify it.
 
@@ -173,9 +173,10 @@ def prepare_monte_carlo(
     repeatability_mm : float, optional
         The robot's ISO 9283 pose repeatability RP [mm]: every draw adds its scatter to every point
         (:attr:`MonteCarloProblem.repeatability_sd`).
-    backlash_u : array_like, shape (n_joints,), optional
-        Standard uncertainty of the backlash angles of ``joint_errors`` [rad] (measured, as by the joints stage):
-        the problem then holds how the bias moves with each (:attr:`MonteCarloProblem.correction_shifts`).
+    joint_error_sources : sequence of JointErrorModel, optional
+        Where ``joint_errors`` were measured (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`): per
+        independent measured input, ``joint_errors`` with that input one standard uncertainty larger; the problem
+        then holds how the bias moves with each (:attr:`MonteCarloProblem.correction_shifts`).
     """
     if model not in MODELS:
         raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
@@ -217,27 +218,23 @@ def prepare_monte_carlo(
         extra_true=extra_true,
         repeatability_sd=repeatability_sd,
     )
-    if backlash_u is None or not np.any(np.asarray(backlash_u, dtype=float) > 0):
+    if not joint_error_sources:
         return problem
-    shifts = _correction_shifts(problem, plan, joint_errors, np.asarray(backlash_u, dtype=float), joint_limits)
+    shifts = _correction_shifts(problem, plan, tuple(joint_error_sources), joint_limits)
     return dataclasses.replace(problem, correction_shifts=shifts)
 
 
-def _correction_shifts(problem: MonteCarloProblem, plan, joint_errors, backlash_u: np.ndarray, joint_limits):
-    """:attr:`MonteCarloProblem.correction_shifts`: the noise-free capture re-simulated with each backlash one
-    standard uncertainty larger, solved as a draw is, minus the noise-free solution (a linear propagation of the
-    measured backlash's uncertainty to the bias, JCGM 100 §5.1.2)."""
+def _correction_shifts(problem: MonteCarloProblem, plan, sources: tuple, joint_limits) -> np.ndarray:
+    """:attr:`MonteCarloProblem.correction_shifts`: the noise-free capture re-simulated with each source's joint
+    errors, solved as a draw is, minus the noise-free solution (the measured joint errors' uncertainty propagated
+    linearly to the bias, JCGM 100 §5.1.2)."""
     from robotcal.uncertainty.draws import solve_points
 
-    base = JointErrorModel.zeros(problem.robot.n_joints) if joint_errors is None else joint_errors
     captures = [problem.exact_points]
-    for joint in np.flatnonzero(backlash_u > 0):
-        lash = np.array(base.backlash)
-        lash[joint] += backlash_u[joint]
+    for errors in sources:
         _, exact = _noise_free_capture(
-            problem.robot, plan, problem.tracker_from_base, problem.true_parameters,
-            dataclasses.replace(base, backlash=lash), joint_limits,
-        )  # fmt: skip
+            problem.robot, plan, problem.tracker_from_base, problem.true_parameters, errors, joint_limits
+        )
         captures.append(np.concatenate([exact, problem.exact_points[problem.n_circle :]]))
     values = solve_points(problem, np.stack(captures))
     return values[1:] - values[0]
