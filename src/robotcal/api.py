@@ -47,7 +47,7 @@ from robotcal.identification.records import RefinementResult
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.scenario import Scenario, TruthTable
+from robotcal.io.scenario import Scenario, TruthTable, repeatability_of
 from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
@@ -356,7 +356,7 @@ def identify(
     if check and instrument is not None:
         check_capture(capture, robot, mount, instrument, options=options)
     result = identify_cpa(capture, robot, mount, tracker_from_base=tracker_from_base, options=options)
-    verdict = cpa_health(result, capture, instrument, None if scenario is None else scenario.repeatability_mm)
+    verdict = cpa_health(result, capture, instrument, repeatability_of(scenario))
     if health != "off":
         report_health(verdict, source=capture.source, strict=health == "strict")
     return dataclasses.replace(result, health=verdict)
@@ -448,8 +448,7 @@ def refine(
     capture = _capture(capture, robot)
     choice = model_choice_settings(scenario, model, folds)
     if settings is None:
-        options.setdefault("repeatability_mm", None if scenario is None else scenario.repeatability_mm)
-        settings = RefinementSettings(criterion=criterion, **options)
+        settings = RefinementSettings(criterion=criterion, **{"repeatability_mm": repeatability_of(scenario), **options})
     elif options or criterion != "points":
         raise InputError("give `settings` or `criterion` and the options, not both")
     if scenario is not None:
@@ -540,7 +539,6 @@ def monte_carlo_problem(
     criterion: Criterion = "points",
     poses: Capture | PathLike | None = None,
     joint_model: JointModel | None = None,
-    joint_error_sources: Any = None,
 ) -> MonteCarloProblem:
     """The Monte Carlo problem (:func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`) of a capture plan:
     every input check happens here, before any draw. Arguments as for :func:`monte_carlo`."""
@@ -577,7 +575,7 @@ def monte_carlo_problem(
         true_parameters=truth, joint_errors=joint_errors, joint_limits=joint_limits or "warn", model=model,
         criterion=criterion, poses=pose_readings, poses_target=pose_target,
         joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
-        repeatability_mm=None if scenario is None else scenario.repeatability_mm, joint_error_sources=joint_error_sources,
+        repeatability_mm=repeatability_of(scenario),
     )  # fmt: skip
 
 
@@ -607,7 +605,6 @@ def monte_carlo(
     progress: Callable[[int, int | None], None] | None = None,
     poses: Capture | PathLike | None = None,
     joint_model: JointModel | None = None,
-    joint_error_sources: Any = None,
 ) -> MonteCarloResult:
     """GUM Supplement 1 Monte Carlo of a calibration by Circle Point Analysis (thesis ch. 5.2.3).
 
@@ -637,10 +634,6 @@ def monte_carlo(
         for ``"refined"`` (where it costs as much as many draws).
     progress : callable, optional
         ``progress(draws_done, draws_total)`` after every block.
-    joint_error_sources : sequence of JointErrorModel, optional
-        Where ``joint_errors`` were measured (the joints stage, :func:`robotcal.uncertainty.joint_errors.
-        measured_joint_errors`): each measured input one standard uncertainty larger; the bias correction's
-        uncertainty (``result.correction_u``) then widens the stated interval.
 
     Returns
     -------
@@ -670,7 +663,7 @@ def monte_carlo(
     problem = monte_carlo_problem(
         robot, plan=plan, instrument=instrument, tracker_from_base=tracker_from_base, parameters=parameters,
         options=options, joint_errors=joint_errors, joint_limits=joint_limits, model=model, criterion=criterion,
-        poses=poses, joint_model=joint_model, joint_error_sources=joint_error_sources,
+        poses=poses, joint_model=joint_model,
     )  # fmt: skip
     seed = seed_from(rng, scenario.montecarlo.seed if scenario is not None and scenario.montecarlo else None)
     linearised = model == "cpa" if linearised is None else linearised

@@ -47,6 +47,7 @@ __all__ = [
     "TCPTable",
     "load_scenario",
     "list_scenarios",
+    "repeatability_of",
     "scenario_from_dict",
 ]
 
@@ -420,6 +421,11 @@ def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> 
     return JointErrorModel(
         amplitude=amplitude, period=period, phase=phase, noise_sd=noise, backlash=backlash, lash=lash
     )
+
+
+def repeatability_of(scenario: Scenario | None) -> float | None:
+    """The robot's ISO 9283 repeatability RP a scenario states [mm] (``repeatability_mm``); None without one."""
+    return None if scenario is None else scenario.repeatability_mm
 
 
 def scenario_from_dict(

@@ -308,8 +308,7 @@ def uncertainty_stage(
             model=model,
             criterion=DEPLOYED,
             rng=seed,
-            joint_errors=measured.model,
-            joint_error_sources=measured.sources,
+            joint_errors=measured,
             progress=lambda count, expected, done=done: step(done + count, total, "draws"),
             **({"poses": poses} if model == "refined" and poses is not None else {}),
         )
@@ -342,7 +341,8 @@ def measured_errors(
     with their uncertainty (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`); none without a joints
     analysis."""
     if joints is None:
-        return MeasuredJointErrors(model=JointErrorModel.zeros(scenario.robot.n_joints))
+        zeros = JointErrorModel.zeros(scenario.robot.n_joints)
+        return MeasuredJointErrors(amplitude=zeros.amplitude, period=zeros.period, phase=zeros.phase, noise_sd=zeros.noise_sd)
     return measured_joint_errors(
         joints.diagnostics, estimate, scenario.plan, scenario.tracker_from_base,
         circle_fit=scenario.identification.circle_fit,

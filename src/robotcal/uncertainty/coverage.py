@@ -270,8 +270,8 @@ def coverage_study(
                     interval, result = (refined.parameters.values - z * u, refined.parameters.values + z * u), None
                 else:
                     centre = cpa if method == "cpa-mc" else refined.parameters
-                    errors = _measured(setup, capture, centre) if measured_joint_errors else (setup.joint_errors, None)
-                    result = _monte_carlo_at(setup, centre, method, settings, mc_seed, *errors)
+                    errors = _measured(setup, capture, centre) if measured_joint_errors else setup.joint_errors
+                    result = _monte_carlo_at(setup, centre, method, settings, mc_seed, errors)
                     interval, u = result.interval(), result.summary.std_uncertainty
                 records.add(method, interval, u, result, truth.values, checked, tcp, coverage)
             if progress is not None:
@@ -354,29 +354,28 @@ def _estimates(setup: _Setup, truth: ParameterSet, capture_seed: int):
     return cpa, refined, capture
 
 
-def _measured(setup: _Setup, capture, centre: ParameterSet) -> tuple[JointErrorModel, tuple]:
-    """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``, and
-    their uncertainty's sources (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`)."""
+def _measured(setup: _Setup, capture, centre: ParameterSet) -> JointErrorModel:
+    """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``, with
+    their uncertainty (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`)."""
     from robotcal.diagnostics.joints import analyze_joints
     from robotcal.uncertainty.joint_errors import measured_joint_errors
 
     method = setup.options.circle_fit
     diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)  # type: ignore[arg-type]
-    measured = measured_joint_errors(diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method)
-    return measured.model, measured.sources
+    return measured_joint_errors(diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method)
 
 
 def _monte_carlo_at(
-    setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None, sources=None
+    setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None
 ):
     """The Monte Carlo a user is given for one capture: simulated at its estimate ``centre`` (module notes), with
-    ``joint_errors`` (and, when measured, the ``sources`` of their uncertainty)."""
+    ``joint_errors`` (measured ones with their uncertainty)."""
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
 
     problem = prepare_monte_carlo(
         setup.robot, setup.plan, setup.instrument, setup.tracker_from_base, options=setup.options,
         true_parameters=centre, joint_errors=joint_errors, joint_limits=setup.joint_limits,
-        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion, joint_error_sources=sources,
+        model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion,
     )  # fmt: skip
     return run_monte_carlo(problem, settings, seed=seed, linearised=False)
 

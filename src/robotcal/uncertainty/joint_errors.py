@@ -55,22 +55,18 @@ _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class MeasuredJointErrors:
-    """The joint errors a joints analysis measured, in the simulation's form, with their uncertainty.
+class MeasuredJointErrors(JointErrorModel):
+    """A joint error model measured by a joints analysis (deterministic: ``noise_sd`` 0), with its uncertainty.
 
     Attributes
     ----------
-    model : JointErrorModel
-        The measured values (deterministic: ``noise_sd`` 0): amplitudes [mm], periods and phases [rad], backlash
-        [rad].
     sources : tuple of JointErrorModel
         One per independent measured input of non-zero standard uncertainty (a joint's backlash, a direction of a
-        joint's eccentricity the circle shows): ``model`` with that input moved by one standard uncertainty. A
-        Monte Carlo propagates them to the bias correction (``joint_error_sources`` of
-        :func:`robotcal.uncertainty.montecarlo.prepare_monte_carlo`).
+        joint's eccentricity the circle shows): this model with that input moved by one standard uncertainty. A
+        Monte Carlo simulating this model propagates them to its bias correction
+        (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_u`).
     """
 
-    model: JointErrorModel
     sources: tuple[JointErrorModel, ...] = ()
 
 
@@ -82,7 +78,7 @@ def measured_joint_errors(
     *,
     circle_fit: str = "geometric",
 ) -> MeasuredJointErrors:
-    """The joint errors the joints stage measured, in the simulation's form, and their uncertainty (module notes).
+    """The joint errors the joints stage measured, in the simulation's form, with their uncertainty (module notes).
 
     Parameters
     ----------
@@ -125,7 +121,9 @@ def measured_joint_errors(
         moved = coefficients.copy()
         moved[joint] += step
         sources.append(_model(moved, backlash))
-    return MeasuredJointErrors(model=_model(coefficients, backlash), sources=tuple(sources))
+    model = _model(coefficients, backlash)
+    fields = {name: getattr(model, name) for name in ("amplitude", "period", "phase", "noise_sd", "backlash", "lash")}
+    return MeasuredJointErrors(**fields, sources=tuple(sources))
 
 
 def _model(coefficients: np.ndarray, backlash: np.ndarray) -> JointErrorModel:

@@ -45,7 +45,7 @@ import numpy as np
 from robotcal.errors import InputError, RobotcalError
 from robotcal.execution import open_executor, single_blas_thread
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
-from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block
+from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block, solve_points
 from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
@@ -227,7 +227,7 @@ class MonteCarloResult:
         The values of the robot the capture was simulated from (the centre of :meth:`extra_interval`).
     correction_shifts : ndarray, shape (k, 5 n + m), or None
         How the bias moves with each measured joint error of stated uncertainty
-        (:attr:`MonteCarloProblem.correction_shifts`): the bias correction's uncertainty, :attr:`correction_u`.
+        (:func:`correction_shifts`): the bias correction's uncertainty, :attr:`correction_u`.
     """
 
     robot: RobotModel
@@ -560,8 +560,19 @@ def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool
         extra_summary=extra_summary,
         extra_identified=problem.identified_all[5 * n :],
         extra_true=problem.extra_true,
-        correction_shifts=problem.correction_shifts if problem.correction_shifts.size else None,
+        correction_shifts=correction_shifts(problem),
     )
+
+
+def correction_shifts(problem: MonteCarloProblem) -> np.ndarray | None:
+    """:attr:`MonteCarloResult.correction_shifts`: the noise-free capture with each source of the measured joint
+    errors' uncertainty (:attr:`MonteCarloProblem.source_points`), solved as a draw is, minus the noise-free
+    solution: the measured inputs' uncertainty propagated linearly to the bias (JCGM 100 §5.1.2). None without
+    sources."""
+    if problem.source_points.size == 0:
+        return None
+    values = solve_points(problem, np.concatenate([problem.exact_points[None], problem.source_points]))
+    return values[1:] - values[0]
 
 
 class _Store:

@@ -82,10 +82,11 @@ class MonteCarloProblem:
         The robot's pose scatter per coordinate [mm] (the noise budget: the stated ISO 9283 repeatability RP /
         3.616, :func:`robotcal.identification.health.repeatability_sigma`), added to every point of every draw as
         isotropic normal noise after the instrument's; 0 when not stated.
-    correction_shifts : ndarray, shape (k, 5 n + m)
-        Per measured joint error of known standard uncertainty (``backlash_u``), how the noise-free solution, and
-        so the bias, moves when that joint error is one standard uncertainty larger (rows as a draw's outputs);
-        their root sum of squares is the standard uncertainty of the bias correction. Empty when not asked for.
+    source_points : ndarray, shape (k, n_points, 3)
+        Where the joint errors were measured (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`): the
+        noise-free capture again with each source of their uncertainty, one measured input one standard uncertainty
+        larger [mm]; solved as draws, they give how the bias moves with each
+        (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_shifts`). Empty otherwise.
     """
 
     robot: RobotModel
@@ -105,7 +106,7 @@ class MonteCarloProblem:
     n_circle: int = -1
     extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
     repeatability_sd: float = 0.0
-    correction_shifts: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    source_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3)))
 
     def __post_init__(self):
         if self.n_circle < 0:
@@ -144,7 +145,6 @@ def prepare_monte_carlo(
     poses_target: Target | None = None,
     joint_model: JointModel | None = None,
     repeatability_mm: float | None = None,
-    joint_error_sources=None,
 ) -> MonteCarloProblem:
     """Simulate the noise-free capture once and check that CPA can identify it.
 
@@ -154,7 +154,9 @@ def prepare_monte_carlo(
     Parameters
     ----------
     robot, plan, instrument, tracker_from_base, true_parameters, joint_errors, joint_limits
-        As for :func:`robotcal.simulation.generator.simulate_capture`.
+        As for :func:`robotcal.simulation.generator.simulate_capture`. Measured ``joint_errors``
+        (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`) carry the sources of their uncertainty:
+        the noise-free capture is simulated with each too (:attr:`MonteCarloProblem.source_points`).
     options : CPAOptions, optional
         CPA options (circle fit, base frame, theta1 reference).
     model : {"cpa", "refined"}
@@ -173,10 +175,6 @@ def prepare_monte_carlo(
     repeatability_mm : float, optional
         The robot's ISO 9283 pose repeatability RP [mm]: every draw adds its scatter to every point
         (:attr:`MonteCarloProblem.repeatability_sd`).
-    joint_error_sources : sequence of JointErrorModel, optional
-        Where ``joint_errors`` were measured (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`): per
-        independent measured input, ``joint_errors`` with that input one standard uncertainty larger; the problem
-        then holds how the bias moves with each (:attr:`MonteCarloProblem.correction_shifts`).
     """
     if model not in MODELS:
         raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
@@ -218,26 +216,15 @@ def prepare_monte_carlo(
         extra_true=extra_true,
         repeatability_sd=repeatability_sd,
     )
-    if not joint_error_sources:
+    sources = getattr(joint_errors, "sources", ())  # measured joint errors: their uncertainty's sources
+    if not sources:
         return problem
-    shifts = _correction_shifts(problem, plan, tuple(joint_error_sources), joint_limits)
-    return dataclasses.replace(problem, correction_shifts=shifts)
-
-
-def _correction_shifts(problem: MonteCarloProblem, plan, sources: tuple, joint_limits) -> np.ndarray:
-    """:attr:`MonteCarloProblem.correction_shifts`: the noise-free capture re-simulated with each source's joint
-    errors, solved as a draw is, minus the noise-free solution (the measured joint errors' uncertainty propagated
-    linearly to the bias, JCGM 100 §5.1.2)."""
-    from robotcal.uncertainty.draws import solve_points
-
-    captures = [problem.exact_points]
-    for errors in sources:
-        _, exact = _noise_free_capture(
-            problem.robot, plan, problem.tracker_from_base, problem.true_parameters, errors, joint_limits
-        )
-        captures.append(np.concatenate([exact, problem.exact_points[problem.n_circle :]]))
-    values = solve_points(problem, np.stack(captures))
-    return values[1:] - values[0]
+    points = [
+        np.concatenate([_noise_free_capture(robot, plan, tracker_from_base, true_parameters, errors, joint_limits)[1],
+                        exact[n_circle:]])
+        for errors in sources
+    ]  # fmt: skip
+    return dataclasses.replace(problem, source_points=np.stack(points))
 
 
 def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits):

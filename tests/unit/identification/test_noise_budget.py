@@ -82,13 +82,19 @@ def _scattered(capture: Capture, seed: int) -> Capture:
 
 
 def _fit(scenario, truth, model):
-    capture = _scattered(robotcal.simulate(scenario, rng=1, true_parameters=truth, joint_errors=None), 5)
-    poses = _scattered(robotcal.simulate_poses(scenario, kind="calibration", rng=3, true_parameters=truth), 6)
-    fitted = robotcal.calibration_capture(scenario, capture, poses)
+    """Circles and calibration poses of ``truth`` with the robot's pose scatter, refined with ``model``."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)  # J6.alpha behind the flange target
         warnings.simplefilter("ignore", FitHealthWarning)
-        return robotcal.refine(fitted, scenario, robotcal.identify(capture, scenario), model=model, folds=0)
+        circles, poses = (
+            _scattered(simulated, seed)
+            for simulated, seed in (
+                (robotcal.simulate(scenario, rng=1, true_parameters=truth, joint_errors=None), 5),
+                (robotcal.simulate_poses(scenario, kind="calibration", rng=3, true_parameters=truth), 6),
+            )
+        )
+        start = robotcal.identify(circles, scenario)
+        return robotcal.refine(robotcal.calibration_capture(scenario, circles, poses), scenario, start, model=model, folds=0)
 
 
 def test_instrument_noise_plus_repeatability_is_ok_once_the_repeatability_is_stated(demo):

@@ -46,8 +46,7 @@ def test_the_joints_stage_measures_backlash_and_a_run_out_into_the_simulations_f
         warnings.simplefilter("ignore")
         capture = robotcal.simulate(exact, rng=1, true_parameters=truth, joint_errors=errors)
     joints = api.diagnose_joints(capture, exact)
-    measured = measured_joint_errors(joints.diagnostics, truth, scenario.plan, scenario.tracker_from_base)
-    model = measured.model
+    model = measured_joint_errors(joints.diagnostics, truth, scenario.plan, scenario.tracker_from_base)
     assert np.rad2deg(model.backlash[1]) == pytest.approx(0.01, rel=0.05)
     assert np.all(model.noise_sd == 0.0)
     assert model.amplitude[5, 0] == pytest.approx(0.030, rel=0.1) and model.amplitude[5, 1] == model.amplitude[5, 0]
@@ -62,7 +61,7 @@ def test_the_uncertainty_stage_takes_the_joint_errors_from_the_joints_stage(demo
     joints = api.diagnose_joints(capture, scenario)
     seen = []
 
-    def spy(scenario, *, joint_errors=None, joint_error_sources=None, **keywords):
+    def spy(scenario, *, joint_errors=None, **keywords):
         seen.append(joint_errors)
         raise KeyboardInterrupt
 
@@ -78,7 +77,8 @@ def test_the_uncertainty_stage_takes_the_joint_errors_from_the_joints_stage(demo
     assert measured is not scenario.joint_errors and without is not scenario.joint_errors
     lash = [max(row.backlash_angle_mean, 0.0) for row in joints.diagnostics.summary()]
     assert np.allclose(measured.backlash, lash)
-    assert not without.has_lash and np.all(without.amplitude == 0.0)
+    assert not without.has_lash and np.all(without.amplitude == 0.0) and without.sources == ()
+    assert len(measured.sources) >= 6  # every joint's backlash has a standard uncertainty
 
 
 def test_the_deployed_values_lie_inside_their_interval_and_correct_the_bias(demo):
