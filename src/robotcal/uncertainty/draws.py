@@ -135,23 +135,19 @@ def draw_block(
             exact = problem.exact_points
         points = _noise(problem, count, instrument_rng, out=buffer[:count])
         points += exact  # noise + exact, in place (the same numbers as exact + noise)
-        if count == 1:
-            points = np.concatenate([points, points])
         try:
-            circles = points[:, : problem.n_circle]
-            batch = identify_cpa_batch(circles, problem.structure, problem.tracker_from_base, residuals=False)
-            result = batch.values.reshape(batch.values.shape[0], -1)
-            if problem.refined is not None:
-                result = _refine_draws(problem.refined, points, batch, refined_solver)
+            result = solve_points(problem, points, refined_solver)
         except RobotcalError as exc:
             raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
         values[start : start + count] = result[:count]
     return values
 
 
-def solve_points(problem: MonteCarloProblem, points: np.ndarray) -> np.ndarray:
+def solve_points(problem: MonteCarloProblem, points: np.ndarray, solver: str = "gauss-newton") -> np.ndarray:
     """The outputs (rows as :func:`draw_block`'s) of captures whose measured points are ``points (k, n_points, 3)``
-    [mm]: what a draw computes, without drawing (a noise-free capture of other joint errors, say)."""
+    [mm]: what a draw computes (CPA of the circles, then the refinement by ``solver``), for drawn or given points
+    (a noise-free capture of other joint errors, say). A lone capture is solved as a batch of two (itself twice):
+    numpy reduces a stack of one with other loops than a larger stack."""
     points = np.asarray(points, dtype=float)
     count = points.shape[0]
     if count == 1:
@@ -159,7 +155,7 @@ def solve_points(problem: MonteCarloProblem, points: np.ndarray) -> np.ndarray:
     batch = identify_cpa_batch(points[:, : problem.n_circle], problem.structure, problem.tracker_from_base, residuals=False)
     result = batch.values.reshape(batch.values.shape[0], -1)
     if problem.refined is not None:
-        result = _refine_draws(problem.refined, points, batch)
+        result = _refine_draws(problem.refined, points, batch, solver)
     return result[:count]
 
 

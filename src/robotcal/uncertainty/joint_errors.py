@@ -104,7 +104,7 @@ def measured_joint_errors(
         _eccentricity(_shape_model(n, shape), estimate, plan, tracker_from_base, circle_fit) for shape in _SHAPES
     ]
     coefficients = np.zeros((n, len(_SHAPES)))
-    steps = []  # (joint, one standard uncertainty along a direction the circle shows) [mm]
+    steps: list[tuple[int, np.ndarray]] = []  # (joint, one standard uncertainty along a shown direction) [mm]
     for circle in diagnostics.circles:
         if circle.joint not in responses[0] or not np.isfinite(circle.noise_sigma):
             continue
@@ -113,14 +113,14 @@ def measured_joint_errors(
         coefficients[circle.joint - 1] = value * _PROBE_MM
         steps.extend((circle.joint - 1, step * _PROBE_MM) for step in directions)
     sources = []
-    for joint in np.flatnonzero(backlash_u > 0):
+    for lashed in np.flatnonzero(backlash_u > 0):
         moved = backlash.copy()
-        moved[joint] += backlash_u[joint]
+        moved[lashed] += backlash_u[lashed]
         sources.append(_model(coefficients, moved))
     for joint, step in steps:
-        moved = coefficients.copy()
-        moved[joint] += step
-        sources.append(_model(moved, backlash))
+        shifted = coefficients.copy()
+        shifted[joint] += step
+        sources.append(_model(shifted, backlash))
     model = _model(coefficients, backlash)
     fields = {name: getattr(model, name) for name in ("amplitude", "period", "phase", "noise_sd", "backlash", "lash")}
     return MeasuredJointErrors(**fields, sources=tuple(sources))
@@ -155,7 +155,7 @@ def _eccentricity(errors: JointErrorModel, estimate, plan, tracker_from_base, ci
         estimate.robot, plan, _NOISE_FREE, tracker_from_base, true_parameters=estimate, joint_errors=errors,
         joint_limits="ignore", rng=0,
     )  # fmt: skip
-    analysis = analyze_joints(capture, backlash=False, method=circle_fit)  # type: ignore[arg-type]
+    analysis = analyze_joints(capture, backlash=False, method=circle_fit)
     return {circle.joint: (circle.reading, circle.radial, circle.axial) for circle in analysis.circles}
 
 
