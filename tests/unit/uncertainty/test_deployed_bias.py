@@ -106,3 +106,70 @@ def test_the_deployed_values_lie_inside_their_interval_and_correct_the_bias(demo
     error_before = np.abs(estimate.difference(truth))[0, 1:3] / u[0, 1:3]
     error_after = np.abs(deployed.difference(truth))[0, 1:3] / u[0, 1:3]
     assert np.all(error_before > 5.0) and np.all(error_after < error_before / 3)
+
+
+def test_the_widened_interval_keeps_its_centre_and_the_draws_skew():
+    from robotcal.uncertainty.statistics import widened_interval
+
+    low, high = widened_interval(np.array([-1.0]), np.array([3.0]), np.array([0.0]), np.array([0.0]), 0.95)
+    assert low[0] == -1.0 and high[0] == 3.0  # no correction uncertainty: unchanged
+    low, high = widened_interval(np.array([-1.0]), np.array([3.0]), np.array([0.0]), np.array([1.0]), 0.95)
+    k = 1.959963984540054
+    assert low[0] == pytest.approx(-np.hypot(1.0, k)) and high[0] == pytest.approx(np.hypot(3.0, k))
+
+
+def test_the_measured_backlash_uncertainty_reaches_the_interval_and_the_consistency(demo):
+    scenario, truth = demo
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        capture = robotcal.simulate(scenario, rng=1, true_parameters=truth)
+    joints = api.diagnose_joints(capture, scenario)
+    measured = stages.measured_errors(scenario, joints, truth)
+    plain = stages.measured_errors(scenario, None, truth)
+    results = [
+        api.monte_carlo(scenario, parameters=truth, model="refined", draws=300, rng=3, joint_errors=errors)
+        for errors in (measured, plain)
+    ]
+    with_sources, without = results
+    assert without.correction_shifts is None and np.all(without.correction_u == 0.0)
+    assert with_sources.correction_shifts.shape[0] == len(measured.sources)
+    assert np.any(with_sources.correction_u[with_sources.identified] > 0)
+    low, high = with_sources.interval()
+    draws_low, draws_high = with_sources.draws_interval()
+    assert np.all((high - low) >= (draws_high - draws_low) - 1e-15)  # widened, never narrowed
+    validation = robotcal.simulate_poses(scenario, rng=2, true_parameters=truth)
+    checks = [api.validation_consistency(validation, truth, result, scenario) for result in results]
+    assert checks[0]["predicted_rms_mm"] > checks[1]["predicted_rms_mm"]
+
+
+def _measurable_study(captures: int, draws: int, seed: int):
+    """docs/validation.md: the demo's backlash, a J6 run-out and a J5 axial eccentricity, which the circles show;
+    every capture's Monte Carlo simulates the joint errors that capture's joints analysis measures."""
+    from robotcal.simulation.perturb import perturb_parameters
+
+    scenario = robotcal.load_scenario("kr5-demo")
+    truth = perturb_parameters(scenario.robot, length_sd_mm=0.2, angle_sd_deg=0.05, include_base=True, rng=3)
+    amplitude, period, phase = np.zeros((6, 5)), np.full((6, 5), 2 * np.pi), np.zeros((6, 5))
+    amplitude[5, :2], phase[5, 1] = 0.02, np.pi / 2
+    amplitude[4, 2], period[4, 2] = 0.015, np.pi
+    errors = JointErrorModel(
+        amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((6, 5)), backlash=scenario.joint_errors.backlash
+    )
+    return robotcal.coverage_study(
+        scenario, truth, captures=captures, draws=draws, methods=("refined-mc",), rng=seed,
+        measured_joint_errors=True, joint_errors=errors,
+    )  # fmt: skip
+
+
+def test_reduced_coverage_with_the_joint_errors_the_captures_measure():
+    coverage = _measurable_study(20, 200, seed=21).empirical("refined-mc")
+    assert coverage.mean() >= 0.88 and coverage.min() >= 0.7
+
+
+@pytest.mark.slow
+def test_coverage_with_the_joint_errors_the_captures_measure_is_in_the_band():
+    study = _measurable_study(200, 1000, seed=31)
+    low, high = study.band
+    coverage = study.empirical("refined-mc")
+    outside = {name: round(float(c), 3) for name, c in zip(study.names, coverage, strict=True) if not low <= c <= high}
+    assert not outside, (study.band, outside)
