@@ -318,7 +318,7 @@ class _Run:
         )
         value = dict(output.value)
         # the deployed values: the refinement's estimate corrected for the bias its Monte Carlo measures
-        self.results["deployed"] = value.pop("deployed", self.results["refined"][stages.DEPLOYED].parameters)
+        self.results["deployed"] = value.pop("deployed", None)
         self.results["montecarlo"] = value
         return output
 
@@ -328,7 +328,7 @@ class _Run:
             targets=self.plan.tcp,
             draws=self.results["montecarlo"]["refined"],
             validation=self.results["validation"],
-            deployed=self.results["deployed"],
+            deployed=self._deployed(),
             estimate=self.results["refined"][stages.DEPLOYED].parameters,
             workspace_seed=self.plan.seeds["workspace"],
             out=self.out,
@@ -337,6 +337,11 @@ class _Run:
         )
         self.results["tcp"] = output.value
         return output
+
+    def _deployed(self):
+        """The deployed values: the uncertainty stage's bias-corrected estimate, else the refinement's estimate."""
+        deployed = self.results.get("deployed")
+        return self.results["refined"][stages.DEPLOYED].parameters if deployed is None else deployed
 
     def _plan(self) -> stages.StageOutput:
         output = stages.plan_stage(
@@ -354,7 +359,7 @@ class _Run:
         models = {
             "nominal": self.results["nominal"],
             "cpa": self.results["cpa"],
-            "refined": self.results.get("deployed", self.results["refined"][stages.DEPLOYED].parameters),
+            "refined": self._deployed(),
         }
         output = stages.iso9283_stage(
             self.plan.scenario,
