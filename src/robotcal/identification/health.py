@@ -83,8 +83,6 @@ __all__ = [
     "circle_axis_uncertainty",
     "cpa_health",
     "refine_health",
-    "RP_PER_SIGMA",
-    "repeatability_sigma",
     "report_health",
     "stated_noise",
 ]

@@ -47,7 +47,6 @@ __all__ = [
     "TCPTable",
     "load_scenario",
     "list_scenarios",
-    "repeatability_of",
     "scenario_from_dict",
 ]
 

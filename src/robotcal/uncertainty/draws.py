@@ -29,7 +29,7 @@ from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem
 if TYPE_CHECKING:
     from robotcal.uncertainty.refined_kernel import RefinedModel
 
-__all__ = ["draw_block", "solve_points"]
+__all__ = ["draw_block"]
 
 #: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
 REFINE_BATCH = 500
