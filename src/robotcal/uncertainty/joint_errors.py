@@ -2,21 +2,23 @@
 
 A Monte Carlo that states the uncertainty of a calibration simulates the capture at the estimate; the joint
 errors of that simulation can only come from what the capture itself shows (on a real cell nobody knows a
-"true" joint error model). The joints stage (:func:`robotcal.diagnostics.joints.analyze_joints`, thesis ch. 4.6,
-with its harmonic model :mod:`robotcal.diagnostics.harmonics`) measures per joint
+"true" joint error model). The joints stage (:func:`robotcal.diagnostics.joints.analyze_joints`, thesis ch. 4.6)
+measures per joint
 
-* the angular backlash: the mean signed angle from a forward to a return point at the same reading; and
-* the axial and radial eccentricity of every circle point against its fitted plane and circle, of which the
-  harmonic model keeps the smooth part.
+* the angular backlash: the signed angle from a forward to a return point at the same reading, pair by pair; and
+* the axial and radial eccentricity of every circle point against its fitted plane and circle.
 
 :func:`measured_joint_errors` converts them into the simulation's :class:`~robotcal.simulation.generator.
-JointErrorModel` (eq. 5-2): the backlash as its ``backlash`` angle (a negative mean, which no lash gives, as 0),
-and the eccentricity as one sinusoid per translation term, ``dx, dy = A sin(q + phi)`` (an axis that runs out
-once per turn: radial eccentricity of order 0 and 2 in the joint angle) and ``dz = A sin(2 q + phi)``
-(axial eccentricity of order 2), whose amplitudes and phases are the least-squares fit of the eccentricity
-those terms leave after the circle fits (computed on the noise-free circles of the plan at the estimate,
-where the fits absorb orders 0 and 1 exactly as on the capture) to the eccentricity the harmonic model
-predicts at the same readings. The translational lash and the tilt terms ``ex, ey`` are not converted.
+JointErrorModel` (eq. 5-2), a :class:`MeasuredJointErrors` that carries its uncertainty: the backlash as the mean
+angle of the pairs (a negative mean, which no lash gives, as 0; standard uncertainty: their standard deviation over
+the root of their number), and the eccentricity as one sinusoid per translation term, ``dx = A sin(q + phi)``,
+``dy = A cos(q + phi)`` (an axis that runs out once per turn: radial eccentricity of order 2 in the joint angle)
+and ``dz = A sin(2 q + phi)`` (axial eccentricity of order 2), fitted by least squares to the circle's residuals
+through the eccentricity those shapes leave after the circle fits (computed on the noise-free circles of the plan
+at the estimate, where the fits absorb orders 0 and 1 exactly as on the capture). Only the directions the circle
+shows (at least :data:`_SHOWN` of a shape) are fitted, and the fit is kept only where it stands out of the
+circle's noise; each shown direction has its standard uncertainty (the circle's noise over its singular value).
+The translational lash and the tilt terms ``ex, ey`` are not converted.
 """
 
 from __future__ import annotations
