@@ -47,7 +47,7 @@ from robotcal.identification.records import RefinementResult
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.scenario import Scenario, TruthTable
+from robotcal.io.scenario import Scenario, TruthTable, repeatability_of
 from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
@@ -357,7 +357,7 @@ def identify(
     if check and instrument is not None:
         check_capture(capture, robot, mount, instrument, options=options)
     result = identify_cpa(capture, robot, mount, tracker_from_base=tracker_from_base, options=options)
-    verdict = cpa_health(result, capture, instrument)
+    verdict = cpa_health(result, capture, instrument, repeatability_of(scenario))
     if health != "off":
         report_health(verdict, source=capture.source, strict=health == "strict")
     return dataclasses.replace(result, health=verdict)
@@ -449,7 +449,7 @@ def refine(
     capture = _capture(capture, robot)
     choice = model_choice_settings(scenario, model, folds)
     if settings is None:
-        settings = RefinementSettings(criterion=criterion, **options)
+        settings = RefinementSettings(criterion=criterion, **{"repeatability_mm": repeatability_of(scenario), **options})
     elif options or criterion != "points":
         raise InputError("give `settings` or `criterion` and the options, not both")
     if scenario is not None:
@@ -576,6 +576,7 @@ def monte_carlo_problem(
         true_parameters=truth, joint_errors=joint_errors, joint_limits=joint_limits or "warn", model=model,
         criterion=criterion, poses=pose_readings, poses_target=pose_target,
         joint_model=None if joint_model is None else joint_model.with_values(np.zeros(joint_model.size)),
+        repeatability_mm=repeatability_of(scenario),
     )  # fmt: skip
 
 

@@ -370,6 +370,8 @@ def validation_consistency(
     return check_validation_consistency(
         validation, as_parameters(estimate, robot, "estimate"), robot, values, target, instrument,
         tracker_from_base=tracker_from_base, joint_model=joint_model, extra_draws=extras, model=model,
+        repeatability_mm=None if scenario is None else scenario.repeatability_mm,
+        correction_shifts=getattr(draws, "correction_shifts", None),
     )  # fmt: skip
 
 

@@ -18,6 +18,7 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z
 from robotcal.identification._orientation import inverse_right_jacobian, rotation_log, vee
+from robotcal.identification.health import repeatability_sigma
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.kinematics.forward import forward_kinematics, target_positions
@@ -87,10 +88,14 @@ def wrap_angles(values, nominal=None) -> np.ndarray:
     return values
 
 
-def point_sigmas(capture: Capture) -> np.ndarray | None:
-    """Standard uncertainty per coordinate of every point [mm] from its U(95): ``U / 2`` (k = 2, normal);
-    None when the capture has no ``u95_mm`` column."""
-    return None if capture.u95 is None else np.asarray(capture.u95, dtype=float) / 2.0
+def point_sigmas(capture: Capture, repeatability_mm: float | None = None) -> np.ndarray | None:
+    """Standard uncertainty per coordinate of every point [mm] from its U(95): ``U / 2`` (k = 2, normal), with the
+    robot's pose scatter added in quadrature when its ISO 9283 repeatability RP is stated (the noise budget,
+    ``u^2 = u_instrument^2 + sigma_r^2``, :func:`robotcal.identification.health.repeatability_sigma`); None when the
+    capture has no ``u95_mm`` column (the points are then weighted equally, as the same scatter adds to each)."""
+    if capture.u95 is None:
+        return None
+    return np.hypot(np.asarray(capture.u95, dtype=float) / 2.0, repeatability_sigma(repeatability_mm))
 
 
 def capture_turning_joints(capture: Capture, reflector: ReflectorMount) -> np.ndarray:

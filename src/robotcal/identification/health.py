@@ -366,14 +366,37 @@ def report_health(health: FitHealth, *, source: str = "", strict: bool = False) 
     return health
 
 
-def stated_noise(capture: Capture, instrument=None) -> tuple[float | None, str]:
+#: ISO 9283 pose repeatability RP = mean(l) + 3 s_l in units of the standard deviation per coordinate of an
+#: isotropic normal scatter: the distance l to the barycentre is then sigma times a chi variable of 3 degrees of
+#: freedom (Maxwell), of mean 2 sqrt(2 / pi) sigma and standard deviation sqrt(3 - 8 / pi) sigma, so
+#: RP = (2 sqrt(2 / pi) + 3 sqrt(3 - 8 / pi)) sigma = 3.616 sigma (the barycentre of many cycles taken as exact).
+RP_PER_SIGMA = 2.0 * math.sqrt(2.0 / math.pi) + 3.0 * math.sqrt(3.0 - 8.0 / math.pi)
+
+
+def repeatability_sigma(repeatability_mm: float | None) -> float:
+    """Standard deviation per coordinate [mm] of a robot's pose scatter from its ISO 9283 RP [mm]
+    (:data:`RP_PER_SIGMA`, isotropic normal scatter); 0 when not stated."""
+    return 0.0 if repeatability_mm is None else float(repeatability_mm) / RP_PER_SIGMA
+
+
+def stated_noise(capture: Capture, instrument=None, repeatability_mm: float | None = None) -> tuple[float | None, str]:
     """RMS stated standard uncertainty per coordinate of the capture's points [mm], and its source: the
-    points' U(95) / 2 (k = 2, normal) when given, else ``instrument``'s U(L); None without both."""
+    points' U(95) / 2 (k = 2, normal) when given, else ``instrument``'s U(L); None without both.
+
+    The noise budget: with the robot's ISO 9283 pose repeatability RP ``repeatability_mm`` stated, every point
+    also scatters by ``sigma_r = RP / 3.616`` per coordinate (:func:`repeatability_sigma`), and the expected
+    noise is ``sqrt(u_instrument^2 + sigma_r^2)`` (alone when the capture has neither instrument nor U(95)).
+    """
+    sigma_r = repeatability_sigma(repeatability_mm)
+    robot = f" + repeatability RP {repeatability_mm:g} mm (sigma {sigma_r * 1e3:.3g} um)" if sigma_r > 0 else ""
     if capture.u95 is not None:
-        return float(np.sqrt(np.mean((np.asarray(capture.u95) / 2.0) ** 2))), "U(95) / 2 of the points (k = 2)"
+        u2 = float(np.mean((np.asarray(capture.u95) / 2.0) ** 2))
+        return math.sqrt(u2 + sigma_r**2), "U(95) / 2 of the points (k = 2)" + robot
     if instrument is not None:
         sd = instrument.standard_uncertainty(capture.points)
-        return float(np.sqrt(np.mean(np.asarray(sd) ** 2))), f"instrument {instrument.name}"
+        return math.sqrt(float(np.mean(np.asarray(sd) ** 2)) + sigma_r**2), f"instrument {instrument.name}" + robot
+    if sigma_r > 0:
+        return sigma_r, robot.removeprefix(" + ")
     return None, "no instrument and no U(95)"
 
 
@@ -432,12 +455,12 @@ def _small_circles(result, capture: Capture, noise: float | None) -> list[str]:
     return found
 
 
-def cpa_health(result, capture: Capture, instrument=None) -> FitHealth:
+def cpa_health(result, capture: Capture, instrument=None, repeatability_mm: float | None = None) -> FitHealth:
     """Fit health of a CPA identification: the RMS distance of the points to their fitted circles against
     the stated noise (:func:`stated_noise`), the circle fits' convergence, the circles whose axis direction
     uncertainty moves the parameters of their pairs by more than :data:`CPA_EFFECT_LIMIT_MM` (FAILED, named with
     that effect), and a registered base frame whose residual is far above the noise (MODEL ERROR)."""
-    noise, noise_source = stated_noise(capture, instrument)
+    noise, noise_source = stated_noise(capture, instrument, repeatability_mm)
     squares, count = 0.0, 0
     for joint, fit in enumerate(result.circle_fits):
         rows = np.flatnonzero(capture.circle == joint + 1)
@@ -480,7 +503,7 @@ def _registration_note(rms: float | None, noise: float | None, noise_source: str
 
 def refine_health(
     fit, identifiability, uncertainty, *, criterion: str, converged: bool, model: str | None, capture: Capture,
-    instrument=None,
+    instrument=None, repeatability_mm: float | None = None,
 ) -> FitHealth:  # fmt: skip
     """Fit health of a refinement: its residual standard deviation per coordinate (``uncertainty.sigma``, weighted
     by the points' U(95) when given; the RMS residual ``fit.residual_rms_coordinate`` when no degree of freedom is
@@ -490,7 +513,7 @@ def refine_health(
     ``fit``, ``identifiability``, ``uncertainty``: the sub-records of the refinement
     (:class:`robotcal.identification.records.RefinementResult`), from which the result is then made.
     """
-    noise, noise_source = stated_noise(capture, instrument)
+    noise, noise_source = stated_noise(capture, instrument, repeatability_mm)
     sigma = uncertainty.sigma
     residual = float(sigma) if np.isfinite(sigma) else float(fit.residual_rms_coordinate)
     if criterion == "distances" and not np.isfinite(sigma):

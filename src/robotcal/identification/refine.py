@@ -405,7 +405,7 @@ def _set_up(
         [np.array([targets[t].positions for t in unknown], dtype=float).reshape(-1, 3), np.zeros((2 * n_moved, 3))]
         + ([np.zeros((1, 3))] if oriented else [])
     )
-    sigmas = point_sigmas(capture) if settings.weights == "auto" else None
+    sigmas = point_sigmas(capture, settings.repeatability_mm) if settings.weights == "auto" else None
     point_weight = reference = None
     if sigmas is not None:
         reference = float(np.sqrt(np.mean(sigmas**2)))
@@ -702,7 +702,7 @@ def _statistics(setup: Setup, fit: _Fit, began: float, instrument) -> Refinement
         model = "+".join(g for g in JOINT_MODEL_GROUPS if g in joint_model.groups)
     health = refine_health(
         statistics, identifiability, uncertainty, criterion=criterion, converged=fit.success, model=model,
-        capture=setup.capture, instrument=instrument,
+        capture=setup.capture, instrument=instrument, repeatability_mm=setup.settings.repeatability_mm,
     )  # fmt: skip
     return RefinementResult(
         parameters=ParameterSet(

@@ -92,6 +92,10 @@ class RefinementSettings:
         Of the rank test (:func:`robotcal.identification.observability.select_identifiable`), in (0, 1).
     weights : {"auto", "none"}
         ``auto``: with a ``u95_mm`` column, weight each point by ``1 / u^2`` (u = U(95) / 2); ``none``: equal.
+    repeatability_mm : float or None
+        The robot's ISO 9283 pose repeatability RP [mm], >= 0 (the scenario's ``repeatability_mm``): the noise
+        budget's robot part, added in quadrature to every point's u of the weights and to the fit health's expected
+        noise (:func:`robotcal.identification.health.stated_noise`); None: not stated.
     """
 
     criterion: str = "points"
@@ -103,6 +107,7 @@ class RefinementSettings:
     tolerance: float = 1e-12
     rank_tolerance: float = 1e-7
     weights: str = "auto"
+    repeatability_mm: float | None = None
 
     def __post_init__(self) -> None:
         _one_of("criterion", self.criterion, CRITERIA)
@@ -116,6 +121,10 @@ class RefinementSettings:
         _positive("tolerance", self.tolerance)
         _positive("rank_tolerance", self.rank_tolerance)
         _one_of("weights", self.weights, ("auto", "none"))
+        if self.repeatability_mm is not None:
+            value = self.repeatability_mm
+            if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value < float("inf"):
+                raise InputError(f"`repeatability_mm` must be a finite length >= 0 [mm]; got {value!r}")
 
     @property
     def strict(self) -> bool:

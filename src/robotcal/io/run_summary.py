@@ -81,6 +81,12 @@ class ModelUncertainty:
         The same for ``unit`` ``"deg"``.
     set_aside : dict of str to (float, str, str)
         Per unit, a larger u of a parameter the refinement does not determine on its own: ``(u, name, why)``.
+    bias : dict of str to (float, str, float)
+        Per unit, the largest Monte Carlo bias in units of its u among the same parameters: ``(bias, name, bias / u)``
+        (the headline states it beside the largest u, so that the u never hides it).
+    bias_treatment : str or None
+        What was done with the bias (``parameters.csv``'s ``bias_treatment``: subtracted from the deployed values,
+        or reported); None in a folder written before issue 29.
     """
 
     folder: str
@@ -91,6 +97,8 @@ class ModelUncertainty:
     angle_deg: float | None = None
     angle_name: str | None = None
     set_aside: dict = field(default_factory=dict)
+    bias: dict = field(default_factory=dict)
+    bias_treatment: str | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -209,7 +217,10 @@ class Summary:
                 continue
             draws = f"; {model.draws:,} draws" if model.draws is not None else ""
             over = " of the parameters its refinement determines" if model.folder == "uncertainty-refined" else ""
-            lines.append(f"how sure, {model.label}: largest standard uncertainty{over} {', '.join(parts)}{draws}")
+            lines.append(
+                f"how sure, {model.label}: largest standard uncertainty{over} {', '.join(parts)}{draws}"
+                + bias_text(model)
+            )
         check = self.consistency
         if check is not None:
             predicted = f"{check.predicted_rms_mm:.4f} mm" if check.predicted_rms_mm is not None else "n/a"
@@ -280,6 +291,16 @@ def _not_determined(documents: Mapping, data: Mapping) -> dict[str, str]:
     return reasons
 
 
+def bias_text(model: ModelUncertainty) -> str:
+    """``; largest bias 0.0078 mm (J1.a, 7.2 u), subtracted: deployed = estimate - bias`` ('' without a bias)."""
+    if not model.bias:
+        return ""
+    bias, name, ratio = max(model.bias.values(), key=lambda entry: abs(entry[2]))
+    unit = next(unit for unit, entry in model.bias.items() if entry[1] == name)
+    done = f", {model.bias_treatment}" if model.bias_treatment else ""
+    return f"; largest bias {bias:.4g} {unit} ({name}, {abs(ratio):.1f} u){done}"
+
+
 def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUncertainty | None:
     data = _json(documents, f"{folder}/parameters.json")
     parameters = data.get("parameters")
@@ -288,12 +309,18 @@ def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUnce
     reasons = _not_determined(documents, data) if folder == "uncertainty-refined" else {}
     largest: dict[str, tuple[float, str | None]] = {}
     aside: dict[str, tuple[float, str | None, str]] = {}
+    biases: dict[str, tuple[float, str, float]] = {}
+    treatment = None
     for entry in parameters:
         if not isinstance(entry, dict) or entry.get("identified") is not True:
             continue
         u, unit, name = _number(entry.get("std_uncertainty")), entry.get("unit"), _text(entry.get("name"))
         if u is None or unit not in ("mm", "deg"):
             continue
+        treatment = _text(entry.get("bias_treatment")) or treatment
+        bias = _number(entry.get("bias"))
+        if bias is not None and u > 0 and name not in reasons and abs(bias) / u > abs(biases.get(unit, (0, "", 0.0))[2]):
+            biases[unit] = (bias, name, bias / u)
         if name in reasons:
             if unit not in aside or u > aside[unit][0]:
                 aside[unit] = (u, name, reasons[name])
@@ -309,6 +336,8 @@ def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUnce
         angle_deg=angle[0],
         angle_name=angle[1],
         set_aside={unit: entry for unit, entry in aside.items() if entry[0] > largest.get(unit, (-1.0,))[0]},
+        bias=biases,
+        bias_treatment=treatment,
     )
 
 

@@ -260,6 +260,9 @@ class JointModelTable(_RunTable):
 class ScenarioFile(_Strict):
     description: str = ""
     robot: str
+    #: The robot's ISO 9283 pose repeatability RP [mm] (what `robotcal iso9283` measures): the noise budget's
+    #: robot part (docs/scenario.md, "Noise budget").
+    repeatability_mm: TomlFloat | None = Field(default=None, ge=0)
     tracker_from_base: Matrix4 = _IDENTITY
     instrument: InstrumentTable | None = None
     capture: CaptureTable | None = None
@@ -356,6 +359,9 @@ class Scenario:
     #: Whether the file gives ``tracker_from_base`` (else it is the identity, a placeholder: a result that
     #: needs the real base frame, such as an absolute error, must not use it).
     gives_tracker_from_base: bool = True
+    #: The robot's ISO 9283 pose repeatability RP [mm] (``repeatability_mm``), None when not stated: added to the
+    #: instrument's noise in the fit health, the refinement's weights and the Monte Carlo (the noise budget).
+    repeatability_mm: float | None = None
 
     @property
     def has_plan(self) -> bool:
@@ -420,6 +426,11 @@ def _joint_errors(tables: list[JointErrorTable], n_joints: int, source: str) -> 
     return JointErrorModel(
         amplitude=amplitude, period=period, phase=phase, noise_sd=noise, backlash=backlash, lash=lash
     )
+
+
+def repeatability_of(scenario: Scenario | None) -> float | None:
+    """The robot's ISO 9283 repeatability RP a scenario states [mm] (``repeatability_mm``); None without one."""
+    return None if scenario is None else scenario.repeatability_mm
 
 
 def scenario_from_dict(
@@ -496,6 +507,7 @@ def scenario_from_dict(
         targets=tuple(targets),
         reflector=reflector,
         gives_tracker_from_base="tracker_from_base" in data,
+        repeatability_mm=spec.repeatability_mm,
     )
 
 

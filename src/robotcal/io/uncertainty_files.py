@@ -15,7 +15,7 @@ from robotcal.errors import InputError
 from robotcal.io.atomic import atomic_write_text
 from robotcal.io.draws_npz import parameter_units
 from robotcal.io.parameters_json import joint_model_to_dict
-from robotcal.kinematics.model import DISPLAY_UNITS
+from robotcal.kinematics.model import DISPLAY_UNITS, ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
 __all__ = [
@@ -58,7 +58,15 @@ CSV_COLUMNS = (
     "bias",
     "draws_low",
     "draws_high",
+    "estimate",
+    "deployed",
+    "bias_treatment",
+    "correction_u",
 )
+#: ``bias_treatment`` of a deployed model's rows: its value is the estimate corrected for the bias.
+BIAS_SUBTRACTED = "subtracted: deployed = estimate - bias"
+#: ... and of a Monte Carlo that states no deployed value (the CPA model's, or a stand-alone study).
+BIAS_REPORTED = "reported, not corrected"
 #: How ``coverage_low/high`` are made from the draws (``parameters.json``'s ``interval_method``).
 INTERVAL_METHOD = (
     "coverage_low/high: the draws' coverage interval [draws_low, draws_high] moved by twice the Monte Carlo's bias "
@@ -67,7 +75,7 @@ INTERVAL_METHOD = (
     "moved, the interval is centred on the bias-corrected estimate and keeps the draws' shape (docs/uncertainty.md)"
 )
 #: Text (not numeric) columns of ``parameters.csv``.
-_TEXT_COLUMNS = ("name", "unit", "model")
+_TEXT_COLUMNS = ("name", "unit", "model", "bias_treatment")
 _METHODS = {
     "cpa": "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of simulated capture + CPA (thesis ch. 5.2.3)",
     "refined": "GUM Supplement 1 Monte Carlo (JCGM 101:2008) of simulated capture + CPA + least-squares "
@@ -80,8 +88,14 @@ def _scale(result: MonteCarloResult) -> np.ndarray:
     return np.array([180.0 / math.pi if unit == "deg" else 1.0 for unit in parameter_units(result.robot)])
 
 
-def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
-    """One dict per parameter (``J1.d`` ... ``Jn.beta``) in mm / deg."""
+def uncertainty_rows(result: MonteCarloResult, deployed: ParameterSet | None = None) -> list[dict]:
+    """One dict per parameter (``J1.d`` ... ``Jn.beta``) in mm / deg.
+
+    ``estimate`` is the value the Monte Carlo was simulated at (:attr:`MonteCarloResult.centre`); ``deployed``
+    (given: the value deployed, ``result.corrected(estimate)``, the centre of ``coverage_low/high``; else empty)
+    and ``bias_treatment`` say what was done with the bias; ``correction_u`` is the standard uncertainty of that
+    correction (from the measured joint errors', :attr:`MonteCarloResult.correction_u`), which ``coverage_low/high``
+    include (the deployed value's u: ``std_uncertainty`` and ``correction_u`` in quadrature)."""
     scale = _scale(result)
     summary = result.summary
     low, high = result.interval()  # for the measurand: the draws' interval moved by twice the bias
@@ -108,7 +122,11 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
         "bias": flat(result.bias),
         "draws_low": flat(draws_low),
         "draws_high": flat(draws_high),
+        "estimate": flat(result.centre),
+        "correction_u": flat(result.correction_u),
     }
+    if deployed is not None:
+        columns["deployed"] = flat(deployed.values)
     linear = result.linearised
     if linear is not None:
         columns.update(
@@ -120,15 +138,21 @@ def uncertainty_rows(result: MonteCarloResult) -> list[dict]:
     units = parameter_units(result.robot)
     identified = result.identified.reshape(-1)
     for index, name in enumerate(result.robot.parameter_names):
-        row = {"name": name, "unit": units[index], "identified": bool(identified[index]), "model": result.model}
+        row = {
+            "name": name,
+            "unit": units[index],
+            "identified": bool(identified[index]),
+            "model": result.model,
+            "bias_treatment": BIAS_REPORTED if deployed is None else BIAS_SUBTRACTED,
+        }
         row.update({key: float(values[index]) for key, values in columns.items()})
         if linear is not None:
             row["lpu_agrees"] = bool(linear.agrees.reshape(-1)[index])
         rows.append(row)
-    return rows + _joint_model_rows(result)
+    return rows + _joint_model_rows(result, deployed)
 
 
-def _joint_model_rows(result: MonteCarloResult) -> list[dict]:
+def _joint_model_rows(result: MonteCarloResult, deployed: ParameterSet | None) -> list[dict]:
     """One row per joint-model value of an extended refined model (``J2.k`` [rad/(N m)], ``J4.a1`` [deg]), after
     the parameters: the same columns (no nominal, no linearised comparison)."""
     model, summary = result.joint_model, result.extra_summary
@@ -155,7 +179,11 @@ def _joint_model_rows(result: MonteCarloResult) -> list[dict]:
         "bias": np.where(result.extra_identified, summary.mean - result.extra_true, 0.0),
         "draws_low": draws_low,
         "draws_high": draws_high,
+        "estimate": result.extra_true,
+        "correction_u": result.extra_correction_u,
     }
+    if deployed is not None and deployed.joint_model is not None and deployed.joint_model.names == model.names:
+        columns["deployed"] = deployed.joint_model.values
     shown = {key: model.to_display(value) for key, value in columns.items()}
     return [
         {
@@ -163,6 +191,7 @@ def _joint_model_rows(result: MonteCarloResult) -> list[dict]:
             "unit": unit,
             "identified": bool(result.extra_identified[k]),
             "model": result.model,
+            "bias_treatment": BIAS_REPORTED if deployed is None else BIAS_SUBTRACTED,
             **{key: float(values[k]) for key, values in shown.items()},
         }
         for k, (name, unit) in enumerate(zip(model.names, model.display_units, strict=True))
@@ -177,12 +206,13 @@ def _format(value) -> str:
     return str(value)
 
 
-def write_uncertainty_csv(path, result: MonteCarloResult) -> Path:
-    """``parameters.csv``: one row per parameter, columns :data:`CSV_COLUMNS` (mm, deg)."""
+def write_uncertainty_csv(path, result: MonteCarloResult, deployed: ParameterSet | None = None) -> Path:
+    """``parameters.csv``: one row per parameter, columns :data:`CSV_COLUMNS` (mm, deg); ``deployed``: the values
+    deployed (:func:`uncertainty_rows`)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
-    for row in uncertainty_rows(result):
+    for row in uncertainty_rows(result, deployed):
         writer.writerow([_format(row[column]) if column in row else "" for column in CSV_COLUMNS])
     return atomic_write_text(path, buffer.getvalue())
 
@@ -227,7 +257,9 @@ def _matrix_in_file_units(result: MonteCarloResult, matrix: np.ndarray, *, scale
     return {"names": names, "matrix": [[float(format(v, ".12g")) for v in row] for row in sub]}
 
 
-def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | None, versions: dict) -> Path:
+def write_uncertainty_json(
+    path, result: MonteCarloResult, *, scenario: dict | None, versions: dict, deployed: ParameterSet | None = None
+) -> Path:
     """``parameters.json``: the CSV's content plus covariance, correlation, seed, draws, adaptive
     record, settings, timings, versions and the scenario echo (mm, deg)."""
     settings = result.settings
@@ -273,7 +305,7 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
         "message": result.message,
         "adaptive": adaptive,
         "joint_model": None if result.joint_model is None else joint_model_to_dict(result.joint_model),
-        "parameters": uncertainty_rows(result),
+        "parameters": uncertainty_rows(result, deployed),
         "covariance": _matrix_in_file_units(result, result.covariance, scaled=True),
         "correlation": _matrix_in_file_units(result, result.correlation, scaled=False),
         "linearised": None
@@ -294,9 +326,11 @@ def write_uncertainty_json(path, result: MonteCarloResult, *, scenario: dict | N
     return atomic_write_text(path, json.dumps(document, indent=2, allow_nan=False) + "\n")
 
 
-def write_uncertainty_folder(folder: Path, result: MonteCarloResult, *, scenario=None, save_draws: bool) -> dict:
+def write_uncertainty_folder(
+    folder: Path, result: MonteCarloResult, *, scenario=None, save_draws: bool, deployed: ParameterSet | None = None
+) -> dict:
     """Write ``parameters.csv``, ``parameters.json`` and (optionally) ``draws.npz`` into ``folder`` (an existing,
-    normally temporary, folder); returns the documents by file name as :func:`robotcal.io.run_folder.read_run`
+    normally temporary, folder), with the ``deployed`` values if given (:func:`uncertainty_rows`); returns the documents by file name as :func:`robotcal.io.run_folder.read_run`
     reads them (the histograms: :func:`robotcal.plots.montecarlo.write_histograms`)."""
     from robotcal.io.draws_npz import write_draws
     from robotcal.io.provenance import versions
@@ -306,8 +340,8 @@ def write_uncertainty_folder(folder: Path, result: MonteCarloResult, *, scenario
     echo = (
         None if scenario is None else {"name": scenario.name, "source": scenario.source, "settings": scenario.settings}
     )
-    write_uncertainty_csv(folder / "parameters.csv", result)
-    write_uncertainty_json(folder / "parameters.json", result, scenario=echo, versions=versions())
+    write_uncertainty_csv(folder / "parameters.csv", result, deployed)
+    write_uncertainty_json(folder / "parameters.json", result, scenario=echo, versions=versions(), deployed=deployed)
     documents = {name: read_document(folder, name) for name in ("parameters.csv", "parameters.json")}
     if save_draws:
         write_draws(

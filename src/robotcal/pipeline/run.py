@@ -319,8 +319,12 @@ class _Run:
             figures=self.figures,
             step=self.step("uncertainty"),
             poses=self.results["poses"],
+            joints=self.results.get("joints"),
         )
-        self.results["montecarlo"] = output.value
+        value = dict(output.value)
+        # the deployed values: the refinement's estimate corrected for the bias its Monte Carlo measures
+        self.results["deployed"] = value.pop("deployed", None)
+        self.results["montecarlo"] = value
         return output
 
     def _tcp(self) -> stages.StageOutput:
@@ -329,7 +333,8 @@ class _Run:
             targets=self.plan.tcp,
             draws=self.results["montecarlo"]["refined"],
             validation=self.results["validation"],
-            deployed=self.results["refined"][stages.DEPLOYED].parameters,
+            deployed=self._deployed(),
+            estimate=self.results["refined"][stages.DEPLOYED].parameters,
             workspace_seed=self.plan.seeds["workspace"],
             out=self.out,
             figures=self.figures,
@@ -337,6 +342,11 @@ class _Run:
         )
         self.results["tcp"] = output.value
         return output
+
+    def _deployed(self):
+        """The deployed values: the uncertainty stage's bias-corrected estimate, else the refinement's estimate."""
+        deployed = self.results.get("deployed")
+        return self.results["refined"][stages.DEPLOYED].parameters if deployed is None else deployed
 
     def _plan(self) -> stages.StageOutput:
         output = stages.plan_stage(
@@ -354,7 +364,7 @@ class _Run:
         models = {
             "nominal": self.results["nominal"],
             "cpa": self.results["cpa"],
-            "refined": self.results["refined"][stages.DEPLOYED].parameters,
+            "refined": self._deployed(),
         }
         output = stages.iso9283_stage(
             self.plan.scenario,

@@ -41,11 +41,14 @@ from robotcal.io.uncertainty_files import write_uncertainty_folder
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
+from robotcal.simulation.generator import JointErrorModel
+from robotcal.uncertainty.joint_errors import MeasuredJointErrors, measured_joint_errors
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
 
 __all__ = [
     "CRITERIA_RUN",
     "DEPLOYED",
+    "DEPLOYED_FILE",
     "ISO_TARGETS_MM",
     "Simulated",
     "StageOutput",
@@ -66,6 +69,13 @@ CRITERIA_RUN: tuple[Literal["points", "distances"], ...] = ("points", "distances
 DEPLOYED: Literal["points"] = "points"
 #: The geometric fit of the deployed criterion, written beside an extended deployed model for the comparison.
 GEOMETRIC_FILE = f"{DEPLOYED}-geometric.json"
+#: The deployed values (the refinement's estimate corrected for the Monte Carlo's bias), in ``uncertainty-refined/``.
+DEPLOYED_FILE = "deployed.json"
+DEPLOYED_METHOD = (
+    "the deployed values: the refinement's estimate (estimate_file) minus the bias its Monte Carlo measures "
+    "(uncertainty-refined/parameters.csv, column bias; GUM correction for recognised systematic effects: the joint "
+    "errors the joints stage measured and the estimator's non-linearity), the centre of the stated intervals"
+)
 #: Three flange targets (a typical adapter plate) measured at each ISO 9283 test pose, so that the orientation
 #: characteristics are measured too [mm].
 ISO_TARGETS_MM = {"A": (60.0, 40.0, 30.0), "B": (-50.0, 30.0, 20.0), "C": (0.0, -60.0, 40.0)}
@@ -277,14 +287,20 @@ def uncertainty_stage(
     figures: FigureJobs,
     step: Step = _no_step,
     poses: Capture | None = None,
+    joints: api.JointAnalysis | None = None,
 ) -> StageOutput:
     """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model: its joint
     model, if extended, fitted in every draw, and the calibration ``poses`` refined with the circles).
 
-    Both Monte Carlos use the same seed, so they see the same instrument noise draw for draw; both folders
-    are written only once both are computed (a failure or an interrupt while computing leaves neither).
-    Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult}``.
+    Both Monte Carlos use the same seed, so they see the same instrument noise draw for draw, and simulate the
+    joint errors the capture's own joints stage measured (``joints``: its backlash and eccentricity,
+    :func:`robotcal.uncertainty.joint_errors.measured_joint_errors`; none without it), never the scenario's
+    simulation settings. The refined Monte Carlo's bias corrects the refinement's estimate: the deployed values,
+    ``uncertainty-refined/deployed.json`` (docs/uncertainty.md, "The measurand"). Both folders are written only
+    once both are computed (a failure or an interrupt while computing leaves neither).
+    Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult, "deployed": ParameterSet}``.
     """
+    measured = measured_errors(scenario, joints, deployed)
     total = montecarlo.iterations + refined_montecarlo.iterations
     results = {}
     runs: tuple[tuple[Literal["cpa", "refined"], MonteCarloSettings, ParameterSet, int], ...] = (
@@ -303,21 +319,45 @@ def uncertainty_stage(
             model=model,
             criterion=DEPLOYED,
             rng=seed,
-            progress=progress,
+            joint_errors=measured,
+            progress=lambda count, expected, done=done: step(done + count, total, "draws"),
             poses=poses if model == "refined" else None,
         )
+    corrected = results["refined"].corrected(deployed)
     documents: dict[str, Document] = {}
     for name, result in (("uncertainty", results["cpa"]), ("uncertainty-refined", results["refined"])):
         with atomic_directory(out / name) as folder:
-            written = write_uncertainty_folder(folder, result, scenario=scenario, save_draws=True)
+            written = write_uncertainty_folder(
+                folder, result, scenario=scenario, save_draws=True, deployed=corrected if name != "uncertainty" else None
+            )
+            if name == "uncertainty-refined":
+                provenance = {"method": DEPLOYED_METHOD, "estimate_file": f"refine/{DEPLOYED}.json", "versions": versions()}
+                document = parameters_to_dict(corrected, provenance)
+                written[DEPLOYED_FILE] = write_json(folder / DEPLOYED_FILE, document)
         documents.update(_in(name, written, out / name))
-        figures.draw("robotcal.plots.montecarlo:write_histograms", result, out / name)
+        deployed_values = {} if name == "uncertainty" else {"deployed": corrected}
+        figures.draw("robotcal.plots.montecarlo:write_histograms", result, out / name, **deployed_values)
     rates = [r.n_draws / max(r.timings_s.get("draws", 0.0), 1e-9) for r in results.values()]
     detail = (
         f"CPA {results['cpa'].n_draws:,} draws ({rates[0]:,.0f}/s), "
-        f"refined {results['refined'].n_draws:,} draws ({rates[1]:,.0f}/s)"
+        f"refined {results['refined'].n_draws:,} draws ({rates[1]:,.0f}/s), deployed = estimate - bias"
     )
-    return StageOutput(results, documents, detail)
+    return StageOutput({**results, "deployed": corrected}, documents, detail)
+
+
+def measured_errors(
+    scenario: Scenario, joints: api.JointAnalysis | None, estimate: ParameterSet
+) -> MeasuredJointErrors:
+    """The joint errors a calibration's Monte Carlo simulates: those the joints stage measured from the capture,
+    with their uncertainty (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`); none without a joints
+    analysis."""
+    if joints is None:
+        zeros = JointErrorModel.zeros(scenario.robot.n_joints)
+        return MeasuredJointErrors(amplitude=zeros.amplitude, period=zeros.period, phase=zeros.phase, noise_sd=zeros.noise_sd)
+    return measured_joint_errors(
+        joints.diagnostics, estimate, scenario.plan, scenario.tracker_from_base,
+        circle_fit=scenario.identification.circle_fit,
+    )  # fmt: skip
 
 
 def _deployed_label(draws: MonteCarloResult) -> str:
@@ -337,6 +377,7 @@ def tcp_stage(
     validation: Capture,
     deployed: ParameterSet,
     workspace_seed: int,
+    estimate: ParameterSet | None = None,
     out: Path,
     figures: FigureJobs,
     step: Step = _no_step,
@@ -390,6 +431,12 @@ def tcp_stage(
         validation, deployed, draws, scenario, model=_deployed_label(draws)
     )
     consistency.update(draws_file="uncertainty-refined/draws.npz", validation_file="validation.csv")
+    if estimate is not None and estimate is not deployed:
+        uncorrected = api.validation_consistency(validation, estimate, draws, scenario, model=_deployed_label(draws))
+        consistency["deployed"] = "the refinement's estimate corrected for its Monte Carlo's bias (uncertainty-refined/deployed.json)"
+        consistency["estimate"] = {
+            key: uncorrected[key] for key in ("observed_rms_mm", "observed_mean_mm", "ratio")
+        }
     written["consistency.json"] = write_json(folder / "consistency.json", consistency)
     documents = {
         f"tcp/{name}": (folder / document if isinstance(document, Path) else document)

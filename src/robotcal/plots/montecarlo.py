@@ -19,7 +19,7 @@ def _bins(n_draws: int) -> int:
     return int(np.clip(round(2.0 * n_draws ** (1.0 / 3.0)), 20, 120))  # Rice rule, bounded
 
 
-def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=None) -> list[Path]:
+def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=None, deployed=None) -> list[Path]:
     """One PNG per joint, ``hist_J<i>.png``, a panel per identified parameter; returns the paths in joint order.
 
     ``joints`` (0-based, default every joint) draws only those joints' figures, each the same as in a call for
@@ -31,8 +31,10 @@ def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=Non
     :meth:`~robotcal.uncertainty.montecarlo.MonteCarloResult.interval`), the draws' own
     interval (dash-dot, thin), the linearised (GUM) normal density when the result has the linearised comparison
     (``result.linearised``; a refined Monte Carlo has it only when asked for), and the value the model gives for
-    the noise-free capture (dotted): CPA's, or the refinement's for ``result.model == "refined"``. Angles in
-    degrees, lengths in mm.
+    the noise-free capture (dotted): CPA's, or the refinement's for ``result.model == "refined"``, and the value
+    stated (solid, green): ``deployed`` (a ParameterSet: the values deployed, the estimate corrected for the bias,
+    the centre of the interval for the measurand), else the estimate the draws were simulated at
+    (:attr:`~robotcal.uncertainty.montecarlo.MonteCarloResult.centre`). Angles in degrees, lengths in mm.
     """
     if result.draws is None:
         raise ValueError("the result holds no draws (run with keep_draws=True)")
@@ -40,6 +42,7 @@ def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=Non
     low, high = result.interval()
     draws_low, draws_high = result.draws_interval()
     noise_free = "noise-free refinement" if result.model == "refined" else "noise-free CPA"
+    stated, stated_label = (result.centre, "estimate") if deployed is None else (deployed.values, "deployed")
     written = []
     for joint in range(result.robot.n_joints) if joints is None else sorted(joints):
         columns = np.flatnonzero(result.identified[joint])
@@ -59,6 +62,7 @@ def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=Non
             density, edges = np.histogram(values, bins=_bins(values.size), density=True)
             axis.stairs(density, edges, fill=True, color="#8fb4d9", linewidth=0)
             axis.axvline(result.summary.mean[joint, column] * scale, color="#1f4e79", lw=1.5, label="mean")
+            axis.axvline(stated[joint, column] * scale, color="#1e8449", lw=1.8, label=stated_label)
             interval = f"{result.settings.coverage:.0%} interval"
             axis.axvline(low[joint, column] * scale, color="#c0392b", ls="--", lw=1.2, label=interval)
             axis.axvline(high[joint, column] * scale, color="#c0392b", ls="--", lw=1.2)
@@ -96,6 +100,6 @@ def write_histograms(result: MonteCarloResult, folder: str | Path, *, joints=Non
         )
         figure.suptitle(f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws", fontsize="medium")
         handles, labels = axes[0, 0].get_legend_handles_labels()
-        figure.legend(handles, labels, loc="lower center", ncols=5, fontsize="small", frameon=False)
+        figure.legend(handles, labels, loc="lower center", ncols=6, fontsize="small", frameon=False)
         written.append(save_figure(figure, folder / f"hist_J{joint + 1}.png"))
     return written

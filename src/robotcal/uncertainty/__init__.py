@@ -32,6 +32,7 @@ from robotcal.uncertainty.coverage import (
     extended_coverage_study,
 )
 from robotcal.uncertainty.gauss_newton import refine_draws_gauss_newton
+from robotcal.uncertainty.joint_errors import MeasuredJointErrors, measured_joint_errors
 from robotcal.uncertainty.measured import (
     DRAWS_PER_BLOCK,
     MODEL,
@@ -67,6 +68,7 @@ from robotcal.uncertainty.statistics import (
     coverage_interval,
     numerical_tolerance,
     summarize_draws,
+    widened_interval,
 )
 from robotcal.uncertainty.tcp import (
     ORIENTATION_CONVENTION,
@@ -85,6 +87,8 @@ from robotcal.uncertainty.tcp import (
 from robotcal.uncertainty.workspace import PERCENTILES, WorkspaceUncertainty, sample_workspace, workspace_uncertainty
 
 __all__ = [
+    "MeasuredJointErrors",
+    "measured_joint_errors",
     "COVERAGE_METHODS",
     "CoverageStudy",
     "ExtendedCoverage",
@@ -118,6 +122,7 @@ __all__ = [
     "summarize_draws",
     "coverage_interval",
     "bias_corrected_interval",
+    "widened_interval",
     "numerical_tolerance",
     "check_coverage",
     "TCP_COORDINATES",

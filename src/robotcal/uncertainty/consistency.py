@@ -11,11 +11,13 @@ level). Front door: :func:`robotcal.api.validation_consistency`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from robotcal.geometry.registration import register_points
+from robotcal.identification.health import repeatability_sigma
 from robotcal.kinematics.forward import target_positions
 from robotcal.uncertainty.tcp import position_covariance
 
@@ -29,7 +31,9 @@ __all__ = ["check_validation_consistency"]
 
 METHOD = (
     "predicted = sqrt(mean over poses of tr V_p), V_p the covariance of the validation target position "
-    "over the Monte Carlo draws; instrument = sqrt(mean of 3 sigma_p^2) from U(L); expected = "
+    "over the Monte Carlo draws (plus the bias correction's uncertainty where the joint errors were measured); "
+    "instrument = sqrt(mean of 3 sigma_p^2) from U(L) (with the robot's repeatability sigma_r^2 = (RP / 3.616)^2 "
+    "added to sigma_p^2 when stated); expected = "
     "sqrt(predicted^2 + instrument^2); observed = RMS of |T p(estimate) - measured|"
 )
 
@@ -46,6 +50,8 @@ def check_validation_consistency(
     joint_model: JointModel | None = None,
     extra_draws: np.ndarray | None = None,
     model: str = "refined",
+    repeatability_mm: float | None = None,
+    correction_shifts: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Predicted, instrument, expected and observed RMS errors at the validation points [mm].
 
@@ -66,6 +72,12 @@ def check_validation_consistency(
         of the error).
     model : str
         Name of the model, recorded.
+    repeatability_mm : float, optional
+        The robot's ISO 9283 pose repeatability RP [mm] (the noise budget): its scatter, ``3 sigma_r^2`` per point
+        (:func:`robotcal.identification.health.repeatability_sigma`), adds to the instrument's.
+    correction_shifts : ndarray, shape (k, 5 n + m), optional
+        The bias correction's uncertainty sources (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.
+        correction_shifts`): each moves the predicted positions, and the squared moves add to ``tr V_p``.
 
     Returns
     -------
@@ -85,8 +97,10 @@ def check_validation_consistency(
     covariance = position_covariance(
         robot, values, validation.readings, tool=target.positions[0], joint_model=joint_model, extra_draws=extra_draws
     )
-    traces = np.trace(covariance, axis1=1, axis2=2)
-    noise = 3.0 * instrument.standard_uncertainty(measured) ** 2
+    traces = np.trace(covariance, axis1=1, axis2=2) + _correction_variance(
+        estimate, validation, target, correction_shifts, predicted
+    )
+    noise = 3.0 * (instrument.standard_uncertainty(measured) ** 2 + repeatability_sigma(repeatability_mm) ** 2)
     expected = float(np.sqrt(np.mean(traces + noise)))
     observed_rms = float(np.sqrt(np.mean(observed**2)))
     return {
@@ -101,4 +115,24 @@ def check_validation_consistency(
         "observed_mean_mm": float(observed.mean()),
         "ratio": observed_rms / expected if expected > 0 else None,
         "method": METHOD,
+        **({} if repeatability_mm is None else {"repeatability_mm": float(repeatability_mm)}),
     }
+
+
+def _correction_variance(estimate, validation, target, shifts, predicted: np.ndarray) -> np.ndarray:
+    """Per validation pose, the variance of the predicted position the bias correction's uncertainty adds: the sum
+    over ``shifts`` of the squared move of the position when the parameters (and joint-model values) move by it."""
+    if shifts is None or np.size(shifts) == 0:
+        return np.zeros(predicted.shape[0])
+    n = estimate.robot.n_joints
+    turning = np.zeros(validation.n_points, dtype=int)
+    total = np.zeros(predicted.shape[0])
+    for shift in np.asarray(shifts, dtype=float):
+        moved = estimate.values + shift[: 5 * n].reshape(n, 5)
+        joint_model = estimate.joint_model
+        if joint_model is not None and shift.size > 5 * n:
+            joint_model = joint_model.with_values(joint_model.values + shift[5 * n :])
+        shifted = dataclasses.replace(estimate, values=moved, joint_model=joint_model)
+        q = shifted.model_joint_variables(validation.readings)
+        total += np.sum((target_positions(shifted.values, q, turning, target) - predicted) ** 2, axis=1)
+    return total

@@ -195,6 +195,7 @@ def coverage_study(
     tcp_readings=None,
     rng: np.random.Generator | int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    measured_joint_errors: bool = False,
 ) -> CoverageStudy:
     """Empirical coverage of the CPA and refined-model intervals over repeated simulated captures.
 
@@ -227,6 +228,10 @@ def coverage_study(
         Seeds every capture (one child seed per capture) and every Monte Carlo.
     progress : callable, optional
         ``progress(done, captures)`` after each capture.
+    measured_joint_errors : bool
+        Each capture's Monte Carlos simulate the joint errors that capture's joints analysis measures
+        (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`), as ``robotcal run`` does, not
+        ``joint_errors`` (which then only make the captures).
     """
     with single_blas_thread():
         from robotcal.uncertainty.montecarlo import MonteCarloSettings
@@ -255,7 +260,7 @@ def coverage_study(
         checked = None
         for k, child in enumerate(children):
             capture_seed, mc_seed = (int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(2))
-            cpa, refined = _estimates(setup, truth, capture_seed)
+            cpa, refined, capture = _estimates(setup, truth, capture_seed)
             checked = _same_set(cpa.identified & refined.identifiability.free, checked, k, robot.parameter_names)
             records.error["cpa"].append((cpa.values - truth.values)[checked])
             records.error["refined"].append((refined.parameters.values - truth.values)[checked])
@@ -264,9 +269,9 @@ def coverage_study(
                     u = refined.uncertainty.standard_uncertainty
                     interval, result = (refined.parameters.values - z * u, refined.parameters.values + z * u), None
                 else:
-                    result = _monte_carlo_at(
-                        setup, cpa if method == "cpa-mc" else refined.parameters, method, settings, mc_seed
-                    )
+                    centre = cpa if method == "cpa-mc" else refined.parameters
+                    errors = _measured(setup, capture, centre) if measured_joint_errors else setup.joint_errors
+                    result = _monte_carlo_at(setup, centre, method, settings, mc_seed, errors)
                     interval, u = result.interval(), result.summary.std_uncertainty
                 records.add(method, interval, u, result, truth.values, checked, tcp, coverage)
             if progress is not None:
@@ -346,16 +351,30 @@ def _estimates(setup: _Setup, truth: ParameterSet, capture_seed: int):
             capture, cpa, setup.plan.reflector, settings=RefinementSettings(criterion=setup.criterion),
             tracker_from_base=setup.held_base,
         )  # fmt: skip
-    return cpa, refined
+    return cpa, refined, capture
 
 
-def _monte_carlo_at(setup: _Setup, centre: ParameterSet, method: str, settings, seed: int):
-    """The Monte Carlo a user is given for one capture: simulated at its estimate ``centre`` (module notes)."""
+def _measured(setup: _Setup, capture, centre: ParameterSet) -> JointErrorModel:
+    """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``, with
+    their uncertainty (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`)."""
+    from robotcal.diagnostics.joints import analyze_joints
+    from robotcal.uncertainty.joint_errors import measured_joint_errors
+
+    method = setup.options.circle_fit
+    diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)  # type: ignore[arg-type]
+    return measured_joint_errors(diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method)
+
+
+def _monte_carlo_at(
+    setup: _Setup, centre: ParameterSet, method: str, settings, seed: int, joint_errors=None
+):
+    """The Monte Carlo a user is given for one capture: simulated at its estimate ``centre`` (module notes), with
+    ``joint_errors`` (measured ones with their uncertainty)."""
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
 
     problem = prepare_monte_carlo(
         setup.robot, setup.plan, setup.instrument, setup.tracker_from_base, options=setup.options,
-        true_parameters=centre, joint_errors=setup.joint_errors, joint_limits=setup.joint_limits,
+        true_parameters=centre, joint_errors=joint_errors, joint_limits=setup.joint_limits,
         model="cpa" if method == "cpa-mc" else "refined", criterion=setup.criterion,
     )  # fmt: skip
     return run_monte_carlo(problem, settings, seed=seed, linearised=False)

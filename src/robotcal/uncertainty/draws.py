@@ -79,7 +79,7 @@ def _noise(
     noise = np.empty(shape) if out is None else out
     if problem.instrument.is_noise_free:
         noise[...] = 0.0
-        return noise
+        return _add_repeatability(problem, noise, rng)
     # The bound of every coordinate as one row of 3 n_points numbers: the in-place product then runs
     # along whole draws rather than 3 numbers at a time (the same products, in long inner loops).
     bound = np.repeat(problem.error_bound, 3)
@@ -92,6 +92,15 @@ def _noise(
         bound = bound / problem.instrument.coverage_factor
     flat = noise.reshape(n_draws, -1)  # a view: the product is made in place (millions of numbers)
     flat *= bound
+    return _add_repeatability(problem, noise, rng)
+
+
+def _add_repeatability(problem: MonteCarloProblem, noise: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The robot's pose scatter (the noise budget), isotropic normal of ``problem.repeatability_sd`` per coordinate,
+    added to ``noise`` in place, drawn after the instrument's errors from the same generator (none when 0: the
+    draws of a problem without it are unchanged)."""
+    if problem.repeatability_sd > 0.0:
+        noise += problem.repeatability_sd * rng.standard_normal(noise.shape)
     return noise
 
 
@@ -126,18 +135,28 @@ def draw_block(
             exact = problem.exact_points
         points = _noise(problem, count, instrument_rng, out=buffer[:count])
         points += exact  # noise + exact, in place (the same numbers as exact + noise)
-        if count == 1:
-            points = np.concatenate([points, points])
         try:
-            circles = points[:, : problem.n_circle]
-            batch = identify_cpa_batch(circles, problem.structure, problem.tracker_from_base, residuals=False)
-            result = batch.values.reshape(batch.values.shape[0], -1)
-            if problem.refined is not None:
-                result = _refine_draws(problem.refined, points, batch, refined_solver)
+            result = solve_points(problem, points, refined_solver)
         except RobotcalError as exc:
             raise type(exc)(f"Monte Carlo block {block}, draws {start}..{start + count - 1}: {exc}") from None
         values[start : start + count] = result[:count]
     return values
+
+
+def solve_points(problem: MonteCarloProblem, points: np.ndarray, solver: str = "gauss-newton") -> np.ndarray:
+    """The outputs (rows as :func:`draw_block`'s) of captures whose measured points are ``points (k, n_points, 3)``
+    [mm]: what a draw computes (CPA of the circles, then the refinement by ``solver``), for drawn or given points
+    (a noise-free capture of other joint errors, say). A lone capture is solved as a batch of two (itself twice):
+    numpy reduces a stack of one with other loops than a larger stack."""
+    points = np.asarray(points, dtype=float)
+    count = points.shape[0]
+    if count == 1:
+        points = np.concatenate([points, points])
+    batch = identify_cpa_batch(points[:, : problem.n_circle], problem.structure, problem.tracker_from_base, residuals=False)
+    result = batch.values.reshape(batch.values.shape[0], -1)
+    if problem.refined is not None:
+        result = _refine_draws(problem.refined, points, batch, solver)
+    return result[:count]
 
 
 def _refine_draws(model: RefinedModel, points: np.ndarray, batch, solver: str = "gauss-newton") -> np.ndarray:

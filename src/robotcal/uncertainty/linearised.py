@@ -57,7 +57,7 @@ class LinearisedResult:
 
 def _input_variance(problem: MonteCarloProblem) -> np.ndarray:
     """Variance of each measured coordinate ``(n_points, 3)`` [mm^2]: U^2/3 (uniform) or (U/k)^2."""
-    return coordinate_variance(problem.instrument, problem.error_bound)
+    return coordinate_variance(problem.instrument, problem.error_bound) + problem.repeatability_sd**2
 
 
 def _refined_full_covariance(problem: MonteCarloProblem, cpa_covariance: np.ndarray) -> np.ndarray:

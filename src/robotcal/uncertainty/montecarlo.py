@@ -44,8 +44,8 @@ import numpy as np
 
 from robotcal.errors import InputError, RobotcalError
 from robotcal.execution import open_executor, single_blas_thread
-from robotcal.kinematics.model import ANGLE_COLUMNS, RobotModel
-from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block
+from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
+from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block, solve_points
 from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
@@ -56,6 +56,7 @@ from robotcal.uncertainty.statistics import (
     coverage_interval,
     numerical_tolerance,
     summarize_draws,
+    widened_interval,
 )
 
 if TYPE_CHECKING:
@@ -224,6 +225,9 @@ class MonteCarloResult:
         Joint-model values the refinement estimates (the others stay 0 in every draw).
     extra_true : ndarray, shape (m,)
         The values of the robot the capture was simulated from (the centre of :meth:`extra_interval`).
+    correction_shifts : ndarray, shape (k, 5 n + m), or None
+        How the bias moves with each measured joint error of stated uncertainty
+        (:func:`correction_shifts`): the bias correction's uncertainty, :attr:`correction_u`.
     """
 
     robot: RobotModel
@@ -250,6 +254,7 @@ class MonteCarloResult:
     extra_summary: SampleSummary | None = None
     extra_identified: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    correction_shifts: np.ndarray | None = None
 
     @property
     def is_extended(self) -> bool:
@@ -269,7 +274,34 @@ class MonteCarloResult:
         draws' interval moved by twice the bias against :attr:`extra_true`, as :meth:`interval`."""
         low, high = self.extra_summary.interval(self.settings.interval)
         moved_low, moved_high = bias_corrected_interval(low, high, self.extra_summary.mean, self.extra_true)
+        moved_low, moved_high = widened_interval(
+            moved_low, moved_high, self.extra_true - self.extra_bias, self.extra_correction_u, self.settings.coverage
+        )
         return np.where(self.extra_identified, moved_low, low), np.where(self.extra_identified, moved_high, high)
+
+    @property
+    def correction_u(self) -> np.ndarray:
+        """Standard uncertainty of the bias correction ``(n_joints, 5)`` [mm, rad]: the root sum of squares of
+        :attr:`correction_shifts` (the measured joint errors' uncertainty, propagated); zeros without them."""
+        n = self.robot.n_joints
+        if self.correction_shifts is None or self.correction_shifts.size == 0:
+            return np.zeros((n, 5))
+        u = np.sqrt(np.sum(self.correction_shifts[:, : 5 * n] ** 2, axis=0)).reshape(n, 5)
+        return np.where(self.identified, u, 0.0)
+
+    @property
+    def extra_correction_u(self) -> np.ndarray:
+        """The same for the joint-model values ``(m,)``."""
+        n, m = self.robot.n_joints, self.extra_true.size
+        if self.correction_shifts is None or self.correction_shifts.size == 0 or m == 0:
+            return np.zeros(m)
+        return np.sqrt(np.sum(self.correction_shifts[:, 5 * n :] ** 2, axis=0))
+
+    @property
+    def combined_u(self) -> np.ndarray:
+        """The standard uncertainty of the deployed values ``(n_joints, 5)``: the draws' u and the bias
+        correction's :attr:`correction_u` in quadrature [mm, rad]."""
+        return np.hypot(self.summary.std_uncertainty, self.correction_u)
 
     @property
     def centre(self) -> np.ndarray:
@@ -298,11 +330,16 @@ class MonteCarloResult:
         The draws' interval moved by twice the bias, ``[low - 2 b, high - 2 b]`` with ``b`` = :attr:`bias`
         (:func:`robotcal.uncertainty.statistics.bias_corrected_interval`): draws simulated at an estimate
         are centred on estimate + bias, i.e. on truth + 2 bias; moved, the interval is centred on the
-        bias-corrected estimate and keeps the draws' shape. Parameters the model does not determine
-        (``identified`` False) keep the value they have in every draw.
+        bias-corrected estimate and keeps the draws' shape. Where the bias comes from measured joint errors of
+        stated uncertainty, each end is moved away from that centre to cover the bias correction's uncertainty too
+        (:attr:`correction_u`, :func:`robotcal.uncertainty.statistics.widened_interval`). Parameters the model does
+        not determine (``identified`` False) keep the value they have in every draw.
         """
         low, high = self.draws_interval()
         corrected_low, corrected_high = bias_corrected_interval(low, high, self.summary.mean, self.centre)
+        corrected_low, corrected_high = widened_interval(
+            corrected_low, corrected_high, self.centre - self.bias, self.correction_u, self.settings.coverage
+        )
         return np.where(self.identified, corrected_low, low), np.where(self.identified, corrected_high, high)
 
     @property
@@ -310,6 +347,31 @@ class MonteCarloResult:
         """The estimator's bias at :attr:`centre`, ``mean - centre`` [mm, rad], shape (n_joints, 5); 0 where
         a parameter is not determined by the model."""
         return np.where(self.identified, self.summary.mean - self.centre, 0.0)
+
+    @property
+    def extra_bias(self) -> np.ndarray:
+        """The same for the joint-model values, ``mean - extra_true`` ``(m,)``; 0 where not estimated."""
+        if self.extra_summary is None:
+            return np.zeros(0)
+        return np.where(self.extra_identified, self.extra_summary.mean - self.extra_true, 0.0)
+
+    def corrected(self, estimate: ParameterSet) -> ParameterSet:
+        """``estimate`` corrected for the bias the draws measure: the value to deploy (docs/uncertainty.md,
+        "The measurand").
+
+        The Monte Carlo simulated at ``estimate`` (its :attr:`centre`) measures the estimator's bias there,
+        which the capture's recognised systematic effects (the joint errors the joints stage measured) and the
+        estimator's non-linearity give; GUM (JCGM 100 §3.2.4) corrects a result for recognised systematic
+        effects. The corrected values ``centre - bias`` (and ``extra_true - extra_bias`` for the joint model)
+        are the centre of :meth:`interval` and :meth:`extra_interval`, which therefore contain them.
+        """
+        if estimate.robot.n_joints != self.robot.n_joints:
+            raise InputError(f"`estimate` has {estimate.robot.n_joints} joints; the draws {self.robot.n_joints}")
+        values = np.where(self.identified, self.centre - self.bias, estimate.values)
+        joint_model = estimate.joint_model
+        if self.is_extended and joint_model is not None and joint_model.names == self.joint_model.names:
+            joint_model = joint_model.with_values(joint_model.values - self.extra_bias)
+        return dataclasses.replace(estimate, values=values, joint_model=joint_model)
 
 
 # ------------------------------------------------------------------------------------ statistics
@@ -498,7 +560,19 @@ def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool
         extra_summary=extra_summary,
         extra_identified=problem.identified_all[5 * n :],
         extra_true=problem.extra_true,
+        correction_shifts=correction_shifts(problem),
     )
+
+
+def correction_shifts(problem: MonteCarloProblem) -> np.ndarray | None:
+    """:attr:`MonteCarloResult.correction_shifts`: the noise-free capture with each source of the measured joint
+    errors' uncertainty (:attr:`MonteCarloProblem.source_points`), solved as a draw is, minus the noise-free
+    solution: the measured inputs' uncertainty propagated linearly to the bias (JCGM 100 §5.1.2). None without
+    sources."""
+    if problem.source_points.size == 0:
+        return None
+    values = solve_points(problem, np.concatenate([problem.exact_points[None], problem.source_points]))
+    return values[1:] - values[0]
 
 
 class _Store:

@@ -22,6 +22,7 @@ from robotcal.capture import Capture, join_captures
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import check_rigid_transform
 from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
+from robotcal.identification.health import repeatability_sigma
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.kinematics.model import ParameterSet, RobotModel
@@ -77,6 +78,15 @@ class MonteCarloProblem:
     extra_true : ndarray, shape (m,)
         The joint-model values of the robot the capture was simulated from, on the refined model's joint model
         (0 for a term it does not have; empty for the geometric model).
+    repeatability_sd : float
+        The robot's pose scatter per coordinate [mm] (the noise budget: the stated ISO 9283 repeatability RP /
+        3.616, :func:`robotcal.identification.health.repeatability_sigma`), added to every point of every draw as
+        isotropic normal noise after the instrument's; 0 when not stated.
+    source_points : ndarray, shape (k, n_points, 3)
+        Where the joint errors were measured (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`): the
+        noise-free capture again with each source of their uncertainty, one measured input one standard uncertainty
+        larger [mm]; solved as draws, they give how the bias moves with each
+        (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_shifts`). Empty otherwise.
     """
 
     robot: RobotModel
@@ -95,6 +105,8 @@ class MonteCarloProblem:
     refined: RefinedModel | None = None
     n_circle: int = -1
     extra_true: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    repeatability_sd: float = 0.0
+    source_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3)))
 
     def __post_init__(self):
         if self.n_circle < 0:
@@ -132,6 +144,7 @@ def prepare_monte_carlo(
     poses=None,
     poses_target: Target | None = None,
     joint_model: JointModel | None = None,
+    repeatability_mm: float | None = None,
 ) -> MonteCarloProblem:
     """Simulate the noise-free capture once and check that CPA can identify it.
 
@@ -141,7 +154,9 @@ def prepare_monte_carlo(
     Parameters
     ----------
     robot, plan, instrument, tracker_from_base, true_parameters, joint_errors, joint_limits
-        As for :func:`robotcal.simulation.generator.simulate_capture`.
+        As for :func:`robotcal.simulation.generator.simulate_capture`. Measured ``joint_errors``
+        (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`) carry the sources of their uncertainty:
+        the noise-free capture is simulated with each too (:attr:`MonteCarloProblem.source_points`).
     options : CPAOptions, optional
         CPA options (circle fit, base frame, theta1 reference).
     model : {"cpa", "refined"}
@@ -157,11 +172,15 @@ def prepare_monte_carlo(
     poses_target : Target, optional
     joint_model : JointModel, optional
         ``model="refined"``: the extended model's joint model, fitted from zero in every draw (issue 22).
+    repeatability_mm : float, optional
+        The robot's ISO 9283 pose repeatability RP [mm]: every draw adds its scatter to every point
+        (:attr:`MonteCarloProblem.repeatability_sd`).
     """
     if model not in MODELS:
         raise InputError(f"`model` must be one of {MODELS}; got {model!r}")
     options = CPAOptions() if options is None else options
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    repeatability_sd = repeatability_sigma(repeatability_mm)
     true_parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
     noisy_joints = joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0))
     capture, exact = _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits)
@@ -175,9 +194,10 @@ def prepare_monte_carlo(
         capture, exact, refined, extra_true = _refined_structure(
             robot, capture, exact, reference, plan, instrument, tracker_from_base, true_parameters, options,
             criterion=criterion, poses=poses, poses_target=poses_target, joint_model=joint_model,
+            repeatability_sd=repeatability_sd,
         )  # fmt: skip
         values, identified = refined.reference_values, reference.identified | refined.free
-    return MonteCarloProblem(
+    problem = MonteCarloProblem(
         robot=robot,
         true_parameters=true_parameters,
         capture=capture,
@@ -194,7 +214,17 @@ def prepare_monte_carlo(
         refined=refined,
         n_circle=n_circle,
         extra_true=extra_true,
+        repeatability_sd=repeatability_sd,
     )
+    sources = getattr(joint_errors, "sources", ())  # measured joint errors: their uncertainty's sources
+    if not sources:
+        return problem
+    points = [
+        np.concatenate([_noise_free_capture(robot, plan, tracker_from_base, true_parameters, errors, joint_limits)[1],
+                        exact[n_circle:]])
+        for errors in sources
+    ]  # fmt: skip
+    return dataclasses.replace(problem, source_points=np.stack(points))
 
 
 def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits):
@@ -224,7 +254,7 @@ def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_e
 
 def _refined_structure(
     robot, capture, exact, reference, plan, instrument, tracker_from_base, true_parameters, options, *, criterion, poses,
-    poses_target, joint_model,
+    poses_target, joint_model, repeatability_sd=0.0,
 ):  # fmt: skip
     """The refined model's capture (the circles, then the calibration poses), exact points, refinement structure
     (with the Gauss-Newton draws' stopping rule) and the true joint-model values."""
@@ -252,7 +282,8 @@ def _refined_structure(
         estimate_base=options.base_frame != "given",
         joint_model=joint_model,
     )
-    tolerance = step_tolerance(refined, exact, coordinate_variance(instrument, instrument.error_bound(exact)))
+    variance = coordinate_variance(instrument, instrument.error_bound(exact)) + repeatability_sd**2
+    tolerance = step_tolerance(refined, exact, variance)
     refined = dataclasses.replace(refined, step_tolerance=tolerance)
     refined = dataclasses.replace(refined, shared_step=shared_step(refined))
     extra_true = np.zeros(0)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from statistics import NormalDist
 from typing import Literal
 
 import numpy as np
@@ -28,6 +29,7 @@ __all__ = [
     "summarize_draws",
     "coverage_interval",
     "bias_corrected_interval",
+    "widened_interval",
     "numerical_tolerance",
     "check_coverage",
 ]
@@ -241,3 +243,18 @@ def numerical_tolerance(std_uncertainty: np.ndarray, ndig: int) -> np.ndarray:
     # u = 0.0996 with ndig = 2 is written 0.10 (c = 10, l = -2), not 99.6e-3: round, then re-read l
     exponent = np.where(np.round(positive / 10.0**exponent) >= 10 ** int(ndig), exponent + 1, exponent)
     return np.where(u > 0, 0.5 * 10.0**exponent, np.inf)
+
+
+def widened_interval(low, high, centre, u, coverage: float) -> tuple[np.ndarray, np.ndarray]:
+    """An interval about ``centre`` whose half-widths also cover an independent, normal standard uncertainty ``u``:
+    each end moved away from ``centre`` to ``sqrt(d^2 + (k_p u)^2)``, ``d`` its distance from it and ``k_p`` the
+    normal coverage factor of ``coverage`` (JCGM 100 §5.1.2 combined in quadrature, end by end so that the draws'
+    skew is kept). ``u = 0`` leaves the interval as it is."""
+    u = np.asarray(u, dtype=float)
+    if not np.any(u > 0):
+        return np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    k = NormalDist().inv_cdf(0.5 + coverage / 2.0)
+    centre = np.asarray(centre, dtype=float)
+    below = np.hypot(centre - np.asarray(low, dtype=float), k * u)
+    above = np.hypot(np.asarray(high, dtype=float) - centre, k * u)
+    return centre - below, centre + above

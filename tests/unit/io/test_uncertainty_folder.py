@@ -42,7 +42,9 @@ def test_parameters_csv_keeps_its_columns_and_adds_the_interval_ones(tmp_path):
         "symmetric_low, symmetric_high, shortest_low, shortest_high, noise_free, lpu_std_uncertainty, "
         "lpu_coverage_low, lpu_coverage_high, lpu_agrees, model"
     ).split(", ")
-    assert list(CSV_COLUMNS) == before + ["centre", "bias", "draws_low", "draws_high"]
+    added = ["centre", "bias", "draws_low", "draws_high"]
+    added += ["estimate", "deployed", "bias_treatment", "correction_u"]  # issue 29: the deployed value and its bias
+    assert list(CSV_COLUMNS) == before + added
     with (tmp_path / "parameters.csv").open() as stream:
         rows = {row["name"]: row for row in csv.DictReader(stream)}
     assert list(next(iter(rows.values()))) == list(CSV_COLUMNS)

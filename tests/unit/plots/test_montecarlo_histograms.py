@@ -58,6 +58,7 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
                 ("95% interval", low[joint, column]),
                 ("noise-free CPA", result.noise_free_values[joint, column]),
                 ("draws' 95% interval", draws_low[joint, column]),
+                ("estimate", result.centre[joint, column]),  # issue 29: the value stated (deployed, when given)
             ):
                 np.testing.assert_allclose(lines[label].get_xdata(), [value * scale] * 2, rtol=1e-14)
             upper = [line for line in axis.lines if line.get_linestyle() == "--"][-1]
@@ -73,7 +74,7 @@ def test_each_panel_shows_its_parameter(result, tmp_path, monkeypatch):
             assert axis.get_ylabel() == f"density [1/{unit}]"
         assert figure.get_suptitle() == f"J{joint + 1}: {result.n_draws:,} Monte Carlo draws"
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
-        assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free CPA", "linearised (GUM)"]
+        assert labels == ["mean", "estimate", "95% interval", "draws' 95% interval", "noise-free CPA", "linearised (GUM)"]
 
 
 def test_the_refined_model_names_its_noise_free_value_and_draws_no_density_it_has_not(result, tmp_path, monkeypatch):
@@ -85,7 +86,7 @@ def test_the_refined_model_names_its_noise_free_value_and_draws_no_density_it_ha
     histograms.write_histograms(refined, tmp_path)
     for figure in figures:
         labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
-        assert labels == ["mean", "95% interval", "draws' 95% interval", "noise-free refinement"]
+        assert labels == ["mean", "estimate", "95% interval", "draws' 95% interval", "noise-free refinement"]
 
 
 def test_y_labels_stay_inside_the_figure_for_large_densities(result, tmp_path, monkeypatch):

@@ -128,19 +128,24 @@ def _joints(page: _Page) -> dict:
     return {"present": True, "blocks_": blocks, "noise_floor": bool(floors)}
 
 
-#: Columns of a Monte Carlo's parameters.csv shown in the report (the file holds more).
+#: Columns of a TCP uncertainty's CSV shown: the pose, then these.
+_TCP_COLUMNS = ("pose", "name", "nominal", "mean", "std_uncertainty", "coverage_low", "coverage_high", "lpu_std_uncertainty")
+#: Columns of a Monte Carlo's parameters.csv shown in the report (the file holds more): the deployed value beside
+#: the estimate and the bias subtracted from it (issue 29), its u and the correction's, the interval (around it).
 _MC_COLUMNS = (
     "name",
     "nominal",
+    "estimate",
+    "bias",
+    "deployed",
     "mean",
     "std_uncertainty",
+    "correction_u",
     "coverage_low",
     "coverage_high",
     "lpu_std_uncertainty",
     "identified",
 )
-#: Columns of a TCP uncertainty's CSV shown: the pose, then the Monte Carlo's but ``identified``.
-_TCP_COLUMNS = ("pose", *_MC_COLUMNS[:-1])
 
 
 def _histogram_captions(page: _Page, folder: str, names: list[str]) -> dict:
@@ -188,8 +193,9 @@ def _montecarlo(page: _Page) -> dict:
             page,
             f"{folder}/parameters.csv",
             caption="parameter statistics; the interval is the one for the measurand, the draws' interval moved by "
-            "twice their bias (the file has more columns: bias, the draws' own interval, min, max, shortest interval, "
-            "linearised interval)",
+            "twice their bias and widened by the bias correction's uncertainty (correction_u): around the deployed "
+            "value (estimate - bias) where one is deployed (the file has more columns: bias_treatment, the draws' own "
+            "interval, min, max, shortest interval, linearised interval)",
             columns=_MC_COLUMNS,
             rows_limit=200,
         )

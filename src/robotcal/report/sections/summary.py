@@ -171,6 +171,10 @@ def _uncertainty_cards(summary) -> list[dict]:
         detail = f"{name}, {model}, Monte Carlo (GUM-S1){over}"
         if refined is not None and cpa is not None and getattr(cpa, value_of) is not None:
             detail += f"; CPA alone: {fmt(getattr(cpa, value_of))} ({getattr(cpa, name_of)})"
+        if unit in shown.bias:  # the bias beside the u, never hidden by it
+            bias, bias_name, ratio = shown.bias[unit]
+            treated = f", {shown.bias_treatment}" if shown.bias_treatment else ""
+            detail += f"; largest bias {fmt(bias)} ({bias_name}, {abs(ratio):.1f} u){treated}"
         cards.append(_card("How sure are we?", label, fmt(value), detail))
     return cards
 

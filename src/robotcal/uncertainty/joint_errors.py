@@ -1,0 +1,190 @@
+"""The joint errors a calibration's Monte Carlo simulates: those the capture's own joints stage measured.
+
+A Monte Carlo that states the uncertainty of a calibration simulates the capture at the estimate; the joint
+errors of that simulation can only come from what the capture itself shows (on a real cell nobody knows a
+"true" joint error model). The joints stage (:func:`robotcal.diagnostics.joints.analyze_joints`, thesis ch. 4.6)
+measures per joint
+
+* the angular backlash: the signed angle from a forward to a return point at the same reading, pair by pair; and
+* the axial and radial eccentricity of every circle point against its fitted plane and circle.
+
+:func:`measured_joint_errors` converts them into the simulation's :class:`~robotcal.simulation.generator.
+JointErrorModel` (eq. 5-2), a :class:`MeasuredJointErrors` that carries its uncertainty: the backlash as the mean
+angle of the pairs (a negative mean, which no lash gives, as 0; standard uncertainty: their standard deviation over
+the root of their number), and the eccentricity as one sinusoid per translation term, ``dx = A sin(q + phi)``,
+``dy = A cos(q + phi)`` (an axis that runs out once per turn: radial eccentricity of order 2 in the joint angle)
+and ``dz = A sin(2 q + phi)`` (axial eccentricity of order 2), fitted by least squares to the circle's residuals
+through the eccentricity those shapes leave after the circle fits (computed on the noise-free circles of the plan
+at the estimate, where the fits absorb orders 0 and 1 exactly as on the capture). Only the directions the circle
+shows (at least :data:`_SHOWN` of a shape) are fitted, and the fit is kept only where it stands out of the
+circle's noise; each shown direction has its standard uncertainty (the circle's noise over its singular value).
+The translational lash and the tilt terms ``ex, ey`` are not converted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robotcal.diagnostics.joints import JointDiagnostics, analyze_joints
+from robotcal.instruments import Instrument
+from robotcal.kinematics.model import ParameterSet
+from robotcal.simulation.generator import JointErrorModel, simulate_capture
+from robotcal.simulation.plan import CapturePlan
+
+__all__ = ["MeasuredJointErrors", "measured_joint_errors"]
+
+#: The eccentricity shapes fitted, two per group (sine and cosine of the same harmonic): per shape the
+#: (amplitude, phase [rad], harmonic order) of the terms dx, dy, dz. A once-per-turn run-out of the axis,
+#: ``dx = A sin(q + phi)``, ``dy = A cos(q + phi)``, gives radial eccentricity of order 2 (the run-out that turns with
+#: the joint, of order 0, is the axis position itself); ``dz = A sin(2 q + phi)``, axial eccentricity of order 2.
+_SHAPES = (
+    ((1.0, 0.0, 1), (1.0, 0.5 * np.pi, 1), (0.0, 0.0, 2)),
+    ((1.0, 0.5 * np.pi, 1), (1.0, np.pi, 1), (0.0, 0.0, 2)),
+    ((0.0, 0.0, 1), (0.0, 0.0, 1), (1.0, 0.0, 2)),
+    ((0.0, 0.0, 1), (0.0, 0.0, 1), (1.0, 0.5 * np.pi, 2)),
+)
+#: A combination of the shapes is fitted only where the circles show at least this fraction of it (RMS of the
+#: eccentricity it leaves after the circle fits, per unit amplitude): a short arc leaves an order-2 shape mostly to
+#: the circle fit, and what the capture cannot show is not amplified out of its noise (it stays 0).
+_SHOWN = 0.3
+#: The eccentricity is kept only when it stands out of the circle's noise at this level (:func:`_shown_fit`).
+_SIGNIFICANCE = 0.99
+#: Amplitude of the unit responses [mm]: small enough that the circle fits respond linearly.
+_PROBE_MM = 1e-3
+_NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MeasuredJointErrors(JointErrorModel):
+    """A joint error model measured by a joints analysis (deterministic: ``noise_sd`` 0), with its uncertainty.
+
+    Attributes
+    ----------
+    sources : tuple of JointErrorModel
+        One per independent measured input of non-zero standard uncertainty (a joint's backlash, a direction of a
+        joint's eccentricity the circle shows): this model with that input moved by one standard uncertainty. A
+        Monte Carlo simulating this model propagates them to its bias correction
+        (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_u`).
+    """
+
+    sources: tuple[JointErrorModel, ...] = ()
+
+
+def measured_joint_errors(
+    diagnostics: JointDiagnostics,
+    estimate: ParameterSet,
+    plan: CapturePlan,
+    tracker_from_base,
+    *,
+    circle_fit: str = "geometric",
+) -> MeasuredJointErrors:
+    """The joint errors the joints stage measured, in the simulation's form, with their uncertainty (module notes).
+
+    Parameters
+    ----------
+    diagnostics : JointDiagnostics
+        The joints stage's analysis of the capture (:class:`robotcal.studies.JointAnalysis` ``.diagnostics``).
+    estimate : ParameterSet
+        The robot the Monte Carlo simulates (the calibration's estimate) [mm, rad].
+    plan : CapturePlan
+        The capture's plan (the readings its circles visit).
+    tracker_from_base : array_like, shape (4, 4)
+    circle_fit : {"geometric", "algebraic"}
+        The joints stage's in-plane circle fit.
+    """
+    n = estimate.robot.n_joints
+    backlash, backlash_u = np.zeros(n), np.zeros(n)
+    for circle in diagnostics.circles:
+        angles = circle.backlash_angle[~circle.turnaround]
+        if angles.size:
+            backlash[circle.joint - 1] = max(float(angles.mean()), 0.0)
+        if angles.size >= 2:
+            backlash_u[circle.joint - 1] = float(np.std(angles, ddof=1)) / np.sqrt(angles.size)
+    responses = [
+        _eccentricity(_shape_model(n, shape), estimate, plan, tracker_from_base, circle_fit) for shape in _SHAPES
+    ]
+    coefficients = np.zeros((n, len(_SHAPES)))
+    steps: list[tuple[int, np.ndarray]] = []  # (joint, one standard uncertainty along a shown direction) [mm]
+    for circle in diagnostics.circles:
+        if circle.joint not in responses[0] or not np.isfinite(circle.noise_sigma):
+            continue
+        design = np.stack([_at(response[circle.joint], circle.reading) for response in responses], axis=1)
+        value, directions = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma)
+        coefficients[circle.joint - 1] = value * _PROBE_MM
+        steps.extend((circle.joint - 1, step * _PROBE_MM) for step in directions)
+    sources = []
+    for lashed in np.flatnonzero(backlash_u > 0):
+        moved = backlash.copy()
+        moved[lashed] += backlash_u[lashed]
+        sources.append(_model(coefficients, moved))
+    for joint, step in steps:
+        shifted = coefficients.copy()
+        shifted[joint] += step
+        sources.append(_model(shifted, backlash))
+    model = _model(coefficients, backlash)
+    fields = {name: getattr(model, name) for name in ("amplitude", "period", "phase", "noise_sd", "backlash", "lash")}
+    return MeasuredJointErrors(**fields, sources=tuple(sources))
+
+
+def _model(coefficients: np.ndarray, backlash: np.ndarray) -> JointErrorModel:
+    """The joint error model of the shapes' ``coefficients (n, 4)`` [mm] (:data:`_SHAPES`) and ``backlash`` [rad]."""
+    n = coefficients.shape[0]
+    amplitude, phase = np.zeros((n, 5)), np.zeros((n, 5))
+    period = np.tile(2.0 * np.pi / np.array([1.0, 1.0, 2.0, 1.0, 1.0]), (n, 1))
+    run_out = np.hypot(coefficients[:, 0], coefficients[:, 1])
+    run_phase = np.arctan2(coefficients[:, 1], coefficients[:, 0])
+    axial, axial_phase = np.hypot(coefficients[:, 2], coefficients[:, 3]), np.arctan2(coefficients[:, 3], coefficients[:, 2])
+    amplitude[:, :3] = np.stack([run_out, run_out, axial], axis=1)
+    phase[:, :3] = np.stack([run_phase, run_phase + 0.5 * np.pi, axial_phase], axis=1)
+    return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((n, 5)), backlash=backlash)
+
+
+def _shape_model(n_joints: int, shape) -> JointErrorModel:
+    """One of :data:`_SHAPES`, of amplitude :data:`_PROBE_MM`, on every joint."""
+    amplitude, phase, period = (np.zeros((n_joints, 5)) for _ in range(3))
+    period[:] = 2.0 * np.pi
+    for term, (scale, angle, order) in enumerate(shape):
+        amplitude[:, term], phase[:, term], period[:, term] = scale * _PROBE_MM, angle, 2.0 * np.pi / order
+    return JointErrorModel(amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((n_joints, 5)))
+
+
+def _eccentricity(errors: JointErrorModel, estimate, plan, tracker_from_base, circle_fit) -> dict:
+    """Per joint (1-based): the turning joint's readings [rad] and the radial and axial eccentricity [mm] the
+    noise-free circles of the plan show with ``errors``."""
+    capture, _ = simulate_capture(
+        estimate.robot, plan, _NOISE_FREE, tracker_from_base, true_parameters=estimate, joint_errors=errors,
+        joint_limits="ignore", rng=0,
+    )  # fmt: skip
+    analysis = analyze_joints(capture, backlash=False, method=circle_fit)
+    return {circle.joint: (circle.reading, circle.radial, circle.axial) for circle in analysis.circles}
+
+
+def _at(response: tuple, readings: np.ndarray) -> np.ndarray:
+    """A shape's radial then axial eccentricity at ``readings`` (interpolated in the reading; the forward and
+    return points of one reading, which a shape moves alike, averaged)."""
+    simulated, radial, axial = response
+    grid, index = np.unique(simulated, return_inverse=True)
+    count = np.bincount(index, minlength=grid.size)
+    mean = [np.bincount(index, weights=values, minlength=grid.size) / count for values in (radial, axial)]
+    return np.concatenate([np.interp(readings, grid, values) for values in mean])
+
+
+def _shown_fit(design: np.ndarray, measured: np.ndarray, noise_sigma: float) -> tuple[np.ndarray, list]:
+    """Least squares ``design c = measured`` over the singular directions the circles show (:data:`_SHOWN`), and
+    one standard uncertainty step along each of them (``noise_sigma`` per point: ``noise_sigma / s_i`` along the
+    right singular vector ``v_i``). The value is zero unless the fitted eccentricity stands out of the noise (a
+    chi-squared test at :data:`_SIGNIFICANCE` of its squared norm over ``noise_sigma^2``, as many degrees of
+    freedom as directions shown): a noise-only capture gives none, and the steps still state how much could hide."""
+    from scipy.stats import chi2  # scipy.stats is slow to import: only when a joints analysis is converted
+
+    left, singular, right = np.linalg.svd(design, full_matrices=False)
+    shown = singular / np.sqrt(design.shape[0]) >= _SHOWN * _PROBE_MM
+    steps = [noise_sigma / s * v for s, v in zip(singular[shown], right[shown], strict=True)] if noise_sigma > 0 else []
+    projection = left[:, shown].T @ measured
+    if not shown.any():
+        return np.zeros(design.shape[1]), steps
+    if noise_sigma > 0 and float(projection @ projection) <= noise_sigma**2 * chi2.ppf(_SIGNIFICANCE, int(shown.sum())):
+        return np.zeros(design.shape[1]), steps
+    return right[shown].T @ (projection / singular[shown]), steps
