@@ -51,6 +51,7 @@ import signal
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -168,9 +169,14 @@ def _call(function: Callable, args: tuple, kwargs: dict):
 
 def _stop_task(signum, frame) -> None:
     """In a pool worker, the handler of :data:`_STOP_SIGNAL`: raise :class:`StopRequested` in the running task's code
-    (never in :func:`_task` itself, which has returned or is returning, nor between tasks)."""
-    if _RUNNING and frame is not None and frame.f_code is not _task.__code__:
-        raise StopRequested("the pool is shutting down")
+    (never in :func:`_task` itself, which has returned or is returning, nor between tasks, nor in a weak-reference
+    callback or finaliser that the garbage collector runs in the task's stack: Python prints and drops an exception
+    raised there; the watcher signals again :data:`_STOP_REPEAT_S` later, in the task's own code)."""
+    if not _RUNNING or frame is None or frame.f_code is _task.__code__:
+        return
+    if frame.f_code.co_name == "__del__" or frame.f_code.co_filename == weakref.__file__:
+        return
+    raise StopRequested("the pool is shutting down")
 
 
 def _watch_stop(stop, thread: int) -> None:
