@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.diagnostics.joints import JointDiagnostics, local_frame
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_count
 from robotcal.kinematics.model import DISPLAY_UNITS
 
 __all__ = [
@@ -263,9 +263,7 @@ def fit_harmonic_series(
     """
     theta = np.asarray(theta, dtype=float)
     values = np.asarray(values, dtype=float)
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
-        raise InputError(f"`order` must be an integer >= 1; got {order!r}")
-    order = int(order)
+    order = check_count(order, "order")
     if theta.ndim != 1 or values.shape != theta.shape:
         raise InputError(f"`theta` and `values` must have the same shape (n,); got {theta.shape} and {values.shape}")
     p = 2 * order + 1
@@ -511,8 +509,7 @@ def fit_harmonics(diagnostics: JointDiagnostics, *, order: int = 2) -> HarmonicM
     """
     if not isinstance(diagnostics, JointDiagnostics):
         raise InputError(f"`diagnostics` must be JointDiagnostics; got {type(diagnostics).__name__}")
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
-        raise InputError(f"`order` must be an integer >= 1; got {order!r}")
+    check_count(order, "order")
     fits, circles, messages = [], [], []
     for c in diagnostics.circles:
         circles.append(

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_count
 from robotcal.kinematics.inverse import (
     as_tool_frame,
     branch_of,
@@ -153,8 +153,7 @@ class CompensationSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
                 raise InputError(f"compensation setting `{name}` must be a finite number > 0; got {value!r}")
-        if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, int) or self.max_iterations < 1:
-            raise InputError(f"compensation setting `max_iterations` must be an integer >= 1; got {self.max_iterations!r}")
+        check_count(self.max_iterations, "max_iterations")
 
 
 def _damped(parameters: ParameterSet, targets, taught, tool, max_change: float, iterations: int):
