@@ -100,6 +100,10 @@ class HarmonicFit:
     f_statistic: float
     p_value: float
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "coefficients", _frozen(self.coefficients))
+        object.__setattr__(self, "covariance", _frozen(self.covariance))
+
     @property
     def dof(self) -> int:
         return self.n - self.coefficients.size
@@ -227,15 +231,7 @@ class HarmonicFit:
             )
         if quantity not in QUANTITIES:
             raise InputError(f"{where}: unknown quantity {quantity!r}; expected one of {', '.join(QUANTITIES)}")
-        return cls(
-            joint=joint,
-            quantity=quantity,
-            order=order,
-            coefficients=_frozen(coefficients),
-            covariance=_frozen(covariance),
-            n=n,
-            **fields,
-        )
+        return cls(joint=joint, quantity=quantity, order=order, coefficients=coefficients, covariance=covariance, n=n, **fields)
 
 
 def fit_harmonic_series(
@@ -302,8 +298,8 @@ def fit_harmonic_series(
         joint=joint,
         quantity=quantity,
         order=order,
-        coefficients=_frozen(coefficients),
-        covariance=_frozen(covariance),
+        coefficients=coefficients,
+        covariance=covariance,
         n=int(theta.size),
         sigma=float(np.sqrt(sigma2)),
         rms_before=float(np.sqrt(total / theta.size)),

@@ -213,10 +213,8 @@ def compensate_commands(
 
     Parameters
     ----------
-    parameters : ParameterSet
-        The calibrated model (geometric, or extended with its joint model).
-    targets : array_like, shape (n_poses, 4, 4)
-        Target tool frames in the robot base frame [mm].
+    parameters, targets
+        The calibrated model and the target tool frames, as in :func:`robotcal.kinematics.inverse.solve_pose`.
     taught : array_like, shape (n_poses, n_joints)
         The readings the commands replace [rad]: the taught joint targets, or the nominal controller's solution of
         Cartesian targets. They choose the branch.

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -381,20 +381,28 @@ def _parse_aggregate(line: _Line, index: int) -> tuple[_Aggregate, int]:
         index += 1
 
 
-def _value_end(line: _Line, index: int) -> int:
-    """Index of the ``,`` or ``}`` that ends the component value starting at ``index``."""
-    code, depth, quote = line.code, 0, None
-    for position in range(index, len(code)):
-        char = code[position]
+def _unquoted(text: str, start: int, opens: str, closes: str) -> Iterator[tuple[int, str, int]]:
+    """``(position, char, depth)`` of every character of ``text`` from ``start`` that is neither quoted nor a bracket
+    of ``opens`` / ``closes``; ``depth`` counts the brackets open before it."""
+    depth, quote = 0, None
+    for position in range(start, len(text)):
+        char = text[position]
         if quote:
             quote = None if char == quote else quote
         elif char in "\"'":
             quote = char
-        elif char in "([":
+        elif char in opens:
             depth += 1
-        elif char in ")]":
+        elif char in closes:
             depth -= 1
-        elif char in ",}" and depth <= 0:
+        else:
+            yield position, char, depth
+
+
+def _value_end(line: _Line, index: int) -> int:
+    """Index of the ``,`` or ``}`` that ends the component value starting at ``index``."""
+    for position, char, depth in _unquoted(line.code, index, "([", ")]"):
+        if char in ",}" and depth <= 0:
             return position
     raise InputError(f"{line.where}: unterminated aggregate (no closing '}}' on the line)")
 
@@ -792,17 +800,9 @@ def _target(line: _Line, index: int) -> tuple[_Target, int]:
 
 def _split_top_level(text: str) -> list[str]:
     """``text`` split at the commas outside brackets and quotes (the assignments of a ``WITH`` clause)."""
-    parts, depth, quote, start = [], 0, None, 0
-    for position, char in enumerate(text):
-        if quote:
-            quote = None if char == quote else quote
-        elif char in "\"'":
-            quote = char
-        elif char in "([{":
-            depth += 1
-        elif char in ")]}":
-            depth -= 1
-        elif char == "," and depth == 0:
+    parts, start = [], 0
+    for position, char, depth in _unquoted(text, 0, "([{", ")]}"):
+        if char == "," and depth == 0:
             parts.append(text[start:position])
             start = position + 1
     parts.append(text[start:])

@@ -600,26 +600,16 @@ class _Reader:
         assert len(values) == len(aggregate.elements)  # the callers skip an aggregate holding an expression
         spans = tuple(NumberSpan(self.file, element.start, element.end) for element in aggregate.elements)
         line = self.line(aggregate.elements[0].start)
-        if aggregate.kind == "pose":
-            return ProgramPoint(
-                label=label,
-                file=self.file,
-                line=line,
-                kind="cartesian",
-                values=values,
-                spans=spans,
-                frame_mm=_frame_from_pose(values),
-                tool=tool.name,
-                motion=motion,
-            )
+        pose = aggregate.kind == "pose"
         return ProgramPoint(
             label=label,
             file=self.file,
             line=line,
-            kind="joint",
+            kind="cartesian" if pose else "joint",
             values=values,
             spans=spans,
-            joints_deg=np.rad2deg(np.asarray(values, dtype=float)),
+            frame_mm=_frame_from_pose(values) if pose else None,
+            joints_deg=None if pose else np.rad2deg(np.asarray(values, dtype=float)),
             tool=tool.name,
             motion=motion,
         )
