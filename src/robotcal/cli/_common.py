@@ -88,6 +88,16 @@ def command_app(**settings) -> typer.Typer:
     return typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None, **settings)
 
 
+def app_command(app: typer.Typer, name: str | None = None) -> Callable[[Callable], Callable]:
+    """``@app_command(app)`` above a command's function: registers it on ``app`` under ``name`` (default: the
+    function's name) with its errors reported by :func:`handle_errors`, as every command of ``robotcal`` is."""
+
+    def register(function: Callable) -> Callable:
+        return app.command(name)(handle_errors(function))
+
+    return register
+
+
 def styled(text: str, style: str) -> Text:
     """``text`` (printed literally) in ``style``."""
     from rich.text import Text

@@ -6,7 +6,7 @@ The catalog (:mod:`robotcal.io`) and Rich's tables are imported by the commands,
 
 from __future__ import annotations
 
-from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._common import app_command, command_app, console
 
 app = command_app()
 
@@ -14,8 +14,7 @@ app = command_app()
 DESCRIPTION_WIDTH = 30
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def robots() -> None:
     """List the built-in robots (usable by name in a scenario's `robot` key)."""
     from robotcal.cli._tables import Column, FittedTable
@@ -79,8 +78,7 @@ def _coupling_term(coefficient: float, other: int) -> str:
     return f"{coefficient:+g}J{other + 1}"
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def instruments() -> None:
     """List the instrument presets, U(L) = A + B*L (L in m)."""
     from robotcal.cli._tables import Column, FittedTable
@@ -101,8 +99,7 @@ def instruments() -> None:
     console.print(table)
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def scenarios() -> None:
     """List the built-in scenarios (the thesis's Tables 5.1, 5.2/5.4 and 5.5)."""
     from robotcal.cli._tables import Column, FittedTable

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import SEED_BOUND, Force, command_app, handle_errors
+from robotcal.cli._common import SEED_BOUND, Force, app_command, command_app
 from robotcal.cli.run import _command_line, run_and_print
 from robotcal.limits import SEED_OFFSETS
 
@@ -16,8 +16,7 @@ app = command_app()
 DEMO_SCENARIO = "kr5-demo"
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def demo(
     out: Annotated[Path, typer.Option("--out", "-o", help="Run folder for the demo's files.")] = Path("robotcal-demo"),
     seed: Annotated[

@@ -9,10 +9,10 @@ import typer
 
 from robotcal.cli._common import (
     FORCE_HELP,
+    app_command,
     circle_table,
     command_app,
     console,
-    handle_errors,
     parameter_table,
     print_health,
 )
@@ -21,8 +21,7 @@ from robotcal.io.output import check_output_file, existing_inputs, result_file
 app = command_app()
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def identify(
     capture: Annotated[Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z).")],
     scenario: Annotated[

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
-from robotcal.cli._common import Force, command_app, console, handle_errors
+from robotcal.cli._common import Force, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.errors import InputError
@@ -77,8 +77,7 @@ def _model_offsets(path: Path) -> dict | None:
     return {name: np.asarray(v, dtype=float) for name, v in read_targets(path).items()} or None
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def iso9283(
     capture: Annotated[Path, typer.Argument(help="Capture CSV of the repeated test poses (circle = 0, cycle-major).")],
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot, flange target(s), base frame.")],
@@ -198,8 +197,7 @@ _PlanName = Annotated[
 ]
 
 
-@app.command("iso9283-plan")
-@handle_errors
+@app_command(app, "iso9283-plan")
 def iso9283_plan(
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot and flange target.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Pose CSV to write (q1..qN in deg).")],

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import Force, command_app, console, error_console, handle_errors
+from robotcal.cli._common import Force, app_command, command_app, console, error_console
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
 
@@ -45,8 +45,7 @@ def _table(diagnostics: JointDiagnostics) -> FittedTable:
     return table
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def joints(
     capture: Annotated[
         Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z), ideally bidirectional.")

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors, progress_bar
+from robotcal.cli._common import app_command, command_app, console, progress_bar
 
 if TYPE_CHECKING:  # numpy and the planning library load in the commands: a fast --help
     from robotcal.cli._tables import FittedTable
@@ -72,8 +72,7 @@ def _write_folder(out: Path | None, inputs, force: bool, command: str, write) ->
         write(folder)
 
 
-@plan_app.command("check")
-@handle_errors
+@app_command(plan_app, "check")
 def check(
     scenario: _Scenario,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Folder for plan_check.json/.csv/.png.")] = None,
@@ -210,8 +209,7 @@ def _write_optimised(folder: Path, header: str, document: dict, comparison: dict
     )
 
 
-@plan_app.command("optimise")
-@handle_errors
+@app_command(plan_app, "optimise")
 def optimise(
     scenario: _Scenario,
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for optimised.toml, comparison.json/.csv, figure.")],

@@ -7,15 +7,14 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._common import app_command, command_app, console
 
 app = command_app()
 
 __all__ = ["program"]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def program(
     scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Program file to write.")],

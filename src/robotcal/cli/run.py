@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import SEED_BOUND, Force, command_app, console, error_console, handle_errors
+from robotcal.cli._common import SEED_BOUND, Force, app_command, command_app, console, error_console
 from robotcal.errors import RobotcalError
 from robotcal.limits import REFINED_DRAWS, SEED_OFFSETS
 
@@ -168,8 +168,7 @@ def run_and_print(plan: RunPlan):
     return result
 
 
-@app.command("run")
-@handle_errors
+@app_command(app, "run")
 def run(
     scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
     out: Annotated[

@@ -14,10 +14,10 @@ from robotcal.cli._common import (
     BYTES_PER_POSE,
     SEED_BOUND,
     Force,
+    app_command,
     check_memory,
     command_app,
     console,
-    handle_errors,
 )
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError, JointLimitWarning
@@ -173,8 +173,7 @@ def _print_summary(result, ws, mode: str, interval: IntervalKind) -> None:
     )
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def tcp(
     out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (tcp.csv, tcp.json, figures).")],
     draws: Annotated[

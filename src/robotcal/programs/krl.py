@@ -235,28 +235,14 @@ def render(
     point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
-    """The new text of every number of a KRL ``point`` for a new target.
+    """KRL's :class:`~robotcal.programs.base.Render`: the new text of every number of a KRL ``point``.
 
-    Parameters
-    ----------
-    point : ProgramPoint
-        A point of :func:`read_program`.
-    frame_mm : array_like (4, 4), optional
-        Cartesian points: the new tool frame in the point's base [mm]. Writes ``X, Y, Z`` and the ``A, B, C`` triple
-        nearest the point's present angles among the equivalent ones (``(A + 180, 180 - B, C + 180)``; at ``B =
-        +-90`` every split of ``A -+ C``), each within [-180, 180] deg, with :data:`DECIMALS` decimals.
-    joints_deg : array_like (6,), optional
-        Joint points: the new ``A1..A6`` [deg], with :data:`JOINT_DECIMALS` decimals. A Cartesian point cannot be written from joints (KRL cannot write
-        axis values into an ``E6POS``): InputError.
-    config : mapping of str to int, optional
-        New ``S`` / ``T``; written only where they differ from the point's and the point writes them, in the
-        point's notation (``'B010'`` stays binary, with at least as many digits). Keys the point does not write
-        are left out (no number to change).
-
-    Returns
-    -------
-    dict of NumberSpan to str
-        For :func:`robotcal.programs.base.replace_numbers`.
+    ``frame_mm`` (the tool frame in the point's base) writes ``X, Y, Z`` and the ``A, B, C`` triple nearest the
+    point's present angles among the equivalent ones (``(A + 180, 180 - B, C + 180)``; at ``B = +-90`` every split of
+    ``A -+ C``), each within [-180, 180] deg, with :data:`DECIMALS` decimals. ``joints_deg`` writes ``A1..A6`` with
+    :data:`JOINT_DECIMALS` decimals (KRL cannot write axis values into an ``E6POS``). ``config``: new ``S`` / ``T``,
+    written only where they differ from the point's and the point writes them, in the point's notation (``'B010'``
+    stays binary, with at least as many digits); keys the point does not write are left out (no number to change).
     """
     out: dict[NumberSpan, str] = {}
     if point.kind == "cartesian":
