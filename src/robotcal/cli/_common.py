@@ -31,6 +31,8 @@ from robotcal.limits import (  # noqa: F401  (re-exported: the commands import t
 )
 
 if TYPE_CHECKING:  # imported where used: `robotcal --help` and main() stay light (docs/cli.md)
+    from pathlib import Path
+
     from rich.console import Console
     from rich.text import Text
 
@@ -75,6 +77,7 @@ SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (ins
 Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
 ParamsRobot = Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)]
 ParamsScenario = Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)]
+ScenarioArgument = Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")]
 Scheduler = Annotated[
     str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
 ]
@@ -96,6 +99,20 @@ def app_command(app: typer.Typer, name: str | None = None) -> Callable[[Callable
         return app.command(name)(handle_errors(function))
 
     return register
+
+
+def read_scenario_capture(capture: Path, scenario: str, out: Path, *, force: bool, folder: bool = False):
+    """What a command on one capture reads, once it has checked that ``out`` may be written (a file, or with
+    ``folder`` a result folder): ``(scenario, capture, inputs)``, ``inputs`` the files read (never overwritten)."""
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.output import check_output_file, check_output_folder, existing_inputs
+    from robotcal.io.scenario import load_scenario
+
+    inputs = existing_inputs(capture, scenario)
+    (check_output_folder if folder else check_output_file)(out, inputs=inputs, force=force)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(*loaded.files)
+    return loaded, read_capture(capture, n_joints=loaded.robot.n_joints), inputs
 
 
 def styled(text: str, style: str) -> Text:

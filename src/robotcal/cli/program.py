@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import app_command, command_app, console
+from robotcal.cli._common import ScenarioArgument, app_command, command_app, console
 
 app = command_app()
 
@@ -16,7 +16,7 @@ __all__ = ["program"]
 
 @app_command(app)
 def program(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     out: Annotated[Path, typer.Option("--out", "-o", help="Program file to write.")],
     language: Annotated[str, typer.Option(help="krl (KUKA) | rapid (ABB) | urscript (Universal Robots).")] = "krl",
     dwell: Annotated[float, typer.Option(help="Dwell at every measuring point [s].")] = 2.0,

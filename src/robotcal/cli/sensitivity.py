@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import Scheduler, app_command, command_app, console
+from robotcal.cli._common import ScenarioArgument, Scheduler, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 
 app = command_app()
@@ -17,7 +17,7 @@ __all__ = ["sensitivity"]
 
 @app_command(app)
 def sensitivity(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     vary: Annotated[
         list[str],
         typer.Option(

@@ -13,6 +13,7 @@ from robotcal.cli._common import (
     BYTES_PER_POSE,
     SEED_BOUND,
     Force,
+    ScenarioArgument,
     app_command,
     check_memory,
     command_app,
@@ -82,7 +83,7 @@ _TargetsMm = Annotated[
 
 @app_command(app)
 def simulate(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write.")],
     seed: _Seed = None,
     true_params: _TrueParams = None,
