@@ -77,6 +77,16 @@ SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (ins
 Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
 ParamsRobot = Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)]
 ParamsScenario = Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)]
+# The options of the commands that write a robot program (program, iso9283-plan).
+ProgramController = Annotated[
+    str | None,
+    typer.Option(
+        "--controller",
+        help="Robot file with the controller's reading signs/offsets and limits (e.g. kuka-kr5-sixx-r650-krc); "
+        "default: the scenario's robot.",
+    ),
+]
+ProgramSpeed = Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)]
 ScenarioArgument = Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")]
 Scheduler = Annotated[
     str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")

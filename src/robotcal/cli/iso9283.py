@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
-from robotcal.cli._common import Force, app_command, command_app, console
+from robotcal.cli._common import Force, ProgramController, ProgramSpeed, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.errors import InputError
@@ -182,11 +182,6 @@ _PlanProgramOut = Annotated[
     Path | None,
     typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
 ]
-_PlanController = Annotated[
-    str | None,
-    typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
-                 "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
-]
 _PlanName = Annotated[
     str | None,
     typer.Option(
@@ -209,8 +204,8 @@ def iso9283_plan(
     program: _PlanProgram = None,
     program_out: _PlanProgramOut = None,
     dwell: Annotated[float, typer.Option("--dwell", help="Dwell at every test pose in the program [s].")] = 2.0,
-    controller: _PlanController = None,
-    speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
+    controller: ProgramController = None,
+    speed: ProgramSpeed = 10.0,
     name: _PlanName = None,
     force: Force = False,
 ) -> None:
