@@ -179,16 +179,12 @@ _PlanProgram = Annotated[
     str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
 ]
 _PlanProgramOut = Annotated[
-    Path | None,
-    typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
+    Path | None, typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script).")
 ]
 _PlanName = Annotated[
     str | None,
-    typer.Option(
-        "--name",
-        help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
-        "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
-    ),
+    typer.Option("--name", help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 "
+                 "characters; a --name must equal it); RAPID module / URScript function (default robotcal_iso9283)."),
 ]
 
 
