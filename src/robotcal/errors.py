@@ -50,7 +50,7 @@ class InputError(RobotcalError, ValueError):
     """Input that robotcal cannot use: wrong shape, NaN, missing key, unknown name, bad file."""
 
 
-def check_count(value, name: str, *, minimum: int = 1) -> int:
+def check_count(value: object, name: str, *, minimum: int = 1) -> int:
     """``value`` as an ``int``, checked to be a whole number (Python's or numpy's, never a bool) ``>= minimum``.
 
     Raises :class:`InputError` naming ``name`` and the value as written: "`workers` must be a positive
