@@ -66,6 +66,7 @@ from robotcal.resolve import (
     link_masses,
     model_choice_settings,
     needed,
+    refinement_targets,
     scenario_cpa_target,
     seed_from,
     simulation_inputs,
@@ -452,12 +453,7 @@ def refine(
         settings = RefinementSettings(criterion=criterion, **{"repeatability_mm": repeatability_of(scenario), **options})
     elif options or criterion != "points":
         raise InputError("give `settings` or `criterion` and the options, not both")
-    if scenario is not None:
-        targets = capture_targets(scenario, capture) if targets is None else targets
-        if tracker_from_base is None and scenario.identification.base_frame == "given":
-            tracker_from_base = scenario.tracker_from_base
-    if targets is None:
-        raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
+    targets, tracker_from_base = refinement_targets(scenario, capture, targets, tracker_from_base)
     lash, lash_source = backlash_correction(backlash_deg, robot)
     result = refine_model(
         capture, _parameters(start, robot, "start"), targets, settings=settings, choice=choice,

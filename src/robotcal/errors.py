@@ -13,6 +13,7 @@ again, and the places where work goes on or a result is kept call it (a pool's s
 
 from __future__ import annotations
 
+import numbers
 import os
 import signal
 from collections.abc import Iterator
@@ -22,6 +23,7 @@ from types import FrameType
 __all__ = [
     "RobotcalError",
     "InputError",
+    "check_count",
     "DegenerateGeometryError",
     "IdentifiabilityError",
     "RobotcalWarning",
@@ -46,6 +48,18 @@ class RobotcalError(Exception):
 
 class InputError(RobotcalError, ValueError):
     """Input that robotcal cannot use: wrong shape, NaN, missing key, unknown name, bad file."""
+
+
+def check_count(value: object, name: str, *, minimum: int = 1) -> int:
+    """``value`` as an ``int``, checked to be a whole number (Python's or numpy's, never a bool) ``>= minimum``.
+
+    Raises :class:`InputError` naming ``name`` and the value as written: "`workers` must be a positive
+    integer; got 0", "`folds` must be an integer >= 2; got True".
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        what = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        raise InputError(f"`{name}` must be {what}; got {value!r}")
+    return int(value)
 
 
 class DegenerateGeometryError(InputError):

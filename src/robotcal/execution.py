@@ -58,7 +58,7 @@ from contextlib import contextmanager
 
 from threadpoolctl import threadpool_limits
 
-from robotcal.errors import INTERRUPT_SIGNALS, InputError, check_interrupt, interrupts_held
+from robotcal.errors import INTERRUPT_SIGNALS, InputError, check_count, check_interrupt, interrupts_held
 
 __all__ = ["Executor", "StopRequested", "check_stop", "open_executor", "process_pool", "single_blas_thread", "SCHEDULER_ENV"]
 
@@ -211,8 +211,7 @@ def _start_worker(stop) -> None:
 
 
 def _check(workers, scheduler) -> tuple[int, str | None]:
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InputError(f"`workers` must be a positive integer; got {workers!r}")
+    workers = check_count(workers, "workers")
     if scheduler is None:
         scheduler = os.environ.get(SCHEDULER_ENV) or None
     if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):

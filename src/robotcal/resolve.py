@@ -57,6 +57,7 @@ __all__ = [
     "needed",
     "parameter_draws",
     "program_tcp_uncertainty",
+    "refinement_targets",
     "scenario_instrument",
     "simulation_inputs",
     "seed_from",
@@ -243,6 +244,20 @@ def capture_targets(scenario: Scenario, capture: Capture) -> ReflectorMount | Ta
         f"{scenario.source}: which target was measured? declare one (`capture.flange_reflector_mm`, "
         "`capture.reflector_mm` or one [[targets]] entry) or give the capture a `target` column"
     )
+
+
+def refinement_targets(
+    scenario: Scenario | None, capture: Capture, targets: Any, tracker_from_base: np.ndarray | None
+) -> tuple[Any, np.ndarray | None]:
+    """The targets and the held base frame of a refinement of ``capture``: those given, else the scenario's (its
+    :func:`capture_targets`; its ``tracker_from_base`` where ``base_frame = "given"``). InputError without targets."""
+    if scenario is not None:
+        targets = capture_targets(scenario, capture) if targets is None else targets
+        if tracker_from_base is None and scenario.identification.base_frame == "given":
+            tracker_from_base = scenario.tracker_from_base
+    if targets is None:
+        raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
+    return targets, tracker_from_base
 
 
 def calibration_capture(

@@ -31,9 +31,9 @@ from robotcal.resolve import (
     ParameterSource,
     as_capture,
     as_parameters,
-    capture_targets,
     needed,
     parameter_draws,
+    refinement_targets,
     scenario_instrument,
     seed_from,
     simulation_inputs,
@@ -408,12 +408,7 @@ def measured_monte_carlo(
 
     robot, scenario = split_robot(robot)
     capture = as_capture(capture, robot)
-    if scenario is not None:
-        targets = capture_targets(scenario, capture) if targets is None else targets
-        if tracker_from_base is None and scenario.identification.base_frame == "given":
-            tracker_from_base = scenario.tracker_from_base
-    if targets is None:
-        raise InputError("`targets` is needed: where the points were measured (a ReflectorMount or Targets)")
+    targets, tracker_from_base = refinement_targets(scenario, capture, targets, tracker_from_base)
     if not isinstance(estimate, RefinementResult):
         estimate = as_parameters(estimate, robot, "estimate")
     given = estimate.parameters.robot if isinstance(estimate, RefinementResult) else estimate.robot

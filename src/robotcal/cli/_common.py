@@ -31,6 +31,8 @@ from robotcal.limits import (  # noqa: F401  (re-exported: the commands import t
 )
 
 if TYPE_CHECKING:  # imported where used: `robotcal --help` and main() stay light (docs/cli.md)
+    from pathlib import Path
+
     from rich.console import Console
     from rich.text import Text
 
@@ -75,6 +77,17 @@ SCENARIO_HELP = "Scenario name or TOML whose robot the parameters belong to (ins
 Force = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
 ParamsRobot = Annotated[str | None, typer.Option("--robot", "-r", help=ROBOT_HELP)]
 ParamsScenario = Annotated[str | None, typer.Option("--scenario", "-s", help=SCENARIO_HELP)]
+# The options of the commands that write a robot program (program, iso9283-plan).
+ProgramController = Annotated[
+    str | None,
+    typer.Option(
+        "--controller",
+        help="Robot file with the controller's reading signs/offsets and limits (e.g. kuka-kr5-sixx-r650-krc); "
+        "default: the scenario's robot.",
+    ),
+]
+ProgramSpeed = Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)]
+ScenarioArgument = Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")]
 Scheduler = Annotated[
     str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
 ]
@@ -86,6 +99,30 @@ def command_app(**settings) -> typer.Typer:
     no completion options, plain tracebacks; ``settings`` are further :class:`typer.Typer` arguments.
     """
     return typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None, **settings)
+
+
+def app_command(app: typer.Typer, name: str | None = None) -> Callable[[Callable], Callable]:
+    """``@app_command(app)`` above a command's function: registers it on ``app`` under ``name`` (default: the
+    function's name) with its errors reported by :func:`handle_errors`, as every command of ``robotcal`` is."""
+
+    def register(function: Callable) -> Callable:
+        return app.command(name)(handle_errors(function))
+
+    return register
+
+
+def read_scenario_capture(capture: Path, scenario: str, out: Path, *, force: bool, folder: bool = False):
+    """What a command on one capture reads, once it has checked that ``out`` may be written (a file, or with
+    ``folder`` a result folder): ``(scenario, capture, inputs)``, ``inputs`` the files read (never overwritten)."""
+    from robotcal.io.capture_csv import read_capture
+    from robotcal.io.output import check_output_file, check_output_folder, existing_inputs
+    from robotcal.io.scenario import load_scenario
+
+    inputs = existing_inputs(capture, scenario)
+    (check_output_folder if folder else check_output_file)(out, inputs=inputs, force=force)
+    loaded = load_scenario(scenario)
+    inputs += existing_inputs(*loaded.files)
+    return loaded, read_capture(capture, n_joints=loaded.robot.n_joints), inputs
 
 
 def styled(text: str, style: str) -> Text:

@@ -6,7 +6,12 @@ The catalog (:mod:`robotcal.io`) and Rich's tables are imported by the commands,
 
 from __future__ import annotations
 
-from robotcal.cli._common import command_app, console, handle_errors
+from typing import TYPE_CHECKING
+
+from robotcal.cli._common import app_command, command_app, console
+
+if TYPE_CHECKING:
+    from robotcal.cli._tables import FittedTable
 
 app = command_app()
 
@@ -14,22 +19,23 @@ app = command_app()
 DESCRIPTION_WIDTH = 30
 
 
-@app.command()
-@handle_errors
+def _catalog_table(title: str, columns: list) -> FittedTable:
+    """A catalog table of ``columns`` and, last, the entries' descriptions (below the table where it is narrow)."""
+    from robotcal.cli._tables import Column, FittedTable
+
+    description = Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH)
+    return FittedTable(title, [*columns, description])
+
+
+@app_command(app)
 def robots() -> None:
     """List the built-in robots (usable by name in a scenario's `robot` key)."""
-    from robotcal.cli._tables import Column, FittedTable
+    from robotcal.cli._tables import Column
     from robotcal.io import list_robots
 
-    table = FittedTable(
+    table = _catalog_table(
         "Built-in robots",
-        [
-            Column("name", "name"),
-            Column("joints", "name"),
-            Column("Hayati joints", "text"),
-            Column("reading signs", "name"),
-            Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH),
-        ],
+        [Column("name", "name"), Column("joints", "name"), Column("Hayati joints", "text"), Column("reading signs", "name")],
     )
     models = list_robots()
     for robot in models:
@@ -79,45 +85,28 @@ def _coupling_term(coefficient: float, other: int) -> str:
     return f"{coefficient:+g}J{other + 1}"
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def instruments() -> None:
     """List the instrument presets, U(L) = A + B*L (L in m)."""
-    from robotcal.cli._tables import Column, FittedTable
+    from robotcal.cli._tables import Column
     from robotcal.io import instrument_presets
 
-    table = FittedTable(
-        "Instrument presets",
-        [
-            Column("preset", "name"),
-            Column("A (um)", justify="left"),
-            Column("B (um/m)", justify="left"),
-            Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH),
-        ],
-    )
+    columns = [Column("preset", "name"), Column("A (um)", justify="left"), Column("B (um/m)", justify="left")]
+    table = _catalog_table("Instrument presets", columns)
     presets = instrument_presets()
     for name, entry in sorted(presets.items()):
         table.add_row(name, f"{entry['a_um']:g}", f"{entry['b_um_per_m']:g}", entry.get("description", ""))
     console.print(table)
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def scenarios() -> None:
     """List the built-in scenarios (the thesis's Tables 5.1, 5.2/5.4 and 5.5)."""
-    from robotcal.cli._tables import Column, FittedTable
+    from robotcal.cli._tables import Column
     from robotcal.io import list_scenarios
 
-    table = FittedTable(
-        "Built-in scenarios",
-        [
-            Column("scenario", "name"),
-            Column("robot", "name"),
-            Column("instrument (noise)", "text"),
-            Column("points", justify="left"),
-            Column("description", "text", narrow=1, below=True, min_width=DESCRIPTION_WIDTH),
-        ],
-    )
+    columns = [Column("scenario", "name"), Column("robot", "name"), Column("instrument (noise)", "text")]
+    table = _catalog_table("Built-in scenarios", [*columns, Column("points", justify="left")])
     loaded = list_scenarios()
     both_ways = []
     for scenario in loaded:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors, progress_bar
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console, progress_bar
 from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
 
@@ -106,8 +106,7 @@ _MaxChangeDeg = Annotated[
 ]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def compensate(
     params: Annotated[Path, typer.Argument(help="Parameter JSON of the calibrated model (refined, extended or not).")],
     poses: _Poses,

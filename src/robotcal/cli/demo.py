@@ -7,26 +7,19 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import SEED_BOUND, Force, command_app, handle_errors
-from robotcal.cli.run import _command_line, run_and_print
-from robotcal.limits import SEED_OFFSETS
+from robotcal.cli._common import Force, app_command, command_app
+from robotcal.cli.run import RUN_SEED_MAX, _command_line, run_and_print
 
 app = command_app()
 
 DEMO_SCENARIO = "kr5-demo"
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def demo(
     out: Annotated[Path, typer.Option("--out", "-o", help="Run folder for the demo's files.")] = Path("robotcal-demo"),
     seed: Annotated[
-        int | None,
-        typer.Option(
-            min=0,
-            max=SEED_BOUND - 1 - max(SEED_OFFSETS.values()),
-            help="Seed of the whole run (default: the scenario's seeds).",
-        ),
+        int | None, typer.Option(min=0, max=RUN_SEED_MAX, help="Seed of the whole run (default: the scenario's seeds).")
     ] = None,
     draws: Annotated[
         int | None, typer.Option("--draws", min=1, help="Monte Carlo draws (default: 100,000, the scenario's).")

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
-from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
 
@@ -62,8 +62,7 @@ def load_parameter_set(params: Path, robot: str | None, scenario: str | None) ->
     return read_parameters(params, model), inputs
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def export(
     params: Annotated[
         Path | None, typer.Argument(help="Parameter JSON (of identify / refine); omit it with --nominal.")

@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console
 from robotcal.cli.compensate import say_not_ok
 from robotcal.cli.export import load_parameter_set, parse_vector
 
@@ -86,8 +86,7 @@ _Draws = Annotated[
 ]
 
 
-@app.command("filter")
-@handle_errors
+@app_command(app, "filter")
 def filter_command(
     program: Annotated[Path, typer.Argument(help="The robot program: KRL .src (its .dat beside it), RAPID .mod, URScript .script.")],
     params: Annotated[Path, typer.Option("--params", "-p", help="Parameter JSON of the calibrated model.")],

@@ -9,20 +9,20 @@ import typer
 
 from robotcal.cli._common import (
     FORCE_HELP,
+    app_command,
     circle_table,
     command_app,
     console,
-    handle_errors,
     parameter_table,
     print_health,
+    read_scenario_capture,
 )
-from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.output import result_file
 
 app = command_app()
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def identify(
     capture: Annotated[Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z).")],
     scenario: Annotated[
@@ -54,17 +54,11 @@ def identify(
     from robotcal.identification.plausibility import OUTLIER_MAD, OUTLIER_U
     from robotcal.identification.plausibility import reject_outliers as drop_outliers
     from robotcal.identification.refine import wrap_angles
-    from robotcal.io.capture_csv import read_capture
     from robotcal.io.parameters_json import write_parameters
     from robotcal.io.provenance import cpa_provenance
-    from robotcal.io.scenario import load_scenario
     from robotcal.kinematics.model import ParameterSet
 
-    inputs = existing_inputs(capture, scenario)
-    check_output_file(out, inputs=inputs, force=force)
-    loaded = load_scenario(scenario)
-    inputs += existing_inputs(*loaded.files)
-    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    loaded, measured, inputs = read_scenario_capture(capture, scenario, out, force=force)
     removed = None
     if reject_outliers:
         measured, removed = drop_outliers(measured, loaded.instrument, circle_fit=loaded.identification.circle_fit)

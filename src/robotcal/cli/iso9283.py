@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import typer
 
-from robotcal.cli._common import Force, command_app, console, handle_errors
+from robotcal.cli._common import Force, ProgramController, ProgramSpeed, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.errors import InputError
@@ -77,8 +77,7 @@ def _model_offsets(path: Path) -> dict | None:
     return {name: np.asarray(v, dtype=float) for name, v in read_targets(path).items()} or None
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def iso9283(
     capture: Annotated[Path, typer.Argument(help="Capture CSV of the repeated test poses (circle = 0, cycle-major).")],
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot, flange target(s), base frame.")],
@@ -180,26 +179,16 @@ _PlanProgram = Annotated[
     str | None, typer.Option("--program", help="Also write a robot program: krl | rapid | urscript.")
 ]
 _PlanProgramOut = Annotated[
-    Path | None,
-    typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script)."),
-]
-_PlanController = Annotated[
-    str | None,
-    typer.Option("--controller", help="Robot file with the controller's reading signs/offsets and limits "
-                 "(e.g. kuka-kr5-sixx-r650-krc); default: the scenario's robot."),
+    Path | None, typer.Option("--program-out", help="Program file (default: --out with .src, .mod or .script).")
 ]
 _PlanName = Annotated[
     str | None,
-    typer.Option(
-        "--name",
-        help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 characters; a --name "
-        "must equal it); RAPID module / URScript function (default robotcal_iso9283).",
-    ),
+    typer.Option("--name", help="Program name: KRL takes the program file's name (DEF name = file name, <= 24 "
+                 "characters; a --name must equal it); RAPID module / URScript function (default robotcal_iso9283)."),
 ]
 
 
-@app.command("iso9283-plan")
-@handle_errors
+@app_command(app, "iso9283-plan")
 def iso9283_plan(
     scenario: Annotated[str, typer.Option("--scenario", "-s", help="Scenario: robot and flange target.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Pose CSV to write (q1..qN in deg).")],
@@ -211,8 +200,8 @@ def iso9283_plan(
     program: _PlanProgram = None,
     program_out: _PlanProgramOut = None,
     dwell: Annotated[float, typer.Option("--dwell", help="Dwell at every test pose in the program [s].")] = 2.0,
-    controller: _PlanController = None,
-    speed: Annotated[float, typer.Option("--speed", help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
+    controller: ProgramController = None,
+    speed: ProgramSpeed = 10.0,
     name: _PlanName = None,
     force: Force = False,
 ) -> None:

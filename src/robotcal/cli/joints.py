@@ -8,9 +8,9 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import Force, command_app, console, error_console, handle_errors
+from robotcal.cli._common import Force, app_command, command_app, console, error_console, read_scenario_capture
 from robotcal.cli._tables import Column, FittedTable
-from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+from robotcal.io.output import result_folder
 
 if TYPE_CHECKING:  # numpy and the diagnostics load in the command: a fast --help
     from robotcal.diagnostics import JointDiagnostics
@@ -45,8 +45,7 @@ def _table(diagnostics: JointDiagnostics) -> FittedTable:
     return table
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def joints(
     capture: Annotated[
         Path, typer.Argument(help="Capture CSV (circle,direction,q1..qN,x,y,z), ideally bidirectional.")
@@ -67,15 +66,9 @@ def joints(
 ) -> None:
     """Backlash and axial/radial eccentricity per joint (thesis ch. 4.6), with a harmonic model."""
     from robotcal import api
-    from robotcal.io.capture_csv import read_capture
     from robotcal.io.joints_files import write_joints_folder
-    from robotcal.io.scenario import load_scenario
 
-    inputs = existing_inputs(capture, scenario)
-    check_output_folder(out, inputs=inputs, force=force)
-    loaded = load_scenario(scenario)
-    inputs += existing_inputs(*loaded.files)
-    measured = read_capture(capture, n_joints=loaded.robot.n_joints)
+    loaded, measured, inputs = read_scenario_capture(capture, scenario, out, force=force, folder=True)
     analysis = api.diagnose_joints(
         measured, loaded, order=order, backlash=backlash, match_tolerance_deg=match_tolerance_deg
     )

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors, progress_bar
+from robotcal.cli._common import ScenarioArgument, Scheduler, app_command, command_app, console, progress_bar
 
 if TYPE_CHECKING:  # numpy and the planning library load in the commands: a fast --help
     from robotcal.cli._tables import FittedTable
@@ -26,7 +26,6 @@ app.add_typer(plan_app, name="plan")
 #: Exit status of `plan check` when the plan is infeasible (2 is reserved for input errors).
 INFEASIBLE_EXIT = 1
 
-_Scenario = Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")]
 _Acceptance = Annotated[
     float | None,
     typer.Option("--acceptance-deg", help="Reflector acceptance half-angle [deg] (default: the instrument preset's)."),
@@ -36,9 +35,6 @@ _NoAcceptance = Annotated[
 ]
 _Aim = Annotated[str, typer.Option(help="Where each circle's target faces the tracker: middle | start.")]
 _Force = Annotated[bool, typer.Option("--force", help="Replace an output not written by robotcal.")]
-_Scheduler = Annotated[
-    str | None, typer.Option(help="Dask scheduler address (default: $ROBOTCAL_SCHEDULER, else local).")
-]
 
 
 def check_table(check) -> FittedTable:
@@ -72,10 +68,9 @@ def _write_folder(out: Path | None, inputs, force: bool, command: str, write) ->
         write(folder)
 
 
-@plan_app.command("check")
-@handle_errors
+@app_command(plan_app, "check")
 def check(
-    scenario: _Scenario,
+    scenario: ScenarioArgument,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Folder for plan_check.json/.csv/.png.")] = None,
     acceptance_deg: _Acceptance = None,
     no_acceptance: _NoAcceptance = False,
@@ -210,10 +205,9 @@ def _write_optimised(folder: Path, header: str, document: dict, comparison: dict
     )
 
 
-@plan_app.command("optimise")
-@handle_errors
+@app_command(plan_app, "optimise")
 def optimise(
-    scenario: _Scenario,
+    scenario: ScenarioArgument,
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for optimised.toml, comparison.json/.csv, figure.")],
     budget: Annotated[int | None, typer.Option(help="Points per direction in all (default: the scenario's).")] = None,
     objective: Annotated[str, typer.Option(help="p95-tcp | max-u | d-opt | e-opt.")] = "p95-tcp",
@@ -228,7 +222,7 @@ def optimise(
     no_acceptance: _NoAcceptance = False,
     aim: _Aim = "middle",
     workers: Annotated[int, typer.Option(min=1, help="Local worker processes for the candidates.")] = 1,
-    scheduler: _Scheduler = None,
+    scheduler: Scheduler = None,
     force: _Force = False,
 ) -> None:
     """Search start angles, sweeps, points per circle and reflector positions for a lower uncertainty,

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, command_app, console, handle_errors
+from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console
 from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.errors import InputError
 from robotcal.io.output import check_output_file, existing_inputs, result_file
@@ -116,8 +116,7 @@ def predictions_to_csv(frames) -> str:
     return "\n".join(lines) + "\n"
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def predict(
     params: Annotated[Path, typer.Argument(help="Parameter JSON (nominal, CPA or refined).")],
     poses: Annotated[Path, typer.Option("--poses", help="Pose CSV with q1..qN, controller readings [deg].")],

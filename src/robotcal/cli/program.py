@@ -7,34 +7,27 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import command_app, console, handle_errors
+from robotcal.cli._common import ProgramController, ProgramSpeed, ScenarioArgument, app_command, command_app, console
 
 app = command_app()
 
 __all__ = ["program"]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def program(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     out: Annotated[Path, typer.Option("--out", "-o", help="Program file to write.")],
     language: Annotated[str, typer.Option(help="krl (KUKA) | rapid (ABB) | urscript (Universal Robots).")] = "krl",
     dwell: Annotated[float, typer.Option(help="Dwell at every measuring point [s].")] = 2.0,
-    controller: Annotated[
-        str | None,
-        typer.Option(
-            help="Robot file with the controller's reading signs/offsets and limits (e.g. kuka-kr5-sixx-r650-krc); "
-            "default: the scenario's robot."
-        ),
-    ] = None,
+    controller: ProgramController = None,
     bidirectional: Annotated[
         bool | None,
         typer.Option(
             "--bidirectional/--one-way", help="Return sweeps (default: the scenario's capture.bidirectional)."
         ),
     ] = None,
-    speed: Annotated[float, typer.Option(help="Joint speed [% of maximum].", min=0.1, max=100.0)] = 10.0,
+    speed: ProgramSpeed = 10.0,
     name: Annotated[
         str | None,
         typer.Option(

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import Force, _line, command_app, console, error_console, handle_errors
+from robotcal.cli._common import Force, _line, app_command, command_app, console, error_console
 from robotcal.errors import InputError
 
 app = command_app()
@@ -29,8 +29,7 @@ def _run_files(run_dir: Path) -> list[Path]:
     return [path for path in run_dir.rglob("*") if path.is_file() and path != own]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def report(
     run_dir: Annotated[Path, typer.Argument(help="Run folder written by `robotcal run` (docs/results.md).")],
     out: Annotated[

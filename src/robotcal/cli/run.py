@@ -13,9 +13,12 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robotcal.cli._common import SEED_BOUND, Force, command_app, console, error_console, handle_errors
+from robotcal.cli._common import SEED_BOUND, Force, ScenarioArgument, app_command, command_app, console, error_console
 from robotcal.errors import RobotcalError
 from robotcal.limits import REFINED_DRAWS, SEED_OFFSETS
+
+#: The largest seed of a whole run (``--seed``): each part of the run draws from the seed plus its SEED_OFFSETS entry.
+RUN_SEED_MAX = SEED_BOUND - 1 - max(SEED_OFFSETS.values())
 
 if TYPE_CHECKING:  # the pipeline loads when a run starts, not for --help
     from robotcal.pipeline.plan import RunPlan
@@ -168,10 +171,9 @@ def run_and_print(plan: RunPlan):
     return result
 
 
-@app.command("run")
-@handle_errors
+@app_command(app, "run")
 def run(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     out: Annotated[
         Path, typer.Option("--out", "-o", help="Run folder to write (a run folder of robotcal's is replaced).")
     ],
@@ -179,7 +181,7 @@ def run(
         int | None,
         typer.Option(
             min=0,
-            max=SEED_BOUND - 1 - max(SEED_OFFSETS.values()),
+            max=RUN_SEED_MAX,
             help="Seed of the whole run (capture N, truth N+1, validation N+2, Monte Carlo N+3, workspace N+4).",
         ),
     ] = None,

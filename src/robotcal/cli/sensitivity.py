@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from robotcal.cli._common import Scheduler, command_app, console, handle_errors
+from robotcal.cli._common import ScenarioArgument, Scheduler, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 
 app = command_app()
@@ -15,10 +15,9 @@ app = command_app()
 __all__ = ["sensitivity"]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def sensitivity(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     vary: Annotated[
         list[str],
         typer.Option(

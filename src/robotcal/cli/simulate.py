@@ -13,10 +13,11 @@ from robotcal.cli._common import (
     BYTES_PER_POSE,
     SEED_BOUND,
     Force,
+    ScenarioArgument,
+    app_command,
     check_memory,
     command_app,
     console,
-    handle_errors,
 )
 from robotcal.errors import InputError
 from robotcal.io.output import existing_inputs, result_file
@@ -80,10 +81,9 @@ _TargetsMm = Annotated[
 ]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def simulate(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or scenario TOML path.")],
+    scenario: ScenarioArgument,
     out: Annotated[Path, typer.Option("--out", "-o", help="Capture CSV to write.")],
     seed: _Seed = None,
     true_params: _TrueParams = None,

@@ -10,18 +10,11 @@ from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
 
-from robotcal.cli._common import (
-    BYTES_PER_POSE,
-    SEED_BOUND,
-    Force,
-    check_memory,
-    command_app,
-    console,
-    handle_errors,
-)
+from robotcal.cli._common import Force, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+from robotcal.limits import BYTES_PER_POSE, SEED_BOUND, check_memory
 
 if TYPE_CHECKING:  # numpy, the draws and the uncertainty library load in the command: a fast --help
     import numpy as np
@@ -173,8 +166,7 @@ def _print_summary(result, ws, mode: str, interval: IntervalKind) -> None:
     )
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def tcp(
     out: Annotated[Path, typer.Option("--out", "-o", help="Result folder to write (tcp.csv, tcp.json, figures).")],
     draws: Annotated[

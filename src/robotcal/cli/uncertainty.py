@@ -16,10 +16,10 @@ from robotcal.cli._common import (
     FORCE_HELP,
     SEED_BOUND,
     _line,
+    app_command,
     check_memory,
     command_app,
     console,
-    handle_errors,
     monte_carlo_bytes,
     progress_bar,
     seed_option_check,
@@ -185,8 +185,7 @@ PosesOption = Annotated[
 ]
 
 
-@app.command()
-@handle_errors
+@app_command(app)
 def uncertainty(
     scenario: ScenarioArgument = None,
     out: OutOption = None,

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.diagnostics.joints import JointDiagnostics, local_frame
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_count
 from robotcal.kinematics.model import DISPLAY_UNITS
 
 __all__ = [
@@ -99,6 +99,10 @@ class HarmonicFit:
     explained: float
     f_statistic: float
     p_value: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "coefficients", _frozen(self.coefficients))
+        object.__setattr__(self, "covariance", _frozen(self.covariance))
 
     @property
     def dof(self) -> int:
@@ -227,15 +231,7 @@ class HarmonicFit:
             )
         if quantity not in QUANTITIES:
             raise InputError(f"{where}: unknown quantity {quantity!r}; expected one of {', '.join(QUANTITIES)}")
-        return cls(
-            joint=joint,
-            quantity=quantity,
-            order=order,
-            coefficients=_frozen(coefficients),
-            covariance=_frozen(covariance),
-            n=n,
-            **fields,
-        )
+        return cls(joint=joint, quantity=quantity, order=order, coefficients=coefficients, covariance=covariance, n=n, **fields)
 
 
 def fit_harmonic_series(
@@ -263,9 +259,7 @@ def fit_harmonic_series(
     """
     theta = np.asarray(theta, dtype=float)
     values = np.asarray(values, dtype=float)
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
-        raise InputError(f"`order` must be an integer >= 1; got {order!r}")
-    order = int(order)
+    order = check_count(order, "order")
     if theta.ndim != 1 or values.shape != theta.shape:
         raise InputError(f"`theta` and `values` must have the same shape (n,); got {theta.shape} and {values.shape}")
     p = 2 * order + 1
@@ -304,8 +298,8 @@ def fit_harmonic_series(
         joint=joint,
         quantity=quantity,
         order=order,
-        coefficients=_frozen(coefficients),
-        covariance=_frozen(covariance),
+        coefficients=coefficients,
+        covariance=covariance,
         n=int(theta.size),
         sigma=float(np.sqrt(sigma2)),
         rms_before=float(np.sqrt(total / theta.size)),
@@ -511,8 +505,7 @@ def fit_harmonics(diagnostics: JointDiagnostics, *, order: int = 2) -> HarmonicM
     """
     if not isinstance(diagnostics, JointDiagnostics):
         raise InputError(f"`diagnostics` must be JointDiagnostics; got {type(diagnostics).__name__}")
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
-        raise InputError(f"`order` must be an integer >= 1; got {order!r}")
+    check_count(order, "order")
     fits, circles, messages = [], [], []
     for c in diagnostics.circles:
         circles.append(

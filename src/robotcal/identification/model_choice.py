@@ -49,7 +49,7 @@ import scipy.stats
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
-from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
+from robotcal.errors import IdentifiabilityError, IdentifiabilityWarning, InputError, check_count
 from robotcal.execution import open_executor
 from robotcal.identification._problem import pdist
 from robotcal.identification.evaluation import (
@@ -162,8 +162,7 @@ def joint_model_for(
 def pose_folds(capture: Capture, folds: int, seed: int) -> np.ndarray:
     """The fold ``(n_points,)`` of every point: poses (the same readings, on a 1e-7 deg grid) dealt at random
     (seeded) into ``folds`` groups as equal as the number of poses allows."""
-    if isinstance(folds, bool) or not isinstance(folds, int | np.integer) or folds < 2:
-        raise InputError(f"cross-validation needs at least 2 folds; got {folds!r}")
+    check_count(folds, "folds", minimum=2)  # cross-validation needs at least 2 folds
     turns = np.round(np.rad2deg(np.asarray(capture.readings, dtype=float)) * 1e7).astype(np.int64)
     _, pose = np.unique(turns, axis=0, return_inverse=True)
     pose = pose.ravel()
@@ -419,8 +418,7 @@ def refine_model(
         The chosen model's fit with its ``health``, ``cross_validation`` (None without folds) and, for ``auto``,
         ``model_choice``. Its warnings, and those alone, are re-emitted here.
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InputError(f"`workers` must be a positive integer; got {workers!r}")
+    check_count(workers, "workers")
     lash = dict(masses=masses, backlash=backlash, backlash_source=backlash_source)
     structures = {name: candidate_joint_model(name, start, choice, **lash) for name in choice.candidates}
     fold_of = pose_folds(capture, choice.folds, choice.seed) if choice.folds else None

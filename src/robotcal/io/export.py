@@ -314,6 +314,19 @@ def _check_joint_variable(joint_variable: str) -> None:
         raise InputError(f"`joint_variable` must be 'reading' or 'model'; got {joint_variable!r}")
 
 
+def _dh_values(parameters: ParameterSet, joint_variable: str, convention: str) -> np.ndarray:
+    """``parameters.values``, checked for a DH table: ``joint_variable`` known, every beta 0 (else InputError
+    naming the joints: ``convention`` cannot express a rotation about y)."""
+    _check_joint_variable(joint_variable)
+    values = parameters.values
+    bad = [
+        f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
+    ]
+    if bad:
+        raise InputError(f"{convention} cannot express a rotation about y: {', '.join(bad)}; {BETA_ALTERNATIVES}")
+    return values
+
+
 def _reading_columns(parameters: ParameterSet, i: int, joint_variable: str) -> dict:
     """``reading_sign``, ``reading_offset_deg`` of row ``i``: the robot's (``q = s r + o``), or 1 and 0 where the
     table's joint value is the model variable q itself (``joint_variable = "model"``, any coupling)."""
@@ -336,13 +349,7 @@ def dh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> li
     "model"``: the joint value is q itself (``reading_sign`` 1, ``reading_offset_deg`` 0 in every row), the
     only exact table of a coupled robot (convert readings with the robot's reading map).
     """
-    _check_joint_variable(joint_variable)
-    values = parameters.values
-    bad = [
-        f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
-    ]
-    if bad:
-        raise InputError(f"standard DH cannot express a rotation about y: {', '.join(bad)}; {BETA_ALTERNATIVES}")
+    values = _dh_values(parameters, joint_variable, "standard DH")
     rows = []
     for i in range(parameters.robot.n_joints):
         d, theta, a, alpha, _ = values[i]
@@ -361,13 +368,7 @@ def mdh_table(parameters: ParameterSet, *, joint_variable: str = "reading") -> l
     fixed row ``flange`` (no joint variable) carries ``alpha_n, a_n``. A non-zero beta raises
     :class:`InputError` naming the joint. ``joint_variable``: as :func:`dh_table`.
     """
-    _check_joint_variable(joint_variable)
-    values = parameters.values
-    bad = [
-        f"J{i + 1}.beta = {math.degrees(values[i, 4]):.6g} deg" for i in np.flatnonzero(np.abs(values[:, 4]) > _EXACT)
-    ]
-    if bad:
-        raise InputError(f"modified DH cannot express a rotation about y: {', '.join(bad)}; {BETA_ALTERNATIVES}")
+    values = _dh_values(parameters, joint_variable, "modified DH")
     rows = []
     previous_a, previous_alpha = 0.0, 0.0
     for i in range(parameters.robot.n_joints):

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.io.atomic import atomic_write_text
+from robotcal.io.uncertainty_files import CSV_COLUMNS
 from robotcal.kinematics.model import DISPLAY_UNITS
 from robotcal.uncertainty.statistics import IntervalKind
 from robotcal.uncertainty.tcp import ORIENTATION_CONVENTION, TCP_COORDINATES, TCP_UNITS, TCPUncertainty
@@ -29,19 +30,8 @@ __all__ = [
     "write_tcp_json",
 ]
 
-TCP_CSV_COLUMNS = (
-    "pose",
-    "name",
-    "unit",
-    "nominal",
-    "mean",
-    "std_uncertainty",
-    "coverage_low",
-    "coverage_high",
-    "min",
-    "max",
-    "lpu_std_uncertainty",
-)
+#: ``tcp.csv``: the pose, the original design's columns of ``parameters.csv``, the linearised u.
+TCP_CSV_COLUMNS = ("pose", *CSV_COLUMNS[:9], "lpu_std_uncertainty")
 _DEG = np.array([1.0, 1.0, 1.0, *([180.0 / np.pi] * 3)])
 
 

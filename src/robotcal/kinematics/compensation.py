@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_count
 from robotcal.kinematics.inverse import (
     as_tool_frame,
     branch_of,
@@ -153,8 +153,7 @@ class CompensationSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
                 raise InputError(f"compensation setting `{name}` must be a finite number > 0; got {value!r}")
-        if isinstance(self.max_iterations, bool) or not isinstance(self.max_iterations, int) or self.max_iterations < 1:
-            raise InputError(f"compensation setting `max_iterations` must be an integer >= 1; got {self.max_iterations!r}")
+        check_count(self.max_iterations, "max_iterations")
 
 
 def _damped(parameters: ParameterSet, targets, taught, tool, max_change: float, iterations: int):
@@ -214,10 +213,8 @@ def compensate_commands(
 
     Parameters
     ----------
-    parameters : ParameterSet
-        The calibrated model (geometric, or extended with its joint model).
-    targets : array_like, shape (n_poses, 4, 4)
-        Target tool frames in the robot base frame [mm].
+    parameters, targets
+        The calibrated model and the target tool frames, as in :func:`robotcal.kinematics.inverse.solve_pose`.
     taught : array_like, shape (n_poses, n_joints)
         The readings the commands replace [rad]: the taught joint targets, or the nominal controller's solution of
         Cartesian targets. They choose the branch.

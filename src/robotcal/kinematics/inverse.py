@@ -238,26 +238,36 @@ def _planar(structure: _Structure, local: np.ndarray):
     return phi2, phi3, exists
 
 
+#: The z axis, about which every joint of the chain turns in its own frame.
+_E_Z = np.array([0.0, 0.0, 1.0])
+
+
 def _to_frame(frame: np.ndarray, points: np.ndarray) -> np.ndarray:
     return (_invert(frame) @ np.c_[points, np.ones(len(points))][..., None])[:, :3, 0]
 
 
-def _spherical(structure: _Structure, flange: np.ndarray, reference: np.ndarray):
+def _wrist_start(structure: _Structure, flange: np.ndarray, reference: np.ndarray):
+    """What both closed forms start from: the wrist point (J5's origin) in the base frame, J1's two solutions and
+    whether they exist, J4's turning axis ``g`` (z1 in frame 4), J6's axis ``v5`` in frame 4 at phi_5 = 0, and the
+    empty tables of the eight branches' angles ``(n, 8, 6)`` and validity ``(n, 8)``."""
     constants, count = structure.constants, flange.shape[0]
-    e_z = np.array([0.0, 0.0, 1.0])
     wrist = (flange @ structure.point_in_flange)[:, :3]
     phi1, ok1 = _first_joint(structure, wrist, reference[:, 0])
-    phi = np.zeros((count, 8, 6))
-    valid = np.zeros((count, 8), dtype=bool)
-    g = constants[3, :3, :3].T @ e_z
-    v5 = constants[4, :3, :3] @ e_z
+    g = constants[3, :3, :3].T @ _E_Z
+    v5 = constants[4, :3, :3] @ _E_Z
+    return wrist, phi1, ok1, g, v5, np.zeros((count, 8, 6)), np.zeros((count, 8), dtype=bool)
+
+
+def _spherical(structure: _Structure, flange: np.ndarray, reference: np.ndarray):
+    constants, count = structure.constants, flange.shape[0]
+    wrist, phi1, ok1, g, v5, phi, valid = _wrist_start(structure, flange, reference)
     for s in range(2):
         frame1 = _rz(phi1[:, s]) @ constants[0]
         phi2, phi3, ok23 = _planar(structure, _to_frame(frame1, wrist))
         for e in range(2):
             frame3 = frame1 @ _rz(phi2[:, e]) @ constants[1] @ _rz(phi3[:, e]) @ constants[2]
             r36 = np.swapaxes(frame3[:, :3, :3], 1, 2) @ flange[:, :3, :3]
-            axis6 = r36 @ constants[5, :3, :3].T @ e_z  # J6's axis in frame 3
+            axis6 = r36 @ constants[5, :3, :3].T @ _E_Z  # J6's axis in frame 3
             roots5, ok5, _ = _cos_sin_roots(
                 g[0] * v5[0] + g[1] * v5[1], g[1] * v5[0] - g[0] * v5[1], axis6[:, 2] - g[2] * v5[2]
             )
@@ -282,17 +292,11 @@ def _spherical(structure: _Structure, flange: np.ndarray, reference: np.ndarray)
 
 def _parallel(structure: _Structure, flange: np.ndarray, reference: np.ndarray):
     constants, count = structure.constants, flange.shape[0]
-    e_z = np.array([0.0, 0.0, 1.0])
-    origin5 = (flange @ structure.point_in_flange)[:, :3]
-    phi1, ok1 = _first_joint(structure, origin5, reference[:, 0])
-    phi = np.zeros((count, 8, 6))
-    valid = np.zeros((count, 8), dtype=bool)
-    g = constants[3, :3, :3].T @ e_z  # z1 in frame 4 (J2, J3, J4 turn about it)
-    v5 = constants[4, :3, :3] @ e_z  # J6's axis in frame 4 at phi_5 = 0
+    _, phi1, ok1, g, v5, phi, valid = _wrist_start(structure, flange, reference)  # g: J2, J3, J4 turn about it
     for s in range(2):
         frame1 = _rz(phi1[:, s]) @ constants[0]
         z1 = frame1[:, :3, 2]
-        axis6 = flange[:, :3, :3] @ constants[5, :3, :3].T @ e_z  # J6's axis in the base frame
+        axis6 = flange[:, :3, :3] @ constants[5, :3, :3].T @ _E_Z  # J6's axis in the base frame
         roots5, ok5, _ = _cos_sin_roots(
             g[0] * v5[0] + g[1] * v5[1], g[1] * v5[0] - g[0] * v5[1], np.einsum("pi,pi->p", z1, axis6) - g[2] * v5[2]
         )

@@ -109,16 +109,8 @@ def plot_tcp_histograms(result: TCPUncertainty, path, *, pose: int = 0, bins: in
     # fixed margins [in], wide enough for the count labels drawn (thousands with many draws)
     room = max(y_label_room(ax) for ax in axes.ravel())
     left, gap = max(0.65, room + 0.08), max(0.75, room + 0.25)
-    set_margins(
-        figure,
-        left=left,
-        right=0.15,
-        bottom=0.6,
-        top=0.7,
-        wspace=gap,
-        hspace=1.0,
-        cell=((10.0 - left - 0.15 + gap) / 3, 2.23),
-    )
+    cell = ((10.0 - left - 0.15 + gap) / 3, 2.23)
+    set_margins(figure, left=left, right=0.15, bottom=0.6, top=0.7, wspace=gap, hspace=1.0, cell=cell)
     figure.suptitle(
         f"TCP at pose {pose + 1}: {result.n_draws} draws about their mean, {result.coverage:.0%} interval dashed",
         fontsize=10,
@@ -149,27 +141,20 @@ def plot_trajectory(result: TCPUncertainty, path) -> Path:
     axes3d.set_title("nominal TCP path, coloured by max - min", fontsize=9, y=1.0)
     pose = np.arange(1, result.n_poses + 1)
     std = result.std_uncertainty * _DEG
-    ax = figure.add_subplot(grid[0, 1])
-    for k in range(3):
-        ax.plot(pose, value_range[:, k], marker=".", label=TCP_COORDINATES[k])
-    ax.set_xlabel("pose")
-    ax.set_ylabel("max - min over the draws [mm]")
-    ax.set_title("range per coordinate (thesis Fig. 5.20)", fontsize=9, y=1.0)
-    ax.legend(fontsize=8, loc="upper right")
-    ax = figure.add_subplot(grid[1, 0])
-    for k in range(3):
-        ax.plot(pose, std[:, k], marker=".", label=TCP_COORDINATES[k])
-    ax.set_xlabel("pose")
-    ax.set_ylabel("standard uncertainty [mm]")
-    ax.set_title("position", fontsize=9, y=1.0)
-    ax.legend(fontsize=8, loc="upper right")
-    ax = figure.add_subplot(grid[1, 1])
-    for k in range(3, 6):
-        ax.plot(pose, std[:, k], marker=".", label=f"{TCP_COORDINATES[k]} (about {'ZYX'[k - 3]})")
-    ax.set_xlabel("pose")
-    ax.set_ylabel("standard uncertainty [deg]")
-    ax.set_title("orientation (KUKA A, B, C)", fontsize=9, y=1.0)
-    ax.legend(fontsize=8, loc="upper right")
+    position_labels = TCP_COORDINATES[:3]
+    angle_labels = [f"{TCP_COORDINATES[k]} (about {'ZYX'[k - 3]})" for k in range(3, 6)]
+    for cell, values, labels, y_label, title in (
+        (grid[0, 1], value_range[:, :3], position_labels, "max - min over the draws [mm]", "range per coordinate (thesis Fig. 5.20)"),
+        (grid[1, 0], std[:, :3], position_labels, "standard uncertainty [mm]", "position"),
+        (grid[1, 1], std[:, 3:], angle_labels, "standard uncertainty [deg]", "orientation (KUKA A, B, C)"),
+    ):
+        ax = figure.add_subplot(cell)
+        for k, label in enumerate(labels):
+            ax.plot(pose, values[:, k], marker=".", label=label)
+        ax.set_xlabel("pose")
+        ax.set_ylabel(y_label)
+        ax.set_title(title, fontsize=9, y=1.0)
+        ax.legend(fontsize=8, loc="upper right")
     figure.suptitle(f"TCP uncertainty along {result.n_poses} poses, {result.n_draws} draws", fontsize=10)
     return save_figure(figure, path)
 

@@ -16,14 +16,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
 
-__all__ = ["NumberSpan", "ProgramPoint", "Program", "replace_numbers", "format_number", "read_program_text", "joint_values"]
+__all__ = [
+    "NumberSpan", "ProgramPoint", "Program", "Render", "replace_numbers", "format_number", "read_program_text",
+    "joint_values",
+]  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +115,39 @@ class Program:
     points: list[ProgramPoint]
     frames: dict[str, np.ndarray] = field(default_factory=dict)
     skipped: list[tuple[str, int, str]] = field(default_factory=list)
+
+
+class Render(Protocol):
+    """What each language's ``render`` is (:func:`robotcal.programs.filter.renderer`): the new text of every number of
+    ``point`` for a new target, in the language's own units and notation.
+
+    Parameters
+    ----------
+    point : ProgramPoint
+        A point of a :class:`Program` read by the language's ``read_program``.
+    frame_mm : array_like (4, 4), optional
+        Cartesian points: the new tool frame in the point's base / work-object frame [mm].
+    joints_deg : array_like (6,), optional
+        Joint points: the new axis values [deg]. No language writes a Cartesian point from joint values.
+    config : mapping of str to int, optional
+        New configuration data, where the language has it.
+
+    Returns
+    -------
+    dict of NumberSpan to str
+        Each number's replacement, for :func:`replace_numbers`.
+
+    Raises
+    ------
+    InputError
+        The wrong kind of target for the point (a frame for a joint point, joints for a Cartesian one), a frame that
+        is not rigid, a wrong number of joints, or configuration data the point cannot take.
+    """
+
+    def __call__(
+        self, point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
+        config: Mapping[str, int] | None = None,
+    ) -> dict[NumberSpan, str]: ...
 
 
 def format_number(value: float, decimals: int) -> str:

@@ -28,7 +28,6 @@ given in the controller's flange frame, which the robot file's ``flange_frame`` 
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,7 +38,7 @@ from robotcal.kinematics.compensation import CompensationSettings, compensate_co
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.inverse import nominal_solutions, rotation_vector, within_limits
 from robotcal.kinematics.model import ParameterSet, RobotModel
-from robotcal.programs.base import NumberSpan, Program, ProgramPoint, replace_numbers
+from robotcal.programs.base import Program, ProgramPoint, Render, replace_numbers
 from robotcal.programs.configuration import configuration
 
 __all__ = ["POINT_STATUSES", "FilteredPoint", "FilteredProgram", "filter_program", "missing_frames", "renderer"]
@@ -111,7 +110,7 @@ class FilteredProgram:
         return all(p.status == "ok" for p in self.points)
 
 
-def renderer(language: str) -> Callable[..., dict[NumberSpan, str]]:
+def renderer(language: str) -> Render:
     """The ``render`` function of a language's module."""
     if language == "krl":
         from robotcal.programs.krl import render

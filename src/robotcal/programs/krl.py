@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -235,28 +235,14 @@ def render(
     point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
-    """The new text of every number of a KRL ``point`` for a new target.
+    """KRL's :class:`~robotcal.programs.base.Render`: the new text of every number of a KRL ``point``.
 
-    Parameters
-    ----------
-    point : ProgramPoint
-        A point of :func:`read_program`.
-    frame_mm : array_like (4, 4), optional
-        Cartesian points: the new tool frame in the point's base [mm]. Writes ``X, Y, Z`` and the ``A, B, C`` triple
-        nearest the point's present angles among the equivalent ones (``(A + 180, 180 - B, C + 180)``; at ``B =
-        +-90`` every split of ``A -+ C``), each within [-180, 180] deg, with :data:`DECIMALS` decimals.
-    joints_deg : array_like (6,), optional
-        Joint points: the new ``A1..A6`` [deg], with :data:`JOINT_DECIMALS` decimals. A Cartesian point cannot be written from joints (KRL cannot write
-        axis values into an ``E6POS``): InputError.
-    config : mapping of str to int, optional
-        New ``S`` / ``T``; written only where they differ from the point's and the point writes them, in the
-        point's notation (``'B010'`` stays binary, with at least as many digits). Keys the point does not write
-        are left out (no number to change).
-
-    Returns
-    -------
-    dict of NumberSpan to str
-        For :func:`robotcal.programs.base.replace_numbers`.
+    ``frame_mm`` (the tool frame in the point's base) writes ``X, Y, Z`` and the ``A, B, C`` triple nearest the
+    point's present angles among the equivalent ones (``(A + 180, 180 - B, C + 180)``; at ``B = +-90`` every split of
+    ``A -+ C``), each within [-180, 180] deg, with :data:`DECIMALS` decimals. ``joints_deg`` writes ``A1..A6`` with
+    :data:`JOINT_DECIMALS` decimals (KRL cannot write axis values into an ``E6POS``). ``config``: new ``S`` / ``T``,
+    written only where they differ from the point's and the point writes them, in the point's notation (``'B010'``
+    stays binary, with at least as many digits); keys the point does not write are left out (no number to change).
     """
     out: dict[NumberSpan, str] = {}
     if point.kind == "cartesian":
@@ -381,20 +367,28 @@ def _parse_aggregate(line: _Line, index: int) -> tuple[_Aggregate, int]:
         index += 1
 
 
-def _value_end(line: _Line, index: int) -> int:
-    """Index of the ``,`` or ``}`` that ends the component value starting at ``index``."""
-    code, depth, quote = line.code, 0, None
-    for position in range(index, len(code)):
-        char = code[position]
+def _unquoted(text: str, start: int, opens: str, closes: str) -> Iterator[tuple[int, str, int]]:
+    """``(position, char, depth)`` of every character of ``text`` from ``start`` that is neither quoted nor a bracket
+    of ``opens`` / ``closes``; ``depth`` counts the brackets open before it."""
+    depth, quote = 0, None
+    for position in range(start, len(text)):
+        char = text[position]
         if quote:
             quote = None if char == quote else quote
         elif char in "\"'":
             quote = char
-        elif char in "([":
+        elif char in opens:
             depth += 1
-        elif char in ")]":
+        elif char in closes:
             depth -= 1
-        elif char in ",}" and depth <= 0:
+        else:
+            yield position, char, depth
+
+
+def _value_end(line: _Line, index: int) -> int:
+    """Index of the ``,`` or ``}`` that ends the component value starting at ``index``."""
+    for position, char, depth in _unquoted(line.code, index, "([", ")]"):
+        if char in ",}" and depth <= 0:
             return position
     raise InputError(f"{line.where}: unterminated aggregate (no closing '}}' on the line)")
 
@@ -792,17 +786,9 @@ def _target(line: _Line, index: int) -> tuple[_Target, int]:
 
 def _split_top_level(text: str) -> list[str]:
     """``text`` split at the commas outside brackets and quotes (the assignments of a ``WITH`` clause)."""
-    parts, depth, quote, start = [], 0, None, 0
-    for position, char in enumerate(text):
-        if quote:
-            quote = None if char == quote else quote
-        elif char in "\"'":
-            quote = char
-        elif char in "([{":
-            depth += 1
-        elif char in ")]}":
-            depth -= 1
-        elif char == "," and depth == 0:
+    parts, start = [], 0
+    for position, char, depth in _unquoted(text, 0, "([{", ")]}"):
+        if char == "," and depth == 0:
             parts.append(text[start:position])
             start = position + 1
     parts.append(text[start:])

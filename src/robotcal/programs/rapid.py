@@ -367,12 +367,13 @@ class _Reader:
             at += 1  # the comma
         self.fail(tokens[start].start, "aggregate '[' is not closed")
 
-    def _element_end(self, at: int, end: int) -> int:
-        """Index of the ``,`` or ``]`` that ends an aggregate element starting at ``at`` (nesting skipped)."""
+    def _element_end(self, at: int, end: int, stops: tuple[str, ...] = (",", "]")) -> int:
+        """Index of the first of ``stops`` at the top level from ``at`` (nesting skipped), else ``end``: by default the
+        ``,`` or ``]`` that ends an aggregate element starting at ``at``."""
         tokens, depth = self.tokens, 0
         while at < end:
             text = tokens[at].text if tokens[at].kind == "op" else ""
-            if depth == 0 and text in (",", "]"):
+            if depth == 0 and text in stops:
                 return at
             depth += text in ("[", "(", "{")
             depth -= text in ("]", ")", "}")
@@ -427,26 +428,15 @@ class _Reader:
                 name, at = tokens[at + 1].key, at + 2
                 if at < end and tokens[at].text in (":=", "?"):
                     first = at + 1
-                    at = self._argument_end(first, end)
+                    at = self._element_end(first, end, (",", "\\"))
                     optional[name] = (first, at)
                 else:
                     optional[name] = (at, at)
                 continue
             first = at
-            at = self._argument_end(at, end)
+            at = self._element_end(at, end, (",", "\\"))
             required.append((first, at))
         return required, optional, end + 1
-
-    def _argument_end(self, at: int, end: int) -> int:
-        tokens, depth = self.tokens, 0
-        while at < end:
-            text = tokens[at].text if tokens[at].kind == "op" else ""
-            if depth == 0 and text in (",", "\\"):
-                return at
-            depth += text in ("[", "(", "{")
-            depth -= text in ("]", ")", "}")
-            at += 1
-        return at
 
     def _source(self, first: int, stop: int) -> str:
         text = self.text[self.tokens[first].start : self.tokens[stop - 1].end]

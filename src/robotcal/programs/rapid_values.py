@@ -67,35 +67,16 @@ def render(
     point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
-    """The replacement text of every number of ``point`` for a new target.
+    """RAPID's :class:`~robotcal.programs.base.Render`: the replacement text of every number of ``point``.
 
-    Parameters
-    ----------
-    point : ProgramPoint
-        A point of a :class:`Program` read by :func:`read_program`.
-    frame_mm : array_like (4, 4), optional
-        Cartesian points (robtargets): the new TCP frame in the point's work-object frame [mm]. Written as
-        ``x, y, z`` with 6 decimals [mm] and ``q1..q4`` normalised with 9 decimals, in the hemisphere of the
-        quaternion as written (``q`` and ``-q`` are the same rotation; the signs stay as the user wrote them).
-        Each quaternion component is rounded up or down so that the written quaternion, normalised, is nearest
-        the rotation: the rotation comes back to about 1e-9 (below 1e-7 deg), and a quaternion as written with
-        at most 9 decimals is rewritten digit for digit for the same frame.
-    joints_deg : array_like (6,), optional
-        Joint points (jointtargets): the new robot axis values [deg], 6 decimals. A robtarget cannot be written
-        from joint values (RAPID has no joint form of a Cartesian target): giving them for one is an error.
-    config : mapping of str to int, optional
-        Robtargets: new ``cf1``, ``cf4``, ``cf6``, ``cfx``; only those that differ from the point's are rewritten.
-
-    Returns
-    -------
-    dict of NumberSpan to str
-        For :func:`robotcal.programs.base.replace_numbers`. External axis values are never included.
-
-    Raises
-    ------
-    InputError
-        The wrong kind of target for the point, a non-rigid or non-finite frame, a wrong joint count, or an unknown
-        or non-integer configuration entry.
+    Robtargets (Cartesian points): ``frame_mm``, the new TCP frame in the point's work-object frame, is written as
+    ``x, y, z`` with 6 decimals [mm] and ``q1..q4`` normalised with 9 decimals, in the hemisphere of the quaternion as
+    written (``q`` and ``-q`` are the same rotation; the signs stay as the user wrote them). Each quaternion component
+    is rounded up or down so that the written quaternion, normalised, is nearest the rotation: the rotation comes
+    back to about 1e-9 (below 1e-7 deg), and a quaternion as written with at most 9 decimals is rewritten digit for
+    digit for the same frame. ``config``: new ``cf1``, ``cf4``, ``cf6``, ``cfx``; only those that differ from the
+    point's are rewritten (an unknown or non-integer entry is an error). Jointtargets: ``joints_deg``, the robot axis
+    values, 6 decimals (RAPID has no joint form of a Cartesian target). External axis values are never included.
     """
     where = f"{point.file}: line {point.line}: {point.label}"
     if point.kind == "cartesian":

@@ -600,26 +600,16 @@ class _Reader:
         assert len(values) == len(aggregate.elements)  # the callers skip an aggregate holding an expression
         spans = tuple(NumberSpan(self.file, element.start, element.end) for element in aggregate.elements)
         line = self.line(aggregate.elements[0].start)
-        if aggregate.kind == "pose":
-            return ProgramPoint(
-                label=label,
-                file=self.file,
-                line=line,
-                kind="cartesian",
-                values=values,
-                spans=spans,
-                frame_mm=_frame_from_pose(values),
-                tool=tool.name,
-                motion=motion,
-            )
+        pose = aggregate.kind == "pose"
         return ProgramPoint(
             label=label,
             file=self.file,
             line=line,
-            kind="joint",
+            kind="cartesian" if pose else "joint",
             values=values,
             spans=spans,
-            joints_deg=np.rad2deg(np.asarray(values, dtype=float)),
+            frame_mm=_frame_from_pose(values) if pose else None,
+            joints_deg=None if pose else np.rad2deg(np.asarray(values, dtype=float)),
             tool=tool.name,
             motion=motion,
         )
@@ -703,33 +693,13 @@ def render(
     point: ProgramPoint, *, frame_mm: ArrayLike | None = None, joints_deg: ArrayLike | None = None,
     config: Mapping[str, int] | None = None,
 ) -> dict[NumberSpan, str]:
-    """The new text of every number of ``point`` for a new target, in URScript's units (metres, radians).
+    """URScript's :class:`~robotcal.programs.base.Render`: the new text of every number of ``point`` in URScript's
+    units (metres, radians), :data:`DECIMALS` decimals.
 
-    Parameters
-    ----------
-    point : ProgramPoint
-        A point of a :class:`Program` read by :func:`read_program`.
-    frame_mm : array_like (4, 4), optional
-        Cartesian points: the new tool frame in the robot's base frame [mm]. Written as ``x, y, z`` [m] and the
-        rotation vector [rad] nearest the one written before (of the equivalent vectors ``u * theta`` and
-        ``u * (theta - 2 pi)``), so that near an angle of pi the numbers do not flip sign.
-    joints_deg : array_like (6,), optional
-        Joint points: the new joint values [deg], written in radians.
-    config : mapping, optional
-        URScript has no configuration data: None or empty.
-
-    Returns
-    -------
-    dict of NumberSpan to str
-        Each number's replacement, :data:`DECIMALS` decimals; feed it to
-        :func:`robotcal.programs.base.replace_numbers`.
-
-    Raises
-    ------
-    InputError
-        The target does not fit the point (joints for a Cartesian point: the literal ``p[...]`` cannot hold joint
-        values; a frame for a joint point; a wrong number of joints; a frame that is not rigid) or ``config`` is
-        not empty.
+    ``frame_mm``, the new tool frame in the robot's base frame, is written as ``x, y, z`` [m] and the rotation vector
+    [rad] nearest the one written before (of the equivalent vectors ``u * theta`` and ``u * (theta - 2 pi)``), so that
+    near an angle of pi the numbers do not flip sign; ``joints_deg`` in radians (the literal ``p[...]`` of a
+    Cartesian point cannot hold joint values). URScript has no configuration data: ``config`` None or empty.
     """
     where = f"{point.file}: line {point.line}: {point.label}"
     if config:

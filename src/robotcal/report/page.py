@@ -16,6 +16,7 @@ from pathlib import Path, PurePosixPath
 
 from robotcal.io.run_folder import RunResult, Table
 from robotcal.io.run_summary import Summary, summarise
+from robotcal.io.uncertainty_files import CSV_COLUMNS
 from robotcal.kinematics.model import ANGLE_KINDS, KIND_UNITS, PARAMETER_KINDS
 
 _CAPTIONS = {
@@ -73,26 +74,9 @@ _COUNT_COLUMNS = frozenset(
 )
 #: Columns of a table split by its ``unit`` column whose values are in each row's unit (the statistics of a
 #: parameter or TCP coordinate); every other column (a varied setting such as ``capture.sweep_deg.4``, Cpk,
-#: counts) keeps its own label and the unit its name gives, if any.
-_ROW_UNIT_COLUMNS = frozenset(
-    (
-        "nominal",
-        "mean",
-        "std_uncertainty",
-        "coverage_low",
-        "coverage_high",
-        "min",
-        "max",
-        "symmetric_low",
-        "symmetric_high",
-        "shortest_low",
-        "shortest_high",
-        "noise_free",
-        "lpu_std_uncertainty",
-        "lpu_coverage_low",
-        "lpu_coverage_high",
-    )
-)
+#: counts) keeps its own label and the unit its name gives, if any. These are the statistics of ``parameters.csv``
+#: from ``nominal`` to ``lpu_coverage_high`` but ``identified`` (``tcp.csv``'s are among them).
+_ROW_UNIT_COLUMNS = frozenset(CSV_COLUMNS[CSV_COLUMNS.index("nominal") : CSV_COLUMNS.index("lpu_agrees")]) - {"identified"}
 #: Friendly headers of the columns of the statistics CSV files (unit added after).
 _COLUMN_LABELS = {
     "cpk": "Cpk",
