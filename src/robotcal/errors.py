@@ -54,10 +54,10 @@ def check_count(value: object, name: str, *, minimum: int = 1) -> int:
     """``value`` as an ``int``, checked to be a whole number (Python's or numpy's, never a bool) ``>= minimum``.
 
     Raises :class:`InputError` naming ``name`` and the value as written: "`workers` must be a positive
-    integer; got 0", "`folds` must be an integer >= 2; got True".
+    integer; got 0", "`seed` must be a non-negative integer; got -1", "`folds` must be an integer >= 2; got True".
     """
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        what = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        what = {1: "a positive integer", 0: "a non-negative integer"}.get(minimum, f"an integer >= {minimum}")
         raise InputError(f"`{name}` must be {what}; got {value!r}")
     return int(value)
 

@@ -39,8 +39,6 @@ DATA_QUALITY_WARNINGS = pytest.mark.filterwarnings("ignore::robotcal.errors.Robo
 NOT_REEXPORTED = {
     ("io", "FORMAT"): "draws_npz.FORMAT and uncertainty_files.FORMAT are two different file formats",
     ("io", "joints_files"): "the function is named like its module, which the import system binds on the lazy package",
-    ("uncertainty", "check_validation_consistency"): "new in issue 31 (the computation of robotcal.validation_consistency); "
-    "robotcal.uncertainty's __init__ belongs to another change of that issue, which adds it",
 }
 
 

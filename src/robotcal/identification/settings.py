@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robotcal._arrays import frozen_array
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_count
 
 __all__ = [
     "CRITERIA",
@@ -39,14 +39,6 @@ DEFAULT_FOLDS = 5
 def _one_of(name: str, value, allowed: Sequence) -> None:
     if not isinstance(value, str) or value not in allowed:
         raise InputError(f"`{name}` must be one of {', '.join(map(repr, allowed))}; got {value!r}")
-
-
-def _integer(name: str, value, *, minimum: int, optional: bool = False) -> None:
-    if optional and value is None:
-        return
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        what = f"an integer >= {minimum}" + (" or None" if optional else "")
-        raise InputError(f"`{name}` must be {what}; got {value!r}")
 
 
 def _positive(name: str, value) -> None:
@@ -117,7 +109,8 @@ class RefinementSettings:
         object.__setattr__(self, "free", _check_free_setting(self.free))
         _one_of("on_unidentifiable", self.on_unidentifiable, ("fix", "raise"))
         _one_of("method", self.method, ("auto", "lm", "trf"))
-        _integer("max_nfev", self.max_nfev, minimum=1, optional=True)
+        if self.max_nfev is not None:
+            check_count(self.max_nfev, "max_nfev")
         _positive("tolerance", self.tolerance)
         _positive("rank_tolerance", self.rank_tolerance)
         _one_of("weights", self.weights, ("auto", "none"))
@@ -182,8 +175,8 @@ class ModelChoiceSettings:
             raise InputError(f"`folds` must be 0 (no cross-validation) or at least 2; got {self.folds!r}")
         if self.model == "auto" and not self.folds:
             raise InputError("model 'auto' chooses by cross-validation: give at least 2 folds")
-        _integer("seed", self.seed, minimum=0)
-        _integer("harmonic_order", self.harmonic_order, minimum=1)
+        check_count(self.seed, "seed", minimum=0)
+        check_count(self.harmonic_order, "harmonic_order")
         object.__setattr__(self, "compliance_joints", _joints("compliance_joints", self.compliance_joints))
         object.__setattr__(self, "harmonic_joints", _joints("harmonic_joints", self.harmonic_joints))
 

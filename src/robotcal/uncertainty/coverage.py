@@ -50,7 +50,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from robotcal.errors import InputError
+from robotcal.errors import InputError, check_count
 from robotcal.execution import single_blas_thread
 from robotcal.identification.cpa import CPAOptions
 from robotcal.instruments import Instrument
@@ -307,10 +307,8 @@ class _Setup:
 
 
 def _check_size(captures, draws) -> None:
-    if isinstance(captures, bool) or not isinstance(captures, int) or captures < 10:
-        raise InputError(f"`captures` must be an integer >= 10; got {captures!r}")
-    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 200:
-        raise InputError(f"`draws` must be an integer >= 200; got {draws!r}")
+    check_count(captures, "captures", minimum=10)
+    check_count(draws, "draws", minimum=200)
 
 
 def _study_seed(rng) -> int:

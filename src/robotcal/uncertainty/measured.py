@@ -62,7 +62,7 @@ import numpy as np
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
-from robotcal.errors import IdentifiabilityWarning, InputError, RobotcalError, RobotcalWarning
+from robotcal.errors import IdentifiabilityWarning, InputError, RobotcalError, RobotcalWarning, check_count
 from robotcal.execution import check_stop, open_executor, single_blas_thread
 from robotcal.geometry.registration import register_points
 from robotcal.geometry.transforms import apply_transform
@@ -557,9 +557,7 @@ def measured_monte_carlo(
                 "refinement); give a fixed number of draws"
             )
         settings = replace(settings, block_size=DRAWS_PER_BLOCK)  # the blocks used, as the result records them
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-            raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
-        seed = int(seed)
+        seed = check_count(seed, "seed", minimum=0)
         estimate, criterion, offsets, estimate_base = _from_estimate(
             estimate, criterion, offsets, estimate_base, tracker_from_base
         )

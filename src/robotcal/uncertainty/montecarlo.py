@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robotcal.errors import InputError, RobotcalError
+from robotcal.errors import InputError, RobotcalError, check_count
 from robotcal.execution import open_executor, single_blas_thread
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
 from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block, solve_points
@@ -147,8 +147,7 @@ class MonteCarloSettings:
             value = getattr(self, name)
             if name == "block_size" and value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise InputError(f"`{name}` must be a positive integer; got {value!r}")
+            check_count(value, name)
         object.__setattr__(self, "coverage", check_coverage(self.coverage))
         if self.interval not in INTERVAL_KINDS:
             raise InputError(f"`interval` must be one of {INTERVAL_KINDS}; got {self.interval!r}")
@@ -483,9 +482,7 @@ def run_monte_carlo(
             settings = dataclasses.replace(
                 settings, block_size=REFINED_BLOCK_SIZE if fixed_refined else DEFAULT_BLOCK_SIZE
             )
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-            raise InputError(f"`seed` must be a non-negative integer; got {seed!r}")
-        seed = int(seed)
+        seed = check_count(seed, "seed", minimum=0)
         started = time.perf_counter()
         n = problem.robot.n_joints
         capacity = settings.max_draws if settings.adaptive else settings.iterations
