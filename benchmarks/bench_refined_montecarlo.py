@@ -101,7 +101,8 @@ import warnings
 import numpy as np
 from bench_montecarlo import whole_command  # sibling script (this folder is on sys.path when run as one)
 
-from robotcal.api import _joint_model, monte_carlo_problem, perturb
+from robotcal.api import link_masses, monte_carlo_problem, perturb
+from robotcal.identification.model_choice import joint_model_for
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.execution import single_blas_thread
 from robotcal.identification.cpa import identify_cpa_batch
@@ -176,7 +177,7 @@ def problems() -> dict:
     """The yardstick's and the two refined Monte Carlos' problems (kr5-demo)."""
     scenario = load_scenario(SCENARIO)
     circles_only = dataclasses.replace(scenario, calibration_poses=None)
-    structure = _joint_model("compliance", scenario.robot, scenario)
+    structure = joint_model_for("compliance", scenario.robot, masses=link_masses(scenario))  # [joint_model] defaults
     truth = perturb(scenario, rng=11).replace(joint_model=structure.with_values([1e-5, 4e-5]))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifiabilityWarning)
