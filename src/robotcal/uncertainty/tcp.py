@@ -16,8 +16,8 @@ Memory stays bounded for any number of draws and poses: poses are handled in chu
 coordinates for every draw fit in ``max_bytes`` (one chunk in flight, shared by the threads), and
 within a chunk the draws go through the kinematics ``batch_size`` at a time. Only the 6 coordinates per
 draw and pose of the chunk in flight are held (with as much again for their centred copies), and the link
-transforms ``B_i`` of every draw when they fit in ``max_bytes`` (else those of one batch), never the
-4x4 frames of all draws and poses.
+transforms ``B_i`` of every draw when they fit in ``max(max_bytes, _LINK_BYTES)`` (else those of one batch,
+recomputed for every pose chunk), never the 4x4 frames of all draws and poses.
 
 Speed (``benchmarks/bench_tcp.py``): the chunk holds the draws *last*, ``(poses, 6, draws)``, so one
 vectorised partition and two sorts of the 5 % tails per chunk give every order statistic of both
@@ -42,6 +42,7 @@ import math
 import os
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,6 +88,9 @@ ORIENTATION_CONVENTION = (
 )
 #: Draw-poses per kinematics call when ``batch_size`` is not given (~2 MB per temporary block).
 _BLOCK_FRAMES = 20_000
+#: The link factors ``B_i`` of every draw (128 bytes per draw and joint) are computed once per call when they take
+#: at most ``max(max_bytes, _LINK_BYTES)``: 100,000 draws of 6 joints take 77 MB; beyond, once per batch and pose chunk.
+_LINK_BYTES = 256 * 2**20
 #: Threads filling the draw batches of a pose chunk (numpy releases the GIL in the kinematics).
 _THREADS = min(2, os.cpu_count() or 1)
 
@@ -548,6 +552,12 @@ def _propagation_inputs(robot: RobotModel, parameter_draws, readings, tool, batc
     return draws, readings, robot.model_joint_variables(readings), tool, extras
 
 
+def _all_links(draws: np.ndarray, max_bytes: int) -> np.ndarray | None:
+    """The link factors ``B_i`` of every draw ``(n_draws, n_joints, 4, 4)`` when they fit (see ``_LINK_BYTES``), else
+    None (the callers then compute those of each batch)."""
+    return _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, _LINK_BYTES) else None
+
+
 def _turns(joint_model, extras, q: np.ndarray) -> np.ndarray | None:
     """The joints' deflection ``(n_draws, P, n)`` [rad] of every draw at the poses ``q (P, n)``; None when geometric."""
     return None if extras is None else joint_model.deflection(q, extras)
@@ -578,41 +588,52 @@ def position_covariance(
         )
         n_draws, n_poses = draws.shape[0], q.shape[0]
         pose_chunk = max(1, min(n_poses, int(max_bytes) // ((24 if extras is None else 96) * n_draws)))
-        cos_q, sin_q = np.cos(q), np.sin(q)
         batch_size = int(batch_size) if batch_size is not None else max(1, 3 * _BLOCK_FRAMES // pose_chunk)
-        covariances = []
-        for start in range(0, n_poses, pose_chunk):
-            poses = slice(start, min(start + pose_chunk, n_poses))
-            points = np.empty((poses.stop - poses.start, 3, n_draws))  # draws last, as in propagate_to_tcp
-            turns = _turns(joint_model, extras, q[poses])
-
-            def fill(first: int, poses=poses, points=points, turns=turns) -> None:
-                rows = slice(first, min(first + batch_size, n_draws))
-                if turns is None:
-                    cq, sq = cos_q[poses], sin_q[poses]
-                else:  # every draw turns the joints by its own deflection
-                    cq, sq = np.cos(q[poses] + turns[rows]), np.sin(q[poses] + turns[rows])
-                local = _chain_points(_pose_independent_links(draws[rows]), cq, sq, tool)
-                points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
-
-            batches = range(0, n_draws, batch_size)
-            if _THREADS > 1 and len(batches) > 1:
-                with ThreadPoolExecutor(_THREADS) as pool:
-                    list(pool.map(fill, batches))
-            else:
-                for first in batches:
-                    fill(first)
-            if not np.all(np.isfinite(points)):
-                raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
-            first = q[poses, 0, None] if turns is None else q[poses, 0, None] + turns[:, :, 0].T  # (P, 1) or (P, M)
-            _turn_first_joint(points, np.cos(first), np.sin(first))
-            centred = points - points.mean(axis=-1)[..., None]
-            covariance = np.empty((poses.stop - poses.start, 3, 3))
-            for i in range(3):  # the upper triangle row by row, as in _chunk_statistics
-                covariance[:, i, i:] = np.einsum("pm,pjm->pj", centred[:, i], centred[:, i:])
-                covariance[:, i:, i] = covariance[:, i, i:]
-            covariances.append(covariance / (n_draws - 1))
+        all_links = _all_links(draws, max_bytes)  # once, not per pose chunk
+        threads = _THREADS > 1 and n_draws > batch_size
+        with ThreadPoolExecutor(_THREADS) if threads else nullcontext() as pool:  # one pool for every chunk
+            covariances = [
+                _chunk_covariance(draws, all_links, q[start : start + pose_chunk], tool, joint_model, extras,
+                                  batch_size=batch_size, pool=pool)
+                for start in range(0, n_poses, pose_chunk)
+            ]  # fmt: skip
         return np.concatenate(covariances)
+
+
+def _chunk_covariance(draws, all_links, q, tool, joint_model, extras, *, batch_size: int, pool) -> np.ndarray:
+    """:func:`position_covariance` at the poses ``q (P, n)`` of one chunk: the points of every draw, filled batch by
+    batch (by the threads of ``pool``, if any), then ``sum c c^T / (M - 1)``."""
+    n_draws = draws.shape[0]
+    cos_q, sin_q = np.cos(q), np.sin(q)
+    points = np.empty((q.shape[0], 3, n_draws))  # draws last, as in propagate_to_tcp
+    turns = _turns(joint_model, extras, q)
+
+    def fill(first: int) -> None:
+        rows = slice(first, min(first + batch_size, n_draws))
+        if turns is None:
+            cq, sq = cos_q, sin_q
+        else:  # every draw turns the joints by its own deflection
+            cq, sq = np.cos(q + turns[rows]), np.sin(q + turns[rows])
+        links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
+        local = _chain_points(links, cq, sq, tool)
+        points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
+
+    batches = range(0, n_draws, batch_size)
+    if pool is not None:
+        list(pool.map(fill, batches))
+    else:
+        for first in batches:
+            fill(first)
+    if not np.all(np.isfinite(points)):
+        raise InputError("the TCP coordinates of some parameter draws are not finite numbers")
+    first = q[:, 0, None] if turns is None else q[:, 0, None] + turns[:, :, 0].T  # (P, 1) or (P, M)
+    _turn_first_joint(points, np.cos(first), np.sin(first))
+    centred = points - points.mean(axis=-1)[..., None]
+    covariance = np.empty((q.shape[0], 3, 3))
+    for i in range(3):  # the upper triangle row by row, as in _chunk_statistics
+        covariance[:, i, i:] = np.einsum("pm,pjm->pj", centred[:, i], centred[:, i:])
+        covariance[:, i:, i] = covariance[:, i, i:]
+    return covariance / (n_draws - 1)
 
 
 def propagate_to_tcp(
@@ -734,7 +755,7 @@ class _Propagation:
         self.batch_size = int(max(1, _BLOCK_FRAMES // pose_chunk) if batch_size is None else batch_size)
         # the link factors B_i of every draw once, when they take no more room than the coordinates of a chunk
         # (else per batch, so that memory stays bounded by the batch and the pose chunk)
-        self.all_links = _pose_independent_links(draws) if draws[:, :, 0].size * 128 <= max(max_bytes, 1) else None
+        self.all_links = _all_links(draws, max_bytes)
         self.kept = np.empty((n_draws, n_poses, 6)) if keep_draws else None
         # the coordinates (draws last: contiguous rows for the statistics) and the centred coordinates, reused
         # from chunk to chunk (fresh arrays of this size cost as much in page faults as the statistics themselves)
