@@ -552,6 +552,18 @@ def _propagation_inputs(robot: RobotModel, parameter_draws, readings, tool, batc
     return draws, readings, robot.model_joint_variables(readings), tool, extras
 
 
+def _turned_cos_sin(turned: np.ndarray, cos_q: np.ndarray, sin_q: np.ndarray, turns: np.ndarray):
+    """``cos`` and ``sin`` of the turned joint angles ``turned = q + turns`` ``(m, P, n)`` [rad], evaluated only for the
+    joints that some draw turns: a joint no draw turns (a geometric joint of an extended model) has ``turned = q``
+    exactly, whose ``cos_q``, ``sin_q`` ``(P, n)`` the caller has."""
+    moving = np.flatnonzero(np.any(turns != 0.0, axis=(0, 1)))
+    if moving.size == turned.shape[-1]:
+        return np.cos(turned), np.sin(turned)
+    cq, sq = np.broadcast_to(cos_q, turned.shape).copy(), np.broadcast_to(sin_q, turned.shape).copy()
+    cq[..., moving], sq[..., moving] = np.cos(turned[..., moving]), np.sin(turned[..., moving])
+    return cq, sq
+
+
 def _all_links(draws: np.ndarray, max_bytes: int) -> np.ndarray | None:
     """The link factors ``B_i`` of every draw ``(n_draws, n_joints, 4, 4)`` when they fit (see ``_LINK_BYTES``), else
     None (the callers then compute those of each batch)."""
@@ -613,7 +625,7 @@ def _chunk_covariance(draws, all_links, q, tool, joint_model, extras, *, batch_s
         if turns is None:
             cq, sq = cos_q, sin_q
         else:  # every draw turns the joints by its own deflection
-            cq, sq = np.cos(q + turns[rows]), np.sin(q + turns[rows])
+            cq, sq = _turned_cos_sin(q + turns[rows], cos_q, sin_q, turns[rows])
         links = _pose_independent_links(draws[rows]) if all_links is None else all_links[rows]
         local = _chain_points(links, cq, sq, tool)
         points[:, :, rows] = np.transpose(local, (2, 1, 0))  # before Rz(q_1), turned below
@@ -770,7 +782,8 @@ class _Propagation:
             cq, sq, first_joint = self.cos_q[poses], self.sin_q[poses], self.q[poses, 0]
         else:  # every draw turns the joints by its own deflection
             turned = self.q[poses] + turns[rows]
-            cq, sq, first_joint = np.cos(turned), np.sin(turned), turned[..., 0]
+            cq, sq = _turned_cos_sin(turned, self.cos_q[poses], self.sin_q[poses], turns[rows])
+            first_joint = turned[..., 0]
         frames = _chain_columns(links, cq, sq)
         # (m, 3, P), before Rz(q_1); the flange origin (the default tool) is the translation column itself
         tool = self.tool
