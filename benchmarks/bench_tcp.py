@@ -36,6 +36,19 @@ Before/after, the demo's TCP stage (Table 5.8 pose and 75-pose trajectory with t
   rounds, load below 1; best / median of 3): 05de958 1.47 / 1.56 s and 1.36 / 1.44 s, c0e2034 1.36 / 1.46 s
   and 1.36 / 1.38 s, 385f86a 1.31 / 1.35 s and 1.38 / 1.38 s: no measurable change at this scale.
 
+- issue 31 (the link factors of every draw once per call up to 256 MiB instead of once per pose chunk when they
+  exceed ``max_bytes``; ``position_covariance`` likewise, with one thread pool for its chunks; cos/sin of an
+  extended model's turned angles only at the joints it turns; 2026-11-29, 2 shared cores, other jobs running):
+  ``robotcal run kr5-demo`` with 100,000 refined draws (compliance model), f71863b then fe30c5b one after the
+  other: TCP stage 21.7 s (load 2.5-3.5) -> 14.4 s (load 1.3-2.5); trajectory 7.19 -> 5.01 s, workspace
+  4.28 -> 3.65 s, pose 0.72 -> 0.80 s (``seconds`` in each ``tcp.json``); every ``tcp.csv`` and
+  ``consistency.json`` byte-identical. On the 20,000 refined draws of ``robotcal uncertainty kr5-demo --model
+  refined`` tiled to 100,000, with the compliance joint model and random deflection values, 75 random poses and
+  100 for ``position_covariance``: every array bit-identical, 7.1-8.9 s of CPU for the script instead of
+  8.1-9.6 s (alternating, load ~2). What is left is the chain and the order statistics of every draw at
+  every pose (draws x poses), and the validation check's two ``position_covariance`` calls (deployed and
+  estimate: the same draws, the same 100 poses, the same covariance).
+
 Figures formerly in the docs, moved here by issue 30 (the docs say what dominates a cost; measured times
 live here, with their machine):
 
