@@ -73,6 +73,18 @@ fixed part at 0.06-0.09 s before and 0.16-0.21 s after, the same 7.1-8.7 us per 
 public shutdown (waiting for its workers) cost ~0.1 s more than the private teardown did; not isolated further,
 since at 100,000 draws the totals are equal.
 
+Issue 31, where ``robotcal uncertainty kr5-demo -n 100000 --model cpa`` spends what is not draws (2026-11-29, 2
+shared cores, load 1.5-1.9, timestamps around the command's calls; 4.86 s wall, 1.95 s of draws): imports before
+the draws 1.29 s (``import robotcal.api`` 1.0 s, of which ``scipy.stats`` 0.5 s, imported at the top of
+``identification/model_choice.py`` for one ``scipy.stats.f.sf``; matplotlib with ``plots.montecarlo`` 0.26 s);
+statistics and linearised comparison 0.13 s; parameters.csv/json 0.11 s (no draws.npz unless ``--save-draws``);
+the five histograms in the forked pool 1.07 s wall (0.75-1.0 s of matplotlib CPU drawn serially: axes, ticks and
+text layout, then Agg and the PNG); the interpreter's shutdown ~0.3 s (0.2 s after the imports alone). With
+``scipy.stats`` imported where it is used (an experiment on a copy, not committed: not this helper's file) and
+otherwise the same code, at load 3.6: 4.39 and 4.55 s besides the draws -> 3.44 and 3.51 s, 4.7 -> 3.95 s of
+CPU. A sort of 100,000 draws is as cheap as two partitions and two tail sorts on this numpy (SIMD sort), so
+``summarize_draws`` (0.05 s) was left as it is.
+
 Figures formerly in the docs, moved here by issue 30 (the docs say what dominates a cost; measured times
 live here, with their machine):
 
