@@ -45,7 +45,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields, is_dataclass, replace
 
 import numpy as np
-import scipy.stats
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -367,7 +366,9 @@ def _f_test(smaller: RefinementResult, larger: RefinementResult) -> float:
     if added <= 0 or dof[1] <= 0 or not all(np.isfinite(sigmas)) or sigmas[1] <= 0.0:
         return 1.0
     statistic = (sigmas[0] ** 2 * dof[0] - sigmas[1] ** 2 * dof[1]) / added / sigmas[1] ** 2
-    return float(scipy.stats.f.sf(statistic, added, dof[1]))
+    from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats.f.sf), imported on use
+
+    return float(fdtrc(added, dof[1], statistic))
 
 
 def refine_model(

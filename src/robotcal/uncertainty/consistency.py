@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from robotcal.kinematics.joint_model import JointModel
     from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
 
-__all__ = ["check_validation_consistency"]
+__all__ = ["check_validation_consistency", "observed_errors"]
 
 METHOD = (
     "predicted = sqrt(mean over poses of tr V_p), V_p the covariance of the validation target position "
@@ -85,14 +85,8 @@ def check_validation_consistency(
         JSON-ready figures in mm (``predicted_rms_mm``, ``instrument_rms_mm``, ``expected_rms_mm``,
         ``observed_rms_mm``, ``ratio``), the base-frame mode and the counts.
     """
-    q = estimate.model_joint_variables(validation.readings)
     measured = np.asarray(validation.points, dtype=float)
-    predicted = target_positions(estimate.values, q, np.zeros(validation.n_points, dtype=int), target)
-    if tracker_from_base is not None:
-        tracker, base = np.asarray(tracker_from_base, dtype=float), "given"
-    else:
-        tracker, base = register_points(predicted, measured).transform, "registered"
-    observed = np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - measured, axis=1)
+    predicted, observed, base = observed_errors(validation, estimate, target, tracker_from_base)
     # the Monte Carlo covariance of the target position at every validation pose (positions only)
     covariance = position_covariance(
         robot, values, validation.readings, tool=target.positions[0], joint_model=joint_model, extra_draws=extra_draws
@@ -117,6 +111,23 @@ def check_validation_consistency(
         "method": METHOD,
         **({} if repeatability_mm is None else {"repeatability_mm": float(repeatability_mm)}),
     }
+
+
+def observed_errors(
+    validation: Capture, estimate: ParameterSet, target: ReflectorMount, tracker_from_base: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """The positions ``estimate`` predicts at the validation poses ``(n, 3)`` [mm, base frame], the distance of each
+    from its measurement ``(n,)`` [mm] and the base-frame mode: ``"given"`` (``tracker_from_base``) or
+    ``"registered"`` (a Horn registration of the predictions on the measurements)."""
+    q = estimate.model_joint_variables(validation.readings)
+    measured = np.asarray(validation.points, dtype=float)
+    predicted = target_positions(estimate.values, q, np.zeros(validation.n_points, dtype=int), target)
+    if tracker_from_base is not None:
+        tracker, base = np.asarray(tracker_from_base, dtype=float), "given"
+    else:
+        tracker, base = register_points(predicted, measured).transform, "registered"
+    observed = np.linalg.norm(predicted @ tracker[:3, :3].T + tracker[:3, 3] - measured, axis=1)
+    return predicted, observed, base
 
 
 def _correction_variance(estimate, validation, target, shifts, predicted: np.ndarray) -> np.ndarray:
