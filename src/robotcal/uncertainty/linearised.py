@@ -68,6 +68,7 @@ def _refined_full_covariance(problem: MonteCarloProblem, cpa_covariance: np.ndar
     from robotcal.uncertainty.refined import refined_covariance
 
     model = problem.refined
+    assert model is not None  # called for the refined model only
     free_cov = refined_covariance(model, problem.exact_points, _input_variance(problem))
     mask = model.free.reshape(-1)
     index = np.flatnonzero(mask)

@@ -45,7 +45,7 @@ import numpy as np
 from robotcal.errors import InputError, RobotcalError, check_count
 from robotcal.execution import open_executor, single_blas_thread
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
-from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block, solve_points
+from robotcal.uncertainty.draws import RefinedSolver, _block_sizes, _BlockRunner, draw_block, solve_points
 from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
@@ -138,7 +138,7 @@ class MonteCarloSettings:
     workers: int = 1
     scheduler: str | None = None
     keep_draws: bool = True
-    refined_solver: Literal["gauss-newton", "per-draw"] = "gauss-newton"
+    refined_solver: RefinedSolver = "gauss-newton"
 
     def __post_init__(self):
         if self.refined_solver not in REFINED_SOLVERS:
