@@ -38,7 +38,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from statistics import NormalDist
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,6 +50,7 @@ from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
+    IntervalKind,
     SampleSummary,
     bias_corrected_interval,
     check_coverage,
@@ -129,7 +130,7 @@ class MonteCarloSettings:
 
     iterations: int = 100_000
     coverage: float = 0.95
-    interval: Literal["symmetric", "shortest"] = "symmetric"
+    interval: IntervalKind = "symmetric"
     adaptive: bool = False
     ndig: int = 2
     max_draws: int = 2_000_000
@@ -262,7 +263,7 @@ class MonteCarloResult:
 
     def __repr__(self) -> str:
         u = self.summary.std_uncertainty[self.identified]
-        extended = f", joint model {', '.join(self.joint_model.names)}" if self.is_extended else ""
+        extended = "" if self.joint_model is None else f", joint model {', '.join(self.joint_model.names)}"
         return (
             f"MonteCarloResult({self.model} model{extended}, {self.n_draws:,} draws, seed {self.seed}, "
             f"{int(self.identified.sum())} parameters, largest u {u.max() if u.size else 0.0:.3g} (mm or rad))"
@@ -271,8 +272,11 @@ class MonteCarloResult:
     def extra_interval(self) -> tuple[np.ndarray, np.ndarray]:
         """The coverage interval for the measurand of every joint-model value ``(m,)`` [rad/(N m), rad]: the
         draws' interval moved by twice the bias against :attr:`extra_true`, as :meth:`interval`."""
-        low, high = self.extra_summary.interval(self.settings.interval)
-        moved_low, moved_high = bias_corrected_interval(low, high, self.extra_summary.mean, self.extra_true)
+        summary = self.extra_summary
+        if summary is None:
+            raise InputError("extra_interval: the draws of a geometric model carry no joint-model values")
+        low, high = summary.interval(self.settings.interval)
+        moved_low, moved_high = bias_corrected_interval(low, high, summary.mean, self.extra_true)
         moved_low, moved_high = widened_interval(
             moved_low, moved_high, self.extra_true - self.extra_bias, self.extra_correction_u, self.settings.coverage
         )
@@ -368,7 +372,7 @@ class MonteCarloResult:
             raise InputError(f"`estimate` has {estimate.robot.n_joints} joints; the draws {self.robot.n_joints}")
         values = np.where(self.identified, self.centre - self.bias, estimate.values)
         joint_model = estimate.joint_model
-        if self.is_extended and joint_model is not None and joint_model.names == self.joint_model.names:
+        if self.joint_model is not None and joint_model is not None and joint_model.names == self.joint_model.names:
             joint_model = joint_model.with_values(joint_model.values - self.extra_bias)
         return dataclasses.replace(estimate, values=values, joint_model=joint_model)
 
@@ -380,7 +384,9 @@ def _flat_identified(values: np.ndarray, identified: np.ndarray) -> np.ndarray:
     return values.reshape(values.shape[0], -1)[:, identified.reshape(-1)]
 
 
-def _block_estimates(values: np.ndarray, identified: np.ndarray, coverage: float, interval: str) -> np.ndarray:
+def _block_estimates(
+    values: np.ndarray, identified: np.ndarray, coverage: float, interval: IntervalKind
+) -> np.ndarray:
     """``(4, n_identified)``: y, u(y), y_low, y_high of one block (JCGM 101 §7.9.4 c)."""
     flat = _flat_identified(values, identified)
     low, high = coverage_interval(flat, coverage, interval)
@@ -477,11 +483,11 @@ def run_monte_carlo(
     """
     with single_blas_thread():
         settings = MonteCarloSettings() if settings is None else settings
-        if settings.block_size is None:
+        block_size = settings.block_size
+        if block_size is None:
             fixed_refined = problem.model == "refined" and not settings.adaptive
-            settings = dataclasses.replace(
-                settings, block_size=REFINED_BLOCK_SIZE if fixed_refined else DEFAULT_BLOCK_SIZE
-            )
+            block_size = REFINED_BLOCK_SIZE if fixed_refined else DEFAULT_BLOCK_SIZE
+            settings = dataclasses.replace(settings, block_size=block_size)
         seed = check_count(seed, "seed", minimum=0)
         started = time.perf_counter()
         n = problem.robot.n_joints
@@ -492,7 +498,7 @@ def run_monte_carlo(
         with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
             runner = _BlockRunner(problem, seed, settings, executor)
             if not settings.adaptive:
-                blocks = list(enumerate(_block_sizes(settings.iterations, settings.block_size)))
+                blocks = list(enumerate(_block_sizes(settings.iterations, block_size)))
                 for _, values in runner.map(blocks):
                     store.add(values)
                     if progress is not None:

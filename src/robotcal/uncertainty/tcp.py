@@ -788,6 +788,6 @@ class _Propagation:
 
         parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
         slices = [slice(part[0], part[-1] + 1) for part in parts]
-        if len(slices) == 1:
+        if pool is None or len(slices) == 1:  # without a pool, one part
             return [statistics(slices[0])]
         return list(pool.map(statistics, slices))
