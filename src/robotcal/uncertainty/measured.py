@@ -56,7 +56,6 @@ import time
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -80,6 +79,7 @@ from robotcal.identification.targets import Target, resolve_targets, split_by_se
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
+from robotcal.uncertainty.linearised import linearised_result
 from robotcal.uncertainty.montecarlo import (
     LinearisedResult,
     MonteCarloResult,
@@ -495,22 +495,14 @@ def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: Mont
     else:
         covariance[np.ix_(index, index)] = np.nan
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n, 5)
-    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)
-    estimate = reference.parameters.values
-    low, high = estimate - k * std, estimate + k * std
-    tolerance = numerical_tolerance(np.nan_to_num(std), COMPARISON_NDIG)
-    mc_low, mc_high = summary.interval(settings.interval)
-    difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
-    agrees = (difference <= tolerance) | ~np.asarray(reference.identifiability.free)
-    return LinearisedResult(
-        estimate=estimate,
+    return linearised_result(
+        estimate=reference.parameters.values,
         covariance=covariance,
-        std_uncertainty=std,
-        coverage_low=low,
-        coverage_high=high,
-        agrees=agrees,
-        endpoint_difference=difference,
-        tolerance=tolerance,
+        std=std,
+        tolerance=numerical_tolerance(np.nan_to_num(std), COMPARISON_NDIG),
+        coverage=settings.coverage,
+        drawn=summary.interval(settings.interval),
+        determined=np.asarray(reference.identifiability.free),
         step_mm=0.0,
     )
 

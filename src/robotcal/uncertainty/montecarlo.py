@@ -37,7 +37,6 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from statistics import NormalDist
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -46,7 +45,12 @@ from robotcal.errors import InputError, RobotcalError, check_count
 from robotcal.execution import open_executor, single_blas_thread
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
 from robotcal.uncertainty.draws import RefinedSolver, _block_sizes, _BlockRunner, draw_block, solve_points
-from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
+from robotcal.uncertainty.linearised import (
+    LinearisedResult,
+    _cpa_covariance,
+    _refined_full_covariance,
+    linearised_result,
+)
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
@@ -659,25 +663,13 @@ def linearised_uncertainty(
         covariance = _refined_full_covariance(problem, covariance)
     n_joints = problem.robot.n_joints
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n_joints, 5)
-    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)  # statistics, not scipy.stats: no slow import
-    estimate = problem.noise_free_values
-    low, high = estimate - k * std, estimate + k * std
-    tolerance = numerical_tolerance(std, settings.ndig)
-    if summary is not None:
-        mc_low, mc_high = summary.interval(settings.interval)
-        difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
-        agrees = (difference <= tolerance) | ~problem.identified
-    else:
-        difference = np.full(std.shape, np.nan)
-        agrees = np.ones(std.shape, dtype=bool)
-    return LinearisedResult(
-        estimate=estimate,
+    return linearised_result(
+        estimate=problem.noise_free_values,
         covariance=covariance,
-        std_uncertainty=std,
-        coverage_low=low,
-        coverage_high=high,
-        agrees=agrees,
-        endpoint_difference=difference,
-        tolerance=tolerance,
+        std=std,
+        tolerance=numerical_tolerance(std, settings.ndig),
+        coverage=settings.coverage,
+        drawn=None if summary is None else summary.interval(settings.interval),
+        determined=problem.identified,
         step_mm=step,
     )
