@@ -22,7 +22,7 @@ from robotcal.geometry._vectors import cross as _cross
 from robotcal.identification.refine import base_correction
 from robotcal.kinematics.joint_model import JointModel
 
-__all__ = ["RefinedModel", "RefinedBatch", "SharedStep"]
+__all__ = ["RefinedModel", "RefinedBatch"]
 
 #: Pairs handled at once by the distances criterion (fixed, so that sums do not depend on the batch size;
 #: with ``REFINE_BATCH`` = 500 draws one chunk's arrays take ~12 MB each).
