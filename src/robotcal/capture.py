@@ -16,7 +16,7 @@ a 6-DoF probe's ``orientation`` (a rotation per point, probe to tracker frame) w
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -204,11 +204,11 @@ class Capture:
 
     def with_points(self, points: ArrayLike) -> Capture:
         """The same capture with other target positions (e.g. noisy copies)."""
-        return replace(self, points=points)
+        return replace(self, points=np.asarray(points, dtype=float))
 
     def with_orientation(self, orientation: ArrayLike) -> Capture:
         """The same capture with other measured orientations (e.g. noisy copies)."""
-        return replace(self, orientation=orientation)
+        return replace(self, orientation=np.asarray(orientation, dtype=float))
 
     def with_session(self, name: str) -> Capture:
         """The same capture with every point in session ``name`` (e.g. ``robotcal import --session``)."""
@@ -281,7 +281,7 @@ def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -
     )
 
 
-def _joined_sessions(captures) -> tuple[np.ndarray | None, tuple[str, ...]]:
+def _joined_sessions(captures: Sequence[Capture]) -> tuple[np.ndarray | None, tuple[str, ...]]:
     """The ``session`` column of captures joined one after the other (None when none has one)."""
     if all(capture.session is None for capture in captures):
         return None, ()
@@ -291,6 +291,10 @@ def _joined_sessions(captures) -> tuple[np.ndarray | None, tuple[str, ...]]:
             f"{without[0]}: no `session` column, while other captures joined with it have one: give every capture "
             "its session (a `session` column, or `robotcal import --session NAME`)"
         )
-    labels = [name for capture in captures for name in capture.point_sessions]
+    labels: list[str] = []
+    for capture in captures:
+        point_sessions = capture.point_sessions
+        assert point_sessions is not None  # every capture has a session column (checked above)
+        labels.extend(point_sessions)
     names = tuple(dict.fromkeys(labels))
     return np.array([names.index(name) for name in labels], dtype=int), names

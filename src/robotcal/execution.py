@@ -182,6 +182,7 @@ def _stop_task(signum, frame) -> None:
 def _watch_stop(stop, thread: int) -> None:
     """In a pool worker, a daemon thread: once the pool's ``stop`` pipe is readable, signal the worker's main thread
     ``thread``, again every :data:`_STOP_REPEAT_S` while the worker lives."""
+    assert _STOP_SIGNAL is not None  # started only where the platform has the signal (_start_worker)
     stop.poll(None)
     while True:
         signal.pthread_kill(thread, _STOP_SIGNAL)

@@ -352,7 +352,9 @@ def _checked_parameters(params: Path, capture: Path, loaded, measured, criterion
             "give the parameter JSON that `robotcal refine` wrote for this capture and scenario"
         )
     estimate = read_parameters(params, loaded.robot)
-    provenance = document.get("provenance") if isinstance(document.get("provenance"), dict) else {}
+    provenance = document.get("provenance")
+    if not isinstance(provenance, dict):
+        provenance = {}
     points = provenance.get("points")
     if isinstance(points, int) and points != measured.n_points:
         raise InputError(

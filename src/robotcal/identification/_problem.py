@@ -350,6 +350,7 @@ class Problem:
         )
         out = group_jac.reshape(rows.size, 3, -1)
         if self.extra_free.size:
+            assert self.joint_columns is not None  # joint-model values only with a joint model's columns
             out = np.concatenate([out, by_joint @ self.joint_columns[rows]], axis=-1)
         return out
 
@@ -501,6 +502,7 @@ class Problem:
         points, jac = self.point_jacobian(state)
         if self.criterion == "points":
             return self._stacked(state, points.ravel(), jac.reshape(-1, jac.shape[-1]))[1]
+        assert self.pair_i is not None and self.pair_j is not None  # the distances criterion has its pairs
         stride = max(1, self.pair_i.size // rows)
         return _pair_jacobian(points, jac, self.pair_i[::stride], self.pair_j[::stride])
 

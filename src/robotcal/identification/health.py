@@ -469,7 +469,7 @@ def cpa_health(result, capture: Capture, instrument=None, repeatability_mm: floa
     residual = float(np.sqrt(squares / max(count, 1) / 2.0))  # two noise components per circle point
     converged = all(bool(np.all(fit.converged)) for fit in result.circle_fits)
     small = _small_circles(result, capture, noise)
-    undetermined = ()
+    undetermined: tuple[str, ...] = ()
     if small:
         undetermined = (
             f"{len(small)} circle{'s' if len(small) > 1 else ''} too small for {'their' if len(small) > 1 else 'its'} "

@@ -327,7 +327,9 @@ def smallest_lumped(
     records, fits, chosen, why = [], [], len(levels) - 1, "every further term lowered the residual"
     for index, level in enumerate(levels):
         outcomes = runner.run(tasks_of(model, level))
-        fits.append(outcomes[0].result)
+        full = outcomes[0].result
+        assert full is not None  # a whole-capture fit's outcome carries its result (run_fit)
+        fits.append(full)
         if choice.folds:
             folds = [(outcome.success, outcome.held_out) for outcome in outcomes[1:]]
             records.append(_validation(f"{index + 1} per joint", fits[-1], folds, choice))
@@ -447,6 +449,7 @@ def refine_model(
             fits[task.model] = _read_only(outcome.result)
             emitted[task.model] = list(outcome.warnings)
         else:
+            assert outcome.held_out is not None  # a fold's outcome carries its held-out residuals (run_fit)
             held_out[task.model].append((outcome.success, outcome.held_out))
             for found in outcome.warnings:  # what a fold raises besides what it cannot determine
                 warnings.warn_explicit(*found)

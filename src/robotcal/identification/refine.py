@@ -465,7 +465,7 @@ def _set_up(
         use_base=use_base,
         still=tuple(f"J{k + 1}" for k in np.flatnonzero(spread <= _STILL_RAD)),
         weighted=sigmas is not None,
-        n_residuals=capture.n_points * (6 if oriented else 3) if criterion == "points" else int(pair_i.size),
+        n_residuals=capture.n_points * (6 if oriented else 3) if pair_i is None else int(pair_i.size),  # None: points
     )
 
 

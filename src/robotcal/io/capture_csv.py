@@ -144,7 +144,7 @@ def read_capture_text(text: str, *, source: str, n_joints: int | None = None, se
     )
 
 
-def _positive(header, records, column: str, path) -> np.ndarray | None:
+def _positive(header: list[str], records: list[tuple[int, list[str]]], column: str, path: str) -> np.ndarray | None:
     """A column of numbers > 0 (``u95_mm``, ``u95_deg``); None when the header has no such column."""
     if column not in header:
         return None
@@ -158,7 +158,9 @@ def _positive(header, records, column: str, path) -> np.ndarray | None:
     return values
 
 
-def _orientation(header, records, path) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _orientation(
+    header: list[str], records: list[tuple[int, list[str]]], path: str
+) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The rotations of the ``qw,qx,qy,qz`` columns (all four or none) and their U(95) [rad] (``u95_deg``)."""
     present = [column for column in QUATERNION_COLUMNS if column in header]
     if not present:
@@ -178,7 +180,9 @@ def _orientation(header, records, path) -> tuple[np.ndarray | None, np.ndarray |
     return rotations, None if u95 is None else np.deg2rad(u95)
 
 
-def _labels(header, records, lines, column: str, path) -> tuple[np.ndarray | None, tuple[str, ...]]:
+def _labels(
+    header: list[str], records: list[tuple[int, list[str]]], lines: np.ndarray, column: str, path: str
+) -> tuple[np.ndarray | None, tuple[str, ...]]:
     """A column of names (``target``, ``session``): the index of each row's name and the names in order of first
     appearance; ``(None, ())`` when the header has no such column."""
     if column not in header:

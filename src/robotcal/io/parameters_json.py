@@ -33,7 +33,7 @@ from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, JointModel, larg
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
 
 if TYPE_CHECKING:
-    from robotcal.identification.records import RefinementResult
+    from robotcal.identification.records import RefinementResult, SessionFrame
     from robotcal.identification.targets import Target
 
 __all__ = [
@@ -376,7 +376,7 @@ def read_targets(path: str | os.PathLike[str]) -> dict:
     }
 
 
-def sessions_to_dict(frames) -> dict:
+def sessions_to_dict(frames: Sequence[SessionFrame]) -> dict:
     """The ``sessions`` key: per session (in the refinement's order, the first its reference) its
     ``tracker_from_base`` [mm] and the standard uncertainties ``u`` of its corrections (``T = T_start [Rz Ry Rx |
     t]``: ``tx_mm, ty_mm, tz_mm, rx_deg, ry_deg, rz_deg``; null where held)."""
@@ -392,7 +392,7 @@ def sessions_to_dict(frames) -> dict:
     return out
 
 
-def probe_to_dict(result) -> dict | None:
+def probe_to_dict(result: RefinementResult) -> dict | None:
     """The ``probe`` key of a 6-DoF refinement: the probe's target (its position is that target's offset in
     ``targets``), its rotation in the flange frame as a quaternion ``qw, qx, qy, qz`` and a matrix, the standard
     uncertainties of the rotation's corrections ``u_deg`` (rx, ry, rz; null where not estimated) and the RMS of the
@@ -413,7 +413,7 @@ def probe_to_dict(result) -> dict | None:
     }
 
 
-def read_probe(path) -> np.ndarray | None:
+def read_probe(path: str | os.PathLike[str]) -> np.ndarray | None:
     """The probe's rotation in the flange frame (``probe.quaternion`` of a parameter JSON), None when absent."""
     from robotcal.io.orientation import rotations_from_quaternions
 
@@ -425,12 +425,12 @@ def read_probe(path) -> np.ndarray | None:
     return rotations_from_quaternions([part.probe.quaternion], source=f"{path}: probe.quaternion")[0]
 
 
-def refined_sessions(result) -> dict | None:
+def refined_sessions(result: RefinementResult) -> dict | None:
     """The parameter JSON's ``sessions`` key of a refinement over several sessions, None otherwise."""
     return sessions_to_dict(result.sessions) if result.sessions else None
 
 
-def read_sessions(path) -> dict[str, np.ndarray]:
+def read_sessions(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """The ``sessions`` key of a parameter JSON: ``{session: tracker_from_base (4, 4) [mm]}`` in the file's order
     (empty when absent); a frame that is not a rigid 4x4 transform is an :class:`InputError` naming the key."""
     from robotcal.geometry.transforms import check_rigid_transform

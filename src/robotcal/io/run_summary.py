@@ -309,7 +309,7 @@ def _model_uncertainty(documents: Mapping, folder: str, label: str) -> ModelUnce
     reasons = _not_determined(documents, data) if folder == "uncertainty-refined" else {}
     largest: dict[str, tuple[float, str | None]] = {}
     aside: dict[str, tuple[float, str | None, str]] = {}
-    biases: dict[str, tuple[float, str, float]] = {}
+    biases: dict[str, tuple[float, str | None, float]] = {}
     treatment = None
     for entry in parameters:
         if not isinstance(entry, dict) or entry.get("identified") is not True:

@@ -515,7 +515,7 @@ def lumped_terms(
     return out
 
 
-def lumped_levels(model: JointModel, robot) -> list[JointModel]:
+def lumped_levels(model: JointModel, robot: _Robot) -> list[JointModel]:
     """The nested lumped forms of ``model`` (:func:`lumped_terms`): level b keeps the first b terms of every compliant
     joint (its b largest torque shapes) and every other parameter, with their values; the last level is ``model``'s
     set. A model without lumped terms is its only level."""

@@ -343,7 +343,7 @@ class _Run:
         self.results["tcp"] = output.value
         return output
 
-    def _deployed(self):
+    def _deployed(self) -> ParameterSet:
         """The deployed values: the uncertainty stage's bias-corrected estimate, else the refinement's estimate."""
         deployed = self.results.get("deployed")
         return self.results["refined"][stages.DEPLOYED].parameters if deployed is None else deployed

@@ -320,7 +320,7 @@ def uncertainty_stage(
             criterion=DEPLOYED,
             rng=seed,
             joint_errors=measured,
-            progress=lambda count, expected, done=done: step(done + count, total, "draws"),
+            progress=progress,
             poses=poses if model == "refined" else None,
         )
     corrected = results["refined"].corrected(deployed)

@@ -276,6 +276,7 @@ def coverage_study(
                 records.add(method, interval, u, result, truth.values, checked, tcp, coverage)
             if progress is not None:
                 progress(k + 1, captures)
+        assert checked is not None  # set by the first capture (there are at least 10: _check_size)
         names = tuple(name for name, flag in zip(robot.parameter_names, checked.ravel(), strict=True) if flag)
         return records.study(truth=truth, names=names, captures=captures, draws=draws, coverage=coverage, seed=seed,
                              seconds=time.perf_counter() - began)  # fmt: skip
@@ -315,7 +316,11 @@ def _study_seed(rng) -> int:
     """The study's recorded seed: drawn from a Generator, fresh entropy for None, else the integer given."""
     if isinstance(rng, np.random.Generator):
         return int(rng.integers(2**63 - 1))
-    return int(np.random.SeedSequence(rng).entropy % (2**63)) if rng is None else int(rng)
+    if rng is None:
+        entropy = np.random.SeedSequence().entropy
+        assert isinstance(entropy, int)  # fresh entropy is one integer
+        return int(entropy % (2**63))
+    return int(rng)
 
 
 def _same_set(mask: np.ndarray, checked: np.ndarray | None, k: int, names) -> np.ndarray:
@@ -359,7 +364,7 @@ def _measured(setup: _Setup, capture, centre: ParameterSet) -> JointErrorModel:
     from robotcal.uncertainty.joint_errors import measured_joint_errors
 
     method = setup.options.circle_fit
-    diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)  # type: ignore[arg-type]
+    diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)
     return measured_joint_errors(diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method)
 
 
@@ -383,13 +388,15 @@ class _Records:
 
     def __init__(self, methods: tuple[str, ...]):
         monte_carlos = [m for m in methods if m.endswith("-mc")]
-        self.contained = {m: [] for m in methods}
-        self.std = {m: [] for m in methods}
-        self.error = {"cpa": [], "refined": []}
+        self.contained: dict[str, list[np.ndarray]] = {m: [] for m in methods}
+        self.std: dict[str, list[np.ndarray]] = {m: [] for m in methods}
+        self.error: dict[str, list[np.ndarray]] = {"cpa": [], "refined": []}
         names = ("contained_draws", "tcp_contained", "tcp_contained_corrected", "bias", "centre", "low", "high")
-        self.mc = {name: {m: [] for m in monte_carlos} for name in names}
+        self.mc: dict[str, dict[str, list]] = {name: {m: [] for m in monte_carlos} for name in names}
 
-    def add(self, method, interval, u, result, truth_values, checked, tcp, coverage) -> None:
+    def add(
+        self, method: str, interval: tuple[np.ndarray, np.ndarray], u, result, truth_values, checked, tcp, coverage
+    ) -> None:
         """One capture's interval (and, for a Monte Carlo, its draws' interval, bias and TCP ellipsoids)."""
         from robotcal.uncertainty.tcp import tcp_coordinates
 
@@ -544,6 +551,7 @@ def extended_coverage_study(
             rows["error"].append(estimate - true_values)
             if progress is not None:
                 progress(k + 1, captures)
+        assert checked is not None  # set by the first capture (there are at least 10: _check_size)
         return ExtendedCoverage(
             names=tuple(name for name, flag in zip(everything, checked, strict=True) if flag),
             captures=captures,

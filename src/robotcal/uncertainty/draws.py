@@ -31,6 +31,9 @@ if TYPE_CHECKING:
 
 __all__ = ["draw_block"]
 
+#: The refined Monte Carlo's solvers (:attr:`robotcal.uncertainty.montecarlo.MonteCarloSettings.refined_solver`).
+RefinedSolver = Literal["gauss-newton", "per-draw"]
+
 #: Draws refined per vectorised call (bounds the refinement's working memory whatever ``batch_size``).
 REFINE_BATCH = 500
 #: The same for an extended model, refined point by point (:class:`robotcal.uncertainty.refined_kernel._PointBatch`): its
@@ -52,6 +55,7 @@ def _noisy_exact_points(problem: MonteCarloProblem, n_draws: int, rng: np.random
     readings = problem.capture.readings[circles]
     q = problem.true_parameters.model_joint_variables(readings)
     commanded = problem.robot.model_joint_variables(readings)  # the joint errors follow the commanded motion
+    assert problem.joint_errors is not None  # called only for a problem with joint errors
     errors = np.stack([problem.joint_errors.transforms(commanded, rng=rng) for _ in range(n_draws)])
     base = target_positions(
         problem.true_parameters.values,
@@ -111,7 +115,7 @@ def draw_block(
     n_draws: int,
     batch_size: int,
     *,
-    refined_solver: Literal["gauss-newton", "per-draw"] = "gauss-newton",
+    refined_solver: RefinedSolver = "gauss-newton",
 ) -> np.ndarray:
     """The outputs of the ``n_draws`` draws of block ``block``, one row per draw, shape ``(n_draws, 5 n + m)``:
     the parameters ``d, theta, a, alpha, beta`` joint by joint [mm, rad], then the joint model's ``m`` values of
@@ -199,7 +203,7 @@ def _block_sizes(total: int, block_size: int) -> list[int]:
 
 
 def _draw_task(
-    problem: MonteCarloProblem, seed: int, batch_size: int, solver: str, item: tuple[int, int]
+    problem: MonteCarloProblem, seed: int, batch_size: int, solver: RefinedSolver, item: tuple[int, int]
 ) -> np.ndarray:
     """One block ``item = (block, size)``: a top-level function, so that any backend can run it."""
     block, size = item

@@ -35,8 +35,6 @@ Numerical Methods for Least Squares Problems (1996), §9.2 (Gauss-Newton).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from robotcal.uncertainty.refined import (
@@ -50,6 +48,7 @@ from robotcal.uncertainty.refined import (
 from robotcal.uncertainty.refined_kernel import (
     RefinedBatch,
     RefinedModel,
+    SharedStep,
     _Batch,
     _PointBatch,
     reference_jacobian,
@@ -133,6 +132,7 @@ def _common_base(model: RefinedModel, base_start: np.ndarray | None) -> np.ndarr
     draws' own (a held base frame is the given one)."""
     if base_start is None or not model.base_free.all():
         return base_start
+    assert model.reference_tracker is not None  # a base frame to correct: the points criterion, which has one
     return np.broadcast_to(model.reference_tracker, base_start.shape)
 
 
@@ -146,32 +146,13 @@ def _shares_reference(model: RefinedModel, start: np.ndarray, base: np.ndarray |
     return model.reference_tracker is not None and bool(np.all(base == model.reference_tracker))
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class SharedStep:
-    """The first Gauss-Newton step every draw shares: the model at the noise-free solution ``x0``.
-
-    Attributes
-    ----------
-    value : ndarray, shape (N, 3) or (n_pairs,)
-        Points criterion: the base-frame points ``p(x0)`` in the order ``order`` [mm]; distances: ``|p_i - p_j|``
-        over the pairs [mm].
-    order : ndarray of int, shape (N,)
-        The capture row of every point of ``value``.
-    projector : ndarray, shape (p, K)
-        ``J0_s^+``, the pseudo-inverse of the scaled Jacobian at ``x0`` (K = 3 N or n_pairs).
-    """
-
-    value: np.ndarray
-    order: np.ndarray
-    projector: np.ndarray
-
-
 def shared_step(model: RefinedModel) -> SharedStep:
     """The :class:`SharedStep` of ``model`` (the value of :attr:`RefinedModel.shared_step`)."""
     points, jacobian, order, pairs = reference_jacobian(model)
     if model.criterion == "points":
         value, rows = points, jacobian.reshape(-1, model.n_free)
     else:
+        assert pairs is not None  # the distances criterion has its pairs
         i, j = pairs
         diff = points[i] - points[j]
         value = np.linalg.norm(diff, axis=1)
@@ -188,6 +169,7 @@ def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarra
     """
     shared = model.shared_step if model.shared_step is not None else shared_step(model)
     if model.criterion == "points":
+        assert model.reference_tracker is not None  # the points criterion's refinement has its base frame
         rotation, shift = model.reference_tracker[:3, :3], model.reference_tracker[:3, 3]
         in_base = np.einsum("bnc,cd->bnd", measured[:, shared.order] - shift, rotation)
         residuals = (shared.value - in_base).reshape(measured.shape[0], -1)

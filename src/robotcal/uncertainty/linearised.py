@@ -12,6 +12,7 @@ JCGM 100:2008 §5.1 (law of propagation); JCGM 101:2008 §8; thesis ch. 5.2.3.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
@@ -55,6 +56,43 @@ class LinearisedResult:
     step_mm: float
 
 
+def linearised_result(
+    *,
+    estimate: np.ndarray,
+    covariance: np.ndarray,
+    std: np.ndarray,
+    tolerance: np.ndarray,
+    coverage: float,
+    drawn: tuple[np.ndarray, np.ndarray] | None,
+    determined: np.ndarray,
+    step_mm: float,
+) -> LinearisedResult:
+    """The :class:`LinearisedResult` of ``estimate`` with the standard uncertainties ``std`` (of ``covariance``):
+    the interval ``estimate -+ k_p std`` for ``coverage`` compared endpoint by endpoint with the Monte Carlo
+    interval ``drawn`` (JCGM 101 §8.2) within ``tolerance``, agreeing wherever a parameter is not ``determined``;
+    without ``drawn`` no comparison (NaN differences, every parameter agrees)."""
+    k = NormalDist().inv_cdf(0.5 + coverage / 2.0)  # statistics, not scipy.stats: no slow import
+    low, high = estimate - k * std, estimate + k * std
+    if drawn is not None:
+        mc_low, mc_high = drawn
+        difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
+        agrees = (difference <= tolerance) | ~determined
+    else:
+        difference = np.full(std.shape, np.nan)
+        agrees = np.ones(std.shape, dtype=bool)
+    return LinearisedResult(
+        estimate=estimate,
+        covariance=covariance,
+        std_uncertainty=std,
+        coverage_low=low,
+        coverage_high=high,
+        agrees=agrees,
+        endpoint_difference=difference,
+        tolerance=tolerance,
+        step_mm=step_mm,
+    )
+
+
 def _input_variance(problem: MonteCarloProblem) -> np.ndarray:
     """Variance of each measured coordinate ``(n_points, 3)`` [mm^2]: U^2/3 (uniform) or (U/k)^2."""
     return coordinate_variance(problem.instrument, problem.error_bound) + problem.repeatability_sd**2
@@ -68,6 +106,7 @@ def _refined_full_covariance(problem: MonteCarloProblem, cpa_covariance: np.ndar
     from robotcal.uncertainty.refined import refined_covariance
 
     model = problem.refined
+    assert model is not None  # called for the refined model only
     free_cov = refined_covariance(model, problem.exact_points, _input_variance(problem))
     mask = model.free.reshape(-1)
     index = np.flatnonzero(mask)

@@ -54,11 +54,11 @@ from __future__ import annotations
 import functools
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from statistics import NormalDist
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
@@ -79,6 +79,7 @@ from robotcal.identification.targets import Target, resolve_targets, split_by_se
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import forward_kinematics, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
+from robotcal.uncertainty.linearised import linearised_result
 from robotcal.uncertainty.montecarlo import (
     LinearisedResult,
     MonteCarloResult,
@@ -145,7 +146,7 @@ class MeasuredProblem:
     """
 
     capture: Capture
-    reflector: object
+    reflector: ReflectorMount | Sequence[Target]
     reference: RefinementResult
     exact_points: np.ndarray
     noise_sd: np.ndarray | None
@@ -213,7 +214,7 @@ class MeasuredMonteCarloResult:
         estimated offsets, as the parameters' (:meth:`MonteCarloResult.interval`; the draws are simulated at the
         estimate) [mm]."""
         low, high = self.target_draws_interval()
-        if not low.size:
+        if self.target_summary is None or not low.size:
             return low, high
         return bias_corrected_interval(low, high, self.target_summary.mean, self.target_estimate)
 
@@ -351,12 +352,11 @@ def prepare_measured(
         tracker = register_points(predicted, capture.points).transform
     exact = _in_tracker(capture, predicted, tracker, reference.sessions)
     rotations, orientation_sd = _exact_rotations(capture, reference, tracker, stated)
-    if rotations is not None:
-        source += (
-            "; orientations: each point's u95_deg (k = 2, normal: u = U / 2 per rotation-vector component)"
-            if orientation_sd is not None
-            else f"; orientations: the instrument {stated.name!r}'s orientation_deg"
-        )
+    if rotations is not None and orientation_sd is not None:
+        source += "; orientations: each point's u95_deg (k = 2, normal: u = U / 2 per rotation-vector component)"
+    elif rotations is not None:
+        assert stated is not None  # without u95_deg, _exact_rotations asked for the instrument's orientation term
+        source += f"; orientations: the instrument {stated.name!r}'s orientation_deg"
     return MeasuredProblem(
         capture=capture,
         reflector=reflector,
@@ -400,6 +400,7 @@ def draw_noise(problem: MeasuredProblem, rng: np.random.Generator) -> np.ndarray
     """One draw's coordinate errors ``(n_points, 3)`` [mm]: ``N(0, (U95/2)^2)`` per coordinate, or the instrument's."""
     if problem.noise_sd is not None:
         return rng.standard_normal((problem.exact_points.shape[0], 3)) * problem.noise_sd[:, None]
+    assert problem.instrument is not None  # without per-point U(95) the instrument gives the noise (_noise_model)
     return problem.instrument.sample_noise(problem.exact_points, rng=rng)
 
 
@@ -466,6 +467,7 @@ def stated_point_u(problem: MeasuredProblem) -> float:
     if problem.noise_sd is not None:
         u = np.asarray(problem.noise_sd, dtype=float)
     else:
+        assert problem.instrument is not None  # without per-point U(95) the instrument gives the noise (_noise_model)
         u = np.asarray(problem.instrument.standard_uncertainty(problem.exact_points), dtype=float)
     return float(np.sqrt(np.mean(u**2)))
 
@@ -493,22 +495,14 @@ def _linearised(problem: MeasuredProblem, summary: SampleSummary, settings: Mont
     else:
         covariance[np.ix_(index, index)] = np.nan
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n, 5)
-    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)
-    estimate = reference.parameters.values
-    low, high = estimate - k * std, estimate + k * std
-    tolerance = numerical_tolerance(np.nan_to_num(std), COMPARISON_NDIG)
-    mc_low, mc_high = summary.interval(settings.interval)
-    difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
-    agrees = (difference <= tolerance) | ~np.asarray(reference.identifiability.free)
-    return LinearisedResult(
-        estimate=estimate,
+    return linearised_result(
+        estimate=reference.parameters.values,
         covariance=covariance,
-        std_uncertainty=std,
-        coverage_low=low,
-        coverage_high=high,
-        agrees=agrees,
-        endpoint_difference=difference,
-        tolerance=tolerance,
+        std=std,
+        tolerance=numerical_tolerance(np.nan_to_num(std), COMPARISON_NDIG),
+        coverage=settings.coverage,
+        drawn=summary.interval(settings.interval),
+        determined=np.asarray(reference.identifiability.free),
         step_mm=0.0,
     )
 
@@ -614,7 +608,13 @@ def measured_monte_carlo(
         return _with_targets(problem, result, offset_draws, settings)
 
 
-def _from_estimate(estimate, criterion, offsets, estimate_base, tracker_from_base):
+def _from_estimate(
+    estimate: ParameterSet | RefinementResult,
+    criterion: str | None,
+    offsets: Mapping[str, object] | None,
+    estimate_base: bool,
+    tracker_from_base: ArrayLike | None,
+) -> tuple[ParameterSet, str, Mapping[str, object] | None, bool]:
     """The parameters, criterion, offsets and base handling of ``estimate``: a :class:`RefinementResult` gives
     its own where they are not given."""
     if isinstance(estimate, RefinementResult):

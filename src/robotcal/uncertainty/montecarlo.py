@@ -37,19 +37,24 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from statistics import NormalDist
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robotcal.errors import InputError, RobotcalError, check_count
 from robotcal.execution import open_executor, single_blas_thread
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, RobotModel
-from robotcal.uncertainty.draws import _block_sizes, _BlockRunner, draw_block, solve_points
-from robotcal.uncertainty.linearised import LinearisedResult, _cpa_covariance, _refined_full_covariance
+from robotcal.uncertainty.draws import RefinedSolver, _block_sizes, _BlockRunner, draw_block, solve_points
+from robotcal.uncertainty.linearised import (
+    LinearisedResult,
+    _cpa_covariance,
+    _refined_full_covariance,
+    linearised_result,
+)
 from robotcal.uncertainty.montecarlo_problem import MonteCarloProblem, prepare_monte_carlo
 from robotcal.uncertainty.statistics import (
     INTERVAL_KINDS,
+    IntervalKind,
     SampleSummary,
     bias_corrected_interval,
     check_coverage,
@@ -129,7 +134,7 @@ class MonteCarloSettings:
 
     iterations: int = 100_000
     coverage: float = 0.95
-    interval: Literal["symmetric", "shortest"] = "symmetric"
+    interval: IntervalKind = "symmetric"
     adaptive: bool = False
     ndig: int = 2
     max_draws: int = 2_000_000
@@ -138,7 +143,7 @@ class MonteCarloSettings:
     workers: int = 1
     scheduler: str | None = None
     keep_draws: bool = True
-    refined_solver: Literal["gauss-newton", "per-draw"] = "gauss-newton"
+    refined_solver: RefinedSolver = "gauss-newton"
 
     def __post_init__(self):
         if self.refined_solver not in REFINED_SOLVERS:
@@ -262,7 +267,7 @@ class MonteCarloResult:
 
     def __repr__(self) -> str:
         u = self.summary.std_uncertainty[self.identified]
-        extended = f", joint model {', '.join(self.joint_model.names)}" if self.is_extended else ""
+        extended = "" if self.joint_model is None else f", joint model {', '.join(self.joint_model.names)}"
         return (
             f"MonteCarloResult({self.model} model{extended}, {self.n_draws:,} draws, seed {self.seed}, "
             f"{int(self.identified.sum())} parameters, largest u {u.max() if u.size else 0.0:.3g} (mm or rad))"
@@ -271,8 +276,11 @@ class MonteCarloResult:
     def extra_interval(self) -> tuple[np.ndarray, np.ndarray]:
         """The coverage interval for the measurand of every joint-model value ``(m,)`` [rad/(N m), rad]: the
         draws' interval moved by twice the bias against :attr:`extra_true`, as :meth:`interval`."""
-        low, high = self.extra_summary.interval(self.settings.interval)
-        moved_low, moved_high = bias_corrected_interval(low, high, self.extra_summary.mean, self.extra_true)
+        summary = self.extra_summary
+        if summary is None:
+            raise InputError("extra_interval: the draws of a geometric model carry no joint-model values")
+        low, high = summary.interval(self.settings.interval)
+        moved_low, moved_high = bias_corrected_interval(low, high, summary.mean, self.extra_true)
         moved_low, moved_high = widened_interval(
             moved_low, moved_high, self.extra_true - self.extra_bias, self.extra_correction_u, self.settings.coverage
         )
@@ -368,7 +376,7 @@ class MonteCarloResult:
             raise InputError(f"`estimate` has {estimate.robot.n_joints} joints; the draws {self.robot.n_joints}")
         values = np.where(self.identified, self.centre - self.bias, estimate.values)
         joint_model = estimate.joint_model
-        if self.is_extended and joint_model is not None and joint_model.names == self.joint_model.names:
+        if self.joint_model is not None and joint_model is not None and joint_model.names == self.joint_model.names:
             joint_model = joint_model.with_values(joint_model.values - self.extra_bias)
         return dataclasses.replace(estimate, values=values, joint_model=joint_model)
 
@@ -380,7 +388,9 @@ def _flat_identified(values: np.ndarray, identified: np.ndarray) -> np.ndarray:
     return values.reshape(values.shape[0], -1)[:, identified.reshape(-1)]
 
 
-def _block_estimates(values: np.ndarray, identified: np.ndarray, coverage: float, interval: str) -> np.ndarray:
+def _block_estimates(
+    values: np.ndarray, identified: np.ndarray, coverage: float, interval: IntervalKind
+) -> np.ndarray:
     """``(4, n_identified)``: y, u(y), y_low, y_high of one block (JCGM 101 §7.9.4 c)."""
     flat = _flat_identified(values, identified)
     low, high = coverage_interval(flat, coverage, interval)
@@ -477,11 +487,11 @@ def run_monte_carlo(
     """
     with single_blas_thread():
         settings = MonteCarloSettings() if settings is None else settings
-        if settings.block_size is None:
+        block_size = settings.block_size
+        if block_size is None:
             fixed_refined = problem.model == "refined" and not settings.adaptive
-            settings = dataclasses.replace(
-                settings, block_size=REFINED_BLOCK_SIZE if fixed_refined else DEFAULT_BLOCK_SIZE
-            )
+            block_size = REFINED_BLOCK_SIZE if fixed_refined else DEFAULT_BLOCK_SIZE
+            settings = dataclasses.replace(settings, block_size=block_size)
         seed = check_count(seed, "seed", minimum=0)
         started = time.perf_counter()
         n = problem.robot.n_joints
@@ -492,7 +502,7 @@ def run_monte_carlo(
         with open_executor(workers=settings.workers, scheduler=settings.scheduler) as executor:
             runner = _BlockRunner(problem, seed, settings, executor)
             if not settings.adaptive:
-                blocks = list(enumerate(_block_sizes(settings.iterations, settings.block_size)))
+                blocks = list(enumerate(_block_sizes(settings.iterations, block_size)))
                 for _, values in runner.map(blocks):
                     store.add(values)
                     if progress is not None:
@@ -653,25 +663,13 @@ def linearised_uncertainty(
         covariance = _refined_full_covariance(problem, covariance)
     n_joints = problem.robot.n_joints
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(n_joints, 5)
-    k = NormalDist().inv_cdf(0.5 + settings.coverage / 2.0)  # statistics, not scipy.stats: no slow import
-    estimate = problem.noise_free_values
-    low, high = estimate - k * std, estimate + k * std
-    tolerance = numerical_tolerance(std, settings.ndig)
-    if summary is not None:
-        mc_low, mc_high = summary.interval(settings.interval)
-        difference = np.maximum(np.abs(low - mc_low), np.abs(high - mc_high))
-        agrees = (difference <= tolerance) | ~problem.identified
-    else:
-        difference = np.full(std.shape, np.nan)
-        agrees = np.ones(std.shape, dtype=bool)
-    return LinearisedResult(
-        estimate=estimate,
+    return linearised_result(
+        estimate=problem.noise_free_values,
         covariance=covariance,
-        std_uncertainty=std,
-        coverage_low=low,
-        coverage_high=high,
-        agrees=agrees,
-        endpoint_difference=difference,
-        tolerance=tolerance,
+        std=std,
+        tolerance=numerical_tolerance(std, settings.ndig),
+        coverage=settings.coverage,
+        drawn=None if summary is None else summary.interval(settings.interval),
+        determined=problem.identified,
         step_mm=step,
     )

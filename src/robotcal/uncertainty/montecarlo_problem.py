@@ -21,7 +21,7 @@ import numpy as np
 from robotcal.capture import Capture, join_captures
 from robotcal.errors import InputError
 from robotcal.geometry.transforms import check_rigid_transform
-from robotcal.identification.cpa import CPAOptions, identify_cpa_batch, prepare_cpa
+from robotcal.identification.cpa import CPAOptions, _Structure, identify_cpa_batch, prepare_cpa
 from robotcal.identification.health import repeatability_sigma
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
@@ -98,7 +98,7 @@ class MonteCarloProblem:
     tracker_from_base: np.ndarray
     joint_errors: JointErrorModel | None
     options: CPAOptions
-    structure: object
+    structure: _Structure  # prepare_cpa's
     noise_free_values: np.ndarray
     identified: np.ndarray
     model: str = "cpa"
@@ -125,7 +125,8 @@ class MonteCarloProblem:
     def identified_all(self) -> np.ndarray:
         """The flat mask of a draw's outputs ``(5 n + m,)``: the identified parameters, then the joint-model
         values the refinement estimates."""
-        extra = np.zeros(0, dtype=bool) if self.n_extra == 0 else np.asarray(self.refined.extra_free, dtype=bool)
+        refined = self.refined
+        extra = np.zeros(0, dtype=bool) if refined is None or self.n_extra == 0 else np.asarray(refined.extra_free, dtype=bool)
         return np.r_[self.identified.ravel(), extra]
 
 

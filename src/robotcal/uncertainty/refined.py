@@ -433,6 +433,7 @@ def refined_covariance(model: RefinedModel, measured, variance) -> np.ndarray:
         middle = full.T @ (full * variance.reshape(-1)[:, None])
         normal = full.T @ full
     else:
+        assert pairs is not None  # the distances criterion has its pairs
         i, j = pairs
         diff = points[i] - points[j]
         unit = diff / np.linalg.norm(diff, axis=1, keepdims=True)

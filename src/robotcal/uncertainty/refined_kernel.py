@@ -30,6 +30,26 @@ _PAIR_CHUNK = 512
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class SharedStep:
+    """The first Gauss-Newton step every draw shares: the model at the noise-free solution ``x0``.
+
+    Attributes
+    ----------
+    value : ndarray, shape (N, 3) or (n_pairs,)
+        Points criterion: the base-frame points ``p(x0)`` in the order ``order`` [mm]; distances: ``|p_i - p_j|``
+        over the pairs [mm].
+    order : ndarray of int, shape (N,)
+        The capture row of every point of ``value``.
+    projector : ndarray, shape (p, K)
+        ``J0_s^+``, the pseudo-inverse of the scaled Jacobian at ``x0`` (K = 3 N or n_pairs).
+    """
+
+    value: np.ndarray
+    order: np.ndarray
+    projector: np.ndarray
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RefinedModel:
     """The refinement every Monte Carlo draw repeats (fixed structure; values vary per draw).
 
@@ -78,7 +98,7 @@ class RefinedModel:
         ``xtol`` rule of the per-draw solve.
     shared_step : SharedStep or None
         The Gauss-Newton draws' shared first step at the noise-free solution
-        (:class:`robotcal.uncertainty.gauss_newton.SharedStep`, set with ``step_tolerance``); None: computed per call.
+        (:class:`SharedStep`, set with ``step_tolerance``); None: computed per call.
     """
 
     criterion: str
@@ -103,7 +123,7 @@ class RefinedModel:
     joint_columns: np.ndarray | None = None
     extra_free: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     step_tolerance: np.ndarray | None = None
-    shared_step: object | None = None
+    shared_step: SharedStep | None = None
 
     @property
     def n_free(self) -> int:
@@ -352,6 +372,7 @@ class _Batch:
 
     def _in_base(self, index: np.ndarray, x_base: np.ndarray) -> np.ndarray:
         """``R_tot^T (m - t_tot)`` ``(B, 3, N)`` for ``T_tot = T_0 T(x_b)``: the measurements in the corrected base frame."""
+        assert self.base_start is not None  # the points criterion (the only caller) has a base frame
         r0 = self.base_start[index, :3, :3]
         total = r0
         if self.model.base_free.any():
@@ -500,6 +521,7 @@ class _PointBatch:
     def __init__(self, model: RefinedModel, measured: np.ndarray, start: np.ndarray, base_start: np.ndarray | None):
         self.model, self.start, self.base_start = model, start, base_start
         self.measured = measured
+        assert model.joint_columns is not None  # this batch serves the models with a joint model
         self.columns = model.joint_columns[:, :, model.extra_free]  # (N, n, m_free)
         if model.criterion == "distances":
             diff = measured[:, model.pair_i] - measured[:, model.pair_j]
@@ -509,6 +531,7 @@ class _PointBatch:
 
     def _in_base(self, index: np.ndarray, x_base: np.ndarray) -> np.ndarray:
         """``R_tot^T (m - t_tot)`` ``(B, N, 3)`` for ``T_tot = T_0 T(x_b)``."""
+        assert self.base_start is not None  # the points criterion (the only caller) has a base frame
         r0 = self.base_start[index, :3, :3]
         total = r0 @ base_correction(x_base)[0] if self.model.base_free.any() else r0
         shift = (r0 @ x_base[:, :3, None])[..., 0] + self.base_start[index, :3, 3]
@@ -573,6 +596,7 @@ class _PointBatch:
         points = np.moveaxis(points, 0, -1)  # (B, N, 3)
         jacobian = jacobian.transpose(2, 3, 0, 1)  # (B, N, 3, p)
         cost, normal, gradient = np.zeros(batch), np.zeros((batch, width, width)), np.zeros((batch, width))
+        assert model.pair_i is not None and model.pair_j is not None  # the distances criterion has its pairs
         for begin in range(0, model.pair_i.size, _PAIR_CHUNK):
             i = model.pair_i[begin : begin + _PAIR_CHUNK]
             j = model.pair_j[begin : begin + _PAIR_CHUNK]
@@ -586,8 +610,9 @@ class _PointBatch:
         return cost, normal, gradient
 
 
-def _tracker(base_start: np.ndarray, x_base: np.ndarray, index: np.ndarray) -> np.ndarray:
+def _tracker(base_start: np.ndarray | None, x_base: np.ndarray, index: np.ndarray) -> np.ndarray:
     """``T_0 T(x_b)`` per draw ``(B, 4, 4)``."""
+    assert base_start is not None  # asked only of the points criterion, which has a base frame
     rotation, _, _ = base_correction(x_base)
     delta = np.broadcast_to(np.eye(4), (x_base.shape[0], 4, 4)).copy()
     delta[:, :3, :3] = rotation
@@ -615,7 +640,9 @@ def reference_unknowns(model: RefinedModel) -> np.ndarray:
     )
 
 
-def reference_jacobian(model: RefinedModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+def reference_jacobian(
+    model: RefinedModel,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """The model at the noise-free solution: its base-frame points and their Jacobian in the unknowns.
 
     Returns
@@ -639,10 +666,10 @@ def reference_jacobian(model: RefinedModel) -> tuple[np.ndarray, np.ndarray, np.
         points, full = problem.point_jacobian(x, np.arange(1))
         points, full = points[:, 0].T, full[:, :, 0].transpose(2, 0, 1) / model.x_scale  # (N, 3), unscaled columns
         order = np.arange(model.q.shape[0])
-        pairs = None if model.pair_i is None else (model.pair_i, model.pair_j)
+        pairs = None if model.pair_i is None or model.pair_j is None else (model.pair_i, model.pair_j)
         return points, full, order, pairs
-    problem = _Batch(model, measured, start, base)
-    values, _, x_base = problem.unpack(x, np.arange(1))
+    batch = _Batch(model, measured, start, base)
+    values, _, x_base = batch.unpack(x, np.arange(1))
     rotation, origin, twists = _kinematics(model.groups["config_q"], model.groups["carrier"], model.free, values)
     points = _points(model, rotation, origin)[0]
     full = _point_jacobian(model, points[None], twists)[0]  # (N, 3, n_kin), base frame, grouped order
@@ -650,5 +677,5 @@ def reference_jacobian(model: RefinedModel) -> tuple[np.ndarray, np.ndarray, np.
         base = _base_twists(model, x_base)[0]  # (6, n_base)
         base_columns = base[3:][None] + np.cross(base[:3].T[None], points[:, None, :]).transpose(0, 2, 1)
         full = np.concatenate([full, base_columns], axis=-1)
-    pairs = None if model.sorted_i is None else (model.sorted_i, model.sorted_j)
+    pairs = None if model.sorted_i is None or model.sorted_j is None else (model.sorted_i, model.sorted_j)
     return points, full, model.groups["order"], pairs

@@ -355,6 +355,15 @@ def _ellipsoid_from(centred: np.ndarray, covariance: np.ndarray, coverage: float
         inside = np.mean(d2 <= scale**2, axis=0)
         inside = np.where(np.isnan(d2[0]), np.nan, inside)
         k_mc = np.sqrt(np.sort(d2, axis=0)[rank - 1])
+    return _ellipsoid(values, vectors, scale, inside, k_mc, coverage)
+
+
+def _ellipsoid(
+    values: np.ndarray, vectors: np.ndarray, scale: float, inside: np.ndarray, k_mc: np.ndarray, coverage: float
+) -> CoverageEllipsoid:
+    """The ellipsoids of the covariances' eigenvalues ``values`` and eigenvectors ``vectors`` at the Gaussian
+    ``scale``, with the draws' fraction ``inside`` and the Monte Carlo scale ``k_mc`` (of :func:`_ellipsoid_from` and
+    :func:`_ellipsoid_rows`)."""
     return CoverageEllipsoid(
         coverage=coverage,
         gaussian_scale=scale,
@@ -425,14 +434,7 @@ def _ellipsoid_rows(centred: np.ndarray, covariance: np.ndarray, coverage: float
         inside = np.where(np.isnan(d2[:, 0]), np.nan, inside)
         d2.partition(rank - 1, axis=-1)  # the rank-th smallest (NaN last, as in a sort): 4x quicker than sorting
         k_mc = np.sqrt(d2[:, rank - 1])
-    return CoverageEllipsoid(
-        coverage=coverage,
-        gaussian_scale=scale,
-        semi_axes=scale * np.sqrt(np.clip(values, 0.0, None)),
-        directions=vectors,
-        fraction_inside=inside,
-        monte_carlo_scale=k_mc,
-    )
+    return _ellipsoid(values, vectors, scale, inside, k_mc, coverage)
 
 
 def _concatenate_ellipsoids(parts: list[CoverageEllipsoid]) -> CoverageEllipsoid:
@@ -822,6 +824,6 @@ class _Propagation:
 
         parts = np.array_split(np.arange(size), min(size, _THREADS if pool is not None else 1))
         slices = [slice(part[0], part[-1] + 1) for part in parts]
-        if len(slices) == 1:
+        if pool is None or len(slices) == 1:  # without a pool, one part
             return [statistics(slices[0])]
         return list(pool.map(statistics, slices))

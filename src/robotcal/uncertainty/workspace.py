@@ -113,7 +113,7 @@ def workspace_uncertainty(
         seed = int(rng) if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool) else None
         if (readings is None) == (n_poses is None):
             raise InputError("give either `n_poses` (a random sample) or `readings`, not both or neither")
-        if readings is None:
+        if n_poses is not None:  # then readings is None (checked above)
             readings = sample_workspace(robot, n_poses, rng=rng)
         result = propagate_to_tcp(
             robot, parameter_draws, readings, tool=tool, coverage=coverage, batch_size=batch_size, max_bytes=max_bytes,
