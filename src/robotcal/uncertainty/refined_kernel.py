@@ -167,6 +167,7 @@ def _kinematics(
     *,
     joint_twists: bool = False,
     component_major: bool = False,
+    record: list | None = None,
 ):
     """Carrier frames and the twists of the free kinematic parameters, per group of points.
 
@@ -181,6 +182,8 @@ def _kinematics(
     every joint variable, ``d p / d q_j`` (theta's axis), for every joint that moves the target (for a
     per-joint target the one that turns it too). ``component_major``: the arrays as composed, components first:
     ``frame (4, 3, B, U)`` (columns x, y, z and the origin), ``twists (6, n_kin, B, U)``, ``turns (6, n, B, U)``.
+    ``record``: a list to which every joint's ``(z_B, o_B, x', y_F, o_F)`` ``(3, B, U)`` each are appended (the axes
+    and anchors of its twists; :meth:`_PointBatch.gradient`).
 
     The chain ``F_{j+1} = F_j Rz(theta_j + q_j) Tz(d_j) Tx(a_j) Rx(alpha_j) Ry(beta_j)`` (the link of
     :func:`robotcal.kinematics.forward.link_transforms`) is composed column by column on ``(3, B, U)``
@@ -218,6 +221,8 @@ def _kinematics(
         y_c = cos_t[joint] * y_axis - sin_t[joint] * x_axis
         o_after = origin + d[joint] * z_axis + a[joint] * x_c
         y_after = cos_a[joint] * y_c + sin_a[joint] * z_axis
+        if record is not None:
+            record.append((z_axis, origin, x_c, y_after, o_after))
         z_alpha = cos_a[joint] * z_axis - sin_a[joint] * y_c
         for column in np.flatnonzero(free_joint == joint):
             kind = free_kind[column]
@@ -253,6 +258,11 @@ def _kinematics(
 def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of vectors stored component-first, ``(3, ...)``."""
     return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot products of vectors stored component-first, ``(3, ...)``: element-wise, the same in any batch."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def _points(model: RefinedModel, rotation: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -536,14 +546,7 @@ class _PointBatch:
         frame, twists, turns = _kinematics(
             q, carrier, model.free, values, model.x_scale, joint_twists=True, component_major=True
         )  # fmt: skip
-        local = np.broadcast_to(model.vectors.T[:, None, :], (3,) + q.shape[:2]).copy()  # (3, B, N)
-        on_joint = np.flatnonzero(carrier < model.free.shape[0])
-        if on_joint.size:  # a per-joint target turned by its own (deflected) joint, eq. 5-1
-            angle = q[:, on_joint, carrier[on_joint]]
-            cos, sin = np.cos(angle), np.sin(angle)
-            x_part, y_part = local[0][:, on_joint], local[1][:, on_joint]
-            local[0][:, on_joint], local[1][:, on_joint] = cos * x_part - sin * y_part, sin * x_part + cos * y_part
-        points = frame[0] * local[0] + frame[1] * local[1] + frame[2] * local[2] + frame[3]  # (3, B, N)
+        points = self._carried_points(frame, q)
         beside = points[:, None]
         parts = [twists[3:] + _cross3(twists[:3], beside)]
         if model.n_extra:  # d p / d e = sum_j (d p / d q_j) C_j
@@ -555,6 +558,69 @@ class _PointBatch:
             base = np.moveaxis(base, 0, -1)[..., None]  # (6, nb, B, 1)
             parts.append(base[3:] + _cross3(base[:3], beside))
         return points, np.concatenate(parts, axis=1)
+
+    def _carried_points(self, frame: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Base-frame points ``(3, B, N)`` from the carrier frames ``(4, 3, B, N)`` and the deflected joints ``q``."""
+        model, carrier = self.model, self.model.carrier
+        local = np.broadcast_to(model.vectors.T[:, None, :], (3,) + q.shape[:2]).copy()  # (3, B, N)
+        on_joint = np.flatnonzero(carrier < model.free.shape[0])
+        if on_joint.size:  # a per-joint target turned by its own (deflected) joint, eq. 5-1
+            angle = q[:, on_joint, carrier[on_joint]]
+            cos, sin = np.cos(angle), np.sin(angle)
+            x_part, y_part = local[0][:, on_joint], local[1][:, on_joint]
+            local[0][:, on_joint], local[1][:, on_joint] = cos * x_part - sin * y_part, sin * x_part + cos * y_part
+        return frame[0] * local[0] + frame[1] * local[1] + frame[2] * local[2] + frame[3]
+
+    def gradient(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cost ``(B,)`` and ``J_s^T r`` ``(B, p)`` without forming the Jacobian (points criterion; distances: the
+        gradient of :meth:`normal_equations`).
+
+        Column ``c`` of the Jacobian at point k is the twist ``(omega, o x omega)`` of its screw axis (or ``(0, v)``)
+        applied to ``p_k`` (:func:`_kinematics`), so its product with the error ``e_k`` is
+        ``omega . (p_k x e_k - o x e_k)`` (``v . e_k``): per joint two arms ``p x e - o x e`` (anchors ``o_B``,
+        ``o_F``), per column one dot product summed over the points. The joint model's column m is
+        ``sum_j C_jm dp/dq_j``, and ``dp/dq_j . e`` is theta_j's dot product.
+        """
+        model = self.model
+        if model.criterion != "points":
+            cost, _, gradient = self.normal_equations(x, index)
+            return cost, gradient
+        values, extras, x_base = self.unpack(x, index)
+        q = model.q + np.einsum("pjm,bm->bpj", self.columns, extras)  # (B, N, n): the deflected joints
+        carrier, n_joints = model.carrier, model.free.shape[0]
+        record: list = []
+        frame, _, _ = _kinematics(q, carrier, np.zeros_like(model.free), values, component_major=True, record=record)
+        points = self._carried_points(frame, q)
+        target = self._in_base(index, x_base) if model.base_free.any() else _rows(self.in_base, index)
+        error = points - np.moveaxis(target, -1, 0)  # (3, B, N)
+        moment = _cross3(points, error)
+        gradient = np.empty((x.shape[0], model.n_free))
+        free_joint, free_kind = np.nonzero(model.free)
+        weighted = np.zeros((model.n_extra,) + q.shape[:2]) if model.n_extra else None  # (m, B, N)
+        weights = np.moveaxis(self.columns * model.x_scale[model.n_kinematic : model.n_kinematic + model.n_extra], 0, -1)
+        for joint, (z_axis, origin, x_c, y_after, o_after) in enumerate(record):
+            about_origin = moment - _cross3(origin, error)
+            about_after = moment - _cross3(o_after, error) if np.any(free_kind[free_joint == joint] >= 3) else None
+            below = joint < carrier
+            arms = {0: (z_axis, error), 1: (z_axis, about_origin), 2: (x_c, error), 3: (x_c, about_after)}
+            arms[4] = (y_after, about_after)
+            for column in np.flatnonzero(free_joint == joint):
+                axis, arm = arms[free_kind[column]]
+                gradient[:, column] = np.where(below, _dot3(axis, arm), 0.0).sum(axis=-1) * model.x_scale[column]
+            if weighted is not None:  # d cost / d q_j at every point it moves
+                moved = below | ((joint == carrier) & (carrier < n_joints))
+                turn = np.where(moved, _dot3(z_axis, about_origin), 0.0)
+                weighted += turn * weights[joint][:, None, :]  # weights (n, m, N)
+        if weighted is not None:
+            gradient[:, model.n_kinematic : model.n_kinematic + model.n_extra] = weighted.sum(axis=-1).T
+        if model.base_free.any():
+            base = _base_twists(model, x_base) * model.x_scale[model.n_kinematic + model.n_extra :]  # (B, 6, nb)
+            total_moment, total_error = moment.sum(axis=-1), error.sum(axis=-1)  # (3, B)
+            omega, v = np.moveaxis(base[:, :3], 1, 0), np.moveaxis(base[:, 3:], 1, 0)  # (3, B, nb)
+            gradient[:, model.n_kinematic + model.n_extra :] = _dot3(omega, total_moment[..., None]) + _dot3(
+                v, total_error[..., None]
+            )
+        return 0.5 * _dot3(error, error).sum(axis=-1), gradient
 
     def normal_equations(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cost ``(B,)``, ``J_s^T J_s`` ``(B, p, p)`` and ``J_s^T r`` ``(B, p)`` (scaled columns)."""
