@@ -597,7 +597,8 @@ class _PointBatch:
         gradient = np.empty((x.shape[0], model.n_free))
         free_joint, free_kind = np.nonzero(model.free)
         weighted = np.zeros((model.n_extra,) + q.shape[:2]) if model.n_extra else None  # (m, B, N)
-        weights = np.moveaxis(self.columns * model.x_scale[model.n_kinematic : model.n_kinematic + model.n_extra], 0, -1)
+        extra_scale = model.x_scale[model.n_kinematic : model.n_kinematic + model.n_extra]
+        weights = np.moveaxis(self.columns * extra_scale, 0, -1)  # (n, m, N)
         for joint, (z_axis, origin, x_c, y_after, o_after) in enumerate(record):
             about_origin = moment - _cross3(origin, error)
             about_after = moment - _cross3(o_after, error) if np.any(free_kind[free_joint == joint] >= 3) else None
@@ -610,7 +611,7 @@ class _PointBatch:
             if weighted is not None:  # d cost / d q_j at every point it moves
                 moved = below | ((joint == carrier) & (carrier < n_joints))
                 turn = np.where(moved, _dot3(z_axis, about_origin), 0.0)
-                weighted += turn * weights[joint][:, None, :]  # weights (n, m, N)
+                weighted += turn * weights[joint][:, None, :]
         if weighted is not None:
             gradient[:, model.n_kinematic : model.n_kinematic + model.n_extra] = weighted.sum(axis=-1).T
         if model.base_free.any():
