@@ -209,7 +209,6 @@ def _kinematics(
     factor = np.ones(free_joint.size) if scale is None else np.asarray(scale, dtype=float)[: free_joint.size]
     # without twists, groups in falling order of their carrier leave the chain once their frame is reached
     shrink = free_joint.size == 0 and turns is None and bool(np.all(np.diff(carrier) <= 0))
-    cos_all, sin_all = (None, None) if shrink else (np.cos(angle), np.sin(angle))
     for joint in range(n_joints + 1):
         here = carrier == joint
         if here.any():
@@ -222,13 +221,9 @@ def _kinematics(
             turns[:3, joint] = np.where(moved, z_axis, 0.0)
             turns[3:, joint] = np.where(moved, _cross3(origin, z_axis), 0.0)
         z_base, o_base = z_axis, origin  # every group that reaches joint j (its turn moves per-joint targets)
-        if shrink:  # the groups carried further
-            keep = int(np.count_nonzero(carrier > joint))
-            x_axis, y_axis, z_axis, origin = (v[..., :keep] for v in (x_axis, y_axis, z_axis, origin))
-        if shrink:
-            cos_t, sin_t = np.cos(angle[joint][..., :keep]), np.sin(angle[joint][..., :keep])
-        else:
-            cos_t, sin_t = cos_all[joint], sin_all[joint]
+        width = int(np.count_nonzero(carrier > joint)) if shrink else units  # the groups carried further
+        x_axis, y_axis, z_axis, origin = (v[..., :width] for v in (x_axis, y_axis, z_axis, origin))
+        cos_t, sin_t = np.cos(angle[joint][..., :width]), np.sin(angle[joint][..., :width])
         x_c = cos_t * x_axis + sin_t * y_axis  # x axis of F_j Rz(theta_j + q_j): the common normal
         y_c = cos_t * y_axis - sin_t * x_axis
         o_after = origin + d[joint] * z_axis + a[joint] * x_c
