@@ -59,13 +59,15 @@ Issue 23 (2026-11-28, ``--draws 20000 --loop 30 --workers 2``, 3 alternated roun
 draws themselves are unchanged; ~0.1 s of pool start and shutdown is ~7 % of these 1.5 s (bench_montecarlo.py).
 
 Issue 31, the extended model's corrective steps with the shared matrix (2026-11-29, 2-core machine shared with
-other jobs, load average 1.5-2.5, so CPU figures; f71863b before, aa3626e after):
+other jobs, load average 1.5-4, so CPU figures; f71863b before, this change after):
 
 - ``--draws 5000 --workers 1 --solvers gauss-newton`` (one run each, process CPU per draw): geometric 60 -> 60 us
   (unchanged: the draws are bit-identical), extended 590 -> 180 us (its first batches included; before, their
   per-point Jacobians of ~5 MB each made the first batches about twice as slow as the next);
-- ``draw_block`` of the demo's deployed model, 2,000 draws in batches of 32, one process, one thread, min of 3 after
-  a warm-up: 317 -> 153 us per draw (noise + CPA + refinement; the refinement alone ~280 -> ~120 us);
+- ``draw_block`` of the demo's deployed model, 2,000 draws, one process, one thread, min of 3 after a warm-up,
+  before and after alternated: 309-317 -> 146-153 us per draw (noise + CPA + refinement; the refinement alone
+  ~280 -> ~120 us), geometric 50-59 -> 50-60 us; Gauss-Newton batches of 64 extended draws instead of 32:
+  164-165 against 176-178 us per draw (``draws.EXTENDED_GAUSS_NEWTON_BATCH``, the same draws bit for bit);
 - every extended draw: one evaluation of its own gradient (before: of its own normal equations), no fallback;
 - distance to the per-draw solve over 2,000 draws (seed 3, test_gauss_newton.py's draws): extended 1.6e-6 u before
   and after, geometric 1.3e-5 u (unchanged), thesis 7.7e-6 / 9.0e-6 u (given / registered base, unchanged).
