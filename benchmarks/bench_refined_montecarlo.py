@@ -58,6 +58,22 @@ Issue 23 (2026-11-28, ``--draws 20000 --loop 30 --workers 2``, 3 alternated roun
 385f86a 10,995-13,686 (median 13,410, -8.6 %); CPU per draw 0.123-0.142 / 0.140-0.155 / 0.136-0.156 ms. The
 draws themselves are unchanged; ~0.1 s of pool start and shutdown is ~7 % of these 1.5 s (bench_montecarlo.py).
 
+Issue 31, the extended model's corrective steps with the shared matrix (2026-11-29, 2-core machine shared with
+other jobs, load average 1.5-4, so CPU figures; f71863b before, this change after):
+
+- ``--draws 5000 --workers 1 --solvers gauss-newton`` (one run each, process CPU per draw): geometric 60 -> 60 us
+  (unchanged: the draws are bit-identical), extended 590 -> 180 us (its first batches included; before, their
+  per-point Jacobians of ~5 MB each made the first batches about twice as slow as the next);
+- ``draw_block`` of the demo's deployed model, 2,000 draws, one process, one thread, min of 3 after a warm-up,
+  before and after alternated: 309-317 -> 146-153 us per draw (noise + CPA + refinement; the refinement alone
+  ~280 -> ~120 us), geometric 50-59 -> 50-60 us; Gauss-Newton batches of 64 extended draws instead of 32:
+  164-165 against 176-178 us per draw (``draws.EXTENDED_GAUSS_NEWTON_BATCH``, the same draws bit for bit);
+- every extended draw: one evaluation of its own gradient (before: of its own normal equations), no fallback;
+- distance to the per-draw solve over 2,000 draws (seed 3, test_gauss_newton.py's draws): extended 1.6e-6 u before
+  and after, geometric 1.3e-5 u (unchanged), thesis 7.7e-6 / 9.0e-6 u (given / registered base, unchanged).
+- profile of an extended draw after: the chain of link frames point by point (about a third), the gradient's
+  dot and cross products, the shared first step's product, CPA.
+
 Figures formerly in the docs, moved here by issue 30 (the docs say what dominates a cost; measured times
 live here, with their machine):
 
@@ -102,10 +118,10 @@ import numpy as np
 from bench_montecarlo import whole_command  # sibling script (this folder is on sys.path when run as one)
 
 from robotcal.api import link_masses, monte_carlo_problem, perturb
-from robotcal.identification.model_choice import joint_model_for
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.execution import single_blas_thread
 from robotcal.identification.cpa import identify_cpa_batch
+from robotcal.identification.model_choice import joint_model_for
 from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import RefinementSettings
 from robotcal.io import load_scenario

@@ -40,6 +40,10 @@ REFINE_BATCH = 500
 #: working arrays are ``(3, batch, points)``; at 32 draws x 300 points they stay a few hundred kB, which the cache
 #: and the allocator reuse (faster per draw than batches of 100: the record in benchmarks/bench_extended.py).
 EXTENDED_REFINE_BATCH = 32
+#: The same for the extended model's Gauss-Newton draws, whose corrective steps form no per-point Jacobian (arrays of
+#: ``(3, batch, points)`` only): 64 draws take about 7 % less CPU per draw than 32 (issue 31's record in
+#: benchmarks/bench_refined_montecarlo.py).
+EXTENDED_GAUSS_NEWTON_BATCH = 64
 
 
 def _block_generators(seed: int, block: int) -> tuple[np.random.Generator, np.random.Generator]:
@@ -175,7 +179,10 @@ def _refine_draws(model: RefinedModel, points: np.ndarray, batch, solver: str = 
     n_draws = batch.values.shape[0]
     m = 0 if model.joint_model is None else model.joint_model.size
     out = np.empty((n_draws, batch.values[0].size + m))
-    size = REFINE_BATCH if model.joint_model is None else EXTENDED_REFINE_BATCH
+    if model.joint_model is None:
+        size = REFINE_BATCH
+    else:
+        size = EXTENDED_GAUSS_NEWTON_BATCH if solver == "gauss-newton" else EXTENDED_REFINE_BATCH
     for start, count in _chunks(points.shape[0], size):
         part = slice(start, start + count)
         refined = solve(model, points[part], batch.values[part], batch.tracker_from_base[part])

@@ -11,14 +11,33 @@ the draws are solved by Gauss-Newton from ``x0``:
 1. one step with the Jacobian ``J0`` at ``x0``, the same for every draw: ``dz_b = -J0_s^+ r_b(x0)`` with ``J0_s^+``
    the pseudo-inverse of the scaled Jacobian, one matrix product for all draws (the first-order estimator that the
    law of propagation of JCGM 101 §5.9 linearises; thesis eq. 5-3);
-2. corrective Gauss-Newton iterations with every draw's own Jacobian (the batched normal equations of
-   :mod:`robotcal.uncertainty.refined_kernel`) until every component of the step is below :data:`STEP_TOLERANCE`
-   (1e-3) of that unknown's linearised standard uncertainty (:attr:`RefinedModel.step_tolerance`; without it the
-   rule of ``refine_batch``, ``|dz| <= xtol (1 + |z|)``); the step is taken: the same fixed point as the per-draw
-   solve, within ~1e-5 u;
+2. corrective iterations with every draw's own gradient ``g(x) = J_s(x)^T r(x)`` until every component of the step
+   is below :data:`STEP_TOLERANCE` (1e-3) of that unknown's linearised standard uncertainty
+   (:attr:`RefinedModel.step_tolerance`; without it the rule of ``refine_batch``, ``|dz| <= xtol (1 + |z|)``); the
+   step is taken. The geometric model takes Gauss-Newton steps ``dz = -(J_s^T J_s)^-1 g`` with every draw's own
+   normal equations (:mod:`robotcal.uncertainty.refined_kernel`, where they cost little more than the gradient);
+   the extended model, whose per-draw Jacobian is formed point by point, keeps the shared matrix:
+   ``dz = -(J0_s^T J0_s)^-1 g(x)``, with ``g`` evaluated in reverse form without the Jacobian
+   (:meth:`~robotcal.uncertainty.refined_kernel._PointBatch.gradient`), when :func:`_contraction` allows (below);
 3. a draw whose step does not shrink (``|dz_k| > |dz_{k-1}| / 2``), whose cost rises, that is not converged after
    ``max_corrections`` corrective evaluations, or that turns non-finite is solved again by ``refine_batch`` from its
    own CPA estimate (the fallback): the shortcut never decides a draw's value on its own.
+
+The extended model's corrective step is the chord (simplified Newton) method (Dennis & Schnabel 1996;
+Bjorck 1996, §9.2) applied to the normal equations ``g(x) = 0`` with the fixed matrix ``A0 = J0_s^T J0_s`` in
+place of the Gauss-Newton matrix. Its fixed point is where the draw's own gradient vanishes, the least-squares
+solution itself; the iteration only converges more slowly: to first order the distance left after a step is
+``M(x) e`` with ``M(x) = I - A0^-1 J_s(x)^T J_s(x)`` (besides the residuals' second-order term, which plain
+Gauss-Newton has as well). ``M`` grows linearly with the draw's distance from ``x0``, and where the problem is
+nearly degenerate (the thesis capture with a registered base frame) it is far from normal: one step may leave
+0.4 of the distance although its eigenvalues are ten times smaller. It is therefore bounded per problem, once, in
+the u-weighted maximum-row-sum norm over probes along every direction (:func:`_contraction`), and the shared
+matrix used only where the bound is at most :data:`MAX_CONTRACTION`: a draw whose last step is below the stopping
+rule then lies within ``0.05 * 1e-3`` u of its solution (the demo's deployed model: a bound of 0.014). Iterating
+on the residuals alone with the shared Jacobian, ``dz = -J0_s^+ r(x)``, would need no gradient, but its fixed point
+``J0^T r = 0`` differs from ``J(x)^T r = 0`` by ``(J0_s^T J0_s)^-1 (J(x) - J0)^T r``, second order in the noise
+like the first step's own error: measured 4e-4 u (demo's deployed model) and 2e-3 u (thesis capture), no closer
+than the first step.
 
 Parameters the noise-free refinement holds keep every draw's CPA value, as in ``refine_batch``. The one-product
 first step needs the residuals of every draw at ``x0`` to differ only by the measurements: the held parameters equal
@@ -30,7 +49,8 @@ loops (the first step) or the kernel's products, so a draw's value does not depe
 References
 ----------
 JCGM 101:2008 §5.9, §7 (the Monte Carlo method); thesis ch. 4.5.7 (eqs 4-101, 4-102) and ch. 5.2.3; Bjorck,
-Numerical Methods for Least Squares Problems (1996), §9.2 (Gauss-Newton).
+Numerical Methods for Least Squares Problems (1996), §9.2 (Gauss-Newton and its variants); Dennis & Schnabel,
+Numerical Methods for Unconstrained Optimization and Nonlinear Equations (1996) (the chord method).
 """
 
 from __future__ import annotations
@@ -64,6 +84,13 @@ __all__ = ["refine_draws_gauss_newton"]
 #: the 0.01 u to which the Monte Carlo's u and interval ends are compared, and below JCGM 101 §7.9's numerical
 #: tolerance of two significant digits.
 STEP_TOLERANCE = 1e-3
+#: The largest :func:`_contraction` for which the corrective steps use the shared matrix: a draw then lies within
+#: ``MAX_CONTRACTION * STEP_TOLERANCE`` u (5e-5 u) of its least-squares solution after its last step.
+MAX_CONTRACTION = 0.05
+#: The probes of :func:`_contraction`, in standard deviations of the draws along every direction.
+_PROBE_SIGMA = 3.0
+#: The draws' reach along every direction at once in the bound of :func:`_contraction`, in standard deviations.
+_DRAW_SIGMA = 4.0
 #: A corrective step longer than this fraction of the previous step is not converging: the draw falls back.
 _SHRINK = 0.5
 #: A cost above the previous one by more than this relative amount (rounding at the optimum) is rising.
@@ -101,7 +128,9 @@ def refine_draws_gauss_newton(
         step = _first_step(model, problem, measured)
         x += step * model.x_scale
         previous = np.linalg.norm(step, axis=1)
-    ok, iterations, cost = _correct(problem, x, previous, max_corrections)
+    shared = _shared(model)
+    inverse_normal = shared.inverse_normal if shared.contraction <= MAX_CONTRACTION else None
+    ok, iterations, cost = _correct(problem, x, previous, max_corrections, inverse_normal)
     result = batch_outcome(problem, x, ok, iterations, cost)
     fallback = ~ok
     if not fallback.any():
@@ -157,7 +186,46 @@ def shared_step(model: RefinedModel) -> SharedStep:
         diff = points[i] - points[j]
         value = np.linalg.norm(diff, axis=1)
         rows = np.einsum("pc,pck->pk", diff / value[:, None], jacobian[i] - jacobian[j])
-    return SharedStep(value=value, order=order, projector=np.linalg.pinv(rows * model.x_scale))
+    projector = np.linalg.pinv(rows * model.x_scale)
+    inverse_normal = projector @ projector.T
+    contraction = _contraction(model, inverse_normal)
+    return SharedStep(
+        value=value, order=order, projector=projector, inverse_normal=inverse_normal, contraction=contraction
+    )
+
+
+def _contraction(model: RefinedModel, inverse_normal: np.ndarray) -> float:
+    """The bound ``eta`` on ``|e_{k+1}| <= eta |e_k|`` (largest component, in units of u) of a corrective step with
+    the shared matrix, over the draws' spread (the module notes); inf for the geometric model or without
+    :attr:`RefinedModel.step_tolerance`.
+
+    The linearised iteration matrix at the draw's unknowns ``x`` is ``M(x) = I - (J0_s^T J0_s)^-1 J_s(x)^T J_s(x)``
+    (the residuals' second-order term left aside: plain Gauss-Newton has it too). It vanishes at ``x0`` and grows
+    linearly with ``x - x0``; it is evaluated at ``x0 +- PROBE_SIGMA s_i`` along every eigenvector of
+    ``J0_s^T J0_s`` (``s_i`` the draws' standard deviation along it), each taken per standard deviation in the
+    u-weighted maximum-row-sum norm, and summed with a weight of ``DRAW_SIGMA`` standard deviations each (the
+    triangle inequality: a draw that far out along every direction at once).
+    """
+    if model.joint_model is None or model.step_tolerance is None:
+        return float("inf")
+    n_free = model.n_free
+    u = model.step_tolerance / STEP_TOLERANCE  # the linearised standard uncertainties, scaled unknowns
+    variance = float(np.median(u**2 / np.diag(inverse_normal)))  # the covariance is ~ variance (J0_s^T J0_s)^-1
+    eigenvalues, vectors = np.linalg.eigh(np.linalg.pinv(inverse_normal))
+    spread = np.sqrt(variance / np.clip(eigenvalues, np.finfo(float).tiny, None)) * vectors  # columns: s_i
+    probes = reference_unknowns(model) + np.concatenate([spread.T, -spread.T]) * (_PROBE_SIGMA * model.x_scale)
+    count = probes.shape[0]
+    base = None if model.reference_tracker is None else np.broadcast_to(model.reference_tracker, (count, 4, 4))
+    values = np.broadcast_to(model.reference_values, (count,) + model.reference_values.shape)
+    problem = _PointBatch(model, np.zeros((count, model.q.shape[0], 3)), values, base)
+    _, normal, _ = problem.normal_equations(probes, np.arange(count))
+    iteration = np.eye(n_free) - inverse_normal @ normal  # (2 p, p, p)
+    norms = np.abs(iteration * (u[None, :] / u[:, None])).sum(axis=2).max(axis=1) / _PROBE_SIGMA
+    return float(_DRAW_SIGMA * norms.reshape(2, n_free).max(axis=0).sum())
+
+
+def _shared(model: RefinedModel) -> SharedStep:
+    return model.shared_step if model.shared_step is not None else shared_step(model)
 
 
 def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarray:
@@ -167,7 +235,7 @@ def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarra
     tracker-frame residuals turned by the orthonormal ``R0``: the same least-squares problem). Distances:
     ``r_b = |p_i - p_j| (x0) - |m_i - m_j|`` over the pairs (the draws' measured distances of ``problem``).
     """
-    shared = model.shared_step if model.shared_step is not None else shared_step(model)
+    shared = _shared(model)
     if model.criterion == "points":
         assert model.reference_tracker is not None  # the points criterion's refinement has its base frame
         rotation, shift = model.reference_tracker[:3, :3], model.reference_tracker[:3, 3]
@@ -179,13 +247,14 @@ def _first_step(model: RefinedModel, problem, measured: np.ndarray) -> np.ndarra
     return -np.einsum("bk,pk->bp", residuals, shared.projector)
 
 
-def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int):
-    """Corrective Gauss-Newton iterations in place on ``x``: per-draw normal equations, the step taken while it
-    shrinks and the cost does not rise. Returns ``converged (B,)``, ``iterations (B,)`` and ``cost (B,)``."""
+def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int, inverse_normal: np.ndarray | None):
+    """Corrective iterations in place on ``x``: every draw's own gradient ``J_s(x)^T r(x)`` and its own normal
+    matrix, or the shared ``(J0_s^T J0_s)^-1`` (``inverse_normal``), the step taken while it shrinks and the cost
+    does not rise. Returns ``converged (B,)``, ``iterations (B,)`` and ``cost (B,)``."""
     model = problem.model
     scale, eye = model.x_scale, np.eye(model.n_free)
     n_draws = x.shape[0]
-    cost, normal, gradient = _evaluate(problem, x, np.arange(n_draws))
+    cost, normal, gradient = _evaluate(problem, x, np.arange(n_draws), inverse_normal is None)
     iterations = np.ones(n_draws, dtype=int)
     converged = np.zeros(n_draws, dtype=bool)
     failed = ~np.isfinite(cost)
@@ -193,7 +262,10 @@ def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int)
         active = np.flatnonzero(~converged & ~failed)
         if active.size == 0:
             break
-        step = _pad_one(active, lambda work: _lm_step(normal[work], gradient[work], np.zeros(work.size), eye))
+        if inverse_normal is None:
+            step = _pad_one(active, lambda work: _lm_step(normal[work], gradient[work], np.zeros(work.size), eye))
+        else:  # einsum's own loops, not BLAS: every draw's sums in the same order whatever the batch
+            step = -np.einsum("bk,pk->bp", gradient[active], inverse_normal)
         size = np.linalg.norm(step, axis=1)
         if model.step_tolerance is None:
             small = size <= model.xtol * (1.0 + np.linalg.norm(x[active] / scale, axis=1))
@@ -208,23 +280,30 @@ def _correct(problem, x: np.ndarray, previous: np.ndarray, max_corrections: int)
             break
         active, step, size = active[going], step[going], size[going]
         trial = x[active] + step * scale
-        new_cost, new_normal, new_gradient = _evaluate(problem, trial, active)
+        new_cost, new_normal, new_gradient = _evaluate(problem, trial, active, inverse_normal is None)
         iterations[active] += 1
         better = np.isfinite(new_cost) & (new_cost <= cost[active] * (1.0 + _COST_SLACK))
         failed[active[~better]] = True
         accepted = active[better]
         x[accepted], previous[accepted] = trial[better], size[better]
-        cost[accepted], normal[accepted], gradient[accepted] = (
-            new_cost[better],
-            new_normal[better],
-            new_gradient[better],
-        )
+        cost[accepted], gradient[accepted] = new_cost[better], new_gradient[better]
+        if normal is not None:
+            normal[accepted] = new_normal[better]
     failed |= ~np.isfinite(x).all(axis=1)
     return converged & ~failed, iterations, cost
 
 
-def _evaluate(problem, x: np.ndarray, index: np.ndarray):
-    """The normal equations of the draws ``index`` at ``x``; a lone draw as a stack of two (see ``refine_batch``)."""
-    if index.size == 1:
-        return tuple(item[:1] for item in problem.normal_equations(np.r_[x, x], np.r_[index, index]))
-    return problem.normal_equations(x, index)
+def _evaluate(problem, x: np.ndarray, index: np.ndarray, with_normal: bool):
+    """Cost, normal matrix (None unless ``with_normal``) and gradient of the draws ``index`` at ``x``; a lone draw
+    as a stack of two (see ``refine_batch``)."""
+    lone = index.size == 1
+    if lone:
+        x, index = np.r_[x, x], np.r_[index, index]
+    if with_normal:
+        cost, normal, gradient = problem.normal_equations(x, index)
+    else:
+        (cost, gradient), normal = problem.gradient(x, index), None
+    if lone:
+        cost, gradient = cost[:1], gradient[:1]
+        normal = None if normal is None else normal[:1]
+    return cost, normal, gradient

@@ -42,11 +42,19 @@ class SharedStep:
         The capture row of every point of ``value``.
     projector : ndarray, shape (p, K)
         ``J0_s^+``, the pseudo-inverse of the scaled Jacobian at ``x0`` (K = 3 N or n_pairs).
+    inverse_normal : ndarray, shape (p, p)
+        ``(J0_s^T J0_s)^-1 = J0_s^+ (J0_s^+)^T``: the matrix of the corrective steps when ``contraction`` allows.
+    contraction : float
+        A bound on how much a corrective step with ``inverse_normal`` leaves of a draw's distance to its solution, in
+        units of u (:func:`robotcal.uncertainty.gauss_newton._contraction`); inf where not measured (geometric model,
+        no stopping rule in u).
     """
 
     value: np.ndarray
     order: np.ndarray
     projector: np.ndarray
+    inverse_normal: np.ndarray
+    contraction: float
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -187,6 +195,7 @@ def _kinematics(
     *,
     joint_twists: bool = False,
     component_major: bool = False,
+    record: list | None = None,
 ):
     """Carrier frames and the twists of the free kinematic parameters, per group of points.
 
@@ -201,6 +210,10 @@ def _kinematics(
     every joint variable, ``d p / d q_j`` (theta's axis), for every joint that moves the target (for a
     per-joint target the one that turns it too). ``component_major``: the arrays as composed, components first:
     ``frame (4, 3, B, U)`` (columns x, y, z and the origin), ``twists (6, n_kin, B, U)``, ``turns (6, n, B, U)``.
+    ``record``: a list to which every joint's ``(z_B, o_B, x', y_F, o_F)`` ``(3, B, U')`` each are appended (the axes
+    and anchors of its twists; :meth:`_PointBatch.gradient`). Without twists, on groups in falling order of
+    ``carrier``, the chain drops the groups whose frame it has reached: ``U'`` counts the groups whose carrier is at
+    or after the joint (``z_B``, ``o_B``) or after it (the others), the leading ones.
 
     The chain ``F_{j+1} = F_j Rz(theta_j + q_j) Tz(d_j) Tx(a_j) Rx(alpha_j) Ry(beta_j)`` (the link of
     :func:`robotcal.kinematics.forward.link_transforms`) is composed column by column on ``(3, B, U)``
@@ -211,7 +224,6 @@ def _kinematics(
     units = config_q.shape[-2]
     # per-joint link terms, joint-major: (n, B, U) for the turning angle, (n, 1, B, 1) for the others
     angle = np.moveaxis(values[:, None, :, 1] + (config_q[None] if config_q.ndim == 2 else config_q), -1, 0)
-    cos_t, sin_t = np.cos(angle), np.sin(angle)
     link = values.T[:, :, None, :, None]  # (5, n, 1, B, 1)
     d, a = link[0], link[2]
     cos_a, sin_a, cos_b, sin_b = np.cos(link[3]), np.sin(link[3]), np.cos(link[4]), np.sin(link[4])
@@ -223,21 +235,29 @@ def _kinematics(
     turns = np.zeros((6, n_joints, batch, units)) if joint_twists else None
     free_joint, free_kind = np.nonzero(free)
     factor = np.ones(free_joint.size) if scale is None else np.asarray(scale, dtype=float)[: free_joint.size]
+    # without twists, groups in falling order of their carrier leave the chain once their frame is reached
+    shrink = free_joint.size == 0 and turns is None and bool(np.all(np.diff(carrier) <= 0))
     for joint in range(n_joints + 1):
         here = carrier == joint
         if here.any():
             for slot, vector in enumerate((x_axis, y_axis, z_axis, origin)):
-                carried[slot][..., here] = vector[..., here]
+                carried[slot][..., here] = vector[..., here[: vector.shape[-1]]]
         if joint == n_joints:
             break
         if turns is not None:  # d p / d q_j: a turn about z_B through o_B, for the targets joint j moves
             moved = (joint < carrier) | ((joint == carrier) & (carrier < n_joints))
             turns[:3, joint] = np.where(moved, z_axis, 0.0)
             turns[3:, joint] = np.where(moved, _cross3(origin, z_axis), 0.0)
-        x_c = cos_t[joint] * x_axis + sin_t[joint] * y_axis  # x axis of F_j Rz(theta_j + q_j): the common normal
-        y_c = cos_t[joint] * y_axis - sin_t[joint] * x_axis
+        z_base, o_base = z_axis, origin  # every group that reaches joint j (its turn moves per-joint targets)
+        width = int(np.count_nonzero(carrier > joint)) if shrink else units  # the groups carried further
+        x_axis, y_axis, z_axis, origin = (v[..., :width] for v in (x_axis, y_axis, z_axis, origin))
+        cos_t, sin_t = np.cos(angle[joint][..., :width]), np.sin(angle[joint][..., :width])
+        x_c = cos_t * x_axis + sin_t * y_axis  # x axis of F_j Rz(theta_j + q_j): the common normal
+        y_c = cos_t * y_axis - sin_t * x_axis
         o_after = origin + d[joint] * z_axis + a[joint] * x_c
         y_after = cos_a[joint] * y_c + sin_a[joint] * z_axis
+        if record is not None:
+            record.append((z_base, o_base, x_c, y_after, o_after))
         z_alpha = cos_a[joint] * z_axis - sin_a[joint] * y_c
         for column in np.flatnonzero(free_joint == joint):
             kind = free_kind[column]
@@ -273,6 +293,11 @@ def _kinematics(
 def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross products of vectors stored component-first, ``(3, ...)``."""
     return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot products of vectors stored component-first, ``(3, ...)``: element-wise, the same in any batch."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def _points(model: RefinedModel, rotation: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -523,6 +548,8 @@ class _PointBatch:
         self.measured = measured
         assert model.joint_columns is not None  # this batch serves the models with a joint model
         self.columns = model.joint_columns[:, :, model.extra_free]  # (N, n, m_free)
+        # the points in falling order of their carrier: the gradient's chain drops each once its frame is reached
+        self.by_carrier = np.argsort(-model.carrier, kind="stable")
         if model.criterion == "distances":
             diff = measured[:, model.pair_i] - measured[:, model.pair_j]
             self.distances = np.sqrt(np.einsum("bpc,bpc->bp", diff, diff))
@@ -559,14 +586,7 @@ class _PointBatch:
         frame, twists, turns = _kinematics(
             q, carrier, model.free, values, model.x_scale, joint_twists=True, component_major=True
         )  # fmt: skip
-        local = np.broadcast_to(model.vectors.T[:, None, :], (3,) + q.shape[:2]).copy()  # (3, B, N)
-        on_joint = np.flatnonzero(carrier < model.free.shape[0])
-        if on_joint.size:  # a per-joint target turned by its own (deflected) joint, eq. 5-1
-            angle = q[:, on_joint, carrier[on_joint]]
-            cos, sin = np.cos(angle), np.sin(angle)
-            x_part, y_part = local[0][:, on_joint], local[1][:, on_joint]
-            local[0][:, on_joint], local[1][:, on_joint] = cos * x_part - sin * y_part, sin * x_part + cos * y_part
-        points = frame[0] * local[0] + frame[1] * local[1] + frame[2] * local[2] + frame[3]  # (3, B, N)
+        points = self._carried_points(frame, q, np.arange(q.shape[1]))
         beside = points[:, None]
         parts = [twists[3:] + _cross3(twists[:3], beside)]
         if model.n_extra:  # d p / d e = sum_j (d p / d q_j) C_j
@@ -578,6 +598,72 @@ class _PointBatch:
             base = np.moveaxis(base, 0, -1)[..., None]  # (6, nb, B, 1)
             parts.append(base[3:] + _cross3(base[:3], beside))
         return points, np.concatenate(parts, axis=1)
+
+    def _carried_points(self, frame: np.ndarray, q: np.ndarray, order: np.ndarray) -> np.ndarray:
+        """Base-frame points ``(3, B, N)`` from the carrier frames ``(4, 3, B, N)`` and the deflected joints ``q`` of
+        the points ``order`` of the capture."""
+        model, carrier = self.model, self.model.carrier[order]
+        local = np.broadcast_to(model.vectors[order].T[:, None, :], (3,) + q.shape[:2]).copy()  # (3, B, N)
+        on_joint = np.flatnonzero(carrier < model.free.shape[0])
+        if on_joint.size:  # a per-joint target turned by its own (deflected) joint, eq. 5-1
+            angle = q[:, on_joint, carrier[on_joint]]
+            cos, sin = np.cos(angle), np.sin(angle)
+            x_part, y_part = local[0][:, on_joint], local[1][:, on_joint]
+            local[0][:, on_joint], local[1][:, on_joint] = cos * x_part - sin * y_part, sin * x_part + cos * y_part
+        return frame[0] * local[0] + frame[1] * local[1] + frame[2] * local[2] + frame[3]
+
+    def gradient(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cost ``(B,)`` and ``J_s^T r`` ``(B, p)`` without forming the Jacobian (points criterion; distances: the
+        gradient of :meth:`normal_equations`).
+
+        Column ``c`` of the Jacobian at point k is the twist ``(omega, o x omega)`` of its screw axis (or ``(0, v)``)
+        applied to ``p_k`` (:func:`_kinematics`), so its product with the error ``e_k`` is
+        ``omega . (p_k x e_k - o x e_k)`` (``v . e_k``): per joint two arms ``p x e - o x e`` (anchors ``o_B``,
+        ``o_F``), per column one dot product summed over the points. The joint model's column m is
+        ``sum_j C_jm dp/dq_j``, and ``dp/dq_j . e`` is theta_j's dot product.
+        """
+        model = self.model
+        if model.criterion != "points":
+            cost, _, gradient = self.normal_equations(x, index)
+            return cost, gradient
+        values, extras, x_base = self.unpack(x, index)
+        order, n_kin, n_extra = self.by_carrier, model.n_kinematic, model.n_extra
+        columns = self.columns[order]
+        deflection = np.zeros((x.shape[0],) + model.q.shape)  # C(q) e, (B, N, n): a few products, not an einsum
+        for value, column in zip(extras.T, np.moveaxis(columns, -1, 0), strict=True):
+            deflection += column * value[:, None, None]
+        q = model.q[order] + deflection  # the deflected joints
+        carrier = model.carrier[order]
+        record: list = []
+        frame, _, _ = _kinematics(q, carrier, np.zeros_like(model.free), values, component_major=True, record=record)
+        points = self._carried_points(frame, q, order)
+        target = self._in_base(index, x_base) if model.base_free.any() else _rows(self.in_base, index)
+        error = points - np.moveaxis(target[:, order], -1, 0)  # (3, B, N)
+        moment = _cross3(points, error)
+        gradient = np.empty((x.shape[0], model.n_free))
+        free_joint, free_kind = np.nonzero(model.free)
+        weighted = np.zeros((n_extra,) + q.shape[:2]) if n_extra else None  # (m, B, N)
+        weights = np.moveaxis(columns * model.x_scale[n_kin : n_kin + n_extra], 0, -1)  # (n, m, N)
+        for joint, (z_axis, origin, x_c, y_after, o_after) in enumerate(record):
+            # the points joint j carries further (the first ``moved``), then those it turns (per-joint targets)
+            reached, moved = z_axis.shape[-1], x_c.shape[-1]
+            about_origin = moment[..., :reached] - _cross3(origin, error[..., :reached])
+            about_after = moment[..., :moved] - _cross3(o_after, error[..., :moved])
+            arms = {0: (z_axis, error), 1: (z_axis, about_origin), 2: (x_c, error), 3: (x_c, about_after)}
+            arms[4] = (y_after, about_after)
+            for column in np.flatnonzero(free_joint == joint):
+                axis, arm = arms[free_kind[column]]
+                gradient[:, column] = _dot3(axis[..., :moved], arm[..., :moved]).sum(axis=-1) * model.x_scale[column]
+            if weighted is not None:  # d cost / d q_j at every point it moves
+                weighted[..., :reached] += _dot3(z_axis, about_origin) * weights[joint][:, None, :reached]
+        if weighted is not None:
+            gradient[:, n_kin : n_kin + n_extra] = weighted.sum(axis=-1).T
+        if model.base_free.any():
+            base = _base_twists(model, x_base) * model.x_scale[n_kin + n_extra :]  # (B, 6, nb)
+            total_moment, total_error = moment.sum(axis=-1), error.sum(axis=-1)  # (3, B)
+            omega, v = np.moveaxis(base[:, :3], 1, 0), np.moveaxis(base[:, 3:], 1, 0)  # (3, B, nb)
+            gradient[:, n_kin + n_extra :] = _dot3(omega, total_moment[..., None]) + _dot3(v, total_error[..., None])
+        return 0.5 * _dot3(error, error).sum(axis=-1), gradient
 
     def normal_equations(self, x: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cost ``(B,)``, ``J_s^T J_s`` ``(B, p, p)`` and ``J_s^T r`` ``(B, p)`` (scaled columns)."""

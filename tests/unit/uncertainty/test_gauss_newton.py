@@ -22,9 +22,10 @@ from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.model_choice import joint_model_for
 from robotcal.io import load_scenario
 from robotcal.uncertainty.draws import _block_generators, _noise, draw_block
-from robotcal.uncertainty.gauss_newton import refine_draws_gauss_newton
+from robotcal.uncertainty.gauss_newton import MAX_CONTRACTION, refine_draws_gauss_newton
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 from robotcal.uncertainty.refined import refine_batch
+from robotcal.uncertainty.refined_kernel import _PointBatch, reference_unknowns
 from robotcal.uncertainty.statistics import summarize_draws
 
 #: Draw-for-draw agreement, in units of each output's standard uncertainty (see the module notes).
@@ -132,3 +133,42 @@ def test_extended_gauss_newton_draws_do_not_depend_on_the_batch():
         reference = draw_block(problem, 9, 1, 7, 7)
         for batch_size in (1, 3):
             np.testing.assert_array_equal(draw_block(problem, 9, 1, 7, batch_size), reference)
+
+
+@pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")
+@pytest.mark.parametrize("base_free", [False, True])
+def test_extended_gradient_in_reverse_form_equals_the_normal_equations(base_free):
+    problem = _demo_deployed()
+    model = problem.refined
+    if base_free:
+        model = dataclasses.replace(model, base_free=np.ones(6, bool), x_scale=np.r_[model.x_scale, np.ones(6)])
+    rng, _ = _block_generators(4, 0)
+    points = problem.exact_points + _noise(problem, 5, rng)
+    cpa = identify_cpa_batch(points[:, : problem.n_circle], problem.structure, problem.tracker_from_base)
+    batch = _PointBatch(model, points, cpa.values, cpa.tracker_from_base)
+    x = reference_unknowns(model) + 1e-3 * rng.standard_normal((5, model.n_free)) * model.x_scale
+    cost, _, gradient = batch.normal_equations(x, np.arange(5))
+    reverse_cost, reverse_gradient = batch.gradient(x, np.arange(5))
+    np.testing.assert_allclose(reverse_cost, cost, rtol=1e-12)
+    np.testing.assert_allclose(reverse_gradient, gradient, rtol=1e-10, atol=1e-12 * np.abs(gradient).max())
+
+
+@pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")
+def test_shared_matrix_only_where_its_contraction_is_bounded():
+    # the demo's deployed model: the corrective steps use the shared (J0^T J0)^-1 (the draws equal to the per-draw
+    # solve: test_demo_deployed_model_gauss_newton_equals_the_per_draw_solve)
+    assert _demo_deployed().refined.shared_step.contraction <= MAX_CONTRACTION
+    # its base frame registered: the rotations about x and y against the first joint make the chord iteration slow;
+    # the draws' own normal equations are solved instead, and still equal the per-draw solve
+    scenario = load_scenario("kr5-demo")
+    options = dataclasses.replace(scenario.identification, base_frame="registered")
+    structure = joint_model_for("compliance", scenario.robot, masses=link_masses(scenario))
+    truth = perturb(scenario, rng=11).replace(joint_model=structure.with_values([1e-5, 4e-5]))
+    problem = monte_carlo_problem(
+        dataclasses.replace(scenario, identification=options), model="refined", parameters=truth, joint_model=structure
+    )
+    assert problem.refined.base_free.all() and problem.refined.shared_step.contraction > MAX_CONTRACTION
+    gauss_newton, per_draw = _both_ways(problem, 12, 6)
+    u = np.std(per_draw, axis=0)
+    varies = u > 0
+    assert np.all(np.abs(gauss_newton - per_draw)[:, varies] <= PER_DRAW * u[varies])
