@@ -1,6 +1,7 @@
 # The public names of robotcal.uncertainty and the module that defines each: read at run time by lazy_loader (a
 # name loads its module on first use) and by type checkers and IDEs. The one list of its names.
 from .consistency import check_validation_consistency as check_validation_consistency
+from .consistency import observed_errors as observed_errors
 from .coverage import COVERAGE_METHODS as COVERAGE_METHODS
 from .coverage import CoverageStudy as CoverageStudy
 from .coverage import ExtendedCoverage as ExtendedCoverage
