@@ -124,6 +124,13 @@ def prepare_refined_model(
     """
     if criterion not in CRITERIA:
         raise InputError(f"`criterion` must be one of {CRITERIA}; got {criterion!r}")
+    if capture.session is not None or capture.orientation is not None:
+        # the draws' kernel composes one base frame and positions only: it would be silently wrong here
+        raise InputError(
+            f"{capture.source}: the refined Monte Carlo of a simulated capture plan models one tracker station and "
+            "positions only; a capture with sessions or probe orientations is taken by the measured Monte Carlo "
+            "(robotcal uncertainty --capture, robotcal.measured_monte_carlo)"
+        )
     robot = start.robot
     carrier, vectors, pair_key = _carriers(capture, reflector, robot.n_joints)
     with warnings.catch_warnings():
