@@ -355,12 +355,4 @@ def reject_outliers(
                 worst = flagged[np.argsort(residual[flagged])[::-1][:budget]]
                 keep[rows[worst]] = False
     removed = np.flatnonzero(~keep)
-    cleaned = Capture(
-        circle=capture.circle[keep],
-        direction=capture.direction[keep],
-        readings=capture.readings[keep],
-        points=capture.points[keep],
-        source=capture.source,
-        seed=capture.seed,
-    )
-    return cleaned, removed
+    return capture.select(keep), removed  # every column kept (targets, U(95), sessions, orientations)
