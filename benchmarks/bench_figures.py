@@ -56,7 +56,7 @@ import numpy as np
 from robotcal.api import monte_carlo_problem, simulate
 from robotcal.diagnostics import analyze_joints, fit_harmonics
 from robotcal.io import load_robot, load_scenario
-from robotcal.io.trajectory_csv import load_trajectory
+from robotcal.io.formats.trajectory_csv import load_trajectory
 from robotcal.plots.joints import write_joint_figures
 from robotcal.plots.montecarlo import write_histograms
 from robotcal.plots.refine import plot_convergence

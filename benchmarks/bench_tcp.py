@@ -92,7 +92,7 @@ import numpy as np
 from robotcal.api import TABLE_5_8_READINGS_DEG
 from robotcal.errors import JointLimitWarning
 from robotcal.io import load_robot
-from robotcal.io.trajectory_csv import load_trajectory
+from robotcal.io.formats.trajectory_csv import load_trajectory
 from robotcal.uncertainty.tcp import position_covariance, propagate_to_tcp
 from robotcal.uncertainty.workspace import sample_workspace, workspace_uncertainty
 

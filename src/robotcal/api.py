@@ -1,6 +1,6 @@
 """The front door for Python users: one call per thing a user does (docs/api.md).
 
-Every function takes the objects a user already has, explicitly, or a :class:`~robotcal.io.scenario.Scenario` in
+Every function takes the objects a user already has, explicitly, or a :class:`~robotcal.io.schema.scenario.Scenario` in
 place of the robot, which supplies the robot and every keyword the call leaves out (its targets, base frame,
 instrument, capture plan, joint errors, options and seeds), as ``robotcal run`` uses it. Each call resolves its
 defaults once (:mod:`robotcal.resolve`) and calls the core; the command line and the pipeline call these same
@@ -47,7 +47,7 @@ from robotcal.identification.records import RefinementResult
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.scenario import Scenario, TruthTable, repeatability_of
+from robotcal.io.schema.scenario import Scenario, TruthTable, repeatability_of
 from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel

@@ -19,8 +19,8 @@ from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
-from robotcal.io.robots import load_robot
-from robotcal.io.scenario import Scenario
+from robotcal.io.schema.robots import load_robot
+from robotcal.io.schema.scenario import Scenario
 from robotcal.kinematics.forward import check_joint_variables
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.resolve import (
@@ -37,7 +37,7 @@ from robotcal.uncertainty.tcp import check_readings
 
 if TYPE_CHECKING:
     from robotcal.diagnostics.iso9283 import Iso9283Result
-    from robotcal.io.tracker_import import TrackerPoints
+    from robotcal.io.formats.tracker_import import TrackerPoints
     from robotcal.kinematics.compensation import Compensation, CompensationSettings
     from robotcal.programs.base import Program
     from robotcal.programs.filter import FilteredProgram
@@ -230,7 +230,7 @@ def import_capture(
     generic export; ``delimiter``, ``decimal``, ``encoding``: how to read both files (default detected, utf-8);
     ``target``: the target name of every point, or ``VALUE=NAME,...`` renaming the target column's values.
     Returns the capture (write it with :func:`robotcal.write_capture`) and the export as read (its layout, unit)."""
-    from robotcal.io.tracker_import import join_points_to_readings, read_joint_log, read_tracker_export
+    from robotcal.io.formats.tracker_import import join_points_to_readings, read_joint_log, read_tracker_export
 
     n_joints = None if robot is None else split_robot(robot)[0].n_joints
     # names are checked after the join (a target column in either file may tell points apart)
@@ -266,8 +266,8 @@ def export_model(
     """
     import json
 
-    from robotcal.io import export as formats
-    from robotcal.io.parameters_json import parameters_to_dict
+    from robotcal.io.formats import export as formats
+    from robotcal.io.formats.parameters_json import parameters_to_dict
 
     if isinstance(parameters, RobotModel):
         parameters = ParameterSet.nominal(parameters)

@@ -1,6 +1,6 @@
 """How the front door (:mod:`robotcal.api`) resolves its arguments, once, before it calls the core.
 
-A call takes explicit objects or a :class:`~robotcal.io.scenario.Scenario` in place of the robot; these functions
+A call takes explicit objects or a :class:`~robotcal.io.schema.scenario.Scenario` in place of the robot; these functions
 turn what was given into what the core takes: the robot and the scenario of a ``robot`` argument, a capture from a
 Capture or a CSV path, parameters from a ParameterSet, a result or a JSON path, an ``rng`` into an int seed, and a
 scenario's tables into the targets, the masses and the TCP poses (``[tcp]``) its captures and stages need. Numbers
@@ -24,9 +24,9 @@ from robotcal.errors import InputError, JointLimitWarning
 from robotcal.identification.settings import ModelChoiceSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.robots import load_robot
-from robotcal.io.scenario import CalibrationPosesTable, JointModelTable, Scenario, TCPTable, ValidationTable
-from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory
+from robotcal.io.formats.trajectory_csv import builtin_trajectories, load_trajectory
+from robotcal.io.schema.robots import load_robot
+from robotcal.io.schema.scenario import CalibrationPosesTable, JointModelTable, Scenario, TCPTable, ValidationTable
 from robotcal.kinematics.model import LinkMasses, ParameterSet, ReflectorMount, RobotModel
 from robotcal.limits import SEED_BOUND
 from robotcal.uncertainty.tcp import check_readings
@@ -150,7 +150,7 @@ def as_capture(capture: Capture | str | os.PathLike, robot: RobotModel, name: st
     if isinstance(capture, Capture):
         return capture
     if isinstance(capture, str | os.PathLike):
-        from robotcal.io.capture_csv import read_capture
+        from robotcal.io.formats.capture_csv import read_capture
 
         return read_capture(capture, n_joints=robot.n_joints)
     raise InputError(f"`{name}` must be a Capture or the path of a capture CSV; got {type(capture).__name__}")
@@ -164,7 +164,7 @@ def as_parameters(parameters: ParameterSource, robot: RobotModel, name: str = "p
     if isinstance(held, ParameterSet):  # CPAResult, RefinementResult
         parameters = held
     elif isinstance(parameters, str | os.PathLike):
-        from robotcal.io.parameters_json import read_parameters
+        from robotcal.io.formats.parameters_json import read_parameters
 
         return read_parameters(parameters, robot)
     if not isinstance(parameters, ParameterSet):
@@ -314,7 +314,7 @@ def parameter_draws(
     source = getattr(draws, "robot", None)
     joint_model = extras = None
     if isinstance(draws, str | os.PathLike):
-        from robotcal.io.draws_npz import read_draws
+        from robotcal.io.formats.draws_npz import read_draws
 
         read = read_draws(draws)
         values, source, joint_model, extras = read.values, read.robot, read.joint_model, read.extras

@@ -25,7 +25,7 @@ from robotcal.errors import InputError
 from robotcal.identification.cpa import CPAOptions
 from robotcal.identification.refine import RefinementResult
 from robotcal.instruments import Instrument
-from robotcal.io.scenario import Scenario
+from robotcal.io.schema.scenario import Scenario
 from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.resolve import (
     ParameterSource,

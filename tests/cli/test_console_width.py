@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 
 from robotcal.cli import app
 from robotcal.io import list_robots, list_scenarios
-from robotcal.io.run_folder import STAGES
+from robotcal.io.results.run_folder import STAGES
 
 runner = CliRunner()
 NARROW = {"COLUMNS": "80"}

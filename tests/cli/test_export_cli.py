@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from robotcal.cli import app
 from robotcal.io import load_robot, read_parameters, write_parameters
-from robotcal.io.export import dh_table, parameters_to_urdf, table_to_csv
+from robotcal.io.formats.export import dh_table, parameters_to_urdf, table_to_csv
 from robotcal.kinematics.model import ParameterSet
 
 runner = CliRunner()
@@ -129,7 +129,7 @@ def test_export_nominal_writes_a_parameter_json_that_reads_back(tmp_path):
     assert invoke("export", out, "--format", "dh", "--out", tmp_path / "dh.csv").exit_code == 0
     assert (tmp_path / "dh.csv").read_text() == table_to_csv(dh_table(ParameterSet.nominal(ROBOT)))
     # a robot TOML by path
-    from robotcal.io.builtins import data_path
+    from robotcal.io.schema.builtins import data_path
 
     toml = data_path("robots", "abb-irb120.toml")
     assert invoke("export", "--nominal", toml, "--out", tmp_path / "irb.json").exit_code == 0

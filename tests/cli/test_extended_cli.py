@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 import robotcal
 from robotcal.cli import app
 from robotcal.io import write_capture
-from robotcal.io.trajectory_csv import read_trajectory, write_trajectory
+from robotcal.io.formats.trajectory_csv import read_trajectory, write_trajectory
 from robotcal.kinematics.forward import forward_kinematics
 
 runner = CliRunner()
@@ -132,7 +132,7 @@ def test_export_says_what_a_geometric_format_leaves_out(calibrated, tmp_path):
 
 
 def test_program_compensate(calibrated, tmp_path):
-    from robotcal.io.builtins import data_path
+    from robotcal.io.schema.builtins import data_path
 
     folder, _, _, _ = calibrated
     # the demo's plan turns J5 by 200 deg, beyond its limits: a program of a plan within them

@@ -22,7 +22,7 @@ import pytest
 from typer.testing import CliRunner
 
 from robotcal.cli import app
-from robotcal.io.output import LOCK_SUFFIX, write_marker
+from robotcal.io.results.output import LOCK_SUFFIX, write_marker
 
 pytestmark = pytest.mark.skipif(not Path("/dev/full").exists(), reason="simulates a full disk with /dev/full")
 

@@ -6,8 +6,8 @@ import numpy as np
 from typer.testing import CliRunner
 
 from robotcal.cli import app
-from robotcal.io.capture_csv import read_capture
-from robotcal.io.tracker_import import import_tracker_capture
+from robotcal.io.formats.capture_csv import read_capture
+from robotcal.io.formats.tracker_import import import_tracker_capture
 
 runner = CliRunner()
 

@@ -13,7 +13,7 @@ from robotcal.cli import app
 from robotcal.diagnostics.iso9283 import iso_test_positions, pose_characteristics
 from robotcal.geometry.transforms import apply_transform
 from robotcal.io import load_scenario, write_capture, write_parameters
-from robotcal.io.trajectory_csv import read_trajectory
+from robotcal.io.formats.trajectory_csv import read_trajectory
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.model import ParameterSet
 

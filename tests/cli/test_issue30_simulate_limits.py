@@ -15,7 +15,7 @@ import robotcal
 from robotcal.cli import app
 from robotcal.errors import JointLimitWarning
 from robotcal.io import write_parameters
-from robotcal.io.trajectory_csv import write_trajectory
+from robotcal.io.formats.trajectory_csv import write_trajectory
 from robotcal.kinematics.model import ParameterSet
 
 runner = CliRunner()

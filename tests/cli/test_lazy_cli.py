@@ -137,7 +137,7 @@ def test_every_command_help_imports_neither_numpy_nor_the_api(path):
 
 def test_report_help_names_the_report_file():
     from robotcal.cli.report import OUT_HELP
-    from robotcal.io.run_folder import REPORT_NAME
+    from robotcal.io.results.run_folder import REPORT_NAME
 
     assert f"DIR/{REPORT_NAME}]" in OUT_HELP
 

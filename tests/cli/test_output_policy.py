@@ -1,4 +1,4 @@
-"""The output-safety policy (robotcal.io.output) and literal user text: what may be replaced, what never,
+"""The output-safety policy (robotcal.io.results.output) and literal user text: what may be replaced, what never,
 how robotcal recognises its own files, the lock, and brackets printed as typed."""
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from robotcal.cli import app
 from robotcal.cli._common import SEED_BOUND, console, error_console, handle_errors
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, write_capture, write_parameters
-from robotcal.io.capture_csv import capture_to_csv
-from robotcal.io.output import (
+from robotcal.io.formats.capture_csv import capture_to_csv
+from robotcal.io.results.output import (
     MARKER,
     check_output_file,
     check_output_folder,
@@ -51,7 +51,7 @@ def test_a_user_file_added_to_a_robotcal_folder_is_never_replaced_without_force(
 
 def test_a_robot_file_named_by_the_scenario_is_an_input(tmp_path):
     # review finding: a result folder holding the scenario's robot TOML was replaced whole
-    from robotcal.io.builtins import data_path
+    from robotcal.io.schema.builtins import data_path
 
     res = tmp_path / "res"
     res.mkdir()

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from robotcal.cli import app
 from robotcal.geometry.euler import kuka_abc_from_matrix, matrix_from_kuka_abc
 from robotcal.io import load_robot, load_scenario, write_parameters
-from robotcal.io.trajectory_csv import write_trajectory
+from robotcal.io.formats.trajectory_csv import write_trajectory
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.model import ParameterSet
 

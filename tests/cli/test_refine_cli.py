@@ -144,8 +144,8 @@ flange_mm = "unknown"
 def _cell_capture(path, poses, seed):
     from robotcal.identification.targets import Target
     from robotcal.instruments import Instrument
-    from robotcal.io.capture_csv import write_capture
-    from robotcal.io.robots import load_robot
+    from robotcal.io.formats.capture_csv import write_capture
+    from robotcal.io.schema.robots import load_robot
     from robotcal.simulation.generator import simulate_target_poses
     from robotcal.simulation.perturb import perturb_parameters
     from robotcal.simulation.poses import random_poses

@@ -14,10 +14,10 @@ from robotcal.api import TABLE_5_8_READINGS_DEG, tcp_targets
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_scenario, read_parameters
-from robotcal.io.builtins import read_toml
-from robotcal.io.robots import load_robot
-from robotcal.io.run_folder import STAGES
-from robotcal.io.scenario import scenario_from_dict
+from robotcal.io.results.run_folder import STAGES
+from robotcal.io.schema.builtins import read_toml
+from robotcal.io.schema.robots import load_robot
+from robotcal.io.schema.scenario import scenario_from_dict
 from robotcal.pipeline import plan_run
 from robotcal.uncertainty.tcp import tcp_coordinates
 from thesis_data import thesis_tables

@@ -16,8 +16,8 @@ from robotcal.errors import IdentifiabilityWarning
 from robotcal.geometry.transforms import rot_z
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.capture_csv import read_capture, write_capture
-from robotcal.io.robots import load_robot
+from robotcal.io.formats.capture_csv import read_capture, write_capture
+from robotcal.io.schema.robots import load_robot
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
 from robotcal.simulation.sessions import SimulatedSession, simulate_sessions

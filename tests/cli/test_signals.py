@@ -563,7 +563,7 @@ def test_an_interrupt_whose_exception_python_dropped_still_stops_the_work(tmp_pa
     from robotcal import errors
     from robotcal.cli._common import handle_errors
     from robotcal.execution import check_stop, open_executor
-    from robotcal.io.output import result_folder
+    from robotcal.io.results.output import result_folder
 
     monkeypatch.setattr(errors, "_RECEIVED", [])
     with contextlib.suppress(KeyboardInterrupt):  # the handler's exception, dropped
@@ -588,7 +588,7 @@ def test_an_interrupt_whose_exception_python_dropped_still_stops_the_work(tmp_pa
 
 def test_an_interrupt_as_the_lock_is_taken_leaves_no_lock(tmp_path, monkeypatch):
     # issue 30: an interrupt after the lock file was made and before the block that removes it left the lock behind
-    from robotcal.io import output
+    from robotcal.io.results import output
 
     create = output._create_lock
 

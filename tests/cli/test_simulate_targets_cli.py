@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from robotcal.cli import app
 from robotcal.io import load_scenario, read_capture, write_parameters
-from robotcal.io.trajectory_csv import write_trajectory
+from robotcal.io.formats.trajectory_csv import write_trajectory
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.poses import random_poses

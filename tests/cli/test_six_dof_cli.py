@@ -13,9 +13,9 @@ from robotcal.cli import app
 from robotcal.errors import IdentifiabilityWarning
 from robotcal.geometry.transforms import rot_x, rot_z
 from robotcal.identification.targets import Target
-from robotcal.io.capture_csv import write_capture
-from robotcal.io.instruments import make_instrument
-from robotcal.io.robots import load_robot
+from robotcal.io.formats.capture_csv import write_capture
+from robotcal.io.schema.instruments import make_instrument
+from robotcal.io.schema.robots import load_robot
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
 from robotcal.simulation.probe import simulate_probe_poses

@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 
 from robotcal.cli import app
 from robotcal.io import load_robot
-from robotcal.io.draws_npz import read_draws, write_draws
-from robotcal.io.tcp_results import TCP_CSV_COLUMNS
+from robotcal.io.formats.draws_npz import read_draws, write_draws
+from robotcal.io.results.tcp_results import TCP_CSV_COLUMNS
 from robotcal.uncertainty.tcp import propagate_to_tcp
 
 runner = CliRunner()

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-import robotcal.io.uncertainty_files as uncertainty_files
+import robotcal.io.results.uncertainty_files as uncertainty_files
 from robotcal.api import monte_carlo_problem
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
-from robotcal.io.draws_npz import read_draws
+from robotcal.io.formats.draws_npz import read_draws
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, run_monte_carlo
 
 runner = CliRunner()

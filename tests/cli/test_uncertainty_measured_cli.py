@@ -18,10 +18,10 @@ from robotcal.errors import IdentifiabilityWarning
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
 from robotcal.io import load_scenario, read_capture, read_parameters
-from robotcal.io.capture_csv import write_capture
-from robotcal.io.parameters_json import read_targets
-from robotcal.io.robots import load_robot
-from robotcal.io.uncertainty_files import read_uncertainty_csv
+from robotcal.io.formats.capture_csv import write_capture
+from robotcal.io.formats.parameters_json import read_targets
+from robotcal.io.results.uncertainty_files import read_uncertainty_csv
+from robotcal.io.schema.robots import load_robot
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses

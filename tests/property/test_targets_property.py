@@ -24,7 +24,7 @@ from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.robots import load_robot
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics import ParameterSet
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.poses import random_poses

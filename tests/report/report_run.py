@@ -15,7 +15,7 @@ import numpy as np
 
 from robotcal.api import identify, simulate
 from robotcal.io import load_scenario, write_capture, write_parameters
-from robotcal.io.provenance import cpa_provenance
+from robotcal.io.results.provenance import cpa_provenance
 from robotcal.kinematics.model import ParameterSet
 from robotcal.plots.figures import new_figure, save_figure
 
@@ -311,15 +311,15 @@ def make_run_folder(root: Path) -> Path:
 
 
 def load_run(folder: Path):
-    """The RunResult of a run folder: ``robotcal.io.run_folder.read_run`` where it exists, else a small
+    """The RunResult of a run folder: ``robotcal.io.results.run_folder.read_run`` where it exists, else a small
     loader of the tests' own (JSON -> dict, CSV -> Table, other files -> Path), without its checks."""
     try:
-        from robotcal.io.run_folder import read_run
+        from robotcal.io.results.run_folder import read_run
     except ImportError:
         read_run = None
     if read_run is not None:
         return read_run(folder)
-    from robotcal.io.run_folder import RunResult, Table
+    from robotcal.io.results.run_folder import RunResult, Table
 
     documents = {}
     for path in sorted(p for p in Path(folder).rglob("*") if p.is_file() and not p.name.startswith(".")):

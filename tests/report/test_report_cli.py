@@ -7,7 +7,7 @@ import re
 from typer.testing import CliRunner
 
 from robotcal.cli import app
-from robotcal.io.run_folder import read_run
+from robotcal.io.results.run_folder import read_run
 from robotcal.report.html import render_report
 
 runner = CliRunner()

@@ -34,8 +34,8 @@ from report_run import (
 )
 
 from robotcal.errors import InputError
-from robotcal.io.run_folder import RunResult, Table
-from robotcal.io.run_summary import Summary
+from robotcal.io.results.run_folder import RunResult, Table
+from robotcal.io.results.run_summary import Summary
 from robotcal.report.html import REPORT_NAME, build_report, render_report
 from robotcal.report.page import _CAPTIONS, _fmt, _label, _length
 

@@ -1,4 +1,4 @@
-"""robotcal.io.run_summary: the headline figures from a hand-made documents mapping.
+"""robotcal.io.results.run_summary: the headline figures from a hand-made documents mapping.
 
 The expected figures are worked out by hand from the documents below (independent of numpy):
 the median and 95th percentile of (1, 2, 3, 4, 5) um by linear interpolation between order statistics
@@ -11,8 +11,8 @@ import math
 
 import pytest
 
-from robotcal.io.run_folder import Table
-from robotcal.io.run_summary import CONSISTENT_RATIO, Summary, summarise
+from robotcal.io.results.run_folder import Table
+from robotcal.io.results.run_summary import CONSISTENT_RATIO, Summary, summarise
 
 WORKSPACE_UM = (4.0, 1.0, 5.0, 2.0, 3.0)
 

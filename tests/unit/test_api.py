@@ -81,7 +81,7 @@ def test_import_robotcal_io_imports_none_of_its_modules():
         "import sys, robotcal.io\n"
         "print(*sorted(m for m in sys.modules if m.startswith('robotcal') or m in ('numpy', 'scipy', 'pydantic')))\n"
         "robotcal.io.builtin_names\n"
-        "print('robotcal.io.builtins' in sys.modules, 'robotcal.io.scenario' in sys.modules)\n"
+        "print('robotcal.io.schema.builtins' in sys.modules, 'robotcal.io.schema.scenario' in sys.modules)\n"
     )
     assert loaded == ["robotcal", "robotcal._version", "robotcal.io", "True", "False"]
 
@@ -353,7 +353,7 @@ def test_monte_carlo_centred_on_given_parameters(scenario, truth):
 
 
 def test_tcp_uncertainty_converts_degrees(laser_tracker_mc, tmp_path):
-    from robotcal.io.draws_npz import write_draws
+    from robotcal.io.formats.draws_npz import write_draws
     from robotcal.uncertainty.tcp import propagate_to_tcp
 
     robot = laser_tracker_mc.robot

@@ -21,7 +21,7 @@ from robotcal import api
 from robotcal.cli import app
 from robotcal.errors import InputError
 from robotcal.io import load_robot, load_scenario, read_capture, write_capture, write_parameters
-from robotcal.io.trajectory_csv import read_trajectory, write_trajectory
+from robotcal.io.formats.trajectory_csv import read_trajectory, write_trajectory
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloSettings
 

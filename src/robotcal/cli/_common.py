@@ -114,9 +114,9 @@ def app_command(app: typer.Typer, name: str | None = None) -> Callable[[Callable
 def read_scenario_capture(capture: Path, scenario: str, out: Path, *, force: bool, folder: bool = False):
     """What a command on one capture reads, once it has checked that ``out`` may be written (a file, or with
     ``folder`` a result folder): ``(scenario, capture, inputs)``, ``inputs`` the files read (never overwritten)."""
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.output import check_output_file, check_output_folder, existing_inputs
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.formats.capture_csv import read_capture
+    from robotcal.io.results.output import check_output_file, check_output_folder, existing_inputs
+    from robotcal.io.schema.scenario import load_scenario
 
     inputs = existing_inputs(capture, scenario)
     (check_output_folder if folder else check_output_file)(out, inputs=inputs, force=force)

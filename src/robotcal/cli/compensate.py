@@ -10,7 +10,7 @@ import typer
 
 from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console, progress_bar
 from robotcal.cli.export import load_parameter_set, parse_vector
-from robotcal.io.output import SIGNATURE, check_output_file, existing_inputs, result_file
+from robotcal.io.results.output import SIGNATURE, check_output_file, existing_inputs, result_file
 
 #: Exit status of a command that wrote its output but some of its rows or points are not ok (their status says why).
 PARTIAL_EXIT = 3
@@ -44,7 +44,7 @@ def _write_commands(
     as words ("3 ok, 1 unreachable")."""
     import numpy as np
 
-    from robotcal.io.trajectory_csv import write_trajectory
+    from robotcal.io.formats.trajectory_csv import write_trajectory
     from robotcal.kinematics.compensation import STATUSES
 
     counts = {status: int(np.sum(result.status == status)) for status in STATUSES if np.any(result.status == status)}
@@ -125,7 +125,7 @@ def compensate(
     import numpy as np
 
     from robotcal import api
-    from robotcal.io.trajectory_csv import pose_labels, read_pose_targets
+    from robotcal.io.formats.trajectory_csv import pose_labels, read_pose_targets
     from robotcal.kinematics.compensation import BLOCK_ROWS, STATUSES, CompensationSettings
 
     parameters, inputs = load_parameter_set(params, robot, scenario)

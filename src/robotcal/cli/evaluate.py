@@ -12,7 +12,7 @@ import typer
 from robotcal.cli._common import Force, check_memory, command_app, console, handle_errors, pairs_bytes
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError
-from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+from robotcal.io.results.output import check_output_folder, existing_inputs, result_folder
 
 app = command_app()
 
@@ -124,7 +124,7 @@ def _convergence(path: Path) -> dict | None:
 def _parameter_sets(params: list[Path], robot, nominal: bool) -> tuple[dict, dict, dict, dict, dict, dict]:
     """The named sets of ``--params`` (after the nominal one), with each file's provenance, flange targets, path,
     convergence history (of the sets that record one) and session frames."""
-    from robotcal.io.parameters_json import read_parameters, read_sessions, read_targets
+    from robotcal.io.formats.parameters_json import read_parameters, read_sessions, read_targets
     from robotcal.kinematics.model import ParameterSet
 
     used: set[str] = set()
@@ -181,7 +181,7 @@ def _issue29_parts(document, rows, captures, sets, scenario, files, views, bases
     with orientations (``orientation``), both added to ``document`` when there are any."""
     from robotcal import api
     from robotcal.identification.evaluation import evaluate_orientation
-    from robotcal.io.parameters_json import read_probe
+    from robotcal.io.formats.parameters_json import read_probe
 
     moved = [row for row in rows if row.station]
     if moved:
@@ -249,9 +249,9 @@ def evaluate(
     """Mean/max errors of parameter sets under the points and distances views (thesis Tables 4.10/4.11)."""
     from robotcal import api
     from robotcal.identification.evaluation import StationMovedWarning
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.formats.capture_csv import read_capture
+    from robotcal.io.results.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
+    from robotcal.io.schema.scenario import load_scenario
 
     inputs = existing_inputs(scenario, *params, *capture)
     check_output_folder(out, inputs=inputs, force=force)

@@ -11,7 +11,7 @@ import typer
 
 from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console
 from robotcal.errors import InputError
-from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.results.output import check_output_file, existing_inputs, result_file
 
 if TYPE_CHECKING:  # numpy and the model load in the commands: a fast --help (predict, compensate, filter too)
     from robotcal.kinematics.model import ParameterSet
@@ -36,11 +36,11 @@ def parse_vector(text: str | None, option: str, count: int = 3):
 
 def load_parameter_set(params: Path, robot: str | None, scenario: str | None) -> tuple[ParameterSet, list[Path]]:
     """Read a parameter JSON for the robot of ``--robot``, ``--scenario`` or the JSON's own robot name."""
-    from robotcal.io._validation import read_json_file
-    from robotcal.io.builtins import builtin_names
-    from robotcal.io.parameters_json import read_parameters
-    from robotcal.io.robots import load_robot
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.formats.parameters_json import read_parameters
+    from robotcal.io.schema._validation import read_json_file
+    from robotcal.io.schema.builtins import builtin_names
+    from robotcal.io.schema.robots import load_robot
+    from robotcal.io.schema.scenario import load_scenario
 
     if robot is not None and scenario is not None:
         raise InputError("give --robot or --scenario, not both")
@@ -97,8 +97,8 @@ def export(
     YAML or a DH / MDH table (exact, else an error)."""
     from robotcal import api
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.export import EXPORT_FORMATS, joint_model_note
-    from robotcal.io.robots import load_robot
+    from robotcal.io.formats.export import EXPORT_FORMATS, joint_model_note
+    from robotcal.io.schema.robots import load_robot
     from robotcal.kinematics.model import ParameterSet
 
     if out is None:

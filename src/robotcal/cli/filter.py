@@ -110,7 +110,7 @@ def filter_command(
     point is not ok."""
     from robotcal import api
     from robotcal.io import load_robot
-    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.io.results.output import check_output_folder, existing_inputs, result_folder
     from robotcal.kinematics.compensation import CompensationSettings
     from robotcal.programs import read_program
     from robotcal.programs.report import STATUS_NOTES, write_report

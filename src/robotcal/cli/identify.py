@@ -17,7 +17,7 @@ from robotcal.cli._common import (
     print_health,
     read_scenario_capture,
 )
-from robotcal.io.output import result_file
+from robotcal.io.results.output import result_file
 
 app = command_app()
 
@@ -54,8 +54,8 @@ def identify(
     from robotcal.identification.plausibility import OUTLIER_MAD, OUTLIER_U
     from robotcal.identification.plausibility import reject_outliers as drop_outliers
     from robotcal.identification.refine import wrap_angles
-    from robotcal.io.parameters_json import write_parameters
-    from robotcal.io.provenance import cpa_provenance
+    from robotcal.io.formats.parameters_json import write_parameters
+    from robotcal.io.results.provenance import cpa_provenance
     from robotcal.kinematics.model import ParameterSet
 
     loaded, measured, inputs = read_scenario_capture(capture, scenario, out, force=force)

@@ -10,7 +10,7 @@ import typer
 from robotcal.cli._common import Force, command_app, console, handle_errors
 
 if TYPE_CHECKING:
-    from robotcal.io.scenario import Scenario
+    from robotcal.io.schema.scenario import Scenario
     from robotcal.kinematics.model import RobotModel
 
 app = command_app()
@@ -87,8 +87,8 @@ def import_(
     from robotcal import api
     from robotcal.errors import InputError
     from robotcal.io import load_robot, load_scenario
-    from robotcal.io.capture_csv import write_capture
-    from robotcal.io.output import check_output_file, existing_inputs, result_file
+    from robotcal.io.formats.capture_csv import write_capture
+    from robotcal.io.results.output import check_output_file, existing_inputs, result_file
 
     if robot is not None and scenario is not None:
         raise InputError("give --robot or --scenario, not both")

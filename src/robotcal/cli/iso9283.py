@@ -14,7 +14,7 @@ from robotcal.cli._common import Force, ProgramController, ProgramSpeed, app_com
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.cli.export import parse_vector
 from robotcal.errors import InputError
-from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.results.output import check_output_file, existing_inputs, result_file
 from robotcal.limits import ISO_CYCLES
 
 if TYPE_CHECKING:  # numpy and the diagnostics load in the commands: a fast --help
@@ -26,7 +26,7 @@ PROGRAM_SUFFIX = {"krl": ".src", "rapid": ".mod", "urscript": ".script"}
 
 
 def _tracker_from_base(path: Path, default: np.ndarray) -> np.ndarray:
-    from robotcal.io.parameters_json import read_tracker_from_base
+    from robotcal.io.formats.parameters_json import read_tracker_from_base
 
     matrix = read_tracker_from_base(path)
     return default if matrix is None else matrix
@@ -72,7 +72,7 @@ def _model_offsets(path: Path) -> dict | None:
     """The flange target offsets a parameter JSON carries (a refinement's ``targets``: estimates of unknown ones)."""
     import numpy as np
 
-    from robotcal.io.parameters_json import read_targets
+    from robotcal.io.formats.parameters_json import read_targets
 
     return {name: np.asarray(v, dtype=float) for name, v in read_targets(path).items()} or None
 
@@ -111,10 +111,10 @@ def iso9283(
     from robotcal import api
     from robotcal.diagnostics.iso9283 import ORIENTATION_AXES, IsoModel
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.iso9283_files import iso_to_csv
-    from robotcal.io.parameters_json import read_parameters
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.formats.capture_csv import read_capture
+    from robotcal.io.formats.parameters_json import read_parameters
+    from robotcal.io.results.iso9283_files import iso_to_csv
+    from robotcal.io.schema.scenario import load_scenario
 
     if orientation_axes not in ORIENTATION_AXES:
         raise InputError(f"--orientation-axes must be one of {', '.join(ORIENTATION_AXES)}; got {orientation_axes!r}")
@@ -211,8 +211,8 @@ def iso9283_plan(
 
     from robotcal.diagnostics.iso9283 import iso_cube_plan
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.scenario import load_scenario
-    from robotcal.io.trajectory_csv import write_trajectory
+    from robotcal.io.formats.trajectory_csv import write_trajectory
+    from robotcal.io.schema.scenario import load_scenario
     from robotcal.kinematics.model import ParameterSet
     from robotcal.planning.program import LANGUAGES, program_name
 
@@ -269,7 +269,7 @@ def iso_program(
 ) -> str:
     """The ISO 9283 plan (readings of the scenario's robot, cycle-major P1..P5) as a robot program:
     one joint move per test pose, a dwell for the measurement and a comment "cycle c Pk"."""
-    from robotcal.io.robots import load_robot
+    from robotcal.io.schema.robots import load_robot
     from robotcal.planning.program import controller_readings, write_program
 
     target = None if controller is None else load_robot(controller)

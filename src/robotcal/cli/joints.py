@@ -10,7 +10,7 @@ import typer
 
 from robotcal.cli._common import Force, app_command, command_app, console, error_console, read_scenario_capture
 from robotcal.cli._tables import Column, FittedTable
-from robotcal.io.output import result_folder
+from robotcal.io.results.output import result_folder
 
 if TYPE_CHECKING:  # numpy and the diagnostics load in the command: a fast --help
     from robotcal.diagnostics import JointDiagnostics
@@ -66,7 +66,7 @@ def joints(
 ) -> None:
     """Backlash and axial/radial eccentricity per joint (thesis ch. 4.6), with a harmonic model."""
     from robotcal import api
-    from robotcal.io.joints_files import write_joints_folder
+    from robotcal.io.results.joints_files import write_joints_folder
 
     loaded, measured, inputs = read_scenario_capture(capture, scenario, out, force=force, folder=True)
     analysis = api.diagnose_joints(

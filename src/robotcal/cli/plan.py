@@ -62,7 +62,7 @@ def check_table(check) -> FittedTable:
 def _write_folder(out: Path | None, inputs, force: bool, command: str, write) -> None:
     if out is None:
         return
-    from robotcal.io.output import result_folder
+    from robotcal.io.results.output import result_folder
 
     with result_folder(out, inputs=inputs, force=force, command=command) as folder:
         write(folder)
@@ -80,7 +80,7 @@ def check(
     """Check every capture point: joint limits, measuring range, reflector acceptance, line of sight."""
     from robotcal import api
     from robotcal.io import load_scenario
-    from robotcal.io.output import existing_inputs
+    from robotcal.io.results.output import existing_inputs
     from robotcal.planning.cell import REASONS
     from robotcal.planning.scenario import cell_from_scenario
 
@@ -229,7 +229,7 @@ def optimise(
     within the cell check; confirm baseline and winner by Monte Carlo; write the optimised scenario."""
     from robotcal import api
     from robotcal.io import load_scenario
-    from robotcal.io.output import check_output_folder, existing_inputs
+    from robotcal.io.results.output import check_output_folder, existing_inputs
     from robotcal.planning.scenario import cell_from_scenario
 
     loaded = load_scenario(scenario)

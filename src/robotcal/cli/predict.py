@@ -1,7 +1,7 @@
 """``robotcal predict PARAMS --poses CSV [--target X,Y,Z|NAME | --flange] [--tracker-from-base
 x,y,z,A,B,C|params|scenario] --out F``: FK of any point (docs/export.md).
 
-Readings beyond :data:`robotcal.io.trajectory_csv.MAX_READING_DEG` or not finite are refused by the
+Readings beyond :data:`robotcal.io.formats.trajectory_csv.MAX_READING_DEG` or not finite are refused by the
 pose CSV reader; readings outside the robot's joint limits are a
 :class:`~robotcal.errors.JointLimitWarning` naming the pose and joint, as everywhere in robotcal
 (:func:`robotcal.uncertainty.tcp.check_readings`)."""
@@ -17,7 +17,7 @@ import typer
 from robotcal.cli._common import Force, ParamsRobot, ParamsScenario, app_command, command_app, console
 from robotcal.cli.export import load_parameter_set, parse_vector
 from robotcal.errors import InputError
-from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.results.output import check_output_file, existing_inputs, result_file
 
 if TYPE_CHECKING:  # numpy and the kinematics load in the command: a fast --help
     import numpy as np
@@ -35,7 +35,7 @@ def flange_target_mm(text: str, *, params: Path, scenario=None) -> tuple[np.ndar
     """
     import numpy as np
 
-    from robotcal.io.parameters_json import read_targets
+    from robotcal.io.formats.parameters_json import read_targets
 
     parts = text.split(",")
     if len(parts) > 1:
@@ -72,8 +72,8 @@ def world_from_base_of(text: str, *, params: Path, scenario=None) -> tuple[np.nd
     import numpy as np
 
     from robotcal.geometry.euler import matrix_from_kuka_abc
-    from robotcal.io.builtins import read_toml
-    from robotcal.io.parameters_json import read_tracker_from_base
+    from robotcal.io.formats.parameters_json import read_tracker_from_base
+    from robotcal.io.schema.builtins import read_toml
 
     word = text.strip().lower()
     if word == "params":
@@ -150,8 +150,8 @@ def predict(
     from robotcal import api
     from robotcal.errors import JointLimitWarning
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.scenario import load_scenario
-    from robotcal.io.trajectory_csv import read_trajectory
+    from robotcal.io.formats.trajectory_csv import read_trajectory
+    from robotcal.io.schema.scenario import load_scenario
     from robotcal.uncertainty.tcp import check_readings
 
     if target is not None and flange:

@@ -51,7 +51,7 @@ def program(
 
     from robotcal.io import load_robot, load_scenario
     from robotcal.io.atomic import atomic_write_text
-    from robotcal.io.output import existing_inputs, result_file
+    from robotcal.io.results.output import existing_inputs, result_file
     from robotcal.planning.program import controller_readings, program_name, write_program
 
     name = program_name(language, out, name)
@@ -85,7 +85,7 @@ def _compensated(params: Path, robot, readings):
 
     from robotcal.api import compensate as compensate_poses
     from robotcal.errors import InputError
-    from robotcal.io.parameters_json import read_parameters
+    from robotcal.io.formats.parameters_json import read_parameters
 
     result = compensate_poses(read_parameters(params, robot), poses_deg=np.rad2deg(readings))
     lost = np.flatnonzero(np.isin(result.status, ["outside_limits", "unreachable"]))

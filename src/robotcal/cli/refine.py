@@ -23,7 +23,7 @@ from robotcal.cli._common import (
     print_health,
 )
 from robotcal.cli._tables import Column, FittedTable
-from robotcal.io.output import check_output_file, existing_inputs, result_file
+from robotcal.io.results.output import check_output_file, existing_inputs, result_file
 
 if TYPE_CHECKING:  # numpy, the API and the model load in the command: a fast --help
     from robotcal.api import Criterion, ModelName
@@ -152,17 +152,17 @@ def refine(
     """Refine the parameters by Levenberg-Marquardt over all measured points (thesis ch. 4.5.7), with the geometric
     or an extended model (gravity compliance, harmonic joint errors), each cross-validated by pose."""
     from robotcal import api
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.joints_files import read_backlash
-    from robotcal.io.parameters_json import (
+    from robotcal.io.formats.capture_csv import read_capture
+    from robotcal.io.formats.parameters_json import (
         probe_to_dict,
         read_parameters,
         refined_sessions,
         refined_targets,
         write_parameters,
     )
-    from robotcal.io.provenance import refine_provenance
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.results.joints_files import read_backlash
+    from robotcal.io.results.provenance import refine_provenance
+    from robotcal.io.schema.scenario import load_scenario
     from robotcal.kinematics.model import ParameterSet
 
     _check_options(criterion, weights, estimate_base, model, folds)

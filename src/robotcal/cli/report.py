@@ -13,7 +13,7 @@ from robotcal.errors import InputError
 
 app = command_app()
 
-#: Help of ``--out``: the report's name is :data:`robotcal.io.run_folder.REPORT_NAME` (a module that loads numpy,
+#: Help of ``--out``: the report's name is :data:`robotcal.io.results.run_folder.REPORT_NAME` (a module that loads numpy,
 #: so not imported for the help; tests/cli/test_lazy_cli.py checks the two agree).
 OUT_HELP = "HTML file to write [default: DIR/report.html]."
 
@@ -21,7 +21,7 @@ OUT_HELP = "HTML file to write [default: DIR/report.html]."
 def _run_files(run_dir: Path) -> list[Path]:
     """Every file the report may read (the inputs no ``--out`` may replace): the run folder's files and
     the targets of its links, except the folder's own ``report.html``."""
-    from robotcal.io.run_folder import REPORT_NAME
+    from robotcal.io.results.run_folder import REPORT_NAME
 
     if not run_dir.is_dir():
         return []
@@ -38,7 +38,7 @@ def report(
     force: Force = False,
 ) -> None:
     """Build the self-contained HTML calibration report of a run folder, from the saved results only."""
-    from robotcal.io.output import result_file
+    from robotcal.io.results.output import result_file
     from robotcal.report.html import REPORT_NAME, build_report
 
     started = time.perf_counter()

@@ -39,7 +39,7 @@ def _progress_columns(width: int, totals: list[int]) -> tuple:
     from rich.progress import BarColumn, MofNCompleteColumn, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Column
 
-    from robotcal.io.run_folder import STAGES
+    from robotcal.io.results.run_folder import STAGES
 
     def whole(min_width: int | None = None) -> Column:
         return Column(no_wrap=True, min_width=min_width)
@@ -60,12 +60,12 @@ def _progress_columns(width: int, totals: list[int]) -> tuple:
 
 def run_with_display(plan: RunPlan):
     """:func:`robotcal.pipeline.run_calibration` under one Rich progress display (a task per stage; draws
-    for the Monte Carlo); returns its :class:`~robotcal.io.run_folder.RunResult`."""
+    for the Monte Carlo); returns its :class:`~robotcal.io.results.run_folder.RunResult`."""
     import time
 
     from rich.progress import Progress
 
-    from robotcal.io.run_folder import STAGES
+    from robotcal.io.results.run_folder import STAGES
     from robotcal.pipeline.plan import STEPS
     from robotcal.pipeline.run import run_calibration
 

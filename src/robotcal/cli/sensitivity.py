@@ -41,7 +41,7 @@ def sensitivity(
 ) -> None:
     """Mean, u and Cpk (eq. 5-5) of every parameter against the varied capture conditions (Figs 5.14-5.16)."""
     from robotcal import api
-    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.io.results.output import check_output_folder, existing_inputs, result_folder
     from robotcal.planning.scenario import scenario_document
     from robotcal.planning.sensitivity import study_rows
 

@@ -20,7 +20,7 @@ from robotcal.cli._common import (
     console,
 )
 from robotcal.errors import InputError
-from robotcal.io.output import existing_inputs, result_file
+from robotcal.io.results.output import existing_inputs, result_file
 
 app = command_app()
 
@@ -96,7 +96,7 @@ def simulate(
     force: Force = False,
 ) -> None:
     """Simulate the scenario's capture and write it as a capture CSV."""
-    from robotcal.io.scenario import ValidationTable, load_scenario
+    from robotcal.io.schema.scenario import ValidationTable, load_scenario
 
     loaded = load_scenario(scenario)
     if true_params is not None and truth_out is not None:
@@ -135,7 +135,7 @@ def free_pose_targets(scenario, names: str | None, targets_mm: str | None, true_
     import numpy as np
 
     from robotcal.cli.iso9283 import parse_targets_mm
-    from robotcal.io.parameters_json import read_targets
+    from robotcal.io.formats.parameters_json import read_targets
 
 
     declared = {t.name: t for t in scenario.targets if t.frame == "flange"}
@@ -192,7 +192,7 @@ def _simulate_free(loaded, seed, truth, free):
     import numpy as np
 
     from robotcal import api
-    from robotcal.io.trajectory_csv import read_trajectory
+    from robotcal.io.formats.trajectory_csv import read_trajectory
 
     count, pose_file, names, targets_mm, true_params = free
     chosen, offsets = free_pose_targets(loaded, names, targets_mm, true_params)
@@ -214,10 +214,10 @@ def _simulate_free(loaded, seed, truth, free):
 
 def _simulate(loaded, out, seed, true_params, truth_out, validation, free=None) -> None:
     from robotcal import api
-    from robotcal.io.capture_csv import write_capture
-    from robotcal.io.parameters_json import read_parameters, write_parameters
-    from robotcal.io.provenance import versions
-    from robotcal.io.scenario import TruthTable
+    from robotcal.io.formats.capture_csv import write_capture
+    from robotcal.io.formats.parameters_json import read_parameters, write_parameters
+    from robotcal.io.results.provenance import versions
+    from robotcal.io.schema.scenario import TruthTable
 
     truth = read_parameters(true_params, loaded.robot) if true_params is not None else None
     if truth_out is not None:

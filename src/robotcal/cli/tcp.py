@@ -13,13 +13,13 @@ import typer
 from robotcal.cli._common import Force, app_command, command_app, console
 from robotcal.cli._tables import Column, FittedTable
 from robotcal.errors import InputError, JointLimitWarning
-from robotcal.io.output import check_output_folder, existing_inputs, result_folder
+from robotcal.io.results.output import check_output_folder, existing_inputs, result_folder
 from robotcal.limits import BYTES_PER_POSE, SEED_BOUND, check_memory
 
 if TYPE_CHECKING:  # numpy, the draws and the uncertainty library load in the command: a fast --help
     import numpy as np
 
-    from robotcal.io.draws_npz import ParameterDraws
+    from robotcal.io.formats.draws_npz import ParameterDraws
     from robotcal.uncertainty.statistics import IntervalKind
     from robotcal.uncertainty.tcp import TCPUncertainty
 
@@ -114,7 +114,7 @@ def _readings(robot, pose: str | None, trajectory: str | None, provenance: dict)
     warning naming the option or file); a trajectory's path goes into ``provenance``."""
     import numpy as np
 
-    from robotcal.io.trajectory_csv import load_trajectory
+    from robotcal.io.formats.trajectory_csv import load_trajectory
     from robotcal.uncertainty.tcp import check_readings
 
     if pose is not None:
@@ -197,9 +197,9 @@ def tcp(
     import numpy as np
 
     from robotcal import api
-    from robotcal.io.draws_npz import read_draws
-    from robotcal.io.provenance import versions
-    from robotcal.io.tcp_results import write_tcp_folder
+    from robotcal.io.formats.draws_npz import read_draws
+    from robotcal.io.results.provenance import versions
+    from robotcal.io.results.tcp_results import write_tcp_folder
 
     started = time.perf_counter()
     if sum(option is not None for option in (pose, trajectory, workspace)) != 1:

@@ -56,7 +56,7 @@ def uncertainty_table(result: MonteCarloResult) -> FittedTable:
     console the verdict, the linearised u and then the nominal value are left out (parameters.csv has them;
     the line under the table counts the verdicts)."""
     from robotcal.cli._tables import Column, FittedTable
-    from robotcal.io.uncertainty_files import uncertainty_rows
+    from robotcal.io.results.uncertainty_files import uncertainty_rows
 
     coverage = f"{result.settings.coverage:.0%}"
     rows = [row for row in uncertainty_rows(result) if row["identified"]]
@@ -245,10 +245,10 @@ def _simulated(scenario: str, out: Path, *, iterations, adaptive, ndig, max_draw
                workers, save_draws, true_params, force, model, criterion, scheduler, poses) -> None:  # fmt: skip
     """``robotcal uncertainty SCENARIO --out DIR``: the scenario's Monte Carlo, its folder and its summary."""
     from robotcal import api
-    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-    from robotcal.io.parameters_json import read_parameters
-    from robotcal.io.scenario import load_scenario
-    from robotcal.io.uncertainty_files import write_uncertainty_folder
+    from robotcal.io.formats.parameters_json import read_parameters
+    from robotcal.io.results.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.io.results.uncertainty_files import write_uncertainty_folder
+    from robotcal.io.schema.scenario import load_scenario
     from robotcal.pipeline.figures import draw_histograms
     from robotcal.plots.montecarlo import write_histograms
     from robotcal.uncertainty.montecarlo import MonteCarloSettings
@@ -342,7 +342,7 @@ def _parameter_document(path: Path) -> dict:
 
 def _checked_parameters(params: Path, capture: Path, loaded, measured, criterion):
     """The parameter JSON's estimate, provenance and criterion, checked against the scenario and the capture."""
-    from robotcal.io.parameters_json import read_parameters
+    from robotcal.io.formats.parameters_json import read_parameters
 
     document = _parameter_document(params)
     recorded_robot = document.get("robot")
@@ -377,11 +377,11 @@ def _measured(scenario: str, capture: Path, params: Path, out: Path, *, iteratio
     """``robotcal uncertainty --capture CAPTURE.csv --params REFINED.json --scenario S --out DIR``."""
     from robotcal import api
     from robotcal.cli._tables import Column, FittedTable
-    from robotcal.io.capture_csv import read_capture
-    from robotcal.io.output import check_output_folder, existing_inputs, result_folder
-    from robotcal.io.parameters_json import read_targets
-    from robotcal.io.scenario import load_scenario
-    from robotcal.io.uncertainty_files import measured_target_rows, write_measured_folder
+    from robotcal.io.formats.capture_csv import read_capture
+    from robotcal.io.formats.parameters_json import read_targets
+    from robotcal.io.results.output import check_output_folder, existing_inputs, result_folder
+    from robotcal.io.results.uncertainty_files import measured_target_rows, write_measured_folder
+    from robotcal.io.schema.scenario import load_scenario
     from robotcal.pipeline.figures import draw_histograms
     from robotcal.plots.montecarlo import write_histograms
 

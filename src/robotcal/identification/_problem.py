@@ -77,7 +77,7 @@ def wrap_angles(values, nominal=None) -> np.ndarray:
     and Monte Carlo statistic of an angle in one branch, that of its nominal value (a J5.theta of nominal
     180 deg stays near 180, never -179.9): their differences are then the errors. The fits keep their
     values continuous with the start; every output wraps them: the parameter JSON
-    (:func:`robotcal.io.parameters_json.parameters_to_dict`) and the tables of ``identify`` and ``refine``.
+    (:func:`robotcal.io.formats.parameters_json.parameters_to_dict`) and the tables of ``identify`` and ``refine``.
     """
     values = np.array(values, dtype=float)
     columns = list(ANGLE_COLUMNS)

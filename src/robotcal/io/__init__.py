@@ -7,7 +7,7 @@ The names below load on first use (SPEC 1, ``lazy_loader``, as the ``robotcal`` 
 ``__init__.pyi`` lists each with the module that defines it, so ``import robotcal.io`` imports neither
 numpy nor any of its modules, and a command's ``--help`` that names one of them stays fast.
 ``joints_files`` is not among them: it is also the name of its module, which the import system binds
-on the package (import it from :mod:`robotcal.io.joints_files`).
+on the package (import it from :mod:`robotcal.io.results.joints_files`).
 
 Examples
 --------

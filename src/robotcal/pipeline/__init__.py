@@ -1,5 +1,5 @@
 """The calibration pipeline as a library: plan a run, run it (docs/pipeline.md); a run folder is read back by
-:func:`robotcal.io.run_folder.read_run`.
+:func:`robotcal.io.results.run_folder.read_run`.
 
 >>> from robotcal.pipeline import plan_run, run_calibration                    # doctest: +SKIP
 >>> plan = plan_run("kr5-demo", "out", draws=2000, workspace=50)              # doctest: +SKIP

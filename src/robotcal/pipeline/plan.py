@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.io.output import check_output_folder, existing_inputs
-from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES
-from robotcal.io.scenario import Scenario, ValidationTable, load_scenario
+from robotcal.io.results.output import check_output_folder, existing_inputs
+from robotcal.io.results.run_folder import OUTPUTS, RUN_RECORD, STAGES
+from robotcal.io.schema.scenario import Scenario, ValidationTable, load_scenario
 from robotcal.limits import (
     BYTES_PER_POSE,
     REFINED_DRAWS,
@@ -75,7 +75,7 @@ class RunPlan:
     command : str
         The command line recorded in ``run.json``.
     force : bool
-        Replace an output folder robotcal did not write (:mod:`robotcal.io.output`).
+        Replace an output folder robotcal did not write (:mod:`robotcal.io.results.output`).
     inputs : tuple of Path
         The files the run reads (the scenario and the robot it names): never replaced by its output.
     """
@@ -111,7 +111,7 @@ def plan_run(
     scenario : str or path
         Built-in scenario name or scenario TOML.
     out : path, optional
-        The run folder. Checked against the output policy of :mod:`robotcal.io.output` (a folder robotcal
+        The run folder. Checked against the output policy of :mod:`robotcal.io.results.output` (a folder robotcal
         wrote is replaced stage by stage; another is refused unless ``force``); None plans without a folder.
     seed : int, optional
         Seed of the whole run: capture ``seed``, truth ``seed + 1``, validation ``+ 2``, Monte Carlo ``+ 3``,

@@ -1,6 +1,6 @@
 """Run a planned calibration: every stage into one run folder, and a :class:`RunResult` in memory.
 
-:func:`run_calibration` runs :data:`~robotcal.io.run_folder.STAGES` in order (the functions of
+:func:`run_calibration` runs :data:`~robotcal.io.results.run_folder.STAGES` in order (the functions of
 :mod:`robotcal.pipeline.stages`), each writing its own files (docs/results.md); ``run.json`` is rewritten
 atomically after every stage, so a failed stage leaves the earlier stages' outputs and a record of which
 stage failed and why. The calibration capture is kept in memory exactly as its CSV file holds it (12
@@ -31,10 +31,10 @@ from pathlib import Path
 from robotcal.errors import InputError, RobotcalError, Terminated, check_interrupt, interrupt_behind
 from robotcal.execution import process_pool
 from robotcal.io.atomic import atomic_write_text, describe_os_error
-from robotcal.io.output import check_output_folder, output_lock, write_marker
-from robotcal.io.provenance import versions
-from robotcal.io.run_folder import OUTPUTS, RUN_RECORD, STAGES, Document, RunResult, json_text
-from robotcal.io.run_summary import summarise
+from robotcal.io.results.output import check_output_folder, output_lock, write_marker
+from robotcal.io.results.provenance import versions
+from robotcal.io.results.run_folder import OUTPUTS, RUN_RECORD, STAGES, Document, RunResult, json_text
+from robotcal.io.results.run_summary import summarise
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline import stages
 from robotcal.pipeline.figures import FigureJobs

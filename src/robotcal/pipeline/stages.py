@@ -2,7 +2,7 @@
 
 Every stage calls the front door (:mod:`robotcal.api`) with the run's scenario and the results of earlier
 stages, writes its files through :mod:`robotcal.io` and returns a :class:`StageOutput`: its typed result, the
-documents it wrote (keyed by their path relative to the run folder, :mod:`robotcal.io.run_folder`) and a
+documents it wrote (keyed by their path relative to the run folder, :mod:`robotcal.io.results.run_folder`) and a
 one-line detail for the progress display. A stage's folder is built with
 :func:`robotcal.io.atomic.atomic_directory`: it appears whole or not at all (``tcp/``: one folder per mode;
 ``plan/`` then ``plan/sensitivity/``); its figures are then asked of ``figures``
@@ -28,16 +28,16 @@ from robotcal.capture import Capture
 from robotcal.diagnostics.iso9283 import ISO_CYCLES, simulate_iso_study
 from robotcal.identification.records import RefinementResult
 from robotcal.io.atomic import atomic_directory
-from robotcal.io.capture_csv import capture_to_csv, read_capture_text
-from robotcal.io.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
-from robotcal.io.iso9283_files import iso_to_csv
-from robotcal.io.joints_files import write_joints_folder
-from robotcal.io.parameters_json import parameters_to_dict, refined_targets
-from robotcal.io.provenance import cpa_provenance, refine_provenance, scenario_echo, versions
-from robotcal.io.run_folder import Document, read_document, write_csv, write_json
-from robotcal.io.scenario import Scenario
-from robotcal.io.tcp_results import write_tcp_folder
-from robotcal.io.uncertainty_files import write_uncertainty_folder
+from robotcal.io.formats.capture_csv import capture_to_csv, read_capture_text
+from robotcal.io.formats.parameters_json import parameters_to_dict, refined_targets
+from robotcal.io.results.evaluation_files import convergence_of, evaluation_document, write_evaluation_folder
+from robotcal.io.results.iso9283_files import iso_to_csv
+from robotcal.io.results.joints_files import write_joints_folder
+from robotcal.io.results.provenance import cpa_provenance, refine_provenance, scenario_echo, versions
+from robotcal.io.results.run_folder import Document, read_document, write_csv, write_json
+from robotcal.io.results.tcp_results import write_tcp_folder
+from robotcal.io.results.uncertainty_files import write_uncertainty_folder
+from robotcal.io.schema.scenario import Scenario
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
@@ -116,7 +116,7 @@ def _in(prefix: str, documents: dict[str, Document], final: Path) -> dict[str, D
 
 def _read_back(folder: Path, final: Path) -> dict[str, Document]:
     """The files another module wrote into ``folder`` (a stage's temporary folder), read back once as
-    :func:`robotcal.io.run_folder.read_run` would: JSON and CSV as documents, others by their path in ``final``."""
+    :func:`robotcal.io.results.run_folder.read_run` would: JSON and CSV as documents, others by their path in ``final``."""
     return {
         path.name: read_document(folder, path.name) if path.suffix in (".json", ".csv") else final / path.name
         for path in sorted(folder.iterdir())

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.io.builtins import builtin_names, data_path, read_toml
-from robotcal.io.instruments import instrument_presets
-from robotcal.io.scenario import Scenario, scenario_from_dict
+from robotcal.io.schema.builtins import builtin_names, data_path, read_toml
+from robotcal.io.schema.instruments import instrument_presets
+from robotcal.io.schema.scenario import Scenario, scenario_from_dict
 from robotcal.planning.cell import CellModel
 
 __all__ = [

@@ -19,8 +19,8 @@ import json
 import math
 from pathlib import Path
 
-from robotcal.io.output import SIGNATURE
-from robotcal.io.provenance import versions
+from robotcal.io.results.output import SIGNATURE
+from robotcal.io.results.provenance import versions
 from robotcal.programs.filter import FilteredProgram
 
 __all__ = ["POINT_COLUMNS", "STATUS_NOTES", "points_table", "write_report"]

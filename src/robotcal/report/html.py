@@ -1,10 +1,10 @@
 """The self-contained HTML calibration report of a run (docs/results.md, docs/report.md).
 
 The report renders from the run object, never from the run folder: :func:`render_report` takes a
-:class:`~robotcal.io.run_folder.RunResult` (``record``: ``run.json``; ``documents``: every output by its path
-in the run folder, JSON objects as dicts, CSV files as :class:`~robotcal.io.run_folder.Table`, figures as
+:class:`~robotcal.io.results.run_folder.RunResult` (``record``: ``run.json``; ``documents``: every output by its path
+in the run folder, JSON objects as dicts, CSV files as :class:`~robotcal.io.results.run_folder.Table`, figures as
 Paths) and reads no file but the PNG bytes of the figures it embeds. :func:`build_report` is
-:func:`robotcal.io.run_folder.read_run` (the one reader of a run folder) + :func:`render_report` + an
+:func:`robotcal.io.results.run_folder.read_run` (the one reader of a run folder) + :func:`render_report` + an
 atomic write, for ``robotcal report DIR``.
 
 How a page is built: one *builder* per section (:mod:`robotcal.report.sections`) turns the run
@@ -13,7 +13,7 @@ lists: tables and figures as blocks); one Jinja2 template per section (``templat
 autoescaped) lays it out, with the shared macros of ``templates/macros.html.j2``; ``templates/page.html.j2``
 holds the page, the CSS and scripts of ``assets/`` inlined. Nothing is recomputed from the documents except
 the circle fits of the 3-D view; the headline figures come from :attr:`RunResult.summary
-<robotcal.io.run_folder.RunResult>` (or :func:`robotcal.io.run_summary.summarise` when the run has none).
+<robotcal.io.results.run_folder.RunResult>` (or :func:`robotcal.io.results.run_summary.summarise` when the run has none).
 
 The page needs no network: CSS and scripts are inline, figures are PNG ``data:`` URIs, and a
 Content-Security-Policy forbids any other source. Its last script checks that every figure decoded and
@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robotcal.io.atomic import atomic_write_text
-from robotcal.io.run_folder import REPORT_NAME, RunResult, read_run
+from robotcal.io.results.run_folder import REPORT_NAME, RunResult, read_run
 from robotcal.report import installed_version, template_environment
 from robotcal.report.page import _Page
 from robotcal.report.sections.model import _model
@@ -118,7 +118,7 @@ def render_report(result: RunResult) -> Report:
     --------
     A run held in memory, here built by hand: a workspace map and nothing else.
 
-    >>> from robotcal.io.run_folder import RunResult
+    >>> from robotcal.io.results.run_folder import RunResult
     >>> workspace = {"poses": [{"position_uncertainty_mm": u} for u in (0.002, 0.004)]}
     >>> report = render_report(RunResult(documents={"tcp/workspace/tcp.json": workspace}))
     >>> [section.id for section in report.sections if section.present]

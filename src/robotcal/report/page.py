@@ -14,9 +14,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-from robotcal.io.run_folder import RunResult, Table
-from robotcal.io.run_summary import Summary, summarise
-from robotcal.io.uncertainty_files import CSV_COLUMNS
+from robotcal.io.results.run_folder import RunResult, Table
+from robotcal.io.results.run_summary import Summary, summarise
+from robotcal.io.results.uncertainty_files import CSV_COLUMNS
 from robotcal.kinematics.model import ANGLE_KINDS, KIND_UNITS, PARAMETER_KINDS
 
 _CAPTIONS = {

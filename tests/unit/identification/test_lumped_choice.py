@@ -21,7 +21,7 @@ from robotcal.identification.model_choice import (
     run_fit,
 )
 from robotcal.identification.settings import RefinementSettings
-from robotcal.io.builtins import data_path
+from robotcal.io.schema.builtins import data_path
 from robotcal.kinematics.joint_model import JointModel, lumped_levels
 from robotcal.resolve import capture_targets
 

@@ -21,7 +21,7 @@ from robotcal.errors import FitHealthWarning, IdentifiabilityWarning, InputError
 from robotcal.identification._problem import point_sigmas
 from robotcal.identification.health import RP_PER_SIGMA, repeatability_sigma, stated_noise
 from robotcal.identification.settings import RefinementSettings
-from robotcal.io.scenario import load_scenario, scenario_from_dict
+from robotcal.io.schema.scenario import load_scenario, scenario_from_dict
 
 REPEATABILITY_MM = 0.12  # an RP of 0.12 mm: a scatter of 33 um per coordinate, beside the tracker's ~9 um
 

@@ -23,9 +23,9 @@ from robotcal.geometry.fits import fit_circle_3d
 from robotcal.identification.health import FitHealthWarning
 from robotcal.identification.plausibility import PlausibilityWarning, check_capture, reject_outliers
 from robotcal.io import load_scenario
-from robotcal.io.builtins import read_toml
-from robotcal.io.capture_csv import write_capture
-from robotcal.io.scenario import scenario_from_dict
+from robotcal.io.formats.capture_csv import write_capture
+from robotcal.io.schema.builtins import read_toml
+from robotcal.io.schema.scenario import scenario_from_dict
 from robotcal.kinematics.model import ParameterSet
 
 LASER = "thesis-laser-tracker"

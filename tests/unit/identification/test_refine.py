@@ -18,7 +18,7 @@ from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import RefinementSettings
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot, load_scenario
-from robotcal.io.provenance import refine_provenance
+from robotcal.io.results.provenance import refine_provenance
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture

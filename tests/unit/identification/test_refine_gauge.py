@@ -26,7 +26,7 @@ from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import RefinementSettings
 from robotcal.instruments import Instrument
 from robotcal.io import load_robot, load_scenario
-from robotcal.io.provenance import refine_provenance
+from robotcal.io.results.provenance import refine_provenance
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.simulation import CapturePlan, simulate_capture
 from robotcal.simulation.perturb import perturbable_mask
@@ -291,7 +291,7 @@ def test_seed7_cpa_start_is_no_worse_than_nominal_start(seed7, criterion, option
 @pytest.mark.filterwarnings("ignore::robotcal.errors.IdentifiabilityWarning")  # J6 behind its own target
 def test_cli_estimate_base_flag(tmp_path):
     from robotcal.cli import app
-    from robotcal.io.capture_csv import write_capture
+    from robotcal.io.formats.capture_csv import write_capture
 
     capture = _capture(JOINT, _truth(6))
     path = tmp_path / "cal.csv"

@@ -16,8 +16,8 @@ from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target, split_by_session
 from robotcal.instruments import Instrument
-from robotcal.io.capture_csv import capture_to_csv, read_capture_text
-from robotcal.io.robots import load_robot
+from robotcal.io.formats.capture_csv import capture_to_csv, read_capture_text
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
@@ -186,7 +186,7 @@ def test_points_view_registers_each_session_on_its_own():
 
 
 def test_parameter_json_records_the_session_frames(tmp_path):
-    from robotcal.io.parameters_json import (
+    from robotcal.io.formats.parameters_json import (
         read_sessions,
         read_targets,
         refined_sessions,

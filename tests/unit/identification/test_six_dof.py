@@ -13,7 +13,7 @@ from robotcal.geometry.transforms import rot_x, rot_y, rot_z
 from robotcal.identification.refine import refine_parameters
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.robots import load_robot
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses
@@ -60,7 +60,7 @@ def test_noise_free_six_dof_capture_recovers_the_robot_and_the_probe_frame():
 def test_import_reads_quaternion_abc_and_rpy_alike(tmp_path):
     from scipy.spatial.transform import Rotation
 
-    from robotcal.io.tracker_import import import_tracker_capture
+    from robotcal.io.formats.tracker_import import import_tracker_capture
 
     rotation = Rotation.from_euler("ZYX", [30.0, -15.0, 5.0], degrees=True)
     w = [float(v) for v in rotation.as_quat()[[3, 0, 1, 2]]]
@@ -87,7 +87,7 @@ def test_import_reads_quaternion_abc_and_rpy_alike(tmp_path):
 
 
 def test_capture_csv_round_trips_the_orientation(tmp_path):
-    from robotcal.io.capture_csv import read_capture, write_capture
+    from robotcal.io.formats.capture_csv import read_capture, write_capture
 
     capture = _capture()
     path = write_capture(tmp_path / "six.csv", capture)

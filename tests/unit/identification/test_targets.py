@@ -18,10 +18,10 @@ from robotcal.identification.refine import measurement_pairs, refine_parameters,
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.capture_csv import read_capture, write_capture
-from robotcal.io.parameters_json import read_parameters, read_targets, refined_targets, write_parameters
-from robotcal.io.robots import load_robot
-from robotcal.io.scenario import scenario_from_dict
+from robotcal.io.formats.capture_csv import read_capture, write_capture
+from robotcal.io.formats.parameters_json import read_parameters, read_targets, refined_targets, write_parameters
+from robotcal.io.schema.robots import load_robot
+from robotcal.io.schema.scenario import scenario_from_dict
 from robotcal.kinematics.forward import forward_kinematics
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_target_poses
@@ -428,7 +428,7 @@ def _toml(text: str) -> dict:
 
 def test_cpa_on_a_capture_with_a_target_column_uses_its_first_target():
     from robotcal.api import identify, simulate
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.schema.scenario import load_scenario
 
     scenario = load_scenario("thesis-noise-free")
     capture = simulate(scenario, rng=1)

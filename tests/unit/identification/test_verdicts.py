@@ -15,7 +15,7 @@ import robotcal
 from robotcal.errors import FitHealthWarning, IdentifiabilityWarning
 from robotcal.identification.cpa import CPAOptions
 from robotcal.identification.health import CPA_EFFECT_LIMIT_MM, U_EFFECT_LIMIT_MM, _poorly_refined
-from robotcal.io.builtins import data_path
+from robotcal.io.schema.builtins import data_path
 
 
 @pytest.fixture(scope="module")

@@ -44,10 +44,10 @@ def canonical(value):
 
 def loaded_builtins() -> dict:
     """Every built-in scenario, robot and instrument preset, loaded as the product loads them, in canonical form."""
-    from robotcal.io.builtins import builtin_names
-    from robotcal.io.instruments import instrument_presets, make_instrument
-    from robotcal.io.robots import load_robot
-    from robotcal.io.scenario import load_scenario
+    from robotcal.io.schema.builtins import builtin_names
+    from robotcal.io.schema.instruments import instrument_presets, make_instrument
+    from robotcal.io.schema.robots import load_robot
+    from robotcal.io.schema.scenario import load_scenario
 
     presets = instrument_presets()
     out = {

@@ -17,11 +17,11 @@ from robotcal.capture import Capture
 from robotcal.cli import app
 from robotcal.errors import DegenerateGeometryError, InputError
 from robotcal.io import load_scenario, read_capture, read_parameters
-from robotcal.io._validation import MAX_LINE_CHARS
-from robotcal.io.capture_csv import write_capture
-from robotcal.io.draws_npz import read_draws, write_draws
-from robotcal.io.robots import load_robot
-from robotcal.io.trajectory_csv import read_trajectory
+from robotcal.io.formats.capture_csv import write_capture
+from robotcal.io.formats.draws_npz import read_draws, write_draws
+from robotcal.io.formats.trajectory_csv import read_trajectory
+from robotcal.io.schema._validation import MAX_LINE_CHARS
+from robotcal.io.schema.robots import load_robot
 
 runner = CliRunner()
 SCENARIO = "thesis-noise-free"
@@ -150,7 +150,7 @@ def test_pose_csv_refuses_readings_no_joint_has(tmp_path):
 
 
 def test_recorded_base_frame_of_a_parameter_json(tmp_path):
-    from robotcal.io.parameters_json import read_tracker_from_base, write_parameters
+    from robotcal.io.formats.parameters_json import read_tracker_from_base, write_parameters
     from robotcal.kinematics.model import ParameterSet
 
     nominal = ParameterSet.nominal(load_robot("kuka-kr5-sixx-r650"))

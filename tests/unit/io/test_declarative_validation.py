@@ -12,11 +12,11 @@ import re
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io._validation import validate_model
-from robotcal.io.instruments import InstrumentPreset, instrument_presets, make_instrument
-from robotcal.io.parameters_json import read_parameters, read_targets
-from robotcal.io.robots import load_robot
-from robotcal.io.scenario import scenario_from_dict
+from robotcal.io.formats.parameters_json import read_parameters, read_targets
+from robotcal.io.schema._validation import validate_model
+from robotcal.io.schema.instruments import InstrumentPreset, instrument_presets, make_instrument
+from robotcal.io.schema.robots import load_robot
+from robotcal.io.schema.scenario import scenario_from_dict
 
 ROBOT = "kuka-kr5-sixx-r650"
 
@@ -125,7 +125,7 @@ def test_parameter_json_targets(tmp_path):
 
 
 def test_a_joint_number_is_whole(tmp_path):
-    from robotcal.io.joints_files import read_backlash
+    from robotcal.io.results.joints_files import read_backlash
 
     path = tmp_path / "summary.csv"
     header = "joint,backlash_angle_mean_deg,backlash_exceeds_noise\n"
@@ -137,7 +137,7 @@ def test_a_joint_number_is_whole(tmp_path):
 
 
 def test_recorded_base_frame_is_a_4x4_matrix_by_type(tmp_path):
-    from robotcal.io.parameters_json import read_tracker_from_base
+    from robotcal.io.formats.parameters_json import read_tracker_from_base
 
     path = tmp_path / "p.json"
     path.write_text(json.dumps({"provenance": {"tracker_from_base": [[1.0, 0.0, 0.0, 0.0]] * 3, "points": 40}}))

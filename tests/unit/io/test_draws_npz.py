@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io.draws_npz import read_draws, write_draws
-from robotcal.io.robots import load_robot, robot_from_dict, robot_to_dict
+from robotcal.io.formats.draws_npz import read_draws, write_draws
+from robotcal.io.schema.robots import load_robot, robot_from_dict, robot_to_dict
 
 
 @pytest.mark.parametrize("name", ["kuka-kr5-sixx-r650", "kuka-kr5-sixx-r650-krc"])

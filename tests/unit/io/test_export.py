@@ -12,7 +12,7 @@ import pytest
 
 from robotcal.errors import InputError
 from robotcal.io import load_robot
-from robotcal.io.export import (
+from robotcal.io.formats.export import (
     UR_JOINT_NAMES,
     dh_table,
     mdh_table,
@@ -305,7 +305,7 @@ def test_coupled_readings_export_the_model_variables_only(tmp_path):
 def test_every_export_text_is_recognised_as_robotcal_output(tmp_path):
     # issue 24: the output policy must recognise what export wrote (io.output.is_robotcal_file), so that a
     # second export replaces it without --force; a user's file of the same kind is not recognised
-    from robotcal.io.output import is_robotcal_file
+    from robotcal.io.results.output import is_robotcal_file
 
     robot = load_robot("kuka-kr5-sixx-r650")  # reading signs +1: every format holds it
     values = robot.nominal.copy()

@@ -19,7 +19,7 @@ from robotcal.io import (
     write_capture,
     write_parameters,
 )
-from robotcal.io.builtins import read_toml
+from robotcal.io.schema.builtins import read_toml
 from robotcal.kinematics import ParameterSet, RobotModel
 
 

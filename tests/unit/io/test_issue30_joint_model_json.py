@@ -14,7 +14,7 @@ import pytest
 
 from robotcal.errors import InputError
 from robotcal.io import load_robot, read_parameters, write_parameters
-from robotcal.io.scenario import scenario_from_dict
+from robotcal.io.schema.scenario import scenario_from_dict
 from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, MAX_HARMONIC_ORDER, JointModel
 from robotcal.kinematics.model import ParameterSet
 

@@ -13,10 +13,10 @@ import tomllib
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io.builtins import data_path
-from robotcal.io.instruments import make_instrument
-from robotcal.io.robots import robot_from_dict
-from robotcal.io.scenario import load_scenario, scenario_from_dict
+from robotcal.io.schema.builtins import data_path
+from robotcal.io.schema.instruments import make_instrument
+from robotcal.io.schema.robots import robot_from_dict
+from robotcal.io.schema.scenario import load_scenario, scenario_from_dict
 
 ROBOT = "kuka-kr5-sixx-r650"
 

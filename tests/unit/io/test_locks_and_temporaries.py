@@ -1,4 +1,4 @@
-"""The output lock and robotcal's temporary entries (robotcal.io.output, robotcal.io.atomic): a lock is created
+"""The output lock and robotcal's temporary entries (robotcal.io.results.output, robotcal.io.atomic): a lock is created
 whole or not at all, records its pid and host, refuses while its process runs and is taken over once it is gone;
 the temporaries a killed robotcal left are recognised by name and writer and removed by the next writer of the
 same output, and nothing else is."""
@@ -25,7 +25,7 @@ from robotcal.io.atomic import (
     remove_stale_temporaries,
     temporary_prefix,
 )
-from robotcal.io.output import LOCK_SUFFIX, output_lock, result_folder, write_marker
+from robotcal.io.results.output import LOCK_SUFFIX, output_lock, result_folder, write_marker
 
 needs_dev_full = pytest.mark.skipif(not Path("/dev/full").exists(), reason="simulates a full disk with /dev/full")
 
@@ -171,7 +171,7 @@ def test_an_empty_lock_is_stale_once_old_and_waited_for_while_young(tmp_path, mo
 
 def test_a_stale_lock_replaced_meanwhile_is_put_back(tmp_path, dead_pid):
     # two processes found one stale lock; the first took over; the second must not remove the first's lock
-    from robotcal.io.output import _take_over
+    from robotcal.io.results.output import _take_over
 
     lock = tmp_path / f".res{LOCK_SUFFIX}"
     lock.write_text(f"{os.getpid()}\n{socket.gethostname()}\nfresh\n")  # the first process's new lock
@@ -277,7 +277,7 @@ def test_os_errors_say_what_to_do():
 def test_a_refused_writer_leaves_the_holders_new_folder(tmp_path, monkeypatch, live_pid):
     # the holder made the (still empty) output folder while the refused process waited for the lock: the refused
     # process must not remove it as "a folder made for an output that was not written"
-    import robotcal.io.output as output
+    import robotcal.io.results.output as output
 
     out = tmp_path / "run"
     (tmp_path / f".run{LOCK_SUFFIX}").write_text(f"{live_pid}\n{socket.gethostname()}\nabc\n")

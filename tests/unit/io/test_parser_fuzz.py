@@ -24,12 +24,12 @@ from hypothesis import strategies as st
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
-from robotcal.io.builtins import data_path
-from robotcal.io.capture_csv import capture_to_csv, read_capture
-from robotcal.io.draws_npz import read_draws, write_draws
-from robotcal.io.parameters_json import read_parameters, write_parameters
-from robotcal.io.robots import load_robot
-from robotcal.io.trajectory_csv import read_trajectory
+from robotcal.io.formats.capture_csv import capture_to_csv, read_capture
+from robotcal.io.formats.draws_npz import read_draws, write_draws
+from robotcal.io.formats.parameters_json import read_parameters, write_parameters
+from robotcal.io.formats.trajectory_csv import read_trajectory
+from robotcal.io.schema.builtins import data_path
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics.model import ParameterSet
 
 FUZZ = settings(

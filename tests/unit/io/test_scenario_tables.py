@@ -1,7 +1,7 @@
 """The run-option tables of a scenario stay typed and frozen, and their defaults live in one place (issue 13).
 
 ``[montecarlo]``, ``[truth]``, ``[validation]`` and ``[tcp]`` are the pydantic models of
-``robotcal.io.scenario``; every consumer reads their attributes. The proof that no consumer restates a
+``robotcal.io.schema.scenario``; every consumer reads their attributes. The proof that no consumer restates a
 default: change the default in the table definition and see the change arrive at every consumer.
 """
 
@@ -17,8 +17,8 @@ from pydantic import ValidationError
 from robotcal.api import perturb, simulate_poses, tcp_targets
 from robotcal.errors import InputError
 from robotcal.io import load_scenario
-from robotcal.io.builtins import data_path, read_toml
-from robotcal.io.scenario import (
+from robotcal.io.schema.builtins import data_path, read_toml
+from robotcal.io.schema.scenario import (
     MonteCarloTable,
     ScenarioFile,
     TCPTable,

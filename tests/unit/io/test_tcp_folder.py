@@ -8,8 +8,8 @@ import numpy as np
 
 from robotcal.api import workspace_uncertainty
 from robotcal.io import load_robot
-from robotcal.io.run_folder import table_from_text
-from robotcal.io.tcp_results import write_tcp_folder
+from robotcal.io.results.run_folder import table_from_text
+from robotcal.io.results.tcp_results import write_tcp_folder
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robotcal.io import load_robot
-from robotcal.io.tcp_results import write_tcp_json
+from robotcal.io.results.tcp_results import write_tcp_json
 from robotcal.uncertainty.tcp import propagate_to_tcp
 
 ROBOT = load_robot("kuka-kr5-sixx-r650-krc")
@@ -93,7 +93,7 @@ def _reference_dict_poses(result, interval="symmetric"):
 
 
 def test_vectorised_dict_equals_the_number_by_number_conversion():
-    from robotcal.io.tcp_results import tcp_to_dict
+    from robotcal.io.results.tcp_results import tcp_to_dict
 
     rng = np.random.default_rng(1)
     draws = ROBOT.nominal[None] + rng.normal(0.0, 1e-3, (50, ROBOT.n_joints, 5)) * ~ROBOT.structurally_fixed
@@ -105,7 +105,7 @@ def test_vectorised_dict_equals_the_number_by_number_conversion():
 
 
 def test_json_text_is_the_document_with_one_pose_per_line(tmp_path):
-    from robotcal.io.tcp_results import tcp_json_text, tcp_to_dict
+    from robotcal.io.results.tcp_results import tcp_json_text, tcp_to_dict
 
     rng = np.random.default_rng(2)
     draws = ROBOT.nominal[None] + rng.normal(0.0, 1e-3, (30, ROBOT.n_joints, 5)) * ~ROBOT.structurally_fixed
@@ -130,7 +130,7 @@ def test_csv_text_is_that_of_the_csv_module():
     import dataclasses
     import io
 
-    from robotcal.io.tcp_results import TCP_CSV_COLUMNS, _file_units, tcp_to_csv
+    from robotcal.io.results.tcp_results import TCP_CSV_COLUMNS, _file_units, tcp_to_csv
     from robotcal.uncertainty.tcp import TCP_COORDINATES, TCP_UNITS
 
     rng = np.random.default_rng(1)

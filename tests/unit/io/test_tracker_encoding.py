@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from robotcal.cli import app
 from robotcal.errors import InputError
-from robotcal.io.tracker_import import read_tracker_export
+from robotcal.io.formats.tracker_import import read_tracker_export
 
 EXPORT = "Name;X [µm];Y [µm];Z [µm];T [°C]\nP1;1000;2000;3000;20.5\nP2;1100;2000;3000;20.5\nP3;1250,5;2000;3000;20.5\n"
 

@@ -1,4 +1,4 @@
-"""Tracker exports in (robotcal.io.tracker_import): Leica, plain ``name;x;y;z``, mapped generic text.
+"""Tracker exports in (robotcal.io.formats.tracker_import): Leica, plain ``name;x;y;z``, mapped generic text.
 
 Hand-made small exports with their expected values written out, every error path named, and a
 round trip: a simulated capture written as a Leica export in metres with decimal commas, imported
@@ -12,15 +12,15 @@ import pytest
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
-from robotcal.io.capture_csv import read_capture, write_capture
-from robotcal.io.robots import load_robot
-from robotcal.io.tracker_import import (
+from robotcal.io.formats.capture_csv import read_capture, write_capture
+from robotcal.io.formats.tracker_import import (
     import_tracker_capture,
     join_points_to_readings,
     parse_column_map,
     read_joint_log,
     read_tracker_export,
 )
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics.forward import forward_kinematics
 
 LEICA_M = """Name;X [m];Y [m];Z [m];U(95) [m];Temperature [C];Time Stamp

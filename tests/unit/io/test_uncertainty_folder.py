@@ -6,8 +6,8 @@ import pytest
 
 from robotcal.api import monte_carlo
 from robotcal.io import load_scenario
-from robotcal.io.run_folder import read_document
-from robotcal.io.uncertainty_files import write_uncertainty_folder
+from robotcal.io.results.run_folder import read_document
+from robotcal.io.results.uncertainty_files import write_uncertainty_folder
 
 
 @pytest.mark.parametrize("save_draws", [False, True])
@@ -30,7 +30,7 @@ def test_parameters_csv_keeps_its_columns_and_adds_the_interval_ones(tmp_path):
 
     import numpy as np
 
-    from robotcal.io.uncertainty_files import CSV_COLUMNS, INTERVAL_METHOD
+    from robotcal.io.results.uncertainty_files import CSV_COLUMNS, INTERVAL_METHOD
     from robotcal.simulation.perturb import perturb_parameters
 
     scenario = load_scenario("thesis-igps")

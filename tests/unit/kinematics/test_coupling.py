@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io.robots import load_robot, robot_from_dict, robot_to_dict
+from robotcal.io.schema.robots import load_robot, robot_from_dict, robot_to_dict
 from robotcal.kinematics.forward import forward_kinematics, joint_frames
 from robotcal.kinematics.model import RobotModel
 

@@ -8,7 +8,7 @@ import pytest
 
 from robotcal.errors import InputError
 from robotcal.io import load_robot
-from robotcal.io.parameters_json import read_parameters, write_parameters
+from robotcal.io.formats.parameters_json import read_parameters, write_parameters
 from robotcal.kinematics.forward import joint_frames
 from robotcal.kinematics.joint_model import GRAVITY_MPS2, JointModel, gravity_torques
 from robotcal.kinematics.model import LinkMasses, ParameterSet

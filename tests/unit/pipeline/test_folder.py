@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io.run_folder import (
+from robotcal.io.results.run_folder import (
     RunResult,
     Table,
     read_document,

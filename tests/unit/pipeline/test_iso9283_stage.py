@@ -7,7 +7,7 @@ import numpy as np
 from robotcal.api import perturb
 from robotcal.diagnostics.iso9283 import simulate_iso_study
 from robotcal.io import load_scenario
-from robotcal.io.run_folder import read_document
+from robotcal.io.results.run_folder import read_document
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.stages import ISO_TARGETS_MM, iso9283_stage

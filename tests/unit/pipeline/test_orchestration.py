@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 import robotcal.report.html as report_html
-from robotcal.io.run_folder import STAGES, write_json
+from robotcal.io.results.run_folder import STAGES, write_json
 from robotcal.pipeline import plan_run, run_calibration
 from robotcal.pipeline import stages as pipeline_stages
 from robotcal.pipeline.stages import StageOutput

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io.scenario import load_scenario
+from robotcal.io.schema.scenario import load_scenario
 from robotcal.pipeline import RunPlan, plan_run, run_calibration
 from robotcal.pipeline.plan import REFINED_DRAWS, SEED_OFFSETS
 
@@ -108,7 +108,7 @@ def test_seeds_and_scenarios_of_the_wrong_type_are_refused_up_front(tmp_path):
 
 def test_the_stage_tables_follow_the_stage_order():
     """OUTPUTS (hence RUN_ENTRIES and the report's table of stages) and STEPS list the stages in run order."""
-    from robotcal.io.run_folder import OUTPUTS, RUN_ENTRIES, RUN_RECORD, STAGES
+    from robotcal.io.results.run_folder import OUTPUTS, RUN_ENTRIES, RUN_RECORD, STAGES
     from robotcal.pipeline.plan import STEPS
 
     assert tuple(OUTPUTS) == STAGES

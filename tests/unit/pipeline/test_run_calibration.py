@@ -14,7 +14,7 @@ from robotcal.api import identify
 from robotcal.capture import Capture
 from robotcal.cli import app
 from robotcal.io import load_scenario, read_capture
-from robotcal.io.run_folder import STAGES, RunResult, Table, read_run
+from robotcal.io.results.run_folder import STAGES, RunResult, Table, read_run
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline import plan_run, run_calibration
 from robotcal.uncertainty.montecarlo import MonteCarloResult

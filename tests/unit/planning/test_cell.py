@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robotcal.errors import InputError
-from robotcal.io.robots import robot_from_dict
+from robotcal.io.schema.robots import robot_from_dict
 from robotcal.kinematics.model import ReflectorMount
 from robotcal.planning.cell import CellModel, check_plan, segment_distance
 from robotcal.simulation.plan import CapturePlan

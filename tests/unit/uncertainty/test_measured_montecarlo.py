@@ -25,8 +25,8 @@ from robotcal.errors import IdentifiabilityWarning, InputError
 from robotcal.identification.refine import wrap_angles
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.robots import load_robot
-from robotcal.io.scenario import scenario_from_dict
+from robotcal.io.schema.robots import load_robot
+from robotcal.io.schema.scenario import scenario_from_dict
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import simulate_target_poses
 from robotcal.simulation.perturb import perturb_parameters

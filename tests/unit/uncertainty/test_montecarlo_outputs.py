@@ -12,7 +12,7 @@ from scipy.stats import norm
 
 from robotcal.api import monte_carlo_problem
 from robotcal.io import load_scenario
-from robotcal.io.draws_npz import read_draws, write_draws
+from robotcal.io.formats.draws_npz import read_draws, write_draws
 from robotcal.uncertainty.montecarlo import MonteCarloSettings, draw_covariance, linearised_uncertainty, run_monte_carlo
 from robotcal.uncertainty.statistics import coverage_interval, summarize_draws
 

@@ -16,7 +16,7 @@ from robotcal.identification.cpa import identify_cpa_batch
 from robotcal.identification.refine import refine_parameters
 from robotcal.identification.settings import RefinementSettings
 from robotcal.io import load_scenario
-from robotcal.io.uncertainty_files import read_uncertainty_csv, write_uncertainty_csv, write_uncertainty_json
+from robotcal.io.results.uncertainty_files import read_uncertainty_csv, write_uncertainty_csv, write_uncertainty_json
 from robotcal.kinematics.model import ParameterSet
 from robotcal.uncertainty.draws import _block_generators, _noise, draw_block
 from robotcal.uncertainty.montecarlo import DEFAULT_BLOCK_SIZE, REFINED_BLOCK_SIZE, MonteCarloSettings, run_monte_carlo

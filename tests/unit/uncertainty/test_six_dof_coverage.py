@@ -20,7 +20,7 @@ from robotcal.geometry.transforms import rot_x, rot_z
 from robotcal.identification.refine import refine_parameters
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io.robots import load_robot
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.perturb import perturb_parameters
 from robotcal.simulation.poses import random_poses

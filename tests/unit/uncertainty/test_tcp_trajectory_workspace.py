@@ -9,7 +9,7 @@ import pytest
 
 from robotcal.errors import InputError
 from robotcal.io import load_robot
-from robotcal.io.trajectory_csv import builtin_trajectories, load_trajectory, read_trajectory, write_trajectory
+from robotcal.io.formats.trajectory_csv import builtin_trajectories, load_trajectory, read_trajectory, write_trajectory
 from robotcal.kinematics import RobotModel
 from robotcal.uncertainty.tcp import propagate_to_tcp
 from robotcal.uncertainty.workspace import PERCENTILES, sample_workspace, workspace_uncertainty

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import datetime as _dt
 
-from robotcal.io.run_folder import REPORT_NAME, Table
+from robotcal.io.results.run_folder import REPORT_NAME, Table
 from robotcal.report import installed_version
 from robotcal.report.page import _FOLD_ROWS, _block, _facts, _Page, _Table
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import re
 
-from robotcal.io.run_folder import OUTPUTS
-from robotcal.io.run_summary import set_label
+from robotcal.io.results.run_folder import OUTPUTS
+from robotcal.io.results.run_summary import set_label
 from robotcal.report.page import _angle, _fmt, _length, _micrometres, _number, _Page
 
 

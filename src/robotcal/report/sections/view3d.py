@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from robotcal.io.run_folder import Table
+from robotcal.io.results.run_folder import Table
 from robotcal.report.page import _block, _Page
 from robotcal.report.viewer3d import render_viewer, viewer_scene
 

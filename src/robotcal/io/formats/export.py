@@ -31,7 +31,7 @@ import numpy as np
 from robotcal.errors import InputError
 from robotcal.geometry.euler import kuka_abc_from_matrix
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z, translation
-from robotcal.io.output import SIGNATURE  # the first comment by which robotcal recognises its own files
+from robotcal.io.results.output import SIGNATURE  # the first comment by which robotcal recognises its own files
 from robotcal.kinematics.model import ParameterSet
 
 __all__ = [

@@ -27,8 +27,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from robotcal.errors import InputError
-from robotcal.io._validation import XYZ, TomlBool, TomlFloat, TomlInt, validate_model
-from robotcal.io.builtins import builtin_names, data_path, read_toml
+from robotcal.io.schema._validation import XYZ, TomlBool, TomlFloat, TomlInt, validate_model
+from robotcal.io.schema.builtins import builtin_names, data_path, read_toml
 from robotcal.kinematics.model import ANGLE_COLUMNS, LinkMasses, RobotModel
 
 __all__ = ["robot_to_dict", "RobotFile", "JointEntry", "load_robot", "robot_from_dict", "list_robots"]

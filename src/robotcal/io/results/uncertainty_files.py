@@ -13,8 +13,8 @@ import numpy as np
 
 from robotcal.errors import InputError
 from robotcal.io.atomic import atomic_write_text
-from robotcal.io.draws_npz import parameter_units
-from robotcal.io.parameters_json import joint_model_to_dict
+from robotcal.io.formats.draws_npz import parameter_units
+from robotcal.io.formats.parameters_json import joint_model_to_dict
 from robotcal.kinematics.model import DISPLAY_UNITS, ParameterSet
 from robotcal.uncertainty.montecarlo import MonteCarloResult
 
@@ -330,11 +330,11 @@ def write_uncertainty_folder(
     folder: Path, result: MonteCarloResult, *, scenario=None, save_draws: bool, deployed: ParameterSet | None = None
 ) -> dict:
     """Write ``parameters.csv``, ``parameters.json`` and (optionally) ``draws.npz`` into ``folder`` (an existing,
-    normally temporary, folder), with the ``deployed`` values if given (:func:`uncertainty_rows`); returns the documents by file name as :func:`robotcal.io.run_folder.read_run`
+    normally temporary, folder), with the ``deployed`` values if given (:func:`uncertainty_rows`); returns the documents by file name as :func:`robotcal.io.results.run_folder.read_run`
     reads them (the histograms: :func:`robotcal.plots.montecarlo.write_histograms`)."""
-    from robotcal.io.draws_npz import write_draws
-    from robotcal.io.provenance import versions
-    from robotcal.io.run_folder import read_document
+    from robotcal.io.formats.draws_npz import write_draws
+    from robotcal.io.results.provenance import versions
+    from robotcal.io.results.run_folder import read_document
 
     folder = Path(folder)
     echo = (
@@ -402,8 +402,8 @@ def write_measured_folder(
     import csv
     import io
 
-    from robotcal.io.draws_npz import write_draws
-    from robotcal.io.provenance import versions
+    from robotcal.io.formats.draws_npz import write_draws
+    from robotcal.io.results.provenance import versions
     from robotcal.uncertainty.measured import MODEL as MEASURED_MODEL
     from robotcal.uncertainty.measured import with_model
 

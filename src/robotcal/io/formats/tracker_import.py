@@ -27,7 +27,7 @@ k). A point without a reading, a reading without a point, or a name (or name and
 twice is an :class:`InputError` naming the file, line and column.
 
 The result is a :class:`robotcal.capture.Capture` with the optional ``target`` and ``u95`` columns
-(U(95) [mm], k = 2, normal), written by :func:`robotcal.io.capture_csv.write_capture`.
+(U(95) [mm], k = 2, normal), written by :func:`robotcal.io.formats.capture_csv.write_capture`.
 """
 
 from __future__ import annotations
@@ -43,8 +43,8 @@ import numpy as np
 from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import InputError
-from robotcal.io._validation import MAX_LINE_CHARS, csv_rows, read_text_file
-from robotcal.io.orientation import ORIENTATION_KEYS, orientation_columns
+from robotcal.io.formats.orientation import ORIENTATION_KEYS, orientation_columns
+from robotcal.io.schema._validation import MAX_LINE_CHARS, csv_rows, read_text_file
 
 __all__ = [
     "UNITS_MM",
@@ -87,7 +87,7 @@ class TrackerPoints:
         Optional per-point columns (target names; circle and direction as integers).
     orientation, orientation_u95 : ndarray or None
         A 6-DoF probe's orientation per point, ``(n_points, 3, 3)`` (probe to tracker frame), and its U(95) [rad]
-        (:func:`robotcal.io.orientation.orientation_columns`).
+        (:func:`robotcal.io.formats.orientation.orientation_columns`).
     lines : ndarray of int, shape (n_points,)
         Line of the file each point was read from (for error messages).
     layout : str

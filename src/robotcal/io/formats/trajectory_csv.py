@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.io.builtins import data_path
+from robotcal.io.schema._validation import csv_rows, parse_finite, read_text_file
+from robotcal.io.schema.builtins import data_path
 
 __all__ = [
     "MAX_READING_DEG",

@@ -33,9 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.errors import InputError
-from robotcal.io._validation import parse_json_text
 from robotcal.io.atomic import atomic_write_bytes
-from robotcal.io.robots import robot_from_dict, robot_to_dict
+from robotcal.io.schema._validation import parse_json_text
+from robotcal.io.schema.robots import robot_from_dict, robot_to_dict
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ANGLE_COLUMNS, KIND_UNITS, PARAMETER_KINDS, RobotModel
 
@@ -102,7 +102,7 @@ def write_draws(
         raise InputError(f"draws must have shape (n_draws, {n}, 5); got {values.shape}")
     more = {}
     if joint_model is not None and extras is not None:
-        from robotcal.io.parameters_json import joint_model_to_dict
+        from robotcal.io.formats.parameters_json import joint_model_to_dict
 
         extras = np.asarray(extras, dtype=float)
         if extras.shape != (values.shape[0], joint_model.size):
@@ -174,7 +174,7 @@ def read_draws(path) -> ParameterDraws:
     identified = identified.reshape(robot.n_joints, 5)
     joint_model = extras = None
     if "joint_model_json" in contents:
-        from robotcal.io.parameters_json import read_joint_model
+        from robotcal.io.formats.parameters_json import read_joint_model
 
         text = str(contents["joint_model_json"].item())
         joint_model = read_joint_model(parse_json_text(text, f"{path}: key `joint_model_json`"), robot, path)

@@ -28,10 +28,10 @@ from robotcal.geometry.transforms import check_rigid_transform, nearest_rotation
 from robotcal.identification.cpa import CPAOptions
 from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
-from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, TomlInt, XYZList, validate_model
-from robotcal.io.builtins import builtin_names, data_path, read_toml
-from robotcal.io.instruments import InstrumentTable, make_instrument
-from robotcal.io.robots import load_robot
+from robotcal.io.schema._validation import XYZ, Matrix4, TomlBool, TomlFloat, TomlInt, XYZList, validate_model
+from robotcal.io.schema.builtins import builtin_names, data_path, read_toml
+from robotcal.io.schema.instruments import InstrumentTable, make_instrument
+from robotcal.io.schema.robots import load_robot
 from robotcal.kinematics.joint_model import MAX_HARMONIC_ORDER
 from robotcal.kinematics.model import ReflectorMount, RobotModel
 from robotcal.simulation.generator import ERROR_TERMS, JointErrorModel

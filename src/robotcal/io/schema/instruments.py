@@ -13,8 +13,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, RootModel, field_validator, model_validator
 
 from robotcal.instruments import Instrument
-from robotcal.io._validation import TomlFloat, validate_model
-from robotcal.io.builtins import data_path, read_toml
+from robotcal.io.schema._validation import TomlFloat, validate_model
+from robotcal.io.schema.builtins import data_path, read_toml
 
 __all__ = ["InstrumentPreset", "InstrumentTable", "instrument_presets", "make_instrument"]
 

@@ -27,8 +27,8 @@ from numpy.typing import ArrayLike
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from robotcal.errors import InputError, RobotcalWarning
-from robotcal.io._validation import XYZ, Matrix4, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
 from robotcal.io.atomic import atomic_write_text
+from robotcal.io.schema._validation import XYZ, Matrix4, TomlBool, TomlFloat, as_toml, read_json_file, validate_model
 from robotcal.kinematics.joint_model import MAX_DEFLECTION_DEG, JointModel, largest_deflection, parse_parameter_name
 from robotcal.kinematics.model import ANGLE_KINDS, DISPLAY_UNITS, PARAMETER_KINDS, LinkMasses, ParameterSet, RobotModel
 
@@ -397,7 +397,7 @@ def probe_to_dict(result: RefinementResult) -> dict | None:
     ``targets``), its rotation in the flange frame as a quaternion ``qw, qx, qy, qz`` and a matrix, the standard
     uncertainties of the rotation's corrections ``u_deg`` (rx, ry, rz; null where not estimated) and the RMS of the
     orientation residuals [deg]; None without orientations."""
-    from robotcal.io.orientation import quaternions_from_rotations
+    from robotcal.io.formats.orientation import quaternions_from_rotations
 
     probe = result.probe
     if probe is None:
@@ -415,7 +415,7 @@ def probe_to_dict(result: RefinementResult) -> dict | None:
 
 def read_probe(path: str | os.PathLike[str]) -> np.ndarray | None:
     """The probe's rotation in the flange frame (``probe.quaternion`` of a parameter JSON), None when absent."""
-    from robotcal.io.orientation import rotations_from_quaternions
+    from robotcal.io.formats.orientation import rotations_from_quaternions
 
     path = Path(path)
     data = read_json_file(path, kind="parameter JSON")

@@ -12,8 +12,8 @@ import csv
 import io
 from pathlib import Path
 
-from robotcal.io.provenance import scenario_echo, versions
-from robotcal.io.run_folder import Document, write_csv, write_json
+from robotcal.io.results.provenance import scenario_echo, versions
+from robotcal.io.results.run_folder import Document, write_csv, write_json
 
 __all__ = [
     "COLUMNS",

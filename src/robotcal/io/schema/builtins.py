@@ -7,7 +7,7 @@ from importlib import resources
 from pathlib import Path
 
 from robotcal.errors import InputError
-from robotcal.io._validation import check_nesting, read_text_file
+from robotcal.io.schema._validation import check_nesting, read_text_file
 
 __all__ = ["data_path", "builtin_names", "read_toml"]
 

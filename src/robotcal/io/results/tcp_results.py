@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from robotcal.io.atomic import atomic_write_text
-from robotcal.io.uncertainty_files import CSV_COLUMNS
+from robotcal.io.results.uncertainty_files import CSV_COLUMNS
 from robotcal.kinematics.model import DISPLAY_UNITS
 from robotcal.uncertainty.statistics import IntervalKind
 from robotcal.uncertainty.tcp import ORIENTATION_CONVENTION, TCP_COORDINATES, TCP_UNITS, TCPUncertainty
@@ -223,9 +223,9 @@ def write_tcp_folder(
     provenance: dict | None = None,
 ) -> dict:
     """Write ``tcp.csv`` and ``tcp.json`` into ``folder`` (an existing, normally temporary, folder); returns the
-    documents by file name as :func:`robotcal.io.run_folder.read_run` reads them (the figures:
+    documents by file name as :func:`robotcal.io.results.run_folder.read_run` reads them (the figures:
     :func:`robotcal.plots.tcp.write_tcp_figures`)."""
-    from robotcal.io.run_folder import write_csv
+    from robotcal.io.results.run_folder import write_csv
 
     data = tcp_to_dict(result, interval=interval, workspace=workspace, provenance=provenance or {})
     atomic_write_text(Path(folder) / "tcp.json", tcp_json_text(data))

@@ -32,9 +32,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robotcal.errors import InputError
-from robotcal.io._validation import parse_json_text, read_text_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.io.run_summary import summarise
+from robotcal.io.results.run_summary import summarise
+from robotcal.io.schema._validation import parse_json_text, read_text_file
 
 if TYPE_CHECKING:
     from robotcal.identification.records import RefinementResult
@@ -133,7 +133,7 @@ class RunResult:
         ``run.json``: command, scenario echo, seeds, versions, per-stage status, times and warnings.
     documents : mapping of str to Document
         Every output file of the run by its path relative to the run folder (see the module docstring).
-    summary : robotcal.io.run_summary.Summary or None
+    summary : robotcal.io.results.run_summary.Summary or None
         The headline figures (how good, how sure, where), computed once from the documents.
     problems : tuple of str
         Files of a run folder that exist but could not be read (``read_run``), each "path: why".

@@ -17,8 +17,8 @@ import numpy as np
 
 from robotcal.diagnostics import HarmonicModel, JointDiagnostics
 from robotcal.errors import InputError
-from robotcal.io.provenance import scenario_echo, versions
-from robotcal.io.run_folder import Document, write_csv, write_json
+from robotcal.io.results.provenance import scenario_echo, versions
+from robotcal.io.results.run_folder import Document, write_csv, write_json
 
 __all__ = [
     "SUMMARY_COLUMNS",
@@ -153,7 +153,7 @@ def read_backlash(path, n_joints: int) -> np.ndarray:
     """The angular backlash [deg] per joint from a joints stage's ``summary.csv``: ``backlash_angle_mean_deg`` of the
     joints whose backlash exceeds the noise (``backlash_exceeds_noise`` 1), 0 for the others and for joints the
     capture has no circle of. Errors name the file, the line and the column."""
-    from robotcal.io._validation import csv_rows, parse_finite, parse_whole, read_text_file
+    from robotcal.io.schema._validation import csv_rows, parse_finite, parse_whole, read_text_file
 
     path = Path(path)
     rows = [row for _, row in csv_rows(read_text_file(path, kind="joints summary CSV"), path) if any(row)]

@@ -22,9 +22,9 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
-from robotcal.io._validation import csv_rows, parse_finite, read_text_file
 from robotcal.io.atomic import atomic_write_text
-from robotcal.io.orientation import QUATERNION_COLUMNS, quaternions_from_rotations, rotations_from_quaternions
+from robotcal.io.formats.orientation import QUATERNION_COLUMNS, quaternions_from_rotations, rotations_from_quaternions
+from robotcal.io.schema._validation import csv_rows, parse_finite, read_text_file
 
 __all__ = ["capture_to_csv", "read_capture", "read_capture_text", "write_capture"]
 
