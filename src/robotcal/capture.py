@@ -16,6 +16,7 @@ a 6-DoF probe's ``orientation`` (a rotation per point, probe to tracker frame) w
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -23,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from robotcal._arrays import frozen_array as _frozen
-from robotcal.errors import InputError
+from robotcal.errors import InputError, RobotcalWarning
 
 __all__ = ["Capture", "join_captures"]
 
@@ -239,9 +240,10 @@ def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -
 
     ``parts``: ``(capture, name)`` pairs; a capture with a ``target`` column keeps its own names (``name`` None),
     one without takes ``name`` for every point. ``u95_mm`` is kept only when every part has it; seeds are dropped
-    (a joined capture is no one simulation's); so are the orientations (with their U(95)) only when every part has
-    them. Sessions are kept: when any part has a ``session`` column, every
-    part must have one (a part without one would fall in no session).
+    (a joined capture is no one simulation's). Orientations (with their U(95)) are kept only when every part has
+    them; when only some parts have them they are dropped with a :class:`~robotcal.errors.RobotcalWarning` naming
+    those parts. Sessions are kept: when any part has a ``session`` column, every part must have one (a part
+    without one would fall in no session).
     """
     parts = list(parts)
     if not parts:
@@ -265,6 +267,14 @@ def join_captures(parts: Iterable[tuple[Capture, str | None]], *, source: str) -
     session, session_names = _joined_sessions([capture for capture, _ in parts])
     oriented = all(capture.orientation is not None for capture, _ in parts)
     every_u = oriented and all(capture.orientation_u95 is not None for capture, _ in parts)
+    dropped = [capture.source for capture, _ in parts if capture.orientation is not None]
+    if dropped and not oriented:
+        warnings.warn(
+            f"{', '.join(dropped)}: orientations dropped: the captures joined with them measured positions only (the "
+            "joined capture is positions only)",
+            RobotcalWarning,
+            stacklevel=2,
+        )
     return Capture(
         circle=np.concatenate([capture.circle for capture, _ in parts]),
         direction=np.concatenate([capture.direction for capture, _ in parts]),

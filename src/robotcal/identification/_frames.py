@@ -15,6 +15,7 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.registration import register_points
 from robotcal.identification._problem import Problem, Setup, State, point_sigmas
+from robotcal.identification.health import repeatability_sigma
 from robotcal.identification.records import ProbeFrame, SessionFrame
 from robotcal.kinematics.forward import forward_kinematics
 
@@ -53,9 +54,12 @@ def session_starts(probe: Problem, values, offset_start, source: str, names) -> 
     return replace(probe, base_start=base_start, session_starts=np.stack(frames[1:]))
 
 
-def _orientation_sigmas(capture: Capture, instrument) -> tuple[np.ndarray, float]:
+def _orientation_sigmas(
+    capture: Capture, instrument, repeatability_mm: float | None = None
+) -> tuple[np.ndarray, float]:
     """Standard uncertainty of each point's orientation [rad] and the points' reference position u [mm]: what
-    weighs an orientation residual against a position one (``u_position / u_angle`` [mm/rad])."""
+    weighs an orientation residual against a position one (``u_position / u_angle`` [mm/rad]); the position u holds
+    the robot's pose scatter when its repeatability is stated, as the position weights do."""
     if capture.orientation_u95 is not None:
         angle = np.asarray(capture.orientation_u95, dtype=float) / 2.0
     elif instrument is not None and instrument.orientation_standard_uncertainty:
@@ -65,9 +69,9 @@ def _orientation_sigmas(capture: Capture, instrument) -> tuple[np.ndarray, float
             f"{capture.source}: the capture has orientations but no stated orientation uncertainty: give a "
             "`u95_deg` column or an instrument with an orientation term (e.g. preset 6dof-probe)"
         )
-    sigmas = point_sigmas(capture)
+    sigmas = point_sigmas(capture, repeatability_mm)
     if sigmas is None and instrument is not None and not instrument.is_noise_free:
-        sigmas = instrument.standard_uncertainty(capture.points)
+        sigmas = np.hypot(instrument.standard_uncertainty(capture.points), repeatability_sigma(repeatability_mm))
     if sigmas is None:
         raise InputError(
             f"{capture.source}: weighing orientation against position needs the positions' uncertainty too: give "
@@ -76,13 +80,15 @@ def _orientation_sigmas(capture: Capture, instrument) -> tuple[np.ndarray, float
     return angle, float(np.sqrt(np.mean(np.square(sigmas))))
 
 
-def with_probe(probe: Problem, capture: Capture, instrument, start: State) -> Problem:
+def with_probe(
+    probe: Problem, capture: Capture, instrument, start: State, repeatability_mm: float | None = None
+) -> Problem:
     """The problem with the orientation residuals of a 6-DoF capture (points criterion): every point oriented,
     weights ``u_position / u_angle``, the probe's rotation started at the chordal mean of ``(T F)^T R_m``."""
     measured = capture.orientation
     if measured is None:
         raise InputError(f"{capture.source}: no orientations (a position-only capture)")
-    angle, reference = _orientation_sigmas(capture, instrument)
+    angle, reference = _orientation_sigmas(capture, instrument, repeatability_mm)
     oriented = replace(probe, oriented=np.arange(capture.n_points), measured_rotations=measured,
                        orientation_weight=reference / angle)  # fmt: skip
     q = oriented.joint_variables(start.extras)

@@ -446,7 +446,8 @@ def _set_up(
     if criterion == "points" and session_index is not None:
         probe = session_starts(probe, start.values, offset_start, capture.source, session_names)
     if oriented:
-        probe = with_probe(probe, capture, instrument, State(start.values, extra_start, offset_start, np.zeros(6)))
+        state = State(start.values, extra_start, offset_start, np.zeros(6))
+        probe = with_probe(probe, capture, instrument, state, settings.repeatability_mm)
     parameters = ~robot.structurally_fixed if explicit_mask is None else explicit_mask
     spread = commanded.max(axis=0) - commanded.min(axis=0)
     return Setup(

@@ -381,8 +381,9 @@ def _exact_rotations(capture: Capture, reference: RefinementResult, tracker, ins
     rotations = flange @ reference.probe.rotation
     frames = {frame.name: frame.tracker_from_base for frame in reference.sessions}
     for k, name in enumerate(capture.session_names if frames else ()):
-        rows = capture.session == k
-        rotations[rows] = frames[name][:3, :3] @ rotations[rows]
+        rows = np.asarray(capture.session == k)
+        if rows.any():  # a session the capture names but no point is in has no frame (capture_sessions)
+            rotations[rows] = frames[name][:3, :3] @ rotations[rows]
     if not frames:
         rotations = np.asarray(tracker, dtype=float)[:3, :3] @ rotations
     if capture.orientation_u95 is not None:

@@ -121,3 +121,31 @@ def test_orientation_determines_what_positions_alone_hold(poses, unknown):
         assert held_three - held_six
         assert six.identifiability.condition_number < 0.2 * three.identifiability.condition_number
     assert set(six.identifiability.free_names) >= {"probe.rx", "probe.ry", "probe.rz"}
+
+
+def test_joining_six_dof_poses_with_positions_only_ones_says_the_orientations_are_dropped():
+    from dataclasses import replace
+
+    from robotcal.capture import join_captures
+    from robotcal.errors import RobotcalWarning
+
+    six = _capture(poses=5)
+    plain = replace(six, orientation=None, orientation_u95=None, source="plain.csv")
+    with pytest.warns(RobotcalWarning, match="orientations dropped"):
+        joined = join_captures([(six, None), (plain, None)], source="joined")
+    assert joined.orientation is None and joined.n_points == 2 * six.n_points
+    both = join_captures([(six, None), (six, None)], source="joined")  # every part oriented: kept, no warning
+    assert both.orientation is not None and both.orientation.shape[0] == 2 * six.n_points
+
+
+def test_the_probe_weights_hold_the_stated_repeatability():
+    """Issue 29: the orientation rows weigh u_position / u_angle; with a repeatability the position u holds the
+    robot's scatter as the position weights do, so orientation rows count relatively more."""
+    from robotcal.identification._frames import _orientation_sigmas
+
+    capture = _capture(poses=5)
+    _, without = _orientation_sigmas(capture, None)
+    _, with_rp = _orientation_sigmas(capture, None, repeatability_mm=0.05)
+    assert with_rp > without
+    sigma_r = 0.05 / 3.616  # the RP of an isotropic normal scatter is about 3.62 sigma (docs/scenario.md)
+    assert with_rp == pytest.approx(np.sqrt(without**2 + sigma_r**2), rel=1e-3)
