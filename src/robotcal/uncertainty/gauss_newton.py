@@ -32,8 +32,9 @@ Gauss-Newton has as well). ``M`` grows linearly with the draw's distance from ``
 nearly degenerate (the thesis capture with a registered base frame) it is far from normal: one step may leave
 0.4 of the distance although its eigenvalues are ten times smaller. It is therefore bounded per problem, once, in
 the u-weighted maximum-row-sum norm over probes along every direction (:func:`_contraction`), and the shared
-matrix used only where the bound is at most :data:`MAX_CONTRACTION`: a draw whose last step is below the stopping
-rule then lies within ``0.05 * 1e-3`` u of its solution (the demo's deployed model: a bound of 0.014). Iterating
+matrix used only where the bound eta is at most :data:`MAX_CONTRACTION`: a draw whose last step (below the stopping
+rule t) is taken then lies within ``eta / (1 - eta) * t`` of its solution, the sum of the geometric series of the
+steps left, at most ``0.05 / 0.95 * 1e-3`` u (5.3e-5 u; the demo's deployed model: a bound of 0.014). Iterating
 on the residuals alone with the shared Jacobian, ``dz = -J0_s^+ r(x)``, would need no gradient, but its fixed point
 ``J0^T r = 0`` differs from ``J(x)^T r = 0`` by ``(J0_s^T J0_s)^-1 (J(x) - J0)^T r``, second order in the noise
 like the first step's own error: measured 4e-4 u (demo's deployed model) and 2e-3 u (thesis capture), no closer
@@ -85,7 +86,8 @@ __all__ = ["refine_draws_gauss_newton"]
 #: tolerance of two significant digits.
 STEP_TOLERANCE = 1e-3
 #: The largest :func:`_contraction` for which the corrective steps use the shared matrix: a draw then lies within
-#: ``MAX_CONTRACTION * STEP_TOLERANCE`` u (5e-5 u) of its least-squares solution after its last step.
+#: ``MAX_CONTRACTION / (1 - MAX_CONTRACTION) * STEP_TOLERANCE`` u (5.3e-5 u) of its least-squares solution after its
+#: last step (the geometric series of the steps it did not take).
 MAX_CONTRACTION = 0.05
 #: The probes of :func:`_contraction`, in standard deviations of the draws along every direction.
 _PROBE_SIGMA = 3.0
