@@ -44,7 +44,7 @@ def test_import_writes_the_capture_the_library_gives(tmp_path):
     np.testing.assert_allclose(capture.u95, [0.025, 0.03, 0.02, 0.02], rtol=0, atol=1e-12)
     assert capture.point_targets == ("T1", "T2", "T1", "T2")
     np.testing.assert_allclose(capture.points[0], [1234.5, -500.0, 750.0], rtol=0, atol=1e-9)
-    # a second run replaces the capture (--force: io.output does not yet recognise a capture with the
+    # a second run replaces the capture (--force: io.results.output does not yet recognise a capture with the
     # optional target/u95_mm columns as robotcal's own)
     assert invoke("import", export, "--joints", log, "--out", out, "--force").exit_code == 0
 

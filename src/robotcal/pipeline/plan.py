@@ -270,7 +270,7 @@ def _check_tcp(loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettin
 def _check_memory(
     loaded: Scenario, targets: TCPTargets, settings: MonteCarloSettings, validation: ValidationTable
 ) -> None:
-    """Estimate the memory of the large stages up front (:func:`robotcal.pipeline.runtime.check_memory`)."""
+    """Estimate the memory of the large stages up front (:func:`robotcal.limits.check_memory`)."""
     robot = loaded.robot
     n_points = int(loaded.plan.points.sum()) * (2 if loaded.plan.bidirectional else 1)
     check_memory(

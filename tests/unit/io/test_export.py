@@ -303,7 +303,7 @@ def test_coupled_readings_export_the_model_variables_only(tmp_path):
 
 
 def test_every_export_text_is_recognised_as_robotcal_output(tmp_path):
-    # issue 24: the output policy must recognise what export wrote (io.output.is_robotcal_file), so that a
+    # issue 24: the output policy must recognise what export wrote (io.results.output.is_robotcal_file), so that a
     # second export replaces it without --force; a user's file of the same kind is not recognised
     from robotcal.io.results.output import is_robotcal_file
 

@@ -1,4 +1,4 @@
-"""io.tcp_results.write_tcp_folder: the documents it returns are the files as read back."""
+"""io.results.tcp_results.write_tcp_folder: the documents it returns are the files as read back."""
 
 from __future__ import annotations
 

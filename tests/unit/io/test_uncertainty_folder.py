@@ -1,4 +1,4 @@
-"""io.uncertainty_files.write_uncertainty_folder: the documents it returns are the files as read back."""
+"""io.results.uncertainty_files.write_uncertainty_folder: the documents it returns are the files as read back."""
 
 from __future__ import annotations
 

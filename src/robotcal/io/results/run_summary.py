@@ -1,6 +1,6 @@
 """The headline figures of a run, computed once from its documents: how good, how sure, where.
 
-:func:`summarise` reads the documents a run produced (:class:`robotcal.pipeline.result.RunResult`
+:func:`summarise` reads the documents a run produced (:class:`robotcal.io.results.run_folder.RunResult`
 ``documents``: parsed JSON objects and CSV tables keyed by their path in the run folder, docs/results.md)
 and returns a :class:`Summary`: the figures the report's summary cards and the console lines at the end
 of ``robotcal run`` show. Every figure is taken from ONE key of ONE document, named in the field's
@@ -406,7 +406,7 @@ def summarise(record: Mapping, documents: Mapping) -> Summary:
     record : mapping
         ``run.json`` (only its ``stages.*.warnings`` and ``notes`` are used, for :attr:`Summary.notes`).
     documents : mapping of str to Document
-        The run's documents by path relative to the run folder (:class:`robotcal.pipeline.result.RunResult`).
+        The run's documents by path relative to the run folder (:class:`robotcal.io.results.run_folder.RunResult`).
 
     Returns
     -------
