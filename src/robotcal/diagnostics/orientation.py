@@ -1,5 +1,6 @@
 """Flange orientations for ISO 9283's orientation characteristics: rotation vectors, deviations of attained from
-commanded orientations, and attained flange poses registered from three or more measured flange targets.
+commanded orientations, and attained flange poses registered from three or more measured flange targets
+(:func:`rotation_vectors` is :func:`robotcal.geometry.rotations.rotation_vectors`, kept here by its name).
 
 :mod:`robotcal.diagnostics.iso9283` uses these and re-exports them.
 """
@@ -10,23 +11,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from robotcal.errors import InputError
+from robotcal.geometry.rotations import rotation_vectors
 
 __all__ = ["ORIENTATION_AXES", "orientation_deviations", "register_flange_poses", "rotation_vectors"]
 
 
 #: Axes the orientation deviations are expressed about (see :func:`orientation_deviations`).
 ORIENTATION_AXES = ("base", "flange")
-
-
-def rotation_vectors(rotations: ArrayLike) -> np.ndarray:
-    """Rotation vectors (axis times angle, ``|v| <= pi``) of rotation matrices ``(..., 3, 3)`` [rad]."""
-    from scipy.spatial.transform import Rotation
-
-    rotations = np.asarray(rotations, dtype=float)
-    if rotations.shape[-2:] != (3, 3):
-        raise InputError(f"rotations must have shape (..., 3, 3); got {rotations.shape}")
-    flat = rotations.reshape(-1, 3, 3)
-    return Rotation.from_matrix(flat).as_rotvec().reshape(rotations.shape[:-2] + (3,))
 
 
 def orientation_deviations(

@@ -15,12 +15,13 @@ A circle fitted to points of a known circle gives its centre, radius and axis ba
 ([10.0, -5.0, 3.0], 50.0, [0.0, 0.0, 1.0])
 """
 
-from robotcal.geometry import euler, fits, lines, registration, transforms
+from robotcal.geometry import euler, fits, lines, registration, rotations, transforms
 from robotcal.geometry.euler import *
 from robotcal.geometry.fits import *
 from robotcal.geometry.lines import *
 from robotcal.geometry.registration import *
+from robotcal.geometry.rotations import *
 from robotcal.geometry.transforms import *
 
 # every public name of the modules, each listed once, in its module's __all__
-__all__ = [*euler.__all__, *fits.__all__, *lines.__all__, *registration.__all__, *transforms.__all__]
+__all__ = [*euler.__all__, *fits.__all__, *lines.__all__, *registration.__all__, *rotations.__all__, *transforms.__all__]

@@ -14,10 +14,11 @@ from robotcal._arrays import frozen_array as _frozen
 from robotcal.capture import Capture
 from robotcal.errors import InputError
 from robotcal.geometry.registration import register_points
+from robotcal.geometry.transforms import nearest_rotation
 from robotcal.identification._problem import Problem, Setup, State, point_sigmas
 from robotcal.identification.health import repeatability_sigma
 from robotcal.identification.records import ProbeFrame, SessionFrame
-from robotcal.kinematics.forward import forward_kinematics
+from robotcal.kinematics.forward import probe_rotations
 
 __all__ = ["PROBE_NAMES", "capture_sessions", "session_starts", "with_probe", "session_frames", "probe_frame"]
 
@@ -92,13 +93,10 @@ def with_probe(
     oriented = replace(probe, oriented=np.arange(capture.n_points), measured_rotations=measured,
                        orientation_weight=reference / angle)  # fmt: skip
     q = oriented.joint_variables(start.extras)
-    flange = forward_kinematics(start.values, q)[:, :3, :3]
     trackers = oriented.trackers(start)
     session = np.zeros(capture.n_points, dtype=int) if probe.session_index is None else probe.session_index
-    seen = trackers[session, :3, :3] @ flange
-    u, _, vt = np.linalg.svd(np.einsum("pji,pjk->ik", seen, measured))
-    mean = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-    return replace(oriented, probe_start=mean)
+    seen = probe_rotations(start.values, q, np.eye(3), trackers[session])  # R_T F: the probe's rotation left out
+    return replace(oriented, probe_start=nearest_rotation(np.einsum("pji,pjk->ik", seen, measured)))
 
 
 def session_frames(setup: Setup, problem: Problem, selection, solved: State, covariance) -> tuple[SessionFrame, ...]:

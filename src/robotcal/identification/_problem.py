@@ -16,12 +16,12 @@ import numpy as np
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
+from robotcal.geometry.rotations import inverse_right_jacobian, rotation_vectors, vee
 from robotcal.geometry.transforms import rot_x, rot_y, rot_z
-from robotcal.identification._orientation import inverse_right_jacobian, rotation_log, vee
 from robotcal.identification.health import repeatability_sigma
 from robotcal.identification.settings import RefinementSettings
 from robotcal.identification.targets import Target
-from robotcal.kinematics.forward import forward_kinematics, target_positions
+from robotcal.kinematics.forward import forward_kinematics, probe_rotations, target_positions
 from robotcal.kinematics.jacobian import target_jacobian
 from robotcal.kinematics.joint_model import JointModel
 from robotcal.kinematics.model import ANGLE_COLUMNS, ParameterSet, ReflectorMount
@@ -304,14 +304,14 @@ class Problem:
         with ``jacobian``, their derivatives ``(m, 3, n_x)`` in the columns of :meth:`point_jacobian`."""
         rows = np.arange(0) if self.oriented is None else self.oriented
         q = self.joint_variables(state.extras)[rows]
-        flange = forward_kinematics(state.values, q)[:, :3, :3]
         trackers = self.trackers(state)
         session = np.zeros(rows.size, dtype=int) if self.session_index is None else self.session_index[rows]
         probe, correction, probe_derivatives = self.probe_rotation(state)
-        model = trackers[session, :3, :3] @ flange @ probe
-        error = rotation_log(np.einsum("pji,pjk->pik", self.measured_rotations, model))
+        model = probe_rotations(state.values, q, probe, trackers[session])
+        error = rotation_vectors(np.einsum("pji,pjk->pik", self.measured_rotations, model))
         if not jacobian:
             return error, None
+        flange = forward_kinematics(state.values, q)[:, :3, :3]
         n, m = state.values.shape[0], self.extra_free.size
         width = 5 * n + m + self.offset_start.size
         body = np.zeros((rows.size, 3, width))

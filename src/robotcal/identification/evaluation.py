@@ -49,7 +49,7 @@ from robotcal.errors import InputError, RobotcalWarning
 from robotcal.geometry.registration import register_points
 from robotcal.identification._problem import capture_target_index, capture_turning_joints, measurement_pairs, pdist
 from robotcal.identification.targets import Target, resolve_targets, split_by_session
-from robotcal.kinematics.forward import forward_kinematics, target_positions
+from robotcal.kinematics.forward import probe_rotations, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 
 __all__ = [
@@ -388,20 +388,20 @@ def orientation_errors(
     rotation ``R_P`` on the flange as a refinement estimated it. ``R_T``: the rotation of ``tracker_from_base`` (one
     frame or a mapping of session name to frame, as :func:`absolute_errors`), or, without it, that of each
     session's registration of the predicted points onto the measured ones (the points view)."""
-    from robotcal.identification._orientation import rotation_log
+    from robotcal.geometry.rotations import rotation_vectors
 
     if capture.orientation is None:
         raise InputError(f"{capture.source}: no orientation to evaluate (position-only capture)")
     predicted = predicted_points(capture, parameters, reflector)
-    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(capture.readings))[:, :3, :3]
-    model = flange @ np.asarray(probe_rotation, dtype=float)
+    trackers = np.empty((capture.n_points, 4, 4))
     for session, rows in _session_groups(capture):
         if tracker_from_base is None:
-            rotation = register_points(predicted[rows], capture.points[rows]).transform[:3, :3]
+            trackers[rows] = register_points(predicted[rows], capture.points[rows]).transform
         else:
-            rotation = _frame_of(tracker_from_base, session)[:3, :3]
-        model[rows] = rotation @ model[rows]
-    error = rotation_log(np.einsum("pji,pjk->pik", capture.orientation, model))
+            trackers[rows] = _frame_of(tracker_from_base, session)
+    q = parameters.model_joint_variables(capture.readings)
+    model = probe_rotations(parameters.values, q, probe_rotation, trackers)
+    error = rotation_vectors(np.einsum("pji,pjk->pik", capture.orientation, model))
     return np.rad2deg(np.linalg.norm(error, axis=1))
 
 

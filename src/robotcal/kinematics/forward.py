@@ -15,7 +15,14 @@ from robotcal.errors import InputError
 from robotcal.geometry.transforms import apply_transform, rot_z
 from robotcal.kinematics.reflector import ReflectorMount
 
-__all__ = ["link_transforms", "joint_frames", "forward_kinematics", "target_positions", "check_joint_variables"]
+__all__ = [
+    "link_transforms",
+    "joint_frames",
+    "forward_kinematics",
+    "probe_rotations",
+    "target_positions",
+    "check_joint_variables",
+]
 
 
 def check_joint_variables(q: ArrayLike, n_joints: int, name: str = "q") -> np.ndarray:
@@ -113,6 +120,25 @@ def forward_kinematics(parameters: ArrayLike, q: ArrayLike) -> np.ndarray:
     parameters = np.asarray(parameters, dtype=float)
     q = check_joint_variables(q, parameters.shape[-2])
     return _chain(link_transforms(parameters, q), keep_all=False)
+
+
+def probe_rotations(parameters: ArrayLike, q: ArrayLike, probe_rotation: ArrayLike, tracker: ArrayLike) -> np.ndarray:
+    """Orientation of a 6-DoF probe in the tracker frame, ``R_T F_n R_P`` per pose (issue 29), ``(n_poses, 3, 3)``.
+
+    Parameters
+    ----------
+    parameters : array_like, shape (n_joints, 5)
+        One parameter set [mm, rad].
+    q : array_like, shape (n_poses, n_joints)
+        Model joint variables [rad].
+    probe_rotation : array_like, shape (3, 3)
+        ``R_P``: the probe frame's rotation in the flange frame {n}.
+    tracker : array_like, shape (3, 3), (4, 4), (n_poses, 3, 3) or (n_poses, 4, 4)
+        ``tracker_from_base`` (its rotation block ``R_T`` is used): one frame, or each pose's (its session's).
+    """
+    flange = forward_kinematics(parameters, q)[..., :3, :3]
+    tracker_rotation = np.asarray(tracker, dtype=float)[..., :3, :3]
+    return tracker_rotation @ flange @ np.asarray(probe_rotation, dtype=float)
 
 
 def target_positions(

@@ -8,8 +8,9 @@ from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
+from robotcal.geometry.rotations import rotation_matrices
 from robotcal.instruments import Instrument
-from robotcal.kinematics.forward import forward_kinematics
+from robotcal.kinematics.forward import probe_rotations
 from robotcal.kinematics.model import ParameterSet, RobotModel
 from robotcal.simulation.generator import simulate_target_poses
 
@@ -49,8 +50,6 @@ def simulate_probe_poses(
     exact_points : ndarray, shape (n_poses, 3)
     exact_rotations : ndarray, shape (n_poses, 3, 3)
     """
-    from scipy.spatial.transform import Rotation
-
     rng = np.random.default_rng(rng)
     probe_rotation = np.asarray(probe_rotation, dtype=float)
     if probe_rotation.shape != (3, 3):
@@ -61,9 +60,9 @@ def simulate_probe_poses(
         true_offsets=offsets, u95_mm=u95_mm, rng=rng,
     )  # fmt: skip
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(capture.readings))[:, :3, :3]
-    rotations = np.asarray(tracker_from_base, dtype=float)[:3, :3] @ flange @ probe_rotation
-    turns = Rotation.from_rotvec(instrument.sample_orientation_noise(capture.n_points, rng=rng)).as_matrix()
+    q = parameters.model_joint_variables(capture.readings)
+    rotations = probe_rotations(parameters.values, q, probe_rotation, tracker_from_base)
+    turns = rotation_matrices(instrument.sample_orientation_noise(capture.n_points, rng=rng))
     measured = rotations @ turns
     u95 = None if u95_deg is None else np.full(capture.n_points, np.deg2rad(u95_deg))
     measured_capture = Capture(

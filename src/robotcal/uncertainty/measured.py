@@ -77,7 +77,7 @@ from robotcal.identification.refine import (
 )
 from robotcal.identification.targets import Target, resolve_targets, split_by_session
 from robotcal.instruments import Instrument
-from robotcal.kinematics.forward import forward_kinematics, target_positions
+from robotcal.kinematics.forward import probe_rotations, target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount
 from robotcal.uncertainty.linearised import linearised_result
 from robotcal.uncertainty.montecarlo import (
@@ -377,15 +377,14 @@ def _exact_rotations(capture: Capture, reference: RefinementResult, tracker, ins
     if reference.probe is None:
         return None, None
     parameters = reference.parameters
-    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(capture.readings))[:, :3, :3]
-    rotations = flange @ reference.probe.rotation
+    trackers = np.broadcast_to(np.asarray(tracker, dtype=float), (capture.n_points, 4, 4)).copy()
     frames = {frame.name: frame.tracker_from_base for frame in reference.sessions}
     for k, name in enumerate(capture.session_names if frames else ()):
         rows = np.asarray(capture.session == k)
         if rows.any():  # a session the capture names but no point is in has no frame (capture_sessions)
-            rotations[rows] = frames[name][:3, :3] @ rotations[rows]
-    if not frames:
-        rotations = np.asarray(tracker, dtype=float)[:3, :3] @ rotations
+            trackers[rows] = frames[name]
+    q = parameters.model_joint_variables(capture.readings)
+    rotations = probe_rotations(parameters.values, q, reference.probe.rotation, trackers)
     if capture.orientation_u95 is not None:
         return _frozen(rotations), _frozen(capture.orientation_u95 / 2.0)
     if instrument is None or not instrument.orientation_standard_uncertainty:
@@ -408,7 +407,7 @@ def draw_noise(problem: MeasuredProblem, rng: np.random.Generator) -> np.ndarray
 def draw_rotations(problem: MeasuredProblem, rng: np.random.Generator) -> np.ndarray | None:
     """One draw's measured orientations of a 6-DoF capture (drawn after the positions' noise): the exact ones
     turned by a rotation vector ``N(0, (U95/2)^2)`` per component (or the instrument's); None without them."""
-    from robotcal.identification._orientation import rotation_exp
+    from robotcal.geometry.rotations import rotation_matrices
 
     if problem.exact_rotations is None:
         return None
@@ -417,7 +416,7 @@ def draw_rotations(problem: MeasuredProblem, rng: np.random.Generator) -> np.nda
         turns = rng.standard_normal((count, 3)) * problem.orientation_sd[:, None]
     else:
         turns = problem.options["instrument"].sample_orientation_noise(count, rng=rng)
-    return problem.exact_rotations @ rotation_exp(turns)
+    return problem.exact_rotations @ rotation_matrices(turns)
 
 
 def _refine_draw(problem: MeasuredProblem, points: np.ndarray, rotations=None) -> tuple[np.ndarray, np.ndarray] | None:

@@ -9,14 +9,14 @@ frame. Exports write it in one of several forms; each becomes the rotation matri
     capture CSV's canonical form (docs/scenario.md): unambiguous (no axis order, no angle unit), free of the
     gimbal lock of Euler angles, and written to 12 decimals it reproduces the rotation to about 1e-12 rad.
 ``abc``
-    KUKA ``A, B, C`` [deg]: ``R = Rz(A) Ry(B) Rx(C)``.
+    KUKA ``A, B, C`` [deg]: ``R = Rz(A) Ry(B) Rx(C)`` (:func:`robotcal.geometry.euler.matrix_from_kuka_abc`).
 ``rpy``
     roll, pitch, yaw [deg]: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (the same rotation as ``A = yaw, B = pitch,
     C = roll``).
 ``matrix``
     the nine elements ``r11 .. r33`` row by row (orthonormalised to the nearest rotation within 1e-6).
 
-The conversions are those of :class:`scipy.spatial.transform.Rotation` (imported on first use).
+The quaternion conversions are those of :class:`scipy.spatial.transform.Rotation` (imported on first use).
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from robotcal.errors import InputError
+from robotcal.geometry.euler import matrix_from_kuka_abc
+from robotcal.geometry.transforms import nearest_rotation
 
 __all__ = [
     "ORIENTATION_FORMS",
@@ -83,15 +85,14 @@ def rotations_from_euler(angles_deg, form: str) -> np.ndarray:
         angles = angles[:, ::-1]  # yaw, pitch, roll: the order of A, B, C
     elif form != "abc":
         raise InputError(f"Euler angles are 'abc' or 'rpy'; got {form!r}")
-    return _rotation().from_euler("ZYX", angles, degrees=True).as_matrix()
+    return matrix_from_kuka_abc(np.deg2rad(angles))
 
 
 def rotations_from_matrices(elements, *, source: str = "orientation") -> np.ndarray:
     """``(n, 9)`` elements ``r11 .. r33`` row by row -> ``(n, 3, 3)`` rotations (nearest rotation, within 1e-6)."""
     matrices = np.asarray(elements, dtype=float).reshape(-1, 3, 3)
-    u, _, vt = np.linalg.svd(matrices)
-    nearest = u @ vt
-    bad = np.flatnonzero((np.abs(nearest - matrices).max(axis=(1, 2)) > 1e-6) | (np.linalg.det(nearest) < 0))
+    nearest = nearest_rotation(matrices)  # a reflection's nearest rotation is far from it: refused below
+    bad = np.flatnonzero(np.abs(nearest - matrices).max(axis=(1, 2)) > 1e-6)
     if bad.size:
         raise InputError(f"{source}: point {bad[0] + 1}: the matrix is not a rotation (within 1e-6)")
     return nearest
