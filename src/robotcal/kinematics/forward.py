@@ -125,16 +125,10 @@ def forward_kinematics(parameters: ArrayLike, q: ArrayLike) -> np.ndarray:
 def probe_rotations(parameters: ArrayLike, q: ArrayLike, probe_rotation: ArrayLike, tracker: ArrayLike) -> np.ndarray:
     """Orientation of a 6-DoF probe in the tracker frame, ``R_T F_n R_P`` per pose (issue 29), ``(n_poses, 3, 3)``.
 
-    Parameters
-    ----------
-    parameters : array_like, shape (n_joints, 5)
-        One parameter set [mm, rad].
-    q : array_like, shape (n_poses, n_joints)
-        Model joint variables [rad].
-    probe_rotation : array_like, shape (3, 3)
-        ``R_P``: the probe frame's rotation in the flange frame {n}.
-    tracker : array_like, shape (3, 3), (4, 4), (n_poses, 3, 3) or (n_poses, 4, 4)
-        ``tracker_from_base`` (its rotation block ``R_T`` is used): one frame, or each pose's (its session's).
+    ``F_n`` the flange rotation of :func:`forward_kinematics` at one parameter set ``(n_joints, 5)`` [mm, rad]
+    and model joint variables ``q (n_poses, n_joints)`` [rad]; ``R_P`` (``probe_rotation``, 3 x 3) the probe frame's
+    rotation in the flange frame {n}; ``R_T`` the rotation block of ``tracker`` (``tracker_from_base``, 3 x 3 or
+    4 x 4): one frame for every pose, or ``(n_poses, ...)`` each pose's (its session's).
     """
     flange = forward_kinematics(parameters, q)[..., :3, :3]
     tracker_rotation = np.asarray(tracker, dtype=float)[..., :3, :3]
