@@ -283,7 +283,6 @@ class _Run:
         output = stages.refine_stage(
             self.plan.scenario, self.results["capture"], self.results["cpa"], self.out, self.step("refine"),
             poses=self.results["poses"], joints=self.results["joints"] if self.plan.backlash else None,
-            workers=self.plan.montecarlo.workers,
         )  # fmt: skip
         self.results["refined"] = output.value
         return output

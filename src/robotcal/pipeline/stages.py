@@ -184,18 +184,16 @@ def refine_stage(
     step: Step = _no_step,
     poses: Capture | None = None,
     joints: api.JointAnalysis | None = None,
-    workers: int = 1,
 ) -> StageOutput:
     """``refine/points.json``, ``refine/distances.json``: Levenberg-Marquardt refinement from the CPA result, over the
     circles and the calibration poses. The deployed criterion fits the scenario's ``[joint_model]`` (``auto``: each
     model, chosen by cross-validation); the other criterion fits the model it chose. When that is an extended model,
     ``refine/points-geometric.json`` holds the geometric fit of the same data, for the comparison. ``joints``: the
-    joints stage's analysis of a bidirectional capture, whose angular backlash corrects the circle points. ``workers``:
-    processes for the deployed criterion's model choice (its fits and folds; the results do not depend on it)."""
+    joints stage's analysis of a bidirectional capture, whose angular backlash corrects the circle points."""
     fitted = api.calibration_capture(scenario, capture, poses)
     lash = None if joints is None or not joints.diagnostics.backlash else joints
     results: dict[str, RefinementResult] = {
-        DEPLOYED: api.refine(fitted, scenario, start, criterion=DEPLOYED, backlash_deg=lash, workers=workers)
+        DEPLOYED: api.refine(fitted, scenario, start, criterion=DEPLOYED, backlash_deg=lash)
     }
     step(1, None, DEPLOYED)
     chosen = cast("api.ModelName", results[DEPLOYED].model)  # the name of a model fitted: one of the choices
