@@ -85,7 +85,7 @@ from robotcal.uncertainty.montecarlo import (
     MonteCarloResult,
     MonteCarloSettings,
     ProgressCallback,
-    draw_covariance,
+    kept_draws_result,
 )
 from robotcal.uncertainty.statistics import (
     SampleSummary,
@@ -575,36 +575,14 @@ def measured_monte_carlo(
             raise RobotcalError(f"only {draws.shape[0]} of {good.size} draws converged: no statistics can be made")
         draw_time = time.perf_counter() - started
         reference = problem.reference
-        identified = np.asarray(reference.identifiability.free, dtype=bool)
         summary = summarize_draws(draws, settings.coverage)
-        covariance, correlation = draw_covariance(draws, identified)
-        linear = _linearised(problem, summary, settings)
-        message = f"{draws.shape[0]} draws"
-        if n_failed:
-            message += (
-                f"; {n_failed} of {good.size} draws failed (no convergence, or another free set) and are left out of "
-                f"the statistics ({n_failed / good.size:.2%})"
-            )
-        result = MonteCarloResult(
-            robot=problem.robot,
-            settings=settings,
-            seed=seed,
-            n_draws=int(draws.shape[0]),
-            summary=summary,
-            identified=identified,
-            covariance=covariance,
-            correlation=correlation,
-            draws=draws if settings.keep_draws else None,
-            noise_free_values=reference.parameters.values,
-            true_values=reference.parameters.values,
-            linearised=linear,
-            timings_s={"draws": draw_time, "per_draw": draw_time / good.size, "total": time.perf_counter() - started},
-            success=n_failed <= 0.001 * good.size,
-            message=message,
-            model=MODEL,
-            criterion=criterion,
-            n_failed=n_failed,
-        )
+        result = kept_draws_result(
+            draws, summary, np.asarray(reference.identifiability.free, dtype=bool), settings, failed=n_failed,
+            computed=good.size, failure="failed (no convergence, or another free set)", started=started,
+            timings_s={"draws": draw_time, "per_draw": draw_time / good.size}, robot=problem.robot, seed=seed,
+            noise_free_values=reference.parameters.values, true_values=reference.parameters.values,
+            linearised=_linearised(problem, summary, settings), model=MODEL, criterion=criterion,
+        )  # fmt: skip
         return _with_targets(problem, result, offset_draws, settings)
 
 

@@ -37,7 +37,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -75,6 +75,7 @@ __all__ = [
     "LinearisedResult",
     "prepare_monte_carlo",
     "run_monte_carlo",
+    "kept_draws_result",
     "linearised_uncertainty",
     "draw_block",
 ]
@@ -519,11 +520,9 @@ def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool
     n, done = problem.robot.n_joints, store.done
     draws = store.values[:done, : 5 * n].reshape(done, n, 5)
     extras = store.values[:done, 5 * n :]
-    identified = problem.identified
     draw_time = time.perf_counter() - started
     summary_start = time.perf_counter()
     summary = summarize_draws(draws, settings.coverage)
-    covariance, correlation = draw_covariance(draws, identified)
     extra_summary = summarize_draws(extras, settings.coverage) if problem.n_extra else None
     timings = {"draws": draw_time, "statistics": time.perf_counter() - summary_start}
     linear = None
@@ -531,43 +530,66 @@ def _result(problem, settings, seed, store, adaptive_record, *, linearised: bool
         linear_start = time.perf_counter()
         linear = linearised_uncertainty(problem, summary, settings)
         timings["linearised"] = time.perf_counter() - linear_start
-    timings["total"] = time.perf_counter() - started
+    return kept_draws_result(
+        draws, summary, problem.identified, settings, failed=store.failed, computed=store.computed,
+        failure="did not converge", started=started, timings_s=timings, robot=problem.robot, seed=seed,
+        noise_free_values=problem.noise_free_values, true_values=problem.true_parameters.values,
+        adaptive=adaptive_record, linearised=linear, model=problem.model,
+        criterion=None if problem.refined is None else problem.refined.criterion,
+        joint_model=None if not problem.n_extra else problem.refined.joint_model,
+        extra_draws=extras if problem.n_extra and settings.keep_draws else None, extra_summary=extra_summary,
+        extra_identified=problem.identified_all[5 * n :], extra_true=problem.extra_true,
+        correction_shifts=correction_shifts(problem),
+    )  # fmt: skip
+
+
+def kept_draws_result(
+    draws: np.ndarray,
+    summary: SampleSummary,
+    identified: np.ndarray,
+    settings: MonteCarloSettings,
+    *,
+    failed: int,
+    computed: int,
+    failure: str,
+    started: float,
+    timings_s: dict,
+    adaptive: AdaptiveRecord | None = None,
+    **fields: Any,
+) -> MonteCarloResult:
+    """The :class:`MonteCarloResult` of the kept ``draws`` (n_draws, n_joints, 5) and their ``summary``: of the
+    simulated Monte Carlo and of the measured one (:mod:`robotcal.uncertainty.measured`).
+
+    Adds their covariance and correlation over the ``identified`` parameters, the draws themselves with
+    ``settings.keep_draws``, the total time since ``started`` to ``timings_s``, and the verdict: the message counts
+    the draws and the ``failed`` of ``computed`` that ``failure`` (left out of every statistic); success is at
+    most 0.1 % of them failed and, with an ``adaptive`` record, the procedure stabilised. ``fields``: the result's
+    other fields.
+    """
+    covariance, correlation = draw_covariance(draws, identified)
     message = f"{draws.shape[0]} draws"
-    if store.failed:
+    if failed:
         message += (
-            f"; {store.failed} of {store.computed} draws did not converge and are left out of the statistics "
-            f"({store.failed / store.computed:.2%})"
+            f"; {failed} of {computed} draws {failure} and are left out of the statistics ({failed / computed:.2%})"
         )
-    success = store.failed <= 0.001 * store.computed
-    if adaptive_record is not None:
-        message += f"; adaptive: {adaptive_record.reason}"
-        success = success and adaptive_record.stable
+    success = failed <= 0.001 * computed
+    if adaptive is not None:
+        message += f"; adaptive: {adaptive.reason}"
+        success = success and adaptive.stable
     return MonteCarloResult(
-        robot=problem.robot,
         settings=settings,
-        seed=seed,
         n_draws=int(draws.shape[0]),
         summary=summary,
         identified=identified,
         covariance=covariance,
         correlation=correlation,
         draws=draws if settings.keep_draws else None,
-        noise_free_values=problem.noise_free_values,
-        true_values=problem.true_parameters.values,
-        adaptive=adaptive_record,
-        linearised=linear,
-        timings_s=timings,
+        adaptive=adaptive,
+        timings_s={**timings_s, "total": time.perf_counter() - started},
         success=success,
         message=message,
-        model=problem.model,
-        criterion=None if problem.refined is None else problem.refined.criterion,
-        n_failed=store.failed,
-        joint_model=None if not problem.n_extra else problem.refined.joint_model,
-        extra_draws=extras if problem.n_extra and settings.keep_draws else None,
-        extra_summary=extra_summary,
-        extra_identified=problem.identified_all[5 * n :],
-        extra_true=problem.extra_true,
-        correction_shifts=correction_shifts(problem),
+        n_failed=failed,
+        **fields,
     )
 
 
