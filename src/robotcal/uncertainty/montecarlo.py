@@ -75,7 +75,6 @@ __all__ = [
     "LinearisedResult",
     "prepare_monte_carlo",
     "run_monte_carlo",
-    "kept_draws_result",
     "linearised_uncertainty",
     "draw_block",
 ]
