@@ -222,6 +222,7 @@ def simulate_poses(
     instrument: Instrument | None = None,
     tracker_from_base: np.ndarray | None = None,
     true_parameters: ParameterSource = None,
+    joint_errors: JointErrorModel | None = None,
     kind: Literal["validation", "calibration"] = "validation",
     rng: np.random.Generator | int | None = None,
 ) -> Capture:
@@ -231,8 +232,10 @@ def simulate_poses(
     (a ``target`` column; ``offsets_mm``: the true offsets of those declared with a guess). One generator seeded from
     ``rng`` draws the poses, then the noise; readings outside the limits give a JointLimitWarning.
 
-    A scenario supplies its ``[validation]`` table (poses, margin, height, seed, flange target), the instrument and
-    the base frame; ``kind="calibration"``: its ``[calibration_poses]`` table and target instead.
+    A scenario supplies its ``[validation]`` table (poses, margin, height, seed, flange target), the instrument,
+    the base frame and the robot's joint errors (``[[capture.joint_errors]]``, at free poses without lash:
+    :meth:`robotcal.simulation.generator.JointErrorModel.at_free_poses`); ``kind="calibration"``: its
+    ``[calibration_poses]`` table and target instead.
 
     Examples
     --------
@@ -249,6 +252,8 @@ def simulate_poses(
     if tracker_from_base is None:
         tracker_from_base = np.eye(4) if scenario is None else scenario.tracker_from_base
     truth = _parameters(true_parameters, robot, "true_parameters")
+    if joint_errors is None and scenario is not None:
+        joint_errors = scenario.joint_errors
     targets, offsets = true_offsets(targets, offsets_mm)
     seed = seed_from(rng, table.seed)
     generator = np.random.default_rng(seed)
@@ -264,12 +269,13 @@ def simulate_poses(
         readings = check_readings(robot, readings, name="poses_deg")  # outside the limits: a JointLimitWarning
     if isinstance(targets, ReflectorMount):
         capture, _ = simulate_poses_core(
-            robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, rng=generator
-        )
+            robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, joint_errors=joint_errors,
+            rng=generator,
+        )  # fmt: skip
     else:
         capture, _ = simulate_target_poses(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, true_offsets=offsets,
-            rng=generator,
+            joint_errors=joint_errors, rng=generator,
         )  # fmt: skip
     what = "validation capture"
     if not isinstance(targets, ReflectorMount):

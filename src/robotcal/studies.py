@@ -349,6 +349,7 @@ def validation_consistency(
     instrument: Instrument | None = None,
     tracker_from_base: np.ndarray | None = None,
     model: str = "refined",
+    joint_errors: JointErrorModel | None = None,
 ) -> dict[str, Any]:
     """Does the stated uncertainty explain the error observed at the validation points?
     (:func:`robotcal.uncertainty.consistency.check_validation_consistency`: predicted, instrument, expected and
@@ -356,8 +357,10 @@ def validation_consistency(
 
     ``validation``: free poses measured on the flange ``target``; ``estimate``: the deployed parameters; ``draws``:
     Monte Carlo draws of the same model (as for :func:`tcp_uncertainty`); ``tracker_from_base``: the base frame
-    (None: a Horn registration, which absorbs part of the error); ``model``: its name, recorded. A scenario supplies
-    the target, the instrument and the base frame when ``[identification] base_frame = "given"``.
+    (None: a Horn registration, which absorbs part of the error); ``model``: its name, recorded; ``joint_errors``:
+    joint errors measured on the robot that ``estimate`` does not represent (their move of the target is expected).
+    A scenario supplies the target, the instrument and the base frame when ``[identification] base_frame =
+    "given"``.
     """
     from robotcal.uncertainty.consistency import check_validation_consistency
 
@@ -371,7 +374,7 @@ def validation_consistency(
         validation, as_parameters(estimate, robot, "estimate"), robot, values, target, instrument,
         tracker_from_base=tracker_from_base, joint_model=joint_model, extra_draws=extras, model=model,
         repeatability_mm=None if scenario is None else scenario.repeatability_mm,
-        correction_shifts=getattr(draws, "correction_shifts", None),
+        correction_shifts=getattr(draws, "correction_shifts", None), joint_errors=joint_errors,
     )  # fmt: skip
 
 

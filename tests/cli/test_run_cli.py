@@ -144,10 +144,13 @@ def test_run_tells_one_story_about_the_deployed_model(run_folder):
     assert "refined" in pose["provenance"]["model"]
     check = json.loads((out / "tcp" / "consistency.json").read_text())
     assert check["poses"] == 100 and check["base_frame"] == "given"
-    # expected^2 = predicted^2 + instrument^2, and the demo's joint errors (backlash, eccentricity) make the
-    # observed error larger than the parameter uncertainty and the instrument explain
-    assert check["expected_rms_mm"] == pytest.approx(np.hypot(check["predicted_rms_mm"], check["instrument_rms_mm"]))
-    assert check["observed_rms_mm"] > check["expected_rms_mm"]
+    # expected^2 = predicted^2 + instrument^2 + uncompensated^2: the eccentricity the capture measured (the joints
+    # stage and the calibration poses) and the deployed model cannot compensate is counted, and with it the
+    # observed error is explained (issue 29: observed / expected <= 1.3)
+    parts = (check["predicted_rms_mm"], check["instrument_rms_mm"], check["uncompensated_rms_mm"])
+    assert check["expected_rms_mm"] == pytest.approx(np.sqrt(np.sum(np.square(parts))))
+    assert check["uncompensated_rms_mm"] > check["predicted_rms_mm"]  # the demo's 20 um run-out of J1 and more
+    assert check["observed_rms_mm"] <= 1.3 * check["expected_rms_mm"]
     plan_check = json.loads((out / "plan" / "plan_check.json").read_text())
     assert plan_check["feasible"] is False  # the thesis plan takes J5 past its limit (Fig. 4.17)
 

@@ -213,6 +213,7 @@ def test_simulate_explicit_objects_equal_the_scenario(scenario, truth, capture):
         instrument=scenario.instrument,
         tracker_from_base=scenario.tracker_from_base,
         true_parameters=truth,
+        joint_errors=scenario.joint_errors,
         rng=4,
     )
     np.testing.assert_array_equal(explicit.points, validation.points)

@@ -11,6 +11,7 @@ from robotcal.api import simulate_poses, validation_consistency, validation_targ
 from robotcal.instruments import Instrument
 from robotcal.io import load_scenario
 from robotcal.kinematics.forward import target_positions
+from robotcal.simulation.generator import JointErrorModel
 from robotcal.simulation.perturb import perturb_parameters
 
 
@@ -19,7 +20,7 @@ def case():
     scenario = load_scenario("kr5-demo")
     noise_free = dataclasses.replace(scenario, instrument=Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0))
     truth = perturb_parameters(scenario.robot, length_sd_mm=0.2, angle_sd_deg=0.05, rng=4)
-    validation = simulate_poses(noise_free, rng=3, true_parameters=truth)
+    validation = simulate_poses(noise_free, rng=3, true_parameters=truth, joint_errors=JointErrorModel.zeros(6))
     return scenario, noise_free, truth, validation
 
 
@@ -54,3 +55,24 @@ def test_instrument_term_is_the_uniform_noise_variance(case):
     bound = scenario.instrument.error_bound(np.asarray(validation.points))
     assert result["predicted_rms_mm"] == pytest.approx(0.0, abs=1e-12)
     np.testing.assert_allclose(result["instrument_rms_mm"], np.sqrt(np.mean(bound**2)), rtol=1e-12)
+
+
+def test_measured_joint_errors_the_model_cannot_compensate_add_to_the_expected_error(case):
+    """A run-out of J1, ``E_1 = T(A sin q1, A cos q1, 0)``, translates everything beyond J1 by a vector of length A:
+    at every validation pose the target moves by exactly A, so ``uncompensated_rms_mm`` is A and the expected RMS
+    is ``sqrt(predicted^2 + A^2)`` (noise-free instrument); a lash, which a free pose does not show, adds nothing."""
+    _, noise_free, truth, validation = case
+    draws = np.repeat(truth.values[None], 50, axis=0)
+    draws[:, 1, 0] += np.linspace(-1e-3, 1e-3, 50)
+    amplitude, phase = np.zeros((6, 5)), np.zeros((6, 5))
+    amplitude[0, :2], phase[0, 1] = 0.02, np.pi / 2
+    run_out = JointErrorModel(
+        amplitude=amplitude, period=np.full((6, 5), 2 * np.pi), phase=phase, noise_sd=np.zeros((6, 5)),
+        backlash=np.deg2rad([0.0, 0.01, 0.0, 0.0, 0.0, 0.0]),
+    )  # fmt: skip
+    plain = validation_consistency(validation, truth, draws, noise_free)
+    counted = validation_consistency(validation, truth, draws, noise_free, joint_errors=run_out)
+    assert "uncompensated_rms_mm" not in plain
+    assert counted["uncompensated_rms_mm"] == pytest.approx(0.02, rel=1e-9)
+    assert counted["expected_rms_mm"] == pytest.approx(np.hypot(plain["expected_rms_mm"], 0.02), rel=1e-9)
+    assert counted["observed_rms_mm"] == plain["observed_rms_mm"]

@@ -26,6 +26,7 @@ from .evaluation import orientation_errors as orientation_errors
 from .evaluation import point_errors as point_errors
 from .evaluation import predicted_points as predicted_points
 from .evaluation import station_moved as station_moved
+from .evaluation import tracker_points as tracker_points
 from .health import CONDITION_LIMIT as CONDITION_LIMIT
 from .health import CPA_EFFECT_LIMIT_MM as CPA_EFFECT_LIMIT_MM
 from .health import PHYSICAL_RESIDUAL_MM as PHYSICAL_RESIDUAL_MM

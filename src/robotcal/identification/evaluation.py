@@ -61,6 +61,7 @@ __all__ = [
     "distinct_pairs",
     "distance_errors",
     "absolute_errors",
+    "tracker_points",
     "evaluate_parameters",
     "guessed_targets",
     "GuessedOffsetWarning",
@@ -160,8 +161,10 @@ def _warn_moved(capture_name: str, set_names, sessions) -> None:
     )
 
 
-def predicted_points(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:
-    """Predicted base-frame points; ``reflector`` a :class:`ReflectorMount` or :class:`Target` object(s)."""
+def predicted_points(capture: Capture, parameters: ParameterSet, reflector, *, joint_errors=None) -> np.ndarray:
+    """Predicted base-frame points; ``reflector`` a :class:`ReflectorMount` or :class:`Target` object(s);
+    ``joint_errors`` the error transforms ``(n_points, n_joints, 4, 4)`` of a simulated robot
+    (:func:`robotcal.kinematics.forward.target_positions`), none by default."""
     robot = parameters.robot
     if capture.n_joints != robot.n_joints:
         raise InputError(
@@ -170,7 +173,7 @@ def predicted_points(capture: Capture, parameters: ParameterSet, reflector) -> n
     q = parameters.model_joint_variables(capture.readings)
     if isinstance(reflector, ReflectorMount):
         turning = capture_turning_joints(capture, reflector)
-        return target_positions(parameters.values, q, turning, reflector)
+        return target_positions(parameters.values, q, turning, reflector, joint_errors=joint_errors)
     given = (reflector,) if isinstance(reflector, Target) else tuple(reflector)
     targets, index = resolve_targets(*split_by_session(capture, given))
     turning = np.maximum(capture.circle - 1, 0)
@@ -179,7 +182,8 @@ def predicted_points(capture: Capture, parameters: ParameterSet, reflector) -> n
         rows = np.flatnonzero(index == t)
         if target.frame == "joint" and np.any(capture.circle[rows] == 0):
             raise InputError(f"{capture.source}: free poses (circle = 0) on the per-joint target {target.name!r}")
-        points[rows] = target_positions(parameters.values, q[rows], turning[rows], target.mount)
+        errors = None if joint_errors is None else joint_errors[rows]
+        points[rows] = target_positions(parameters.values, q[rows], turning[rows], target.mount, joint_errors=errors)
     return points
 
 
@@ -222,13 +226,19 @@ def absolute_errors(capture: Capture, parameters: ParameterSet, reflector, track
 
     ``tracker_from_base``: one (4, 4) frame, or a mapping of session name to frame (each point in its session's
     frame; a session the mapping does not name in its first frame)."""
-    predicted = predicted_points(capture, parameters, reflector)
-    errors = np.empty(capture.n_points)
+    return np.linalg.norm(tracker_points(capture, parameters, reflector, tracker_from_base) - capture.points, axis=1)
+
+
+def tracker_points(
+    capture: Capture, parameters: ParameterSet, reflector, tracker_from_base, *, joint_errors=None
+) -> np.ndarray:
+    """The predicted points in the tracker frame ``(n_points, 3)`` [mm] (:func:`predicted_points`), each in its
+    session's frame (``tracker_from_base`` as for :func:`absolute_errors`)."""
+    predicted = predicted_points(capture, parameters, reflector, joint_errors=joint_errors)
     for session, rows in _session_groups(capture):
         transform = _frame_of(tracker_from_base, session)
-        in_tracker = predicted[rows] @ transform[:3, :3].T + transform[:3, 3]
-        errors[rows] = np.linalg.norm(in_tracker - capture.points[rows], axis=1)
-    return errors
+        predicted[rows] = predicted[rows] @ transform[:3, :3].T + transform[:3, 3]
+    return predicted
 
 
 def point_errors(capture: Capture, parameters: ParameterSet, reflector) -> np.ndarray:

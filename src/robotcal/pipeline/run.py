@@ -320,10 +320,14 @@ class _Run:
             step=self.step("uncertainty"),
             poses=self.results["poses"],
             joints=self.results.get("joints"),
+            capture=self.results["capture"],
+            refined=self.results["refined"][stages.DEPLOYED],
+            lash=self.plan.backlash,
         )
         value = dict(output.value)
         # the deployed values: the refinement's estimate corrected for the bias its Monte Carlo measures
         self.results["deployed"] = value.pop("deployed", None)
+        self.results["joint_errors"] = value.pop("joint_errors", None)
         self.results["montecarlo"] = value
         return output
 
@@ -335,6 +339,7 @@ class _Run:
             validation=self.results["validation"],
             deployed=self._deployed(),
             estimate=self.results["refined"][stages.DEPLOYED].parameters,
+            joint_errors=self.results.get("joint_errors"),
             workspace_seed=self.plan.seeds["workspace"],
             out=self.out,
             figures=self.figures,

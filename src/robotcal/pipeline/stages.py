@@ -16,6 +16,7 @@ compute. The stand-alone commands (``robotcal identify``, ``refine``, ``evaluate
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,7 +43,7 @@ from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
 from robotcal.simulation.generator import JointErrorModel
-from robotcal.uncertainty.joint_errors import MeasuredJointErrors, measured_joint_errors
+from robotcal.uncertainty.joint_errors import CalibrationFit, MeasuredJointErrors, measured_joint_errors
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
 
 __all__ = [
@@ -61,6 +62,7 @@ __all__ = [
     "simulate_stage",
     "tcp_stage",
     "uncertainty_stage",
+    "calibration_fit",
 ]
 
 #: The refinement criteria a run computes, the deployed one (the recommended model) first.
@@ -288,19 +290,29 @@ def uncertainty_stage(
     step: Step = _no_step,
     poses: Capture | None = None,
     joints: api.JointAnalysis | None = None,
+    capture: Capture | None = None,
+    refined: RefinementResult | None = None,
+    lash: bool = False,
 ) -> StageOutput:
     """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model: its joint
     model, if extended, fitted in every draw, and the calibration ``poses`` refined with the circles).
 
     Both Monte Carlos use the same seed, so they see the same instrument noise draw for draw, and simulate the
     joint errors the capture's own joints stage measured (``joints``: its backlash and eccentricity,
-    :func:`robotcal.uncertainty.joint_errors.measured_joint_errors`; none without it), never the scenario's
-    simulation settings. The refined Monte Carlo's bias corrects the refinement's estimate: the deployed values,
+    :func:`robotcal.uncertainty.joint_errors.measured_joint_errors`; none without it), with the eccentricity no
+    circle shows fitted to the deployed refinement's residuals at the calibration poses (the circles ``capture``,
+    the deployed ``refined`` result, refitted with the joints' lash when ``lash``: :func:`calibration_fit`), never
+    the scenario's simulation settings. The refined Monte Carlo's bias corrects the refinement's estimate: the
+    deployed values,
     ``uncertainty-refined/deployed.json`` (docs/uncertainty.md, "The measurand"). Both folders are written only
     once both are computed (a failure or an interrupt while computing leaves neither).
-    Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult, "deployed": ParameterSet}``.
+    Result: ``{"cpa": MonteCarloResult, "refined": MonteCarloResult, "deployed": ParameterSet, "joint_errors":
+    MeasuredJointErrors}``.
     """
-    measured = measured_errors(scenario, joints, deployed)
+    calibration = None
+    if joints is not None and capture is not None and refined is not None:
+        calibration = calibration_fit(scenario, capture, poses, cpa, refined, joints if lash else None)
+    measured = measured_errors(scenario, joints, deployed, calibration)
     total = montecarlo.iterations + refined_montecarlo.iterations
     results = {}
     runs: tuple[tuple[Literal["cpa", "refined"], MonteCarloSettings, ParameterSet, int], ...] = (
@@ -342,22 +354,50 @@ def uncertainty_stage(
         f"CPA {results['cpa'].n_draws:,} draws ({rates[0]:,.0f}/s), "
         f"refined {results['refined'].n_draws:,} draws ({rates[1]:,.0f}/s), deployed = estimate - bias"
     )
-    return StageOutput({**results, "deployed": corrected}, documents, detail)
+    return StageOutput({**results, "deployed": corrected, "joint_errors": measured}, documents, detail)
 
 
 def measured_errors(
-    scenario: Scenario, joints: api.JointAnalysis | None, estimate: ParameterSet
+    scenario: Scenario,
+    joints: api.JointAnalysis | None,
+    estimate: ParameterSet,
+    calibration: CalibrationFit | None = None,
 ) -> MeasuredJointErrors:
     """The joint errors a calibration's Monte Carlo simulates: those the joints stage measured from the capture,
-    with their uncertainty (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`); none without a joints
-    analysis."""
+    and those no circle shows from the deployed refinement's residuals (``calibration``), with their uncertainty
+    (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors`); none without a joints analysis."""
     if joints is None:
         zeros = JointErrorModel.zeros(scenario.robot.n_joints)
         return MeasuredJointErrors(amplitude=zeros.amplitude, period=zeros.period, phase=zeros.phase, noise_sd=zeros.noise_sd)
     return measured_joint_errors(
         joints.diagnostics, estimate, scenario.plan, scenario.tracker_from_base,
-        circle_fit=scenario.identification.circle_fit,
+        circle_fit=scenario.identification.circle_fit, calibration=calibration,
     )  # fmt: skip
+
+
+def calibration_fit(
+    scenario: Scenario,
+    capture: Capture,
+    poses: Capture | None,
+    start: ParameterSet,
+    refined: RefinementResult,
+    joints: api.JointAnalysis | None = None,
+) -> CalibrationFit:
+    """The deployed refinement as :func:`measured_errors` refits it: the circles and calibration poses as
+    :func:`refine_stage` fitted them, from the same ``start``, with the same model, lash and base; without
+    cross-validation or health (only the estimate is used)."""
+    fitted = api.calibration_capture(scenario, capture, poses)
+    lash = None if joints is None or not joints.diagnostics.backlash else joints
+    model = cast("api.ModelName", refined.model)
+
+    def refit(moved: Capture) -> RefinementResult:
+        with warnings.catch_warnings():  # the deployed fit's warnings, said once by the refine stage
+            warnings.simplefilter("ignore")
+            return api.refine(
+                moved, scenario, start, criterion=DEPLOYED, model=model, health="off", folds=0, backlash_deg=lash
+            )
+
+    return CalibrationFit(capture=fitted, targets=refined.targets, result=refined, refit=refit)
 
 
 def _estimate_errors(
@@ -395,12 +435,14 @@ def tcp_stage(
     deployed: ParameterSet,
     workspace_seed: int,
     estimate: ParameterSet | None = None,
+    joint_errors: JointErrorModel | None = None,
     out: Path,
     figures: FigureJobs,
     step: Step = _no_step,
 ) -> StageOutput:
     """``tcp/``: TCP uncertainty of the deployed (refined) model at the pose, along the trajectory, over the
-    workspace (thesis ch. 5.3), and ``tcp/consistency.json``, the check against the validation capture.
+    workspace (thesis ch. 5.3), and ``tcp/consistency.json``, the check against the validation capture (with the
+    measured ``joint_errors`` the deployed model does not represent in the expected error).
 
     Result: ``{mode: TCPUncertainty}`` plus ``"workspace_map"`` (WorkspaceUncertainty) and ``"consistency"``.
     """
@@ -445,7 +487,7 @@ def tcp_stage(
         provenance["draws_used"] = int(used)
     commit("workspace", workspace.tcp, provenance, workspace=workspace)
     consistency = api.validation_consistency(
-        validation, deployed, draws, scenario, model=_deployed_label(draws)
+        validation, deployed, draws, scenario, model=_deployed_label(draws), joint_errors=joint_errors
     )
     consistency.update(draws_file="uncertainty-refined/draws.npz", validation_file="validation.csv")
     if estimate is not None and estimate is not deployed:

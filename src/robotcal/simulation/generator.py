@@ -11,7 +11,7 @@ Instrument noise ``U(L) = A + B L`` is added last, from one seeded generator.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -20,12 +20,19 @@ from robotcal.capture import Capture
 from robotcal.errors import InputError, JointLimitWarning
 from robotcal.geometry.transforms import apply_transform, check_rigid_transform, rot_x, rot_y, rot_z, translation
 from robotcal.instruments import Instrument
-from robotcal.kinematics.forward import forward_kinematics, target_positions
+from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.joint_model import motion_direction
-from robotcal.kinematics.model import ParameterSet, RobotModel
+from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["JointErrorModel", "simulate_capture", "simulate_target_poses", "motion_direction", "ERROR_TERMS"]
+__all__ = [
+    "JointErrorModel",
+    "simulate_capture",
+    "simulate_target_poses",
+    "free_pose_errors",
+    "motion_direction",
+    "ERROR_TERMS",
+]
 
 #: Error terms of a joint, in the order of the thesis's Err matrix rows (eq. 5-2).
 ERROR_TERMS = ("dx", "dy", "dz", "ex", "ey")
@@ -121,6 +128,11 @@ class JointErrorModel:
         """Whether any joint has an angular or translational lash."""
         return bool(np.any(self.backlash != 0.0) or np.any(self.lash != 0.0))
 
+    def at_free_poses(self) -> JointErrorModel:
+        """The model a robot shows at free poses: the same terms without lash (a free pose's approach direction,
+        which sets each joint's lash state, is not recorded: the refinement does not model it there either)."""
+        return replace(self, backlash=np.zeros_like(self.backlash), lash=np.zeros_like(self.lash))
+
     def transforms(self, q, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
         """Error transforms ``E = T(dx, dy, dz) Rx(ex) Ry(ey)``, shape ``(n_points, n_joints, 4, 4)``.
 
@@ -137,6 +149,19 @@ class JointErrorModel:
         shift = shift - 0.5 * state[..., None] * self.lash
         turn = rot_z(-0.5 * state * self.backlash)
         return translation(shift) @ rot_x(values[..., 3]) @ rot_y(values[..., 4]) @ turn
+
+
+def free_pose_errors(
+    joint_errors: JointErrorModel | None, robot: RobotModel, readings: np.ndarray, rng: np.random.Generator
+) -> np.ndarray | None:
+    """The error transforms ``(n_poses, n_joints, 4, 4)`` of ``joint_errors`` at free poses (no lash:
+    :meth:`JointErrorModel.at_free_poses`), evaluated like a capture's at the commanded joint variables; None
+    without joint errors (and then no draw from ``rng``)."""
+    if joint_errors is None:
+        return None
+    if joint_errors.n_joints != robot.n_joints:
+        raise InputError(f"joint error model has {joint_errors.n_joints} joints; robot has {robot.n_joints}")
+    return joint_errors.at_free_poses().transforms(robot.model_joint_variables(readings), rng=rng)
 
 
 def _check_limits(robot: RobotModel, readings: np.ndarray, circle: np.ndarray, policy: str) -> None:
@@ -239,6 +264,7 @@ def simulate_target_poses(
     true_parameters: ParameterSet | None = None,
     true_offsets: ArrayLike | None = None,
     u95_mm: float | None = None,
+    joint_errors: JointErrorModel | None = None,
     rng: np.random.Generator | int | None = None,
 ) -> tuple[Capture, np.ndarray]:
     """A capture of several flange targets at every one of a set of free poses (issue 14).
@@ -264,8 +290,10 @@ def simulate_target_poses(
         with a guess, pass the truth here).
     u95_mm : float, optional
         Written to the ``u95_mm`` column of every point (the instrument's stated U(95)) [mm].
+    joint_errors : JointErrorModel, optional
+        The robot's joint errors (eq. 5-2) at the poses, without lash (:meth:`JointErrorModel.at_free_poses`).
     rng : numpy.random.Generator or int or None
-        Instrument noise.
+        Joint error noise (when given and noisy), then instrument noise.
 
     Returns
     -------
@@ -286,8 +314,13 @@ def simulate_target_poses(
     )
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    flange = forward_kinematics(parameters.values, parameters.model_joint_variables(readings))  # (n_poses, 4, 4)
-    base_points = np.einsum("pij,tj->pti", flange[:, :3, :3], offsets) + flange[:, None, :3, 3]
+    q = parameters.model_joint_variables(readings)
+    errors = free_pose_errors(joint_errors, robot, readings, rng)
+    base_points = np.stack(
+        [target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), mount, joint_errors=errors)
+         for mount in (ReflectorMount(frame="flange", positions=offset) for offset in offsets)],
+        axis=1,
+    )  # fmt: skip
     exact = apply_transform(tracker_from_base, base_points.reshape(-1, 3))
     noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
     n_points = exact.shape[0]

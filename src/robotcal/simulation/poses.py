@@ -16,6 +16,7 @@ from robotcal.geometry.transforms import apply_transform, check_rigid_transform
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
+from robotcal.simulation.generator import JointErrorModel, free_pose_errors
 from robotcal.simulation.plan import CapturePlan
 
 __all__ = [
@@ -137,6 +138,7 @@ def simulate_poses(
     tracker_from_base: ArrayLike,
     *,
     true_parameters: ParameterSet | None = None,
+    joint_errors: JointErrorModel | None = None,
     rng: np.random.Generator | int | None = None,
 ) -> tuple[Capture, np.ndarray]:
     """A capture of a flange target at free poses (``circle = 0``, ``direction = +1``).
@@ -152,8 +154,11 @@ def simulate_poses(
     tracker_from_base : array_like, shape (4, 4)
     true_parameters : ParameterSet, optional
         The "real" robot (nominal by default).
+    joint_errors : JointErrorModel, optional
+        The robot's joint errors (eq. 5-2) at the poses, without lash
+        (:func:`robotcal.simulation.generator.free_pose_errors`).
     rng : numpy.random.Generator or int or None
-        Instrument noise.
+        Joint error noise (when given and noisy), then instrument noise.
 
     Returns
     -------
@@ -170,7 +175,10 @@ def simulate_poses(
     tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
     q = parameters.model_joint_variables(readings)
-    base_points = target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), reflector)
+    errors = free_pose_errors(joint_errors, robot, readings, rng)
+    base_points = target_positions(
+        parameters.values, q, np.zeros(q.shape[0], dtype=int), reflector, joint_errors=errors
+    )
     exact = apply_transform(tracker_from_base, base_points)
     noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
     n = readings.shape[0]

@@ -9,6 +9,7 @@ from .coverage import binomial_band as binomial_band
 from .coverage import coverage_study as coverage_study
 from .coverage import extended_coverage_study as extended_coverage_study
 from .gauss_newton import refine_draws_gauss_newton as refine_draws_gauss_newton
+from .joint_errors import CalibrationFit as CalibrationFit
 from .joint_errors import MeasuredJointErrors as MeasuredJointErrors
 from .joint_errors import measured_joint_errors as measured_joint_errors
 from .measured import DRAWS_PER_BLOCK as DRAWS_PER_BLOCK

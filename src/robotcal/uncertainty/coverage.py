@@ -585,7 +585,7 @@ def _extended_capture(setup: _Setup, truth, structure, circles, poses, poses_tar
             joint_limits=setup.joint_limits, rng=np.random.default_rng(capture_seed),
         )  # fmt: skip
         measured, _ = simulate_target_poses(
-            robot, poses, (poses_target,), instrument, base, true_parameters=truth,
+            robot, poses, (poses_target,), instrument, base, true_parameters=truth, joint_errors=setup.joint_errors,
             rng=np.random.default_rng(pose_seed),
         )  # fmt: skip
         cpa = identify_cpa(

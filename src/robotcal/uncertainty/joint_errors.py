@@ -19,21 +19,35 @@ at the estimate, where the fits absorb orders 0 and 1 exactly as on the capture)
 shows (at least :data:`_SHOWN` of a shape) are fitted, and the fit is kept only where it stands out of the
 circle's noise; each shown direction has its standard uncertainty (the circle's noise over its singular value).
 The translational lash and the tilt terms ``ex, ey`` are not converted.
+
+What a short arc does not show (J1 turned 45 deg shows 0.7 % of a run-out, J2 turned 80 deg 4 %), the circle fit
+absorbs into the axis: the run-out moves the estimated axis, and the refinement's estimate with it. The calibration
+poses, which turn every joint through its range, show it: given the deployed refinement (:class:`CalibrationFit`),
+the directions no circle shows are fitted jointly with the refinement, by least squares of its residuals on their
+*unabsorbed* responses (each response is added to the measured points and refitted; the change of the residuals
+is what the refinement cannot take up). They are kept under the same two rules (shown by the poses, out of the
+noise) and carry their standard uncertainties as sources too.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from robotcal.capture import Capture
 from robotcal.diagnostics.joints import JointDiagnostics, analyze_joints
+from robotcal.identification.evaluation import fit_frames, tracker_points
+from robotcal.identification.records import RefinementResult
+from robotcal.identification.targets import Target
 from robotcal.instruments import Instrument
+from robotcal.kinematics.joint_model import lash_turns
 from robotcal.kinematics.model import ParameterSet
 from robotcal.simulation.generator import JointErrorModel, simulate_capture
 from robotcal.simulation.plan import CapturePlan
 
-__all__ = ["MeasuredJointErrors", "measured_joint_errors"]
+__all__ = ["CalibrationFit", "MeasuredJointErrors", "measured_joint_errors"]
 
 #: The eccentricity shapes fitted, two per group (sine and cosine of the same harmonic): per shape the
 #: (amplitude, phase [rad], harmonic order) of the terms dx, dy, dz. A once-per-turn run-out of the axis,
@@ -53,7 +67,33 @@ _SHOWN = 0.3
 _SIGNIFICANCE = 0.99
 #: Amplitude of the unit responses [mm]: small enough that the circle fits respond linearly.
 _PROBE_MM = 1e-3
+#: Amplitude of the responses refitted for the calibration poses' fit [mm]: within the refinement's linear range,
+#: and far above its convergence tolerance.
+_REFIT_MM = 1e-2
 _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CalibrationFit:
+    """The deployed refinement, whose residuals at the calibration poses show what the circles cannot.
+
+    Attributes
+    ----------
+    capture : Capture
+        The points it fitted: the circles, then the calibration poses (``circle = 0``).
+    targets : tuple of Target
+        Where they were measured.
+    result : RefinementResult
+        The refinement of ``capture``.
+    refit : callable
+        ``refit(capture) -> RefinementResult``: the same refinement (criterion, model, base, lash) of another
+        capture of the same readings.
+    """
+
+    capture: Capture
+    targets: tuple[Target, ...]
+    result: RefinementResult
+    refit: Callable[[Capture], RefinementResult]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -79,6 +119,7 @@ def measured_joint_errors(
     tracker_from_base,
     *,
     circle_fit: str = "geometric",
+    calibration: CalibrationFit | None = None,
 ) -> MeasuredJointErrors:
     """The joint errors the joints stage measured, in the simulation's form, with their uncertainty (module notes).
 
@@ -93,6 +134,9 @@ def measured_joint_errors(
     tracker_from_base : array_like, shape (4, 4)
     circle_fit : {"geometric", "algebraic"}
         The joints stage's in-plane circle fit.
+    calibration : CalibrationFit, optional
+        The deployed refinement of the circles and calibration poses: the directions no circle shows are fitted
+        to its residuals (module notes). None, or a capture without free poses: they stay 0.
     """
     n = estimate.robot.n_joints
     backlash, backlash_u = np.zeros(n), np.zeros(n)
@@ -106,23 +150,26 @@ def measured_joint_errors(
         _eccentricity(_shape_model(n, shape), estimate, plan, tracker_from_base, circle_fit) for shape in _SHAPES
     ]
     coefficients = np.zeros((n, len(_SHAPES)))
-    steps: list[tuple[int, np.ndarray]] = []  # (joint, one standard uncertainty along a shown direction) [mm]
+    steps: list[np.ndarray] = []  # one standard uncertainty along a fitted direction, (n, 4) [mm]
+    hidden = {joint: np.eye(len(_SHAPES)) for joint in range(n)}  # per joint: the directions no circle shows
     for circle in diagnostics.circles:
         if circle.joint not in responses[0] or not np.isfinite(circle.noise_sigma):
             continue
         design = np.stack([_at(response[circle.joint], circle.reading) for response in responses], axis=1)
-        value, directions = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma)
+        value, directions, unshown = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma)
         coefficients[circle.joint - 1] = value * _PROBE_MM
-        steps.extend((circle.joint - 1, step * _PROBE_MM) for step in directions)
+        steps.extend(_on_joint(n, circle.joint - 1, step * _PROBE_MM) for step in directions)
+        hidden[circle.joint - 1] = unshown
+    if calibration is not None and np.any(calibration.capture.circle == 0):
+        value, directions = _calibration_fit(calibration, hidden)
+        coefficients += value
+        steps.extend(directions)
     sources = []
     for lashed in np.flatnonzero(backlash_u > 0):
         moved = backlash.copy()
         moved[lashed] += backlash_u[lashed]
         sources.append(_model(coefficients, moved))
-    for joint, step in steps:
-        shifted = coefficients.copy()
-        shifted[joint] += step
-        sources.append(_model(shifted, backlash))
+    sources.extend(_model(coefficients + step, backlash) for step in steps)
     model = _model(coefficients, backlash)
     fields = {name: getattr(model, name) for name in ("amplitude", "period", "phase", "noise_sd", "backlash", "lash")}
     return MeasuredJointErrors(**fields, sources=tuple(sources))
@@ -171,20 +218,81 @@ def _at(response: tuple, readings: np.ndarray) -> np.ndarray:
     return np.concatenate([np.interp(readings, grid, values) for values in mean])
 
 
-def _shown_fit(design: np.ndarray, measured: np.ndarray, noise_sigma: float) -> tuple[np.ndarray, list]:
+def _on_joint(n_joints: int, joint: int, step: np.ndarray) -> np.ndarray:
+    """``step (4,)`` of one joint's shape coefficients as the ``(n_joints, 4)`` coefficients of every joint."""
+    out = np.zeros((n_joints, len(_SHAPES)))
+    out[joint] = step
+    return out
+
+
+def _calibration_fit(calibration: CalibrationFit, hidden: dict[int, np.ndarray]) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The directions ``hidden`` (per joint, rows: unit shape combinations no circle shows) fitted to the deployed
+    refinement's residuals (module notes): their coefficients ``(n, 4)`` [mm] and one standard-uncertainty step
+    ``(n, 4)`` along each direction the poses show."""
+    n = len(hidden)
+    columns = [(joint, direction) for joint, rows in hidden.items() for direction in rows]
+    if not columns:
+        return np.zeros((n, len(_SHAPES))), []
+    capture, result = calibration.capture, calibration.result
+    base = _residuals(capture, result, calibration.targets)
+    unabsorbed = []
+    for joint, direction in columns:
+        shape = _model(_on_joint(n, joint, direction * _REFIT_MM), np.zeros(n))
+        moved = replace(capture, points=capture.points + _response(capture, result, calibration.targets, shape))
+        refitted = calibration.refit(moved)
+        unabsorbed.append((_residuals(moved, refitted, calibration.targets) - base).ravel() / _REFIT_MM)
+    design = np.stack(unabsorbed, axis=1) * _PROBE_MM  # per unit amplitude of _PROBE_MM, as the circles' fit
+    free = int(result.identifiability.free.sum()) + len(columns)
+    least = np.linalg.lstsq(design, base.ravel(), rcond=None)[0]
+    noise_sigma = float(np.sqrt(np.sum((base.ravel() - design @ least) ** 2) / max(base.size - free, 1)))
+    poses = 3 * int(np.sum(capture.circle == 0))
+    value, directions, _ = _shown_fit(design, base.ravel(), noise_sigma, rows=poses)
+    basis = np.stack([_on_joint(n, joint, direction) for joint, direction in columns])  # (k, n, 4)
+    to_joints = lambda combination: np.tensordot(combination, basis, axes=1) * _PROBE_MM  # noqa: E731
+    return to_joints(value), [to_joints(step) for step in directions]
+
+
+def _residuals(capture: Capture, result: RefinementResult, targets) -> np.ndarray:
+    """Measured minus predicted points ``(n_points, 3)`` [mm] of a refinement, its circle points turned by the
+    lash correction the refinement applied (:func:`robotcal.kinematics.joint_model.lash_turns`)."""
+    parameters = result.parameters
+    robot, joint_model = parameters.robot, parameters.joint_model
+    commanded = robot.model_joint_variables(capture.readings)
+    lash = np.zeros_like(commanded)
+    if joint_model is not None and joint_model.has_backlash:
+        lash = lash_turns(joint_model.backlash, commanded, capture.circle)
+    turned = replace(capture, readings=robot.readings_from_model(commanded + lash))
+    return capture.points - tracker_points(turned, parameters, targets, fit_frames(result))
+
+
+def _response(capture: Capture, result: RefinementResult, targets, errors: JointErrorModel) -> np.ndarray:
+    """How ``errors`` (no lash) move the refinement's predicted points ``(n_points, 3)`` in the tracker frame [mm]."""
+    parameters = result.parameters
+    transforms = errors.transforms(parameters.robot.model_joint_variables(capture.readings))
+    frames = fit_frames(result)
+    moved = tracker_points(capture, parameters, targets, frames, joint_errors=transforms)
+    return moved - tracker_points(capture, parameters, targets, frames)
+
+
+def _shown_fit(
+    design: np.ndarray, measured: np.ndarray, noise_sigma: float, rows: int | None = None
+) -> tuple[np.ndarray, list, np.ndarray]:
     """Least squares ``design c = measured`` over the singular directions the circles show (:data:`_SHOWN`), and
     one standard uncertainty step along each of them (``noise_sigma`` per point: ``noise_sigma / s_i`` along the
     right singular vector ``v_i``). The value is zero unless the fitted eccentricity stands out of the noise (a
     chi-squared test at :data:`_SIGNIFICANCE` of its squared norm over ``noise_sigma^2``, as many degrees of
-    freedom as directions shown): a noise-only capture gives none, and the steps still state how much could hide."""
+    freedom as directions shown): a noise-only capture gives none, and the steps still state how much could hide.
+    ``rows``: the number of rows that can show a direction (the RMS per unit amplitude is taken over them; default
+    all). Third: the right singular vectors not shown (rows), the directions left to another fit."""
     from scipy.stats import chi2  # scipy.stats is slow to import: only when a joints analysis is converted
 
     left, singular, right = np.linalg.svd(design, full_matrices=False)
-    shown = singular / np.sqrt(design.shape[0]) >= _SHOWN * _PROBE_MM
+    shown = singular / np.sqrt(design.shape[0] if rows is None else rows) >= _SHOWN * _PROBE_MM
     steps = [noise_sigma / s * v for s, v in zip(singular[shown], right[shown], strict=True)] if noise_sigma > 0 else []
+    unshown = right[~shown]
     projection = left[:, shown].T @ measured
     if not shown.any():
-        return np.zeros(design.shape[1]), steps
+        return np.zeros(design.shape[1]), steps, unshown
     if noise_sigma > 0 and float(projection @ projection) <= noise_sigma**2 * chi2.ppf(_SIGNIFICANCE, int(shown.sum())):
-        return np.zeros(design.shape[1]), steps
-    return right[shown].T @ (projection / singular[shown]), steps
+        return np.zeros(design.shape[1]), steps, unshown
+    return right[shown].T @ (projection / singular[shown]), steps, unshown

@@ -195,7 +195,7 @@ def prepare_monte_carlo(
         capture, exact, refined, extra_true = _refined_structure(
             robot, capture, exact, reference, plan, instrument, tracker_from_base, true_parameters, options,
             criterion=criterion, poses=poses, poses_target=poses_target, joint_model=joint_model,
-            repeatability_sd=repeatability_sd,
+            repeatability_sd=repeatability_sd, joint_errors=_deterministic(joint_errors),
         )  # fmt: skip
         values, identified = refined.reference_values, reference.identified | refined.free
     problem = MonteCarloProblem(
@@ -222,17 +222,32 @@ def prepare_monte_carlo(
         return problem
     points = [
         np.concatenate([_noise_free_capture(robot, plan, tracker_from_base, true_parameters, errors, joint_limits)[1],
-                        exact[n_circle:]])
+                        _noise_free_poses(robot, poses, poses_target, tracker_from_base, true_parameters, errors)])
         for errors in sources
     ]  # fmt: skip
     return dataclasses.replace(problem, source_points=np.stack(points))
 
 
+def _deterministic(joint_errors: JointErrorModel | None) -> JointErrorModel | None:
+    """The deterministic part of ``joint_errors`` (its noise left to the draws)."""
+    if joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0)):
+        return dataclasses.replace(joint_errors, noise_sd=np.zeros_like(joint_errors.noise_sd))
+    return joint_errors
+
+
+def _noise_free_poses(robot, poses, poses_target, tracker_from_base, true_parameters, joint_errors) -> np.ndarray:
+    """The calibration poses' exact points ``(n_poses, 3)`` with the deterministic joint errors (none without poses)."""
+    if poses is None:
+        return np.zeros((0, 3))
+    return simulate_target_poses(
+        robot, poses, (poses_target,), _NOISE_FREE, tracker_from_base, true_parameters=true_parameters,
+        joint_errors=_deterministic(joint_errors), rng=0,
+    )[1]  # fmt: skip
+
+
 def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_errors, joint_limits):
     """The plan's capture without instrument noise, with the deterministic part of the joint errors."""
-    deterministic_errors = joint_errors
-    if joint_errors is not None and bool(np.any(joint_errors.noise_sd > 0)):
-        deterministic_errors = dataclasses.replace(joint_errors, noise_sd=np.zeros_like(joint_errors.noise_sd))
+    deterministic_errors = _deterministic(joint_errors)
     capture, exact = simulate_capture(
         robot,
         plan,
@@ -255,7 +270,7 @@ def _noise_free_capture(robot, plan, tracker_from_base, true_parameters, joint_e
 
 def _refined_structure(
     robot, capture, exact, reference, plan, instrument, tracker_from_base, true_parameters, options, *, criterion, poses,
-    poses_target, joint_model, repeatability_sd=0.0,
+    poses_target, joint_model, repeatability_sd=0.0, joint_errors=None,
 ):  # fmt: skip
     """The refined model's capture (the circles, then the calibration poses), exact points, refinement structure
     (with the Gauss-Newton draws' stopping rule) and the true joint-model values."""
@@ -267,8 +282,9 @@ def _refined_structure(
         if poses_target is None or poses_target.frame != "flange" or not poses_target.known:
             raise InputError("calibration poses need their flange target, of known offset (`poses_target`)")
         pose_capture, pose_exact = simulate_target_poses(
-            robot, poses, (poses_target,), _NOISE_FREE, tracker_from_base, true_parameters=true_parameters, rng=0
-        )
+            robot, poses, (poses_target,), _NOISE_FREE, tracker_from_base, true_parameters=true_parameters,
+            joint_errors=joint_errors, rng=0,
+        )  # fmt: skip
         circles = Target.from_mount(plan.reflector, "capture" if poses_target.name != "capture" else "circles")
         capture = join_captures([(capture, circles.name), (pose_capture, None)], source=capture.source)
         exact = np.concatenate([exact, pose_exact])

@@ -16,6 +16,7 @@ from robotcal.errors import FitHealthWarning, IdentifiabilityWarning
 from robotcal.identification.cpa import CPAOptions
 from robotcal.identification.health import CPA_EFFECT_LIMIT_MM, U_EFFECT_LIMIT_MM, _poorly_refined
 from robotcal.io.schema.builtins import data_path
+from robotcal.simulation.generator import JointErrorModel
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +163,10 @@ def test_the_advice_names_the_next_model_only_when_it_was_not_fitted():
         joint_model=both.with_values(np.r_[sag.values, np.deg2rad([0.02, -0.01, 0.015, 0.01, -0.02, 0.01])])
     )
     capture = robotcal.simulate(scenario, rng=1, true_parameters=truth, joint_errors=None)
-    poses = robotcal.simulate_poses(scenario, kind="calibration", rng=3, true_parameters=truth)
+    # the poses without the scenario's eccentricity, which no joint model here represents
+    poses = robotcal.simulate_poses(
+        scenario, kind="calibration", rng=3, true_parameters=truth, joint_errors=JointErrorModel.zeros(6)
+    )
     fitted = robotcal.calibration_capture(scenario, capture, poses)
     health = {}
     with warnings.catch_warnings():

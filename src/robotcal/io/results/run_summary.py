@@ -124,8 +124,10 @@ class Spread:
 class Consistency:
     """Does the stated uncertainty explain the validation error? (``tcp/consistency.json``).
 
-    ``expected_rms_mm`` = sqrt(predicted² + instrument²): the RMS validation error the parameter
-    uncertainty and the instrument alone would give; ``observed_rms_mm`` is the RMS of the validation errors.
+    ``expected_rms_mm`` = sqrt(predicted² + instrument² + uncompensated²): the RMS validation error the parameter
+    uncertainty, the instrument and the measured joint errors the deployed model does not represent
+    (``uncompensated_rms_mm``, None when none were given) would give; ``observed_rms_mm`` is the RMS of the
+    validation errors.
     """
 
     poses: int | None
@@ -136,6 +138,7 @@ class Consistency:
     expected_rms_mm: float
     observed_rms_mm: float
     ratio: float
+    uncompensated_rms_mm: float | None = None
 
     @property
     def consistent(self) -> bool:
@@ -224,9 +227,12 @@ class Summary:
         check = self.consistency
         if check is not None:
             predicted = f"{check.predicted_rms_mm:.4f} mm" if check.predicted_rms_mm is not None else "n/a"
+            joint = ""
+            if check.uncompensated_rms_mm is not None:
+                joint = f" and the measured joint errors it cannot compensate ({check.uncompensated_rms_mm:.4f} mm)"
             lines.append(
                 f"consistency at the {check.poses} validation poses: predicted RMS position uncertainty {predicted}, "
-                f"with the instrument {check.expected_rms_mm:.4f} mm; observed RMS error "
+                f"with the instrument{joint} {check.expected_rms_mm:.4f} mm; observed RMS error "
                 f"{check.observed_rms_mm:.4f} mm (ratio {check.ratio:.2f}: "
                 f"{'consistent' if check.consistent else 'not explained by the stated uncertainty'})"
             )
@@ -382,6 +388,7 @@ def _consistency(documents: Mapping) -> Consistency | None:
         expected_rms_mm=expected,
         observed_rms_mm=observed,
         ratio=ratio,
+        uncompensated_rms_mm=_number(data.get("uncompensated_rms_mm")),
     )
 
 

@@ -128,7 +128,6 @@ def _validation_blocks(page: _Page, chosen: str) -> list:
                 "predicted points onto the measured ones (evaluation, points view); "
                 "robotcal compensate commands the joints with the deployed model, so the robot then lands within "
                 "this error of where it was taught",
-
                 source="evaluation/evaluation.json",
                 text_columns=frozenset({0}),
             )
@@ -153,9 +152,16 @@ def _model(page: _Page) -> dict:
                 "note",
                 text=f"Consistency of the deployed model at {check.poses} validation poses: expected RMS "
                 f"{_length(check.expected_rms_mm)} (uncertainty {_length(check.predicted_rms_mm)} with the instrument "
-                f"{_length(check.instrument_rms_mm)}), observed {_length(check.observed_rms_mm)} "
+                f"{_length(check.instrument_rms_mm)}{_uncompensated(check)}), observed {_length(check.observed_rms_mm)} "
                 f"({_observed(check.base_frame)}), ratio "
                 f"{_fmt(check.ratio, '.3g')}: {check.verdict}.",
             )
         )
     return {"present": bool(blocks), "blocks_": blocks}
+
+
+def _uncompensated(check) -> str:
+    """``" and the measured joint errors the model cannot compensate X"`` when the check counted them."""
+    if check.uncompensated_rms_mm is None:
+        return ""
+    return f" and the measured joint errors the deployed model cannot compensate {_length(check.uncompensated_rms_mm)}"
