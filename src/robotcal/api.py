@@ -232,10 +232,8 @@ def simulate_poses(
     (a ``target`` column; ``offsets_mm``: the true offsets of those declared with a guess). One generator seeded from
     ``rng`` draws the poses, then the noise; readings outside the limits give a JointLimitWarning.
 
-    A scenario supplies its ``[validation]`` table (poses, margin, height, seed, flange target), the instrument,
-    the base frame and the robot's joint errors (``[[capture.joint_errors]]``, at free poses without lash:
-    :meth:`robotcal.simulation.generator.JointErrorModel.at_free_poses`); ``kind="calibration"``: its
-    ``[calibration_poses]`` table and target instead.
+    A scenario supplies its ``[validation]`` table (``kind="calibration"``: ``[calibration_poses]``), the instrument,
+    the base frame and the ``joint_errors`` (its ``[[capture.joint_errors]]``; at free poses without lash).
 
     Examples
     --------
@@ -252,8 +250,7 @@ def simulate_poses(
     if tracker_from_base is None:
         tracker_from_base = np.eye(4) if scenario is None else scenario.tracker_from_base
     truth = _parameters(true_parameters, robot, "true_parameters")
-    if joint_errors is None and scenario is not None:
-        joint_errors = scenario.joint_errors
+    joint_errors = scenario.joint_errors if joint_errors is None and scenario is not None else joint_errors
     targets, offsets = true_offsets(targets, offsets_mm)
     seed = seed_from(rng, table.seed)
     generator = np.random.default_rng(seed)
@@ -271,7 +268,7 @@ def simulate_poses(
         capture, _ = simulate_poses_core(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, joint_errors=joint_errors,
             rng=generator,
-        )  # fmt: skip
+        )
     else:
         capture, _ = simulate_target_poses(
             robot, readings, targets, instrument, tracker_from_base, true_parameters=truth, true_offsets=offsets,
