@@ -50,6 +50,7 @@ __all__ = [
     "CRITERIA_RUN",
     "DEPLOYED",
     "DEPLOYED_FILE",
+    "JOINT_ERRORS_FILE",
     "ISO_TARGETS_MM",
     "Simulated",
     "StageOutput",
@@ -73,6 +74,8 @@ DEPLOYED: Literal["points"] = "points"
 GEOMETRIC_FILE = f"{DEPLOYED}-geometric.json"
 #: The deployed values (the refinement's estimate corrected for the Monte Carlo's bias), in ``uncertainty-refined/``.
 DEPLOYED_FILE = "deployed.json"
+#: The joint errors the calibration's Monte Carlo simulated (what the capture measured), beside its draws.
+JOINT_ERRORS_FILE = "joint_errors.json"
 DEPLOYED_METHOD = (
     "the deployed values: the refinement's estimate (estimate_file) minus the bias its Monte Carlo measures "
     "(uncertainty-refined/parameters.csv, column bias; GUM correction for recognised systematic effects: the joint "
@@ -346,6 +349,7 @@ def uncertainty_stage(
                 provenance = {"method": DEPLOYED_METHOD, "estimate_file": f"refine/{DEPLOYED}.json", "versions": versions()}
                 document = parameters_to_dict(corrected, provenance)
                 written[DEPLOYED_FILE] = write_json(folder / DEPLOYED_FILE, document)
+                written[JOINT_ERRORS_FILE] = write_json(folder / JOINT_ERRORS_FILE, joint_errors_document(measured))
         documents.update(_in(name, written, out / name))
         deployed_values = {} if name == "uncertainty" else {"deployed": corrected}
         figures.draw("robotcal.plots.montecarlo:write_histograms", result, out / name, **deployed_values)
@@ -355,6 +359,31 @@ def uncertainty_stage(
         f"refined {results['refined'].n_draws:,} draws ({rates[1]:,.0f}/s), deployed = estimate - bias"
     )
     return StageOutput({**results, "deployed": corrected, "joint_errors": measured}, documents, detail)
+
+
+def joint_errors_document(errors: JointErrorModel) -> dict[str, Any]:
+    """``uncertainty-refined/joint_errors.json``: per joint the backlash [deg] and each translation term's sinusoid
+    ``A sin(2 pi / T q + phi)`` (amplitude [mm], period and phase [deg]) the Monte Carlo simulated, and how many
+    uncertainty sources its bias correction propagated (docs/uncertainty.md, "Where the bias comes from")."""
+    joints = []
+    for joint in range(errors.n_joints):
+        terms = {
+            name: {
+                "amplitude_mm": float(errors.amplitude[joint, k]),
+                "period_deg": float(np.rad2deg(errors.period[joint, k])),
+                "phase_deg": float(np.rad2deg(errors.phase[joint, k])),
+            }
+            for k, name in enumerate(("dx", "dy", "dz"))
+            if errors.amplitude[joint, k] != 0.0
+        }
+        joints.append({"joint": joint + 1, "backlash_deg": float(np.rad2deg(errors.backlash[joint])), **terms})
+    return {
+        "method": "measured by the capture: the joints stage (backlash, the eccentricity the circles show) and the "
+        "deployed refinement's residuals at the calibration poses (the eccentricity no circle shows)",
+        "joints": joints,
+        "uncertainty_sources": len(getattr(errors, "sources", ())),
+        "versions": versions(),
+    }
 
 
 def measured_errors(

@@ -46,6 +46,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from statistics import NormalDist
 
 import numpy as np
@@ -357,15 +358,35 @@ def _estimates(setup: _Setup, truth: ParameterSet, capture_seed: int):
     return cpa, refined, capture
 
 
-def _measured(setup: _Setup, capture, centre: ParameterSet) -> JointErrorModel:
-    """The joint errors the joints analysis of ``capture`` measures, in the simulation's form at ``centre``, with
-    their uncertainty (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`)."""
-    from robotcal.diagnostics.joints import analyze_joints
+def _measured(setup: _Setup, capture, centre: ParameterSet, calibration=None, diagnostics=None) -> JointErrorModel:
+    """The joint errors the joints analysis of ``capture`` (``diagnostics`` where already made) measures, in the
+    simulation's form at ``centre``, with their uncertainty (:class:`robotcal.uncertainty.joint_errors.
+    MeasuredJointErrors`); ``calibration``: the refinement of circles and calibration poses whose residuals show
+    what the circles cannot (:class:`robotcal.uncertainty.joint_errors.CalibrationFit`)."""
     from robotcal.uncertainty.joint_errors import measured_joint_errors
 
     method = setup.options.circle_fit
-    diagnostics = analyze_joints(capture, backlash=setup.plan.bidirectional, method=method)
-    return measured_joint_errors(diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method)
+    diagnostics = _joints_analysis(setup, capture) if diagnostics is None else diagnostics
+    return measured_joint_errors(
+        diagnostics, centre, setup.plan, setup.tracker_from_base, circle_fit=method, calibration=calibration
+    )
+
+
+def _joints_analysis(setup: _Setup, capture):
+    """The joints analysis of a capture (thesis ch. 4.6), as ``robotcal run``'s joints stage makes it."""
+    from robotcal.diagnostics.joints import analyze_joints
+
+    return analyze_joints(capture, backlash=setup.plan.bidirectional, method=setup.options.circle_fit)
+
+
+def _stage_lash(diagnostics, structure):
+    """``structure`` correcting the circles for the lash of the joints whose backlash exceeds the noise, as
+    ``robotcal run`` refines (:func:`robotcal.studies.backlash_correction`)."""
+    lash = np.zeros(structure.nominal.shape[0])
+    for joint in diagnostics.summary():
+        if joint.backlash_exceeds_noise:
+            lash[joint.joint - 1] = joint.backlash_angle_mean
+    return structure.with_backlash(lash, "the joints stage") if np.any(lash) else structure
 
 
 def _monte_carlo_at(
@@ -496,6 +517,7 @@ def extended_coverage_study(
     coverage: float = 0.95,
     rng: np.random.Generator | int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    measured_joint_errors: bool = False,
 ) -> ExtendedCoverage:
     """Coverage of the deployed extended model's Monte Carlo (issue 22).
 
@@ -504,9 +526,12 @@ def extended_coverage_study(
     CPA, refined over circles and poses with the truth's joint model (its values fitted from zero), and the
     refined Monte Carlo (``draws`` draws, the same model, circles and poses) simulated at that refined estimate
     states the intervals checked: those of the parameters and of the joint-model values. ``joint_errors`` (default
-    none) act on the circles of every capture and of the Monte Carlo (simulated at the estimate with the same
-    errors, whose effect the interval's bias correction then takes off), not on the poses. Other arguments as
-    :func:`coverage_study`.
+    none) act on every capture (its circles, and its poses without lash) and, unless ``measured_joint_errors``, on
+    the Monte Carlo (simulated at the estimate with the same errors, whose effect the interval's bias correction
+    then takes off). ``measured_joint_errors``: each capture's Monte Carlo simulates the joint errors that capture
+    measures, its joints analysis and the refinement's residuals at the poses
+    (:func:`robotcal.uncertainty.joint_errors.measured_joint_errors` with a ``CalibrationFit``), as ``robotcal run``
+    does. Other arguments as :func:`coverage_study`.
     """
     with single_blas_thread():
         from robotcal.identification.targets import Target
@@ -530,7 +555,9 @@ def extended_coverage_study(
         checked = None
         for k, child in enumerate(children):
             seeds = [int(s.generate_state(1, np.uint64)[0] % (2**63)) for s in child.spawn(3)]
-            refined, result = _extended_capture(setup, truth, structure, circles, poses, poses_target, settings, seeds)
+            refined, result = _extended_capture(
+                setup, truth, structure, circles, poses, poses_target, settings, seeds, measured_joint_errors
+            )
             mask = np.r_[(result.identified & refined.identifiability.free).ravel(), result.extra_identified]
             if checked is None:
                 checked = mask
@@ -567,13 +594,18 @@ def extended_coverage_study(
         )
 
 
-def _extended_capture(setup: _Setup, truth, structure, circles, poses, poses_target, settings, seeds):
+def _extended_capture(
+    setup: _Setup, truth, structure, circles, poses, poses_target, settings, seeds, measured_errors=False
+):  # fmt: skip
     """One capture of circles and calibration poses of ``truth``: its extended refinement (from CPA, the joint
-    model from zero) and the refined Monte Carlo simulated at that refinement."""
+    model from zero) and the refined Monte Carlo simulated at that refinement. ``measured_errors``: as ``robotcal
+    run``, the refinement corrects the circles for the lash the joints analysis measures, and the Monte Carlo
+    simulates the joint errors the capture measures."""
     from robotcal.capture import join_captures
     from robotcal.identification.cpa import identify_cpa
     from robotcal.identification.refine import refine_parameters
     from robotcal.simulation.generator import simulate_capture, simulate_target_poses
+    from robotcal.uncertainty.joint_errors import CalibrationFit
     from robotcal.uncertainty.montecarlo import prepare_monte_carlo, run_monte_carlo
 
     capture_seed, pose_seed, mc_seed = seeds
@@ -584,19 +616,28 @@ def _extended_capture(setup: _Setup, truth, structure, circles, poses, poses_tar
             robot, plan, instrument, base, true_parameters=truth, joint_errors=setup.joint_errors,
             joint_limits=setup.joint_limits, rng=np.random.default_rng(capture_seed),
         )  # fmt: skip
-        measured, _ = simulate_target_poses(
+        pose_capture, _ = simulate_target_poses(
             robot, poses, (poses_target,), instrument, base, true_parameters=truth, joint_errors=setup.joint_errors,
             rng=np.random.default_rng(pose_seed),
         )  # fmt: skip
         cpa = identify_cpa(
             capture, robot, plan.reflector, tracker_from_base=setup.held_base, options=setup.options
         ).parameters
-        fitted = join_captures([(capture, circles.name), (measured, None)], source="coverage capture")
+        fitted = join_captures([(capture, circles.name), (pose_capture, None)], source="coverage capture")
         targets = (circles, poses_target)
-        refined = refine_parameters(fitted, cpa, targets, tracker_from_base=setup.held_base, joint_model=structure)
+        diagnostics = _joints_analysis(setup, capture) if measured_errors else None
+        if diagnostics is not None:
+            structure = _stage_lash(diagnostics, structure)
+        refine = partial(refine_parameters, start=cpa, reflector=targets, tracker_from_base=setup.held_base,
+                         joint_model=structure)  # fmt: skip
+        refined = refine(fitted)
+        errors = setup.joint_errors
+        if diagnostics is not None:
+            calibration = CalibrationFit(capture=fitted, targets=targets, result=refined, refit=refine)
+            errors = _measured(setup, capture, refined.parameters, calibration, diagnostics)
         problem = prepare_monte_carlo(
             robot, plan, instrument, base, options=setup.options, true_parameters=refined.parameters,
-            joint_errors=setup.joint_errors, joint_limits=setup.joint_limits, model="refined", poses=poses,
+            joint_errors=errors, joint_limits=setup.joint_limits, model="refined", poses=poses,
             poses_target=poses_target, joint_model=structure,
         )  # fmt: skip
         return refined, run_monte_carlo(problem, settings, seed=mc_seed, linearised=False)

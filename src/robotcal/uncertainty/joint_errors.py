@@ -70,6 +70,8 @@ _PROBE_MM = 1e-3
 #: Amplitude of the responses refitted for the calibration poses' fit [mm]: within the refinement's linear range,
 #: and far above its convergence tolerance.
 _REFIT_MM = 1e-2
+#: The lash whose response is refitted for the nuisance of the calibration poses' fit [rad] (0.006 deg).
+_LASH_RAD = 1e-4
 _NOISE_FREE = Instrument(name="noise-free", a_mm=0.0, b_mm_per_m=0.0)
 
 
@@ -161,7 +163,7 @@ def measured_joint_errors(
         steps.extend(_on_joint(n, circle.joint - 1, step * _PROBE_MM) for step in directions)
         hidden[circle.joint - 1] = unshown
     if calibration is not None and np.any(calibration.capture.circle == 0):
-        value, directions = _calibration_fit(calibration, hidden)
+        value, directions = _calibration_fit(calibration, hidden, _model(coefficients, np.zeros(n)))
         coefficients += value
         steps.extend(directions)
     sources = []
@@ -225,30 +227,40 @@ def _on_joint(n_joints: int, joint: int, step: np.ndarray) -> np.ndarray:
     return out
 
 
-def _calibration_fit(calibration: CalibrationFit, hidden: dict[int, np.ndarray]) -> tuple[np.ndarray, list[np.ndarray]]:
+def _calibration_fit(
+    calibration: CalibrationFit, hidden: dict[int, np.ndarray], known: JointErrorModel
+) -> tuple[np.ndarray, list[np.ndarray]]:
     """The directions ``hidden`` (per joint, rows: unit shape combinations no circle shows) fitted to the deployed
-    refinement's residuals (module notes): their coefficients ``(n, 4)`` [mm] and one standard-uncertainty step
-    ``(n, 4)`` along each direction the poses show."""
+    refinement's residuals (module notes), less the part the ``known`` eccentricity (the circles') explains and
+    with every joint's lash a nuisance of the fit: their coefficients ``(n, 4)`` [mm] and one standard-uncertainty
+    step ``(n, 4)`` along each direction the poses show."""
     n = len(hidden)
     columns = [(joint, direction) for joint, rows in hidden.items() for direction in rows]
     if not columns:
         return np.zeros((n, len(_SHAPES))), []
-    capture, result = calibration.capture, calibration.result
-    base = _residuals(capture, result, calibration.targets)
-    unabsorbed = []
-    for joint, direction in columns:
-        shape = _model(_on_joint(n, joint, direction * _REFIT_MM), np.zeros(n))
-        moved = replace(capture, points=capture.points + _response(capture, result, calibration.targets, shape))
-        refitted = calibration.refit(moved)
-        unabsorbed.append((_residuals(moved, refitted, calibration.targets) - base).ravel() / _REFIT_MM)
-    design = np.stack(unabsorbed, axis=1) * _PROBE_MM  # per unit amplitude of _PROBE_MM, as the circles' fit
-    free = int(result.identifiability.free.sum()) + len(columns)
-    least = np.linalg.lstsq(design, base.ravel(), rcond=None)[0]
-    noise_sigma = float(np.sqrt(np.sum((base.ravel() - design @ least) ** 2) / max(base.size - free, 1)))
-    poses = 3 * int(np.sum(capture.circle == 0))
-    value, directions, _ = _shown_fit(design, base.ravel(), noise_sigma, rows=poses)
-    basis = np.stack([_on_joint(n, joint, direction) for joint, direction in columns])  # (k, n, 4)
-    to_joints = lambda combination: np.tensordot(combination, basis, axes=1) * _PROBE_MM  # noqa: E731
+    capture, result, targets = calibration.capture, calibration.result, calibration.targets
+    measured = _residuals(capture, result, targets)
+
+    def unabsorbed(errors: JointErrorModel) -> np.ndarray:
+        """What the refinement leaves of ``errors``' move of the points: the change of its residuals."""
+        moved = replace(capture, points=capture.points + _response(capture, result, targets, errors))
+        return (_residuals(moved, calibration.refit(moved), targets) - measured).ravel()
+
+    base = measured.ravel() - (unabsorbed(known) if np.any(known.amplitude) else 0.0)
+    # per unit amplitude of _PROBE_MM, as the circles' fit
+    shapes = [unabsorbed(_model(_on_joint(n, joint, direction * _REFIT_MM), np.zeros(n))) for joint, direction in columns]
+    design = np.stack(shapes, axis=1) * (_PROBE_MM / _REFIT_MM)
+    # a lash the refinement does not correct (or corrects by a noisy mean) leaves its own pattern: a nuisance
+    turning = sorted({int(turned) - 1 for turned in capture.circle[capture.circle > 0]})
+    lash = np.stack([unabsorbed(_model(np.zeros((n, len(_SHAPES))), _LASH_RAD * np.eye(n)[joint])) for joint in turning], axis=1)
+    basis = np.linalg.qr(lash)[0]
+    design, base = design - basis @ (basis.T @ design), base - basis @ (basis.T @ base)
+    free = int(result.identifiability.free.sum()) + len(columns) + len(turning)
+    least = np.linalg.lstsq(design, base, rcond=None)[0]
+    noise_sigma = float(np.sqrt(np.sum((base - design @ least) ** 2) / max(base.size - free, 1)))
+    value, directions, _ = _shown_fit(design, base, noise_sigma, rows=3 * int(np.sum(capture.circle == 0)))
+    coefficients = np.stack([_on_joint(n, joint, direction) for joint, direction in columns])  # (k, n, 4)
+    to_joints = lambda combination: np.tensordot(combination, coefficients, axes=1) * _PROBE_MM  # noqa: E731
     return to_joints(value), [to_joints(step) for step in directions]
 
 
@@ -266,9 +278,15 @@ def _residuals(capture: Capture, result: RefinementResult, targets) -> np.ndarra
 
 
 def _response(capture: Capture, result: RefinementResult, targets, errors: JointErrorModel) -> np.ndarray:
-    """How ``errors`` (no lash) move the refinement's predicted points ``(n_points, 3)`` in the tracker frame [mm]."""
+    """How ``errors`` move the refinement's predicted points ``(n_points, 3)`` in the tracker frame [mm]: on the
+    circles with each joint's lash state along them in capture order (as the simulator), at free poses without
+    lash (:meth:`JointErrorModel.at_free_poses`)."""
     parameters = result.parameters
-    transforms = errors.transforms(parameters.robot.model_joint_variables(capture.readings))
+    commanded = parameters.robot.model_joint_variables(capture.readings)
+    transforms = errors.at_free_poses().transforms(commanded)
+    circles = capture.circle > 0
+    if errors.has_lash and circles.any():
+        transforms[circles] = errors.transforms(commanded[circles])
     frames = fit_frames(result)
     moved = tracker_points(capture, parameters, targets, frames, joint_errors=transforms)
     return moved - tracker_points(capture, parameters, targets, frames)

@@ -4,6 +4,8 @@ often as they say."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -11,8 +13,10 @@ import robotcal
 from robotcal.uncertainty.coverage import extended_coverage_study
 
 
-def _study(captures: int, draws: int, seed: int, *, joint_errors: bool = False):
-    """``joint_errors``: the demo's joint errors on every capture's circles and every Monte Carlo (issue 31)."""
+def _study(captures: int, draws: int, seed: int, *, joint_errors=False, measured: bool = False):
+    """``joint_errors``: True, the demo's joint errors (or a JointErrorModel), on every capture (its circles, and its
+    poses without lash) and every Monte Carlo (issue 31); ``measured``: each Monte Carlo simulates the joint errors
+    its capture measures instead, as ``robotcal run`` (issue 29)."""
     scenario = robotcal.load_scenario("kr5-demo")
     truth = robotcal.perturb(scenario, rng=11)  # the demo's truth: J2, J3 compliance 1e-5, 4e-5 rad/(N m)
     poses = robotcal.simulate_poses(scenario, kind="calibration", rng=3, true_parameters=truth)
@@ -20,7 +24,8 @@ def _study(captures: int, draws: int, seed: int, *, joint_errors: bool = False):
         scenario.robot, scenario.plan, scenario.instrument, truth, poses=poses.readings,
         poses_target=scenario.target(scenario.poses_target), captures=captures, draws=draws,
         tracker_from_base=scenario.tracker_from_base, options=scenario.identification,
-        joint_limits=scenario.joint_limits, joint_errors=scenario.joint_errors if joint_errors else None, rng=seed,
+        joint_limits=scenario.joint_limits, joint_errors=scenario.joint_errors if joint_errors is True else joint_errors or None, rng=seed,
+        measured_joint_errors=measured,
     )  # fmt: skip
 
 
@@ -62,3 +67,30 @@ def test_extended_refined_intervals_cover_with_joint_errors():
     outside = [(n, round(float(c), 3)) for n, c, ok in zip(study.names, study.empirical(), study.in_band(), strict=True)
                if not ok]  # fmt: skip
     assert outside == [], (study.band, outside)
+
+
+def test_reduced_extended_study_with_the_joint_errors_the_captures_measure():
+    """Issue 29, reduced (10 captures x 200 draws): every capture's Monte Carlo simulates what its joints analysis
+    and its calibration poses measure, not the truth's joint errors."""
+    study = _study(10, 200, seed=22, joint_errors=True, measured=True)
+    assert study.names[-2:] == ("J2.k", "J3.k")
+    assert study.empirical().mean() >= 0.8 and study.empirical().min() >= 0.5
+
+
+@pytest.mark.slow
+def test_extended_intervals_cover_with_the_joint_errors_the_captures_measure():
+    """Issue 29: K = 200, 1,000 draws each, the demo's truth, each capture's Monte Carlo simulating the joint errors
+    that capture measures (docs/validation.md records both runs). With the demo's joint errors but J3's
+    ``dx = 10 um sin(3 q + 30 deg)``, which is none of the shapes measured, no interval covers less than the band
+    says (J4.alpha and J5.a cover more: 0.99 and 1.00); with it, J1.d and J2.a, which it biases, cover 0.71 and
+    0.68 and the rest hold."""
+    scenario = robotcal.load_scenario("kr5-demo")
+    amplitude = np.array(scenario.joint_errors.amplitude)
+    amplitude[2, 0] = 0.0
+    shapes_measured = dataclasses.replace(scenario.joint_errors, amplitude=amplitude)
+    study = _study(200, 1000, seed=22, joint_errors=shapes_measured, measured=True)
+    low = [name for name, c in zip(study.names, study.empirical(), strict=True) if c < study.band[0]]
+    assert low == [] and study.band[0] <= study.empirical().mean() <= study.band[1], (study.band, low)
+    study = _study(200, 1000, seed=22, joint_errors=True, measured=True)
+    low = [name for name, c in zip(study.names, study.empirical(), strict=True) if c < study.band[0]]
+    assert set(low) <= {"J1.d", "J2.a"} and study.band[0] <= study.empirical().mean(), (study.band, low)
