@@ -30,6 +30,7 @@ __all__ = [
     "simulate_capture",
     "simulate_target_poses",
     "free_pose_errors",
+    "free_pose_points",
     "motion_direction",
     "ERROR_TERMS",
 ]
@@ -149,6 +150,31 @@ class JointErrorModel:
         shift = shift - 0.5 * state[..., None] * self.lash
         turn = rot_z(-0.5 * state * self.backlash)
         return translation(shift) @ rot_x(values[..., 3]) @ rot_y(values[..., 4]) @ turn
+
+
+def free_pose_points(
+    parameters: ParameterSet,
+    readings: np.ndarray,
+    offsets: np.ndarray,
+    instrument: Instrument,
+    tracker_from_base: ArrayLike,
+    joint_errors: JointErrorModel | None,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Measured and exact tracker-frame points ``(n_poses * n_targets, 3)`` [mm] of flange targets at ``offsets
+    (n_targets, 3)`` [mm] at every pose (pose by pose, the targets in order), on the robot ``parameters`` with its
+    ``joint_errors`` at free poses (:func:`free_pose_errors`); ``rng`` draws the joint noise, then the instrument's."""
+    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
+    q = parameters.model_joint_variables(readings)
+    errors = free_pose_errors(joint_errors, parameters.robot, readings, rng)
+    base_points = np.stack(
+        [target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), mount, joint_errors=errors)
+         for mount in (ReflectorMount(frame="flange", positions=offset) for offset in offsets)],
+        axis=1,
+    )  # fmt: skip
+    exact = apply_transform(tracker_from_base, base_points.reshape(-1, 3))
+    noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
+    return noisy, exact
 
 
 def free_pose_errors(
@@ -312,17 +338,8 @@ def simulate_target_poses(
         if true_offsets is None
         else np.asarray(true_offsets, dtype=float).reshape(len(targets), 3)
     )
-    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    q = parameters.model_joint_variables(readings)
-    errors = free_pose_errors(joint_errors, robot, readings, rng)
-    base_points = np.stack(
-        [target_positions(parameters.values, q, np.zeros(q.shape[0], dtype=int), mount, joint_errors=errors)
-         for mount in (ReflectorMount(frame="flange", positions=offset) for offset in offsets)],
-        axis=1,
-    )  # fmt: skip
-    exact = apply_transform(tracker_from_base, base_points.reshape(-1, 3))
-    noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
+    noisy, exact = free_pose_points(parameters, readings, offsets, instrument, tracker_from_base, joint_errors, rng)
     n_points = exact.shape[0]
     capture = Capture(
         circle=np.zeros(n_points, dtype=int),

@@ -12,11 +12,10 @@ from numpy.typing import ArrayLike
 
 from robotcal.capture import Capture
 from robotcal.errors import InputError
-from robotcal.geometry.transforms import apply_transform, check_rigid_transform
 from robotcal.instruments import Instrument
 from robotcal.kinematics.forward import target_positions
 from robotcal.kinematics.model import ParameterSet, ReflectorMount, RobotModel
-from robotcal.simulation.generator import JointErrorModel, free_pose_errors
+from robotcal.simulation.generator import JointErrorModel, free_pose_points
 from robotcal.simulation.plan import CapturePlan
 
 __all__ = [
@@ -172,15 +171,9 @@ def simulate_poses(
     readings = np.asarray(readings, dtype=float)
     if readings.ndim != 2 or readings.shape[1] != robot.n_joints or readings.shape[0] < 1:
         raise InputError(f"`readings` must have shape (n_points, {robot.n_joints}); got {readings.shape}")
-    tracker_from_base = check_rigid_transform(tracker_from_base, "tracker_from_base")
     parameters = ParameterSet.nominal(robot) if true_parameters is None else true_parameters
-    q = parameters.model_joint_variables(readings)
-    errors = free_pose_errors(joint_errors, robot, readings, rng)
-    base_points = target_positions(
-        parameters.values, q, np.zeros(q.shape[0], dtype=int), reflector, joint_errors=errors
-    )
-    exact = apply_transform(tracker_from_base, base_points)
-    noisy = exact + instrument.sample_noise(exact, rng=rng) if not instrument.is_noise_free else exact.copy()
+    offset = np.reshape(reflector.positions, (1, 3))
+    noisy, exact = free_pose_points(parameters, readings, offset, instrument, tracker_from_base, joint_errors, rng)
     n = readings.shape[0]
     capture = Capture(
         circle=np.zeros(n, dtype=int),
