@@ -25,8 +25,10 @@ absorbs into the axis: the run-out moves the estimated axis, and the refinement'
 poses, which turn every joint through its range, show it: given the deployed refinement (:class:`CalibrationFit`),
 the directions no circle shows are fitted jointly with the refinement, by least squares of its residuals on their
 *unabsorbed* responses (each response is added to the measured points and refitted; the change of the residuals
-is what the refinement cannot take up). They are kept under the same two rules (shown by the poses, out of the
-noise) and carry their standard uncertainties as sources too.
+is what the refinement cannot take up). What the circles' eccentricity leaves is taken off the residuals first, and
+every joint's lash is a nuisance of the fit (its unabsorbed response projected out): the lash the refinement does
+not correct marks the poses too, and would otherwise be taken for eccentricity. The directions are kept under the
+same two rules (shown by the poses, out of the noise) and carry their standard uncertainties as sources too.
 """
 
 from __future__ import annotations
@@ -247,14 +249,17 @@ def _calibration_fit(
         return (_residuals(moved, calibration.refit(moved), targets) - measured).ravel()
 
     base = measured.ravel() - (unabsorbed(known) if np.any(known.amplitude) else 0.0)
-    # per unit amplitude of _PROBE_MM, as the circles' fit
-    shapes = [unabsorbed(_model(_on_joint(n, joint, direction * _REFIT_MM), np.zeros(n))) for joint, direction in columns]
-    design = np.stack(shapes, axis=1) * (_PROBE_MM / _REFIT_MM)
+    shapes = [
+        unabsorbed(_model(_on_joint(n, joint, direction * _REFIT_MM), np.zeros(n))) for joint, direction in columns
+    ]
+    design = np.stack(shapes, axis=1) * (_PROBE_MM / _REFIT_MM)  # per _PROBE_MM of amplitude, as the circles' fit
     # a lash the refinement does not correct (or corrects by a noisy mean) leaves its own pattern: a nuisance
     turning = sorted({int(turned) - 1 for turned in capture.circle[capture.circle > 0]})
-    lash = np.stack([unabsorbed(_model(np.zeros((n, len(_SHAPES))), _LASH_RAD * np.eye(n)[joint])) for joint in turning], axis=1)
-    basis = np.linalg.qr(lash)[0]
-    design, base = design - basis @ (basis.T @ design), base - basis @ (basis.T @ base)
+    if turning:
+        no_shape = np.zeros((n, len(_SHAPES)))
+        lash = np.stack([unabsorbed(_model(no_shape, _LASH_RAD * np.eye(n)[joint])) for joint in turning], axis=1)
+        basis = np.linalg.qr(lash)[0]
+        design, base = design - basis @ (basis.T @ design), base - basis @ (basis.T @ base)
     free = int(result.identifiability.free.sum()) + len(columns) + len(turning)
     least = np.linalg.lstsq(design, base, rcond=None)[0]
     noise_sigma = float(np.sqrt(np.sum((base - design @ least) ** 2) / max(base.size - free, 1)))
