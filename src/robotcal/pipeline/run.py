@@ -322,7 +322,6 @@ class _Run:
             joints=self.results.get("joints"),
             capture=self.results["capture"],
             refined=self.results["refined"][stages.DEPLOYED],
-            lash=self.plan.backlash,
         )
         value = dict(output.value)
         # the deployed values: the refinement's estimate corrected for the bias its Monte Carlo measures

@@ -28,6 +28,8 @@ from robotcal import api
 from robotcal.capture import Capture
 from robotcal.diagnostics.iso9283 import ISO_CYCLES, simulate_iso_study
 from robotcal.identification.records import RefinementResult
+from robotcal.identification.refine import refine_parameters
+from robotcal.identification.settings import RefinementSettings
 from robotcal.io.atomic import atomic_directory
 from robotcal.io.formats.capture_csv import capture_to_csv, read_capture_text
 from robotcal.io.formats.parameters_json import parameters_to_dict, refined_targets
@@ -38,10 +40,11 @@ from robotcal.io.results.provenance import cpa_provenance, refine_provenance, sc
 from robotcal.io.results.run_folder import Document, read_document, write_csv, write_json
 from robotcal.io.results.tcp_results import write_tcp_folder
 from robotcal.io.results.uncertainty_files import write_uncertainty_folder
-from robotcal.io.schema.scenario import Scenario
+from robotcal.io.schema.scenario import Scenario, repeatability_of
 from robotcal.kinematics.model import ParameterSet
 from robotcal.pipeline.figures import FigureJobs
 from robotcal.pipeline.plan import PLAN_SENSITIVITY_DRAWS, PLAN_SENSITIVITY_KEY, PLAN_SENSITIVITY_VALUES, TCPTargets
+from robotcal.resolve import refinement_targets
 from robotcal.simulation.generator import JointErrorModel
 from robotcal.uncertainty.joint_errors import CalibrationFit, MeasuredJointErrors, measured_joint_errors
 from robotcal.uncertainty.montecarlo import MonteCarloResult, MonteCarloSettings
@@ -295,7 +298,6 @@ def uncertainty_stage(
     joints: api.JointAnalysis | None = None,
     capture: Capture | None = None,
     refined: RefinementResult | None = None,
-    lash: bool = False,
 ) -> StageOutput:
     """``uncertainty/`` (CPA model, thesis ch. 5.2.3) and ``uncertainty-refined/`` (the deployed model: its joint
     model, if extended, fitted in every draw, and the calibration ``poses`` refined with the circles).
@@ -303,9 +305,8 @@ def uncertainty_stage(
     Both Monte Carlos use the same seed, so they see the same instrument noise draw for draw, and simulate the
     joint errors the capture's own joints stage measured (``joints``: its backlash and eccentricity,
     :func:`robotcal.uncertainty.joint_errors.measured_joint_errors`; none without it), with the eccentricity no
-    circle shows fitted to the deployed refinement's residuals at the calibration poses (the circles ``capture``,
-    the deployed ``refined`` result, refitted with the joints' lash when ``lash``: :func:`calibration_fit`), never
-    the scenario's simulation settings. The refined Monte Carlo's bias corrects the refinement's estimate: the
+    circle shows fitted to the deployed refinement's residuals at the calibration poses (the circles ``capture``
+    and the deployed ``refined`` result: :func:`calibration_fit`), never the scenario's simulation settings. The refined Monte Carlo's bias corrects the refinement's estimate: the
     deployed values,
     ``uncertainty-refined/deployed.json`` (docs/uncertainty.md, "The measurand"). Both folders are written only
     once both are computed (a failure or an interrupt while computing leaves neither).
@@ -314,7 +315,7 @@ def uncertainty_stage(
     """
     calibration = None
     if joints is not None and capture is not None and refined is not None:
-        calibration = calibration_fit(scenario, capture, poses, cpa, refined, joints if lash else None)
+        calibration = calibration_fit(scenario, capture, poses, cpa, refined)
     measured = measured_errors(scenario, joints, deployed, calibration)
     total = montecarlo.iterations + refined_montecarlo.iterations
     results = {}
@@ -405,25 +406,22 @@ def measured_errors(
 
 
 def calibration_fit(
-    scenario: Scenario,
-    capture: Capture,
-    poses: Capture | None,
-    start: ParameterSet,
-    refined: RefinementResult,
-    joints: api.JointAnalysis | None = None,
+    scenario: Scenario, capture: Capture, poses: Capture | None, start: ParameterSet, refined: RefinementResult
 ) -> CalibrationFit:
     """The deployed refinement as :func:`measured_errors` refits it: the circles and calibration poses as
-    :func:`refine_stage` fitted them, from the same ``start``, with the same model, lash and base; without
-    cross-validation or health (only the estimate is used)."""
+    :func:`refine_stage` fitted them, from the same ``start``, with the settings, targets and base of the scenario
+    and the deployed result's own joint model (its structure and lash, started at its values: no model choice, no
+    cross-validation; only the estimate is used)."""
     fitted = api.calibration_capture(scenario, capture, poses)
-    lash = None if joints is None or not joints.diagnostics.backlash else joints
-    model = cast("api.ModelName", refined.model)
+    targets, tracker_from_base = refinement_targets(scenario, fitted, None, None)
+    settings = RefinementSettings(criterion=DEPLOYED, repeatability_mm=repeatability_of(scenario))
+    joint_model = refined.parameters.joint_model
 
     def refit(moved: Capture) -> RefinementResult:
         with warnings.catch_warnings():  # the deployed fit's warnings, said once by the refine stage
             warnings.simplefilter("ignore")
-            return api.refine(
-                moved, scenario, start, criterion=DEPLOYED, model=model, health="off", folds=0, backlash_deg=lash
+            return refine_parameters(
+                moved, start, targets, settings=settings, tracker_from_base=tracker_from_base, joint_model=joint_model
             )
 
     return CalibrationFit(capture=fitted, targets=refined.targets, result=refined, refit=refit)
