@@ -86,11 +86,10 @@ def backlash_correction(backlash: ArrayLike | JointAnalysis | None, robot: Robot
     if backlash is None:
         return None, ""
     if isinstance(backlash, JointAnalysis):
-        lash = np.zeros(robot.n_joints)
-        for joint in backlash.diagnostics.summary():
-            if joint.backlash_exceeds_noise:
-                lash[joint.joint - 1] = joint.backlash_angle_mean
-        return lash, "the joints stage (angular backlash of the joints whose backlash exceeds the noise)"
+        return (
+            backlash.diagnostics.lash_correction(),
+            "the joints stage (angular backlash of the joints whose backlash exceeds the noise)",
+        )
     values = np.asarray(backlash, dtype=float)
     if values.shape != (robot.n_joints,) or not np.all(np.isfinite(values)):
         raise InputError(f"`backlash_deg` must be {robot.n_joints} finite angles [deg]; got shape {values.shape}")

@@ -251,6 +251,15 @@ class JointDiagnostics:
                 return item
         raise InputError(f"{self.source}: the capture has no circle for joint J{joint}")
 
+    def lash_correction(self) -> np.ndarray:
+        """The angular lash ``(n_joints,)`` [rad] a refinement corrects the circles for: the mean backlash angle of
+        the joints whose backlash exceeds the noise (:attr:`JointSummary.backlash_exceeds_noise`), 0 elsewhere."""
+        lash = np.zeros(self.n_joints)
+        for joint in self.summary():
+            if joint.backlash_exceeds_noise:
+                lash[joint.joint - 1] = joint.backlash_angle_mean
+        return lash
+
     def summary(self) -> tuple[JointSummary, ...]:
         """Per-joint summary rows (max, min, mean of the backlash magnitude as Tables 4.12-4.17)."""
         rows = []

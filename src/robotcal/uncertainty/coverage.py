@@ -380,12 +380,9 @@ def _joints_analysis(setup: _Setup, capture):
 
 
 def _stage_lash(diagnostics, structure):
-    """``structure`` correcting the circles for the lash of the joints whose backlash exceeds the noise, as
-    ``robotcal run`` refines (:func:`robotcal.studies.backlash_correction`)."""
-    lash = np.zeros(structure.nominal.shape[0])
-    for joint in diagnostics.summary():
-        if joint.backlash_exceeds_noise:
-            lash[joint.joint - 1] = joint.backlash_angle_mean
+    """``structure`` correcting the circles for the lash ``robotcal run`` corrects them for
+    (:meth:`robotcal.diagnostics.joints.JointDiagnostics.lash_correction`)."""
+    lash = diagnostics.lash_correction()
     return structure.with_backlash(lash, "the joints stage") if np.any(lash) else structure
 
 
