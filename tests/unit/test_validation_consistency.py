@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from robotcal.api import simulate_poses, validation_consistency, validation_target
+from robotcal.errors import InputError
 from robotcal.instruments import Instrument
 from robotcal.io import load_scenario
 from robotcal.kinematics.forward import target_positions
@@ -76,3 +77,5 @@ def test_measured_joint_errors_the_model_cannot_compensate_add_to_the_expected_e
     assert counted["uncompensated_rms_mm"] == pytest.approx(0.02, rel=1e-9)
     assert counted["expected_rms_mm"] == pytest.approx(np.hypot(plain["expected_rms_mm"], 0.02), rel=1e-9)
     assert counted["observed_rms_mm"] == plain["observed_rms_mm"]
+    with pytest.raises(InputError, match="joint errors are of 5 joints"):
+        validation_consistency(validation, truth, draws, noise_free, joint_errors=JointErrorModel.zeros(5))

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from robotcal.errors import InputError
 from robotcal.geometry.registration import register_points
 from robotcal.identification.health import repeatability_sigma
 from robotcal.kinematics.forward import target_positions
@@ -147,6 +148,11 @@ def _uncompensated(estimate, validation, target, joint_errors, predicted: np.nda
     target ``estimate`` predicts; zeros without them."""
     if joint_errors is None:
         return np.zeros(validation.n_points)
+    if joint_errors.n_joints != estimate.robot.n_joints:
+        raise InputError(
+            f"validation consistency: the joint errors are of {joint_errors.n_joints} joints; robot "
+            f"{estimate.robot.name!r} has {estimate.robot.n_joints}"
+        )
     commanded = estimate.robot.model_joint_variables(validation.readings)
     transforms = joint_errors.at_free_poses().transforms(commanded)
     q = estimate.model_joint_variables(validation.readings)
