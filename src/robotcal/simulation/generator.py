@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -62,7 +63,10 @@ class JointErrorModel:
     amplitude, period, phase, noise_sd : ndarray, shape (n_joints, 5)
         A [mm | rad], T [rad of joint angle, > 0], phi [rad], R (standard deviation) [mm | rad].
     backlash : ndarray, shape (n_joints,), optional
-        Total angular lash of each joint, >= 0 [rad]; zeros by default.
+        Total angular lash of each joint, >= 0 [rad]; zeros by default. A measured model
+        (:class:`robotcal.uncertainty.joint_errors.MeasuredJointErrors`) may hold a negative one: a lash that lags the
+        other way, which no joint has but the mean of a measurement of a lash of about zero can (its
+        :attr:`signed_backlash`).
     lash : ndarray, shape (n_joints, 3), optional
         Total translational lash of each joint in frame {i-1} [mm]; zeros by default.
     """
@@ -73,6 +77,8 @@ class JointErrorModel:
     noise_sd: np.ndarray
     backlash: np.ndarray = None  # type: ignore[assignment]  # None: zeros, set in __post_init__
     lash: np.ndarray = None  # type: ignore[assignment]  # None: zeros, set in __post_init__
+    #: Whether a negative ``backlash`` is accepted: not in a model stated for a robot, whose lash is a gap.
+    signed_backlash: ClassVar[bool] = False
 
     def __post_init__(self):
         shape = np.shape(self.amplitude)
@@ -98,7 +104,7 @@ class JointErrorModel:
                 raise InputError(f"joint error model: `{name}` contains NaN or infinite values")
             value.setflags(write=False)
             object.__setattr__(self, name, value)
-        if np.any(self.backlash < 0):
+        if not self.signed_backlash and np.any(self.backlash < 0):
             raise InputError("joint error model: every `backlash` angle must be >= 0")
 
     @classmethod

@@ -83,6 +83,32 @@ def test_angular_backlash_turns_return_points_by_the_lash():
             assert turn > 0  # the return point lies ahead: the forward sweep lags behind the command
 
 
+def test_a_measured_negative_backlash_turns_return_points_back_by_its_size():
+    """A measured mean lash may be negative (noise on a lash of about zero, robotcal.uncertainty.joint_errors):
+    a model stated for a robot refuses it (test_invalid_lash_is_refused), a measured model simulates it as a lash
+    that lags the other way: the same chord as the positive lash, the return point behind the forward one."""
+    from robotcal.uncertainty.joint_errors import MeasuredJointErrors
+
+    robot, plan = kr5_robot(), _plan()
+    lash = np.deg2rad([0.01, 0.02, 0.03, 0.04, 0.05, 0.06])
+    zeros = np.zeros((6, 5))
+    measured = MeasuredJointErrors(
+        amplitude=zeros, period=np.full((6, 5), 2 * np.pi), phase=zeros, noise_sd=zeros, backlash=-lash
+    )
+    capture, _ = simulate_capture(robot, plan, NOISE_FREE, np.eye(4), joint_errors=measured, rng=0)
+    for joint in range(1, 7):
+        r = OFF_AXIS_REFLECTORS_MM[joint - 1]
+        rho = np.hypot(r[0], r[1])
+        for f, b, turnaround in _pairs(capture, joint):
+            if turnaround:
+                continue
+            chord = np.linalg.norm(capture.points[b] - capture.points[f])
+            np.testing.assert_allclose(chord, 2 * rho * np.sin(lash[joint - 1] / 2), rtol=0, atol=1e-10)
+            frame = joint_frames(robot.nominal, capture.readings[f][None])[0, joint - 1]
+            axis, centre = frame[:3, 2], frame[:3, :3] @ [0.0, 0.0, r[2]] + frame[:3, 3]
+            assert np.cross(capture.points[f] - centre, capture.points[b] - centre) @ axis < 0
+
+
 def test_translational_lash_shifts_return_points_by_the_lash_in_frame_before_the_joint():
     robot, plan = kr5_robot(), _plan()
     lash = np.array([[0.01, -0.02, 0.03]] * 6) * np.arange(1, 7)[:, None]
