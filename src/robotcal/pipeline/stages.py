@@ -364,20 +364,28 @@ def uncertainty_stage(
 
 def joint_errors_document(errors: JointErrorModel) -> dict[str, Any]:
     """``uncertainty-refined/joint_errors.json``: per joint the backlash [deg] and each translation term's sinusoid
-    ``A sin(2 pi / T q + phi)`` (amplitude [mm], period and phase [deg]) the Monte Carlo simulated, and how many
-    uncertainty sources its bias correction propagated (docs/uncertainty.md, "Where the bias comes from")."""
-    joints = []
-    for joint in range(errors.n_joints):
-        terms = {
+    ``A sin(2 pi / T q + phi)`` (amplitude [mm], period and phase [deg]) the Monte Carlo simulated, a measured
+    order-3 eccentricity's under ``order_3`` (the same terms, added to those), and how many uncertainty sources its
+    bias correction propagated (docs/uncertainty.md, "Where the bias comes from")."""
+
+    def sinusoids(model: JointErrorModel, joint: int) -> dict[str, Any]:
+        return {
             name: {
-                "amplitude_mm": float(errors.amplitude[joint, k]),
-                "period_deg": float(np.rad2deg(errors.period[joint, k])),
-                "phase_deg": float(np.rad2deg(errors.phase[joint, k])),
+                "amplitude_mm": float(model.amplitude[joint, k]),
+                "period_deg": float(np.rad2deg(model.period[joint, k])),
+                "phase_deg": float(np.rad2deg(model.phase[joint, k])),
             }
             for k, name in enumerate(("dx", "dy", "dz"))
-            if errors.amplitude[joint, k] != 0.0
+            if model.amplitude[joint, k] != 0.0
         }
-        joints.append({"joint": joint + 1, "backlash_deg": float(np.rad2deg(errors.backlash[joint])), **terms})
+
+    lobes = getattr(errors, "lobes", None)
+    joints = []
+    for joint in range(errors.n_joints):
+        entry = {"joint": joint + 1, "backlash_deg": float(np.rad2deg(errors.backlash[joint])), **sinusoids(errors, joint)}
+        if lobes is not None and np.any(lobes.amplitude[joint] != 0.0):
+            entry["order_3"] = sinusoids(lobes, joint)
+        joints.append(entry)
     return {
         "method": "measured by the capture: the joints stage (backlash, the eccentricity the circles show) and the "
         "deployed refinement's residuals at the calibration poses (the eccentricity no circle shows)",

@@ -30,6 +30,14 @@ every joint's lash is a nuisance of the fit (its unabsorbed response projected o
 not correct marks the poses too, and would otherwise be taken for eccentricity. The directions are kept under the
 same two rules (shown by the poses, out of the noise) and, kept, carry their standard uncertainties as sources too.
 
+The poses show one more kind of eccentricity, which no circle of a short arc does: a radial term of order 3 along
+fixed directions, ``dx = A sin(3 q + phi)``, ``dy = B sin(3 q + psi)`` (:data:`_LOBES`; the demo's J3 has one, and
+its 100 deg circle shows 4 % of it). Four more directions per joint, for every joint, would leave the 30 poses to
+fit some 50 directions from their noise; instead a joint's group of four joins the fit only where it stands out
+(:func:`_kept_lobes`: forward selection, chi-squared at 99 % with a Bonferroni correction over the joints). A
+measured model carries them as :attr:`MeasuredJointErrors.lobes`, added to the terms (eq. 5-2 has one sinusoid per
+term, and the same joint may carry a run-out).
+
 Two choices keep the correction's uncertainty what it states (docs/validation.md, the coverage of issue 29):
 
 * **The backlash is simulated signed.** A negative mean, which no lash gives, is what the noise makes of a lash of
@@ -73,6 +81,13 @@ _SHAPES = (
     ((0.0, 0.0, 1), (0.0, 0.0, 1), (1.0, 0.0, 2)),
     ((0.0, 0.0, 1), (0.0, 0.0, 1), (1.0, 0.5 * np.pi, 2)),
 )
+#: The radial eccentricity of order 3 in the joint angle, along fixed directions of frame {i-1} (a three-lobed
+#: bearing, or one whose rollers wobble): ``dx = A sin(3 q + phi)``, ``dy = B sin(3 q + psi)``, as (term, phase [rad])
+#: of its four unit directions. No circle of a short arc shows it; the calibration poses can, and a joint's group of
+#: four is fitted there only where it stands out of the noise (:func:`_kept_lobes`).
+_LOBES = ((0, 0.0), (0, 0.5 * np.pi), (1, 0.0), (1, 0.5 * np.pi))
+#: Coefficients per joint: the shapes', then the lobes'.
+_COEFFICIENTS = len(_SHAPES) + len(_LOBES)
 #: A combination of the shapes is fitted only where the circles show at least this fraction of it (RMS of the
 #: eccentricity it leaves after the circle fits, per unit amplitude): a short arc leaves an order-2 shape mostly to
 #: the circle fit, and what the capture cannot show is not amplified out of its noise (it stays 0).
@@ -124,12 +139,22 @@ class MeasuredJointErrors(JointErrorModel):
         Monte Carlo simulating this model propagates them to its bias correction
         (:attr:`robotcal.uncertainty.montecarlo.MonteCarloResult.correction_u`).
 
+    lobes : JointErrorModel, optional
+        Sinusoids added to this model's (:meth:`values`): the order-3 eccentricity the calibration poses measured
+        (:data:`_LOBES`), on the terms that already carry a joint's run-out.
+
     Its ``backlash`` is the signed mean the pairs measured (module notes): negative where noise outweighs a lash of
     about zero.
     """
 
     sources: tuple[JointErrorModel, ...] = ()
+    lobes: JointErrorModel | None = None
     signed_backlash: ClassVar[bool] = True
+
+    def values(self, q, *, rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """Error terms ``(n_points, n_joints, 5)`` (:meth:`JointErrorModel.values`), the :attr:`lobes` added."""
+        values = JointErrorModel.values(self, q, rng=rng)
+        return values if self.lobes is None else values + self.lobes.values(q)
 
 
 def measured_joint_errors(
@@ -169,15 +194,15 @@ def measured_joint_errors(
     responses = [
         _eccentricity(_shape_model(n, shape), estimate, plan, tracker_from_base, circle_fit) for shape in _SHAPES
     ]
-    coefficients = np.zeros((n, len(_SHAPES)))
-    steps: list[np.ndarray] = []  # one standard uncertainty along a fitted direction, (n, 4) [mm]
+    coefficients = np.zeros((n, _COEFFICIENTS))
+    steps: list[np.ndarray] = []  # one standard uncertainty along a fitted direction, (n, _COEFFICIENTS) [mm]
     hidden = {joint: np.eye(len(_SHAPES)) for joint in range(n)}  # per joint: the directions no circle shows
     for circle in diagnostics.circles:
         if circle.joint not in responses[0] or not np.isfinite(circle.noise_sigma):
             continue
         design = np.stack([_at(response[circle.joint], circle.reading) for response in responses], axis=1)
         value, directions, unshown = _shown_fit(design, np.r_[circle.radial, circle.axial], circle.noise_sigma)
-        coefficients[circle.joint - 1] = value * _PROBE_MM
+        coefficients[circle.joint - 1, : len(_SHAPES)] = value * _PROBE_MM
         steps.extend(_on_joint(n, circle.joint - 1, step * _PROBE_MM) for step in directions)
         hidden[circle.joint - 1] = unshown
     if calibration is not None and np.any(calibration.capture.circle == 0):
@@ -190,15 +215,20 @@ def measured_joint_errors(
         moved[lashed] += backlash_u[lashed]
         sources.append(_model(coefficients, moved))
     sources.extend(_model(coefficients + step, backlash) for step in steps)
-    model = _model(coefficients, backlash)
-    fields = {name: getattr(model, name) for name in ("amplitude", "period", "phase", "noise_sd", "backlash", "lash")}
-    return MeasuredJointErrors(**fields, sources=tuple(sources))
+    return replace(_model(coefficients, backlash), sources=tuple(sources))
 
 
 def _model(coefficients: np.ndarray, backlash: np.ndarray) -> MeasuredJointErrors:
-    """The joint error model of the shapes' ``coefficients (n, 4)`` [mm] (:data:`_SHAPES`) and signed ``backlash``
-    [rad], without sources."""
+    """The joint error model of the ``coefficients (n, _COEFFICIENTS)`` [mm] (:data:`_SHAPES`, then :data:`_LOBES`)
+    and signed ``backlash`` [rad], without sources."""
     n = coefficients.shape[0]
+    lobes = None
+    if np.any(coefficients[:, len(_SHAPES) :]):
+        order3 = coefficients[:, len(_SHAPES) :].reshape(n, 2, 2)  # per term dx, dy: the sin 3q and cos 3q parts
+        amplitude3, phase3 = np.zeros((n, 5)), np.zeros((n, 5))
+        amplitude3[:, :2], phase3[:, :2] = np.hypot(order3[..., 0], order3[..., 1]), np.arctan2(order3[..., 1], order3[..., 0])
+        period3 = np.full((n, 5), 2.0 * np.pi / 3.0)
+        lobes = JointErrorModel(amplitude=amplitude3, period=period3, phase=phase3, noise_sd=np.zeros((n, 5)))
     amplitude, phase = np.zeros((n, 5)), np.zeros((n, 5))
     period = np.tile(2.0 * np.pi / np.array([1.0, 1.0, 2.0, 1.0, 1.0]), (n, 1))
     run_out = np.hypot(coefficients[:, 0], coefficients[:, 1])
@@ -207,7 +237,7 @@ def _model(coefficients: np.ndarray, backlash: np.ndarray) -> MeasuredJointError
     amplitude[:, :3] = np.stack([run_out, run_out, axial], axis=1)
     phase[:, :3] = np.stack([run_phase, run_phase + 0.5 * np.pi, axial_phase], axis=1)
     return MeasuredJointErrors(
-        amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((n, 5)), backlash=backlash
+        amplitude=amplitude, period=period, phase=phase, noise_sd=np.zeros((n, 5)), backlash=backlash, lobes=lobes
     )
 
 
@@ -242,9 +272,10 @@ def _at(response: tuple, readings: np.ndarray) -> np.ndarray:
 
 
 def _on_joint(n_joints: int, joint: int, step: np.ndarray) -> np.ndarray:
-    """``step (4,)`` of one joint's shape coefficients as the ``(n_joints, 4)`` coefficients of every joint."""
-    out = np.zeros((n_joints, len(_SHAPES)))
-    out[joint] = step
+    """``step`` of one joint's shape coefficients (4, :data:`_SHAPES`) or of all its coefficients
+    (:data:`_COEFFICIENTS`) as the ``(n_joints, _COEFFICIENTS)`` coefficients of every joint."""
+    out = np.zeros((n_joints, _COEFFICIENTS))
+    out[joint, : len(step)] = step
     return out
 
 
@@ -253,12 +284,10 @@ def _calibration_fit(
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """The directions ``hidden`` (per joint, rows: unit shape combinations no circle shows) fitted to the deployed
     refinement's residuals (module notes), less the part the ``known`` eccentricity (the circles') explains and
-    with every joint's lash a nuisance of the fit: their coefficients ``(n, 4)`` [mm] and one standard-uncertainty
-    step ``(n, 4)`` along each direction the poses show."""
+    with every joint's lash a nuisance of the fit, with the order-3 eccentricity of the joints where it stands out
+    (:func:`_kept_lobes`): their coefficients ``(n, _COEFFICIENTS)`` [mm] and one standard-uncertainty step of that
+    shape along each direction the poses show."""
     n = len(hidden)
-    columns = [(joint, direction) for joint, rows in hidden.items() for direction in rows]
-    if not columns:
-        return np.zeros((n, len(_SHAPES))), []
     capture, result, targets = calibration.capture, calibration.result, calibration.targets
     measured = _residuals(capture, result, targets)
 
@@ -267,25 +296,74 @@ def _calibration_fit(
         moved = replace(capture, points=capture.points + _response(capture, result, targets, errors))
         return (_residuals(moved, calibration.refit(moved), targets) - measured).ravel()
 
+    def responses(directions: list) -> np.ndarray:
+        """The unabsorbed responses ``(rows, k)`` of ``(joint, unit coefficients)`` per :data:`_PROBE_MM`."""
+        columns = [unabsorbed(_model(_on_joint(n, joint, unit * _REFIT_MM), np.zeros(n))) for joint, unit in directions]
+        return np.stack(columns, axis=1) * (_PROBE_MM / _REFIT_MM) if columns else np.zeros((measured.size, 0))
+
     base = measured.ravel() - (unabsorbed(known) if np.any(known.amplitude) else 0.0)
-    shapes = [
-        unabsorbed(_model(_on_joint(n, joint, direction * _REFIT_MM), np.zeros(n))) for joint, direction in columns
-    ]
-    design = np.stack(shapes, axis=1) * (_PROBE_MM / _REFIT_MM)  # per _PROBE_MM of amplitude, as the circles' fit
+    columns = [(joint, direction) for joint, rows in hidden.items() for direction in rows]
+    design = responses(columns)
+    lobe_units = np.eye(_COEFFICIENTS)[len(_SHAPES) :]
+    lobes = {joint: responses([(joint, unit) for unit in lobe_units]) for joint in range(n)}
     # a lash the refinement does not correct (or corrects by a noisy mean) leaves its own pattern: a nuisance
     turning = sorted({int(turned) - 1 for turned in capture.circle[capture.circle > 0]})
     if turning:
-        no_shape = np.zeros((n, len(_SHAPES)))
+        no_shape = np.zeros((n, _COEFFICIENTS))
         lash = np.stack([unabsorbed(_model(no_shape, _LASH_RAD * np.eye(n)[joint])) for joint in turning], axis=1)
         basis = np.linalg.qr(lash)[0]
-        design, base = design - basis @ (basis.T @ design), base - basis @ (basis.T @ base)
-    free = int(result.identifiability.free.sum()) + len(columns) + len(turning)
-    least = np.linalg.lstsq(design, base, rcond=None)[0]
-    noise_sigma = float(np.sqrt(np.sum((base - design @ least) ** 2) / max(base.size - free, 1)))
-    value, directions, _ = _shown_fit(design, base, noise_sigma, rows=3 * int(np.sum(capture.circle == 0)))
-    coefficients = np.stack([_on_joint(n, joint, direction) for joint, direction in columns])  # (k, n, 4)
+        off = lambda x: x - basis @ (basis.T @ x)  # noqa: E731
+        design, base, lobes = off(design), off(base), {joint: off(group) for joint, group in lobes.items()}
+    rows = 3 * int(np.sum(capture.circle == 0))
+    free = int(result.identifiability.free.sum()) + len(turning)
+    for joint in _kept_lobes(design, base, lobes, free + len(columns), rows):
+        columns.extend((joint, unit) for unit in lobe_units)
+        design = np.hstack([design, lobes[joint]])
+    if not columns:
+        return np.zeros((n, _COEFFICIENTS)), []
+    noise_sigma = _residual_sigma(design, base, free + len(columns))
+    value, directions, _ = _shown_fit(design, base, noise_sigma, rows=rows)
+    coefficients = np.stack([_on_joint(n, joint, direction) for joint, direction in columns])  # (k, n, _COEFFICIENTS)
     to_joints = lambda combination: np.tensordot(combination, coefficients, axes=1) * _PROBE_MM  # noqa: E731
     return to_joints(value), [to_joints(step) for step in directions]
+
+
+def _residual_sigma(design: np.ndarray, measured: np.ndarray, free: int) -> float:
+    """The noise per row that the least squares of ``measured`` on ``design`` leaves, ``free`` unknowns in all."""
+    fitted = design @ np.linalg.lstsq(design, measured, rcond=None)[0] if design.size else 0.0
+    return float(np.sqrt(np.sum((measured - fitted) ** 2) / max(measured.size - free, 1)))
+
+
+def _kept_lobes(design: np.ndarray, measured: np.ndarray, lobes: dict[int, np.ndarray], free: int, rows: int) -> list[int]:
+    """The joints whose order-3 group (the columns of ``lobes[joint]``, :data:`_LOBES`) stands out of the noise beside
+    ``design`` (``free`` unknowns with it), chosen forward: the group of the smallest p-value joins while it passes,
+    and the others are tested again beside it (a strong group leaks into the groups it resembles). A group's
+    statistic is the part of ``measured`` along its shown directions (:data:`_SHOWN`, once the span of the design so
+    far is taken off) over the noise the design leaves, chi-squared at :data:`_SIGNIFICANCE` over all the joints
+    tested together (Bonferroni: instrument noise adds a group to 1 % of the captures, not to 1 % per joint)."""
+    from scipy.stats import chi2  # scipy.stats is slow to import: only when a joints analysis is converted
+
+    alpha = (1.0 - _SIGNIFICANCE) / max(len(lobes), 1)
+    kept: list[int] = []
+    while len(kept) < len(lobes):
+        noise_sigma = _residual_sigma(design, measured, free)
+        left, singular, _ = np.linalg.svd(design, full_matrices=False)
+        basis = left[:, singular > singular.max() * 1e-9] if singular.size else left
+        p_values = {}
+        for joint, group in lobes.items():
+            if joint in kept:
+                continue
+            beside, group_singular, _ = np.linalg.svd(group - basis @ (basis.T @ group), full_matrices=False)
+            shown = group_singular / np.sqrt(rows) >= _SHOWN * _PROBE_MM
+            projection = beside[:, shown].T @ measured
+            if shown.any() and noise_sigma > 0:
+                p_values[joint] = float(chi2.sf(float(projection @ projection) / noise_sigma**2, int(shown.sum())))
+        if not p_values or min(p_values.values()) >= alpha:
+            break
+        best = min(p_values, key=p_values.__getitem__)
+        kept.append(best)
+        design, free = np.hstack([design, lobes[best]]), free + lobes[best].shape[1]
+    return kept
 
 
 def _residuals(capture: Capture, result: RefinementResult, targets) -> np.ndarray:
